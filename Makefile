@@ -1,0 +1,28 @@
+# Two commands on a fresh machine (Python 3.11): `make demo` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test lint accuracy clean
+
+$(STAMP): requirements.txt
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/python -m host_emulator demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+# Measure the float32 math functions' accuracy over their domains (minutes; see docs/float32.md).
+accuracy: $(STAMP)
+	$(BIN)/python -m host_emulator.reference.accuracy
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache

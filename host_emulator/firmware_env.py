@@ -1,0 +1,27 @@
+"""Make the firmware importable on CPython exactly as the board sees it.
+
+On the board `firmware/` is the filesystem root and `firmware/lib/` is on `sys.path`, so the
+portable core is imported as flat modules (`import f32, mat, rot`). `install()` reproduces that
+layout on the desktop and plugs the NumPy float32 backend into the seam.
+"""
+
+import pathlib
+import sys
+
+import numpy as np
+
+REPO_DIR = pathlib.Path(__file__).resolve().parent.parent
+FIRMWARE_DIR = REPO_DIR / "firmware"
+LIB_DIR = FIRMWARE_DIR / "lib"
+
+
+def install():
+    """Idempotent: seam backend, search path, and the board's float error behaviour."""
+    from host_emulator import f32_host
+
+    sys.modules.setdefault("f32_host", f32_host)
+    for path in (str(LIB_DIR), str(FIRMWARE_DIR)):
+        if path not in sys.path:
+            sys.path.insert(0, path)
+    # The board raises on x / 0.0 and silently produces inf/nan otherwise: mirror that.
+    np.seterr(divide="raise", over="ignore", under="ignore", invalid="ignore")
