@@ -1,0 +1,174 @@
+"""firmware/lib/geo.py: integer lat/lon <-> local ENU against pymap3d over 0-20 km, exact
+integer round trips, the float32 model bit for bit, and the MicroPython VM."""
+
+import array
+import json
+
+import numpy as np
+import pymap3d
+import pytest
+
+import f32
+import geo
+from host_emulator import mpvm
+from host_emulator.reference import geo as model
+
+F32 = np.float32
+R_EARTH_M = 6.371e6
+RNG = np.random.default_rng(7)
+
+
+def series_tolerance_m(d_m, lat0_deg):
+    """What the second-order series implies: third-order terms below 0.25 d^3/(R^2 cos^2 lat0)
+    (bounded here with a factor 2), plus float32 rounding of ~2e-7 d, plus 2 mm of rounding in
+    the coefficients and the height."""
+    c = np.cos(np.radians(lat0_deg))
+    return 0.5 * d_m**3 / (R_EARTH_M**2 * c * c) + 3e-7 * d_m + 2e-3
+
+
+def random_points(lat0_e7, lon0_e7, h0, n, max_d_m):
+    """Integer points up to max_d_m from the origin in random directions, heights +-300 m."""
+    d = RNG.uniform(0, max_d_m, n)
+    az = RNG.uniform(0, 2 * np.pi, n)
+    dh = RNG.uniform(-300, 300, n)
+    lat, lon, h = pymap3d.enu2geodetic(
+        d * np.sin(az), d * np.cos(az), h0 + dh, lat0_e7 / 1e7, lon0_e7 / 1e7, h0
+    )
+    return np.rint(lat * 1e7).astype(np.int64), np.rint(lon * 1e7).astype(np.int64), h
+
+
+ORIGINS = [  # (lat0_e7, lon0_e7, h0_m): equator, Xi'an (seed 001's test drives), 60 N, 80 S
+    (0, 0, 0.0),
+    (342600000, 1089400000, 400.0),
+    (600000000, -1500000000, 50.0),
+    (-800000000, 1200000000, 2500.0),
+]
+
+
+def frame(lat0_e7, lon0_e7, h0):
+    f = geo.LocalFrame()
+    assert f.set_origin(lat0_e7, lon0_e7, F32(h0)) is True
+    return f
+
+
+@pytest.mark.parametrize("origin", ORIGINS, ids=lambda o: f"lat{o[0] // 10**7}")
+def test_to_enu_matches_pymap3d_over_20_km(origin):
+    lat0, lon0, h0 = origin
+    f = frame(*origin)
+    lat, lon, h = random_points(lat0, lon0, h0, 400, 20000.0)
+    enu = f32.zeros(3)
+    worst_ratio = 0.0
+    for i in range(len(lat)):
+        f.to_enu(enu, int(lat[i]), int(lon[i]), F32(h[i]))
+        truth = np.array(
+            pymap3d.geodetic2enu(
+                lat[i] / 1e7, lon[i] / 1e7, float(F32(h[i])), lat0 / 1e7, lon0 / 1e7, float(F32(h0))
+            )
+        )
+        err = np.linalg.norm(np.asarray(enu, float) - truth)
+        tol = series_tolerance_m(np.linalg.norm(truth), lat0 / 1e7)
+        worst_ratio = max(worst_ratio, err / tol)
+    assert worst_ratio <= 1.0
+
+
+def test_close_range_is_millimetre_exact():
+    """Within the 2 km re-anchoring radius the conversion is as good as float32 allows."""
+    lat0, lon0, h0 = ORIGINS[1]
+    f = frame(*ORIGINS[1])
+    lat, lon, h = random_points(lat0, lon0, h0, 300, 2000.0)
+    enu = f32.zeros(3)
+    for i in range(len(lat)):
+        f.to_enu(enu, int(lat[i]), int(lon[i]), F32(h[i]))
+        truth = pymap3d.geodetic2enu(
+            lat[i] / 1e7, lon[i] / 1e7, float(F32(h[i])), lat0 / 1e7, lon0 / 1e7, h0
+        )
+        assert np.abs(np.asarray(enu, float) - truth).max() < 1e-3
+
+
+@pytest.mark.parametrize("origin", ORIGINS, ids=lambda o: f"lat{o[0] // 10**7}")
+def test_to_e7_inverts_to_enu(origin):
+    f = frame(*origin)
+    lat, lon, h = random_points(*origin, 300, 20000.0)
+    enu = f32.zeros(3)
+    out = array.array("i", bytes(8))
+    for i in range(len(lat)):
+        h32 = F32(h[i])
+        f.to_enu(enu, int(lat[i]), int(lon[i]), h32)
+        h_back = f.to_e7(out, enu)
+        # One 1e-7 deg step is 1.1 cm: float32 metres at 20 km resolve 2 mm, so the integers
+        # come back exactly or, at a rounding tie, one step off.
+        assert abs(out[0] - lat[i]) <= 1 and abs(out[1] - lon[i]) <= 1
+        assert abs(float(h_back) - float(h32)) < 0.01
+
+
+def test_longitude_wraps_at_the_antimeridian():
+    f = frame(-170000000, 1799990000, 0.0)  # 17 S, 179.999 E
+    enu = f32.zeros(3)
+    f.to_enu(enu, -170000000, -1799990000, F32(0.0))  # 179.999 W: 0.002 deg further east
+    truth = pymap3d.geodetic2enu(-17.0, -179.999, 0.0, -17.0, 179.999, 0.0)
+    assert np.abs(np.asarray(enu, float) - truth).max() < 1e-3
+    out = array.array("i", bytes(8))
+    f.to_e7(out, enu)
+    assert list(out) == [-170000000, -1799990000]
+
+
+def test_origin_beyond_89_degrees_is_refused():
+    f = frame(*ORIGINS[1])
+    assert f.set_origin(895000000, 0, F32(0.0)) is False
+    assert f.lat0_e7 == ORIGINS[1][0]  # unchanged
+    assert f.set_origin(-890000000, 0, F32(0.0)) is True
+
+
+def test_bit_exact_against_the_model():
+    for lat0, lon0, h0 in ORIGINS:
+        f = frame(lat0, lon0, h0)
+        c = model.coefficients(lat0, F32(h0))
+        assert np.array_equal(np.asarray(f._c).view(np.uint32), c.view(np.uint32))
+        lat, lon, h = random_points(lat0, lon0, h0, 200, 25000.0)
+        dlat, dlon = lat - lat0, lon - lon0
+        h32 = h.astype(F32)
+        want = model.offset_to_enu(c, dlat, dlon, h32)
+        want_lat, want_lon, want_h = model.to_e7(c, lat0, lon0, want)
+        enu = f32.zeros(3)
+        out = array.array("i", bytes(8))
+        for i in range(len(lat)):
+            f.offset_to_enu(enu, int(dlat[i]), int(dlon[i]), h32[i])
+            assert np.array_equal(np.asarray(enu).view(np.uint32), want[i].view(np.uint32))
+            hb = f.to_e7(out, enu)
+            assert (out[0], out[1]) == (want_lat[i], want_lon[i])
+            assert np.float32(hb).view(np.uint32) == want_h[i].view(np.uint32)
+
+
+def test_micropython_vm_agrees_and_allocates_only_float_boxes():
+    """The double-precision VM computes the same series; its metres differ from the float32
+    model by float32 rounding only (~2e-7 d: < 1 cm at 20 km). offset_to_enu allocates 33
+    float boxes: 9 coefficient reads, 3 int->float conversions and 21 operations (dh 1, n1 1,
+    e1 1, squares 2, east 5, north 7, up 4)."""
+    lat0, lon0, h0 = ORIGINS[1]
+    lat, lon, h = random_points(lat0, lon0, h0, 50, 20000.0)
+    h32 = h.astype(F32)
+    c = model.coefficients(lat0, F32(h0))
+    want = model.offset_to_enu(c, lat - lat0, lon - lon0, h32)
+    out = json.loads(
+        mpvm.run(f"""
+import json, geo, f32
+fr = geo.LocalFrame()
+fr.set_origin({lat0}, {lon0}, {float(F32(h0))!r})
+lat = {[int(v) for v in lat]!r}
+lon = {[int(v) for v in lon]!r}
+hs = _buf({mpvm.hex_of(h32)!r})
+enu = f32.zeros(3)
+res = []
+for i in range(len(lat)):
+    fr.to_enu(enu, lat[i], lon[i], hs[i])
+    res.append(_hex(enu))
+x = hs[0]
+blocks = _blocks(lambda: fr.offset_to_enu(enu, 12345, -23456, x))
+print(json.dumps([res, blocks]))
+""")
+        .strip()
+        .splitlines()[-1]
+    )
+    got = np.array([mpvm.from_hex(r) for r in out[0]])
+    assert np.abs(got - want).max() < 0.01
+    assert out[1] == 33
