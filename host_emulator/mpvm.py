@@ -84,7 +84,9 @@ def run(body, timeout=120):
     finally:
         pathlib.Path(path).unlink()
     if proc.returncode != 0:
-        raise AssertionError(f"micropython failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
+        raise AssertionError(
+            f"micropython failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}"
+        )
     return proc.stdout
 
 

@@ -1,11 +1,6 @@
 """Every test sees the firmware as the board does (flat `firmware/lib` modules on the path,
 the NumPy float32 backend behind the seam)."""
 
-import pathlib
-import sys
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-
-from host_emulator import firmware_env  # noqa: E402
+from host_emulator import firmware_env
 
 firmware_env.install()

@@ -1,0 +1,1 @@
+"""Board tools: deploy (tools.flash) and monitoring; see the README for what exists."""
