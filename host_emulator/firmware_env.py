@@ -16,10 +16,12 @@ LIB_DIR = FIRMWARE_DIR / "lib"
 
 
 def install():
-    """Idempotent: seam backend, search path, and the board's float error behaviour."""
-    from host_emulator import f32_host
+    """Idempotent: seam backend, `micropython` stand-in, search path, and the board's float
+    error behaviour."""
+    from host_emulator import f32_host, fake_micropython
 
     sys.modules.setdefault("f32_host", f32_host)
+    sys.modules.setdefault("micropython", fake_micropython)
     for path in (str(LIB_DIR), str(FIRMWARE_DIR)):
         if path not in sys.path:
             sys.path.insert(0, path)

@@ -26,8 +26,8 @@ import f32
 from fmath import cos, sin, sqrt
 
 # WGS-84: a = 6378137 m (exact in float32), e^2 = f (2 - f) with 1/f = 298.257223563.
-_A_M = f32.f32(6378137)
-_E2 = f32.from_bits(0x3BDB5C88)  # 0.0066943799901413165
+A_M = f32.f32(6378137)
+E2 = f32.from_bits(0x3BDB5C88)  # 0.0066943799901413165
 _RAD_PER_E7 = f32.from_bits(0x30EFE050)  # pi / 1.8e9 = 1.7453292519943295e-09 rad per 1e-7 deg
 _MAX_LAT_E7 = 890000000
 _HALF_TURN_E7 = 1800000000
@@ -44,7 +44,16 @@ _GN_H = 6  # 1/(M0+h0)
 _GN_E = 7  # tan(phi0) / (2 (N0+h0))
 _GU_N = 8  # 1 / (2 (M0+h0))
 _GU_E = 9  # 1 / (2 (N0+h0))
-_NCOEF = 10
+_SIN_LAT = 10  # sin(phi0)
+_COS_LAT = 11  # cos(phi0)
+_NCOEF = 12
+
+# Public views of the coefficient buffer `LocalFrame.coef`, for the navigator's Earth model.
+INV_RN = _GE_H  # 1/(N0+h0), 1/m
+INV_RM = _GN_H  # 1/(M0+h0), 1/m
+SIN_LAT = _SIN_LAT
+COS_LAT = _COS_LAT
+H0 = _H0
 
 
 def _round_half_away(x):
@@ -61,20 +70,20 @@ class LocalFrame:
         self.lat0_e7 = 0
         self.lon0_e7 = 0
         self.valid = False
-        self._c = f32.zeros(_NCOEF)
+        self.coef = f32.zeros(_NCOEF)
 
     def set_origin(self, lat0_e7, lon0_e7, h0_m):
         """(Re-)anchor the frame; False (and the frame left unchanged) beyond +-89 deg."""
         if lat0_e7 > _MAX_LAT_E7 or lat0_e7 < -_MAX_LAT_E7:
             return False
-        c = self._c
+        c = self.coef
         phi0 = f32.f32(lat0_e7) * _RAD_PER_E7
         s = sin(phi0)
         co = cos(phi0)
-        w2 = 1.0 - _E2 * s * s
-        rn = _A_M / sqrt(w2)
-        rm = rn * (1.0 - _E2) / w2
-        drm = f32.f32(3) * rm * _E2 * s * co / w2
+        w2 = 1.0 - E2 * s * s
+        rn = A_M / sqrt(w2)
+        rm = rn * (1.0 - E2) / w2
+        drm = f32.f32(3) * rm * E2 * s * co / w2
         h0 = f32.f32(h0_m)
         rn_h = rn + h0
         rm_h = rm + h0
@@ -89,6 +98,8 @@ class LocalFrame:
         c[_GN_E] = 0.5 * tan / rn_h
         c[_GU_N] = 0.5 / rm_h
         c[_GU_E] = 0.5 / rn_h
+        c[_SIN_LAT] = s
+        c[_COS_LAT] = co
         self.lat0_e7 = lat0_e7
         self.lon0_e7 = lon0_e7
         self.valid = True
@@ -97,7 +108,7 @@ class LocalFrame:
     def offset_to_enu(self, enu, dlat_e7, dlon_e7, h_m):
         """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin, at
         height h_m above the ellipsoid."""
-        c = self._c
+        c = self.coef
         dh = h_m - c[_H0]
         n1 = f32.f32(dlat_e7) * c[_KN]
         e1 = f32.f32(dlon_e7) * c[_KE]
@@ -120,7 +131,7 @@ class LocalFrame:
         """Inverse of to_enu: out_e7[0], out_e7[1] = lat, lon (ints, 1e-7 deg, longitude in
         [-180, 180) deg); returns the height (m). Three fixed-point passes of the series
         converge to float32 resolution within 20 km (each pass gains a factor ~d/R)."""
-        c = self._c
+        c = self.coef
         e = enu[0]
         n = enu[1]
         u = enu[2]

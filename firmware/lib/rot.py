@@ -104,20 +104,30 @@ def q_normalize(q):
     return True
 
 
+def _half_angle(cs, n2):
+    """cs = [cos(|theta|/2), sin(|theta|/2)/|theta|] for n2 = |theta|^2 (series when small)."""
+    if n2 < _SERIES_MAX_N2:
+        cs[0] = 1.0 - n2 * (_C8 - n2 * _C384)
+        cs[1] = 0.5 - n2 * (_C48 - n2 * _C3840)
+    else:
+        n = sqrt(n2)
+        h = 0.5 * n
+        cs[0] = cos(h)
+        cs[1] = sin(h) / n
+
+
+_CS = f32.zeros(2)
+
+
 def q_update(q, theta):
     """q <- q advanced by the body rotation vector theta (rad), seed eq. 5-17, then normalized."""
     tx = theta[0]
     ty = theta[1]
     tz = theta[2]
-    n2 = tx * tx + ty * ty + tz * tz
-    if n2 < _SERIES_MAX_N2:
-        c = 1.0 - n2 * (_C8 - n2 * _C384)
-        s = 0.5 - n2 * (_C48 - n2 * _C3840)
-    else:
-        n = sqrt(n2)
-        h = 0.5 * n
-        c = cos(h)
-        s = sin(h) / n
+    cs = _CS
+    _half_angle(cs, tx * tx + ty * ty + tz * tz)
+    c = cs[0]
+    s = cs[1]
     w = q[0]
     x = q[1]
     y = q[2]
@@ -127,6 +137,20 @@ def q_update(q, theta):
     q[2] = c * y + s * (ty * w - tz * x + tx * z)
     q[3] = c * z + s * (tz * w + ty * x - tx * y)
     return q_normalize(q)
+
+
+def q_from_rotvec(out, theta):
+    """out = unit quaternion of the rotation vector theta (rad): [cos(|t|/2), sin(|t|/2) t/|t|]."""
+    tx = theta[0]
+    ty = theta[1]
+    tz = theta[2]
+    cs = _CS
+    _half_angle(cs, tx * tx + ty * ty + tz * tz)
+    s = cs[1]
+    out[0] = cs[0]
+    out[1] = s * tx
+    out[2] = s * ty
+    out[3] = s * tz
 
 
 def q_to_dcm(c_bn, q):

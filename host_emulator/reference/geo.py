@@ -13,16 +13,16 @@ F32 = np.float32
 
 
 def coefficients(lat0_e7, h0_m):
-    """The firmware's coefficient buffer for an origin (float32 array indexed like `fw._c`)."""
+    """The firmware's coefficient buffer for an origin (float32, indexed like `LocalFrame.coef`)."""
     c = np.zeros(fw._NCOEF, dtype=F32)
     phi0 = F32(lat0_e7) * fw._RAD_PER_E7
     s = fmath.sin(np.array([phi0]))[0]
     co = fmath.cos(np.array([phi0]))[0]
     one, half = F32(1.0), F32(0.5)
-    w2 = one - fw._E2 * s * s
-    rn = fw._A_M / np.sqrt(w2)
-    rm = rn * (one - fw._E2) / w2
-    drm = F32(3) * rm * fw._E2 * s * co / w2
+    w2 = one - fw.E2 * s * s
+    rn = fw.A_M / np.sqrt(w2)
+    rm = rn * (one - fw.E2) / w2
+    drm = F32(3) * rm * fw.E2 * s * co / w2
     h0 = F32(h0_m)
     rn_h, rm_h = rn + h0, rm + h0
     tan = s / co
@@ -36,6 +36,8 @@ def coefficients(lat0_e7, h0_m):
     c[fw._GN_E] = half * tan / rn_h
     c[fw._GU_N] = half / rm_h
     c[fw._GU_E] = half / rn_h
+    c[fw._SIN_LAT] = s
+    c[fw._COS_LAT] = co
     return c
 
 

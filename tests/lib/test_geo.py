@@ -123,7 +123,7 @@ def test_bit_exact_against_the_model():
     for lat0, lon0, h0 in ORIGINS:
         f = frame(lat0, lon0, h0)
         c = model.coefficients(lat0, F32(h0))
-        assert np.array_equal(np.asarray(f._c).view(np.uint32), c.view(np.uint32))
+        assert np.array_equal(np.asarray(f.coef).view(np.uint32), c.view(np.uint32))
         lat, lon, h = random_points(lat0, lon0, h0, 200, 25000.0)
         dlat, dlon = lat - lat0, lon - lon0
         h32 = h.astype(F32)

@@ -1,0 +1,244 @@
+"""Strapdown inertial mechanization in float32 (seed 001 section 5.4, seed 000 sections 1.3-1.5).
+
+Frame: the navigation frame n is the local tangent plane (ENU) at the navigator's integer
+origin (see geo.py). It is fixed to the Earth and does not move with the vehicle, so there is
+no transport rate: the equations are those of an Earth-fixed Cartesian frame,
+    q_bn' = 1/2 q_bn (x) w_ib_b  -  1/2 w_ie_n (x) q_bn
+    v_n'  = C_bn f_b - 2 w_ie_n x v_n + g_n(p_n)
+    p_n'  = v_n
+with g_n the normal gravity (Somigliana at the origin latitude, free-air term with height),
+pointing at the Earth's centre, so it tilts by E/(R_N+h), N/(R_M+h) away from the origin.
+`earth_terms=False` drops Earth rate, Coriolis and the tilt (gravity straight down, constant
+magnitude): the board's simple model. The navigator re-anchors the origin within a couple of
+kilometres (`shift_origin`), where the tangent plane and the local level differ by < 0.02 deg.
+
+Each tick (`step`, dt fixed): bias-compensated increments theta = (w - b_g) dt and
+dv = (f - b_a) dt; optionally the two-sample coning correction theta += theta_prev x theta / 12
+and sculling dv += (theta_prev x dv + dv_prev x theta) / 12; the rotation correction
+dv += theta x dv / 2; then v += C_bn(k-1) dv + a_n dt, the attitude update of seed eq. 5-17, and
+a trapezoidal position step summed with Kahan compensation (float32 metres keep mm resolution at
+km ranges, and the compensation stops 5 ms steps from rounding the same way every tick).
+The slow terms (Earth rate on the attitude, Coriolis, gravity) are refreshed by `slow_update`
+every few hundred milliseconds: they change slowly and cost too much per tick.
+
+Units: rad, rad/s, m, m/s, m/s^2. Buffers are public and owned here.
+"""
+
+import f32
+import geo
+import rot
+from fmath import sqrt
+
+OMEGA_E = f32.from_bits(0x3898ED3F)  # 7.292115e-5 rad/s, WGS-84 Earth rate
+_GAMMA_E = f32.from_bits(0x411C7C36)  # 9.7803253359 m/s^2, normal gravity at the equator
+_SOMIGLIANA_K = f32.from_bits(0x3AFD3638)  # 0.00193185265241
+_FREE_AIR = f32.from_bits(0x364F1914)  # 3.086e-6 (m/s^2)/m
+_TWELFTH = f32.ratio(1, 12)
+
+
+class Ins:
+    """Nominal navigation state and its mechanization."""
+
+    def __init__(self, dt_s, earth_terms=True, coning=True):
+        self.dt = f32.f32(dt_s)
+        self._half_dt = self.dt * 0.5
+        self.earth_terms = earth_terms
+        self.coning = coning
+        self.p_n = f32.zeros(3)  # position of the IMU, m, from the origin
+        self.v_n = f32.zeros(3)  # m/s
+        self.q_bn = f32.zeros(4)
+        self.c_bn = f32.zeros(9)
+        self.bg = f32.zeros(3)  # gyro bias estimate, rad/s
+        self.ba = f32.zeros(3)  # accelerometer bias estimate, m/s^2
+        self.dvn_sum = f32.zeros(3)  # sum of C_bn dv since `take_dvn` (specific force x time)
+        self.a_n = f32.zeros(3)  # gravity + Coriolis, m/s^2, refreshed by slow_update
+        self.w_ie_n = f32.zeros(3)  # Earth rate in n, rad/s
+        self._pk = f32.zeros(3)  # Kahan compensation of p_n
+        self._th = f32.zeros(3)  # this tick's rotation vector
+        self._th_prev = f32.zeros(3)
+        self._dv_prev = f32.zeros(3)
+        self._g0 = f32.f32(0)  # normal gravity at the origin, m/s^2
+        self._inv_rn = f32.f32(0)
+        self._inv_rm = f32.f32(0)
+        self._h0 = f32.f32(0)
+        self._tmp4 = f32.zeros(4)
+        self._tmp4b = f32.zeros(4)
+        rot.q_identity(self.q_bn)
+        rot.q_to_dcm(self.c_bn, self.q_bn)
+
+    def set_frame(self, frame):
+        """Take the Earth model of a geo.LocalFrame origin (at start and after re-anchoring)."""
+        c = frame.coef
+        s = c[geo.SIN_LAT]
+        co = c[geo.COS_LAT]
+        s2 = s * s
+        self._g0 = _GAMMA_E * (1.0 + _SOMIGLIANA_K * s2) / sqrt(1.0 - geo.E2 * s2)
+        self._inv_rn = c[geo.INV_RN]
+        self._inv_rm = c[geo.INV_RM]
+        self._h0 = c[geo.H0]
+        w = self.w_ie_n
+        w[0] = 0.0
+        if self.earth_terms:
+            w[1] = OMEGA_E * co
+            w[2] = OMEGA_E * s
+        else:
+            w[1] = 0.0
+            w[2] = 0.0
+        self.slow_update(f32.f32(0))
+
+    def reset_kinematics(self, p_n, v_n):
+        """Set position and velocity (alignment, recovery); clears integration memory."""
+        for i in range(3):
+            self.p_n[i] = p_n[i]
+            self.v_n[i] = v_n[i]
+            self._pk[i] = 0.0
+            self._th_prev[i] = 0.0
+            self._dv_prev[i] = 0.0
+
+    def step(self, w_b, f_b):
+        """Advance one tick with body rate w_b (rad/s) and specific force f_b (m/s^2)."""
+        dt = self.dt
+        bg = self.bg
+        ba = self.ba
+        tx = (w_b[0] - bg[0]) * dt
+        ty = (w_b[1] - bg[1]) * dt
+        tz = (w_b[2] - bg[2]) * dt
+        dx = (f_b[0] - ba[0]) * dt
+        dy = (f_b[1] - ba[1]) * dt
+        dz = (f_b[2] - ba[2]) * dt
+        th = self._th
+        if self.coning:
+            tp = self._th_prev
+            px = tp[0]
+            py = tp[1]
+            pz = tp[2]
+            dp = self._dv_prev
+            qx = dp[0]
+            qy = dp[1]
+            qz = dp[2]
+            tp[0] = tx
+            tp[1] = ty
+            tp[2] = tz
+            dp[0] = dx
+            dp[1] = dy
+            dp[2] = dz
+            # sculling with the uncorrected increments, then coning
+            sx = ((py * dz - pz * dy) + (qy * tz - qz * ty)) * _TWELFTH
+            sy = ((pz * dx - px * dz) + (qz * tx - qx * tz)) * _TWELFTH
+            sz = ((px * dy - py * dx) + (qx * ty - qy * tx)) * _TWELFTH
+            cx = (py * tz - pz * ty) * _TWELFTH
+            cy = (pz * tx - px * tz) * _TWELFTH
+            cz = (px * ty - py * tx) * _TWELFTH
+            tx = tx + cx
+            ty = ty + cy
+            tz = tz + cz
+            dx = dx + sx
+            dy = dy + sy
+            dz = dz + sz
+        # rotation of the velocity increment within the tick
+        ux = dx + (ty * dz - tz * dy) * 0.5
+        uy = dy + (tz * dx - tx * dz) * 0.5
+        uz = dz + (tx * dy - ty * dx) * 0.5
+        c = self.c_bn
+        ex = c[0] * ux + c[1] * uy + c[2] * uz
+        ey = c[3] * ux + c[4] * uy + c[5] * uz
+        ez = c[6] * ux + c[7] * uy + c[8] * uz
+        s = self.dvn_sum
+        s[0] = s[0] + ex
+        s[1] = s[1] + ey
+        s[2] = s[2] + ez
+        th[0] = tx
+        th[1] = ty
+        th[2] = tz
+        rot.q_update(self.q_bn, th)
+        rot.q_to_dcm(self.c_bn, self.q_bn)
+        a = self.a_n
+        self._advance(0, ex, a[0])
+        self._advance(1, ey, a[1])
+        self._advance(2, ez, a[2])
+
+    def _advance(self, i, dv, acc):
+        """v[i] += dv + acc dt; p[i] += (v_old + v_new) dt/2, Kahan-compensated."""
+        v = self.v_n
+        k = self._pk
+        p = self.p_n
+        v0 = v[i]
+        v1 = v0 + dv + acc * self.dt
+        v[i] = v1
+        y = (v0 + v1) * self._half_dt - k[i]
+        p0 = p[i]
+        t = p0 + y
+        k[i] = (t - p0) - y
+        p[i] = t
+
+    def take_dvn(self, out):
+        """out = the specific-force increment summed since the last call; restarts the sum."""
+        s = self.dvn_sum
+        for i in range(3):
+            out[i] = s[i]
+            s[i] = 0.0
+
+    def slow_update(self, t_s):
+        """Earth rate on the attitude over the last t_s seconds; then a_n = g_n - 2 w x v anew."""
+        v = self.v_n
+        p = self.p_n
+        g = self._g0 - _FREE_AIR * (self._h0 + p[2])
+        a = self.a_n
+        if not self.earth_terms:
+            a[0] = 0.0
+            a[1] = 0.0
+            a[2] = -g
+            return
+        w = self.w_ie_n
+        if t_s > 0.0:
+            # q <- q(-w_ie t) (x) q: the navigation frame turns with the Earth
+            r = self._tmp4b
+            r[0] = 1.0
+            r[1] = 0.0
+            r[2] = -(w[1] * t_s) * 0.5
+            r[3] = -(w[2] * t_s) * 0.5
+            q = self._tmp4
+            q[0] = self.q_bn[0]
+            q[1] = self.q_bn[1]
+            q[2] = self.q_bn[2]
+            q[3] = self.q_bn[3]
+            rot.q_mul(self.q_bn, r, q)
+            rot.q_normalize(self.q_bn)
+        wy2 = w[1] + w[1]
+        wz2 = w[2] + w[2]
+        # -2 w x v with w = (0, wy, wz)
+        a[0] = -(g * p[0] * self._inv_rn) - (wy2 * v[2] - wz2 * v[1])
+        a[1] = -(g * p[1] * self._inv_rm) - wz2 * v[0]
+        a[2] = wy2 * v[0] - g
+
+    def shift_origin(self, dp_n, rho_n):
+        """Re-express the state in a new tangent frame: the old frame's point dp_n is the new
+        origin and the frames differ by the small rotation rho_n (rad, old -> new: x_new =
+        x_old - rho x x_old)."""
+        p = self.p_n
+        v = self.v_n
+        rx = rho_n[0]
+        ry = rho_n[1]
+        rz = rho_n[2]
+        _rotate_small(p, p[0] - dp_n[0], p[1] - dp_n[1], p[2] - dp_n[2], rx, ry, rz)
+        _rotate_small(v, v[0], v[1], v[2], rx, ry, rz)
+        r = self._tmp4b
+        r[0] = 1.0
+        r[1] = -rx * 0.5
+        r[2] = -ry * 0.5
+        r[3] = -rz * 0.5
+        q = self._tmp4
+        for i in range(4):
+            q[i] = self.q_bn[i]
+        rot.q_mul(self.q_bn, r, q)
+        rot.q_normalize(self.q_bn)
+        rot.q_to_dcm(self.c_bn, self.q_bn)
+        for i in range(3):
+            self._pk[i] = 0.0
+
+
+def _rotate_small(out, x, y, z, rx, ry, rz):
+    """out = (x, y, z) - rho x (x, y, z) for a small rotation vector rho."""
+    out[0] = x - (ry * z - rz * y)
+    out[1] = y - (rz * x - rx * z)
+    out[2] = z - (rx * y - ry * x)

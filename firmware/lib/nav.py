@@ -1,0 +1,738 @@
+"""The navigator: alignment, strapdown INS and the 15-state ESKF, driven tick by tick.
+
+The loop calls `imu(w_b, f_b)` (SI, or `imu_raw` with BMI055 counts) every tick and `gnss(...)`
+when a fix completes. Between calls everything lives in buffers made at start-up; a tick
+allocates only float results.
+
+States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
+vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
+heading from the GNSS course over ground once the speed exceeds `heading_speed_m_s`: this
+board has no magnetometer, so a static board cannot know its heading. Then NAVIGATING (2):
+INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS position and velocity
+updates with the antenna lever arm, zero-velocity updates at standstill and the non-holonomic
+constraint for cars.
+
+GNSS delay (seed 001 5.5.4): a ring keeps the last RING ticks of position and velocity; a fix
+is compared with the state at its measurement time (the PPS tick when the caller knows it,
+else arrival minus the configured latency) and the correction is applied to the current state.
+The ring stores each state minus the corrections injected so far, so a correction injected
+between the fix time and the update does not make the comparison stale.
+
+Health: 0 normal; 1 warning (GNSS lost for `gnss_timeout_s`, a fix gated out or rejected for
+HDOP/quality, IMU saturated in the last second); 2 fault (non-finite state or covariance
+detected and reset, non-finite IMU input) held for one second.
+"""
+
+from array import array
+
+import eskf
+from ins import Ins
+from micropython import const
+
+import f32
+import geo
+import rot
+from fmath import asin, atan2, cos, sin, sqrt
+
+ALIGNING = const(1)
+NAVIGATING = const(2)
+RING = const(64)  # ticks of state history for the GNSS delay (320 ms at 200 Hz)
+
+_JOB_NONE = const(0)
+_JOB_GNSS = const(1)
+_JOB_AID = const(2)  # zero-velocity update or non-holonomic constraint
+
+# self._fx: floats of the pending GNSS fix
+_FX_H = const(0)
+_FX_HDOP = const(1)
+_FX_SPEED = const(2)
+_FX_COURSE = const(3)
+_FX_SIG_H = const(4)
+_FX_SIG_V = const(5)
+
+# self._st: standstill detector
+_ST_FX = const(0)  # low-passed specific force (3)
+_ST_VAR = const(3)  # low-passed |f - f_lp|^2
+_ST_GYRO = const(4)  # low-passed |w - b_g|^2
+
+
+_STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
+
+
+def _ticks(seconds, dt):
+    return int(seconds / dt + 0.5)
+
+
+class Navigator:
+    def __init__(self, cfg):
+        self.cfg = cfg
+        dt = cfg.dt_s
+        self.ins = Ins(dt, cfg.earth_terms, cfg.coning)
+        self.kf = eskf.Eskf(cfg.earth_terms)
+        self.frame = geo.LocalFrame()
+        self.state = ALIGNING
+        self.health = 0
+        self.tick = 0
+        self.ypr = f32.zeros(3)
+        self._w = f32.zeros(3)  # calibrated body rate, rad/s
+        self._f = f32.zeros(3)  # calibrated specific force, m/s^2
+        self._wr = f32.zeros(3)
+        self._fr = f32.zeros(3)
+        self._tmp3 = f32.zeros(3)
+        self._tmp4 = f32.zeros(4)
+        self._tmp4b = f32.zeros(4)
+        self._e7 = array("i", bytes(8))
+        self._ring_p = f32.zeros(3 * RING)
+        self._ring_v = f32.zeros(3 * RING)
+        self._corr = f32.zeros(6)  # cumulative injected corrections of p and v
+        self._gp = f32.zeros(3)  # GNSS antenna position in the frame, m
+        self._gv = f32.zeros(2)  # GNSS horizontal velocity, m/s
+        self._fx = f32.zeros(6)
+        self._st = f32.zeros(5)
+        self._lvl = f32.zeros(6)  # sums of f and w while levelling
+        self._init = f32.zeros(eskf.N)  # initial P diagonal
+        # configuration derived once
+        self._ticks_prop = _ticks(cfg.prop_period_s, dt)
+        self._ticks_zupt = _ticks(cfg.zupt_period_s, dt)
+        self._ticks_nhc = _ticks(cfg.nhc_period_s, dt)
+        self._ticks_level = _ticks(cfg.level_s, dt)
+        self._ticks_still = _ticks(cfg.still_s, dt)
+        self._ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
+        self._ticks_latency = _ticks(cfg.gnss_latency_s, dt)
+        self._ticks_second = _ticks(f32.f32(1), dt)
+        self._set_noise(cfg)
+        self._reset_counters()
+
+    def _set_noise(self, cfg):
+        kf = self.kf
+        q = kf.q_psd
+        fl = kf.p_floor
+        ce = kf.p_ceiling
+        ini = self._init
+        arw2 = cfg.gyro_arw * cfg.gyro_arw
+        vrw2 = cfg.accel_vrw * cfg.accel_vrw
+        gb = cfg.gyro_bias_sigma
+        ab = cfg.accel_bias_sigma
+        qbg = 2.0 * gb * gb / cfg.gyro_bias_tau_s
+        qba = 2.0 * ab * ab / cfg.accel_bias_tau_s
+        for i in range(3):
+            q[eskf.IX_POS + i] = 0.0
+            q[eskf.IX_VEL + i] = vrw2
+            q[eskf.IX_ATT + i] = arw2
+            q[eskf.IX_BG + i] = qbg
+            q[eskf.IX_BA + i] = qba
+            fl[eskf.IX_POS + i] = f32.ratio(1, 10000)  # (1 cm)^2
+            fl[eskf.IX_VEL + i] = f32.ratio(1, 1000000)  # (1 mm/s)^2
+            fl[eskf.IX_ATT + i] = f32.ratio(1, 100000000)  # (0.1 mrad)^2
+            fl[eskf.IX_BG + i] = f32.ratio(1, 1000000) * f32.ratio(1, 1000000)  # (1e-6 rad/s)^2
+            fl[eskf.IX_BA + i] = f32.ratio(1, 100000000)  # (1e-4 m/s^2)^2
+            ce[eskf.IX_POS + i] = f32.f32(100000000)  # (10 km)^2
+            ce[eskf.IX_VEL + i] = f32.f32(10000)  # (100 m/s)^2
+            ce[eskf.IX_ATT + i] = f32.f32(10)  # ~ (pi)^2
+            ce[eskf.IX_BG + i] = f32.ratio(1, 100)  # (0.1 rad/s = 5.7 deg/s)^2
+            ce[eskf.IX_BA + i] = f32.f32(1)  # (1 m/s^2)^2
+            ini[eskf.IX_VEL + i] = cfg.init_vel_sigma * cfg.init_vel_sigma
+            ini[eskf.IX_BG + i] = cfg.init_gyro_bias_sigma * cfg.init_gyro_bias_sigma
+            ini[eskf.IX_BA + i] = cfg.init_accel_bias_sigma * cfg.init_accel_bias_sigma
+        tilt2 = cfg.init_tilt_sigma * cfg.init_tilt_sigma
+        ini[eskf.IX_ATT] = tilt2
+        ini[eskf.IX_ATT + 1] = tilt2
+        ini[eskf.IX_ATT + 2] = cfg.init_yaw_sigma * cfg.init_yaw_sigma
+        kf.set_gate(cfg.gate_sigma, 1.0 / cfg.gyro_bias_tau_s, 1.0 / cfg.accel_bias_tau_s)
+
+    def _reset_counters(self):
+        self.leveled = False
+        self.still = False
+        self._n_level = 0
+        self._n_still = 0
+        self._n_stable = 0
+        self._fix_pending = False
+        self._fix_lat = 0
+        self._fix_lon = 0
+        self._fix_quality = 0
+        self._fix_tick = 0
+        self._last_fix_tick = -1000000
+        self._last_accept_tick = 0
+        self._rejects = 0
+        self._gated_until = 0
+        self._fault_until = 0
+        self._sat_until = 0
+        self._since_prop = 0
+        self._since_zupt = 0
+        self._since_nhc = 0
+        self._job = _JOB_NONE
+        self.updates = 0  # GNSS updates run (for reports)
+        self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
+
+    # ---- inputs --------------------------------------------------------------------------
+
+    def imu_raw(self, gyro_counts, accel_counts, saturated=False):
+        """One tick from BMI055 counts (3 ints each, sensor axes)."""
+        g = self.cfg.gyro_counts_per_rad_s
+        a = self.cfg.accel_counts_per_m_s2
+        wr = self._wr
+        fr = self._fr
+        for i in range(3):
+            wr[i] = f32.f32(gyro_counts[i]) / g
+            fr[i] = f32.f32(accel_counts[i]) / a
+        self.imu(wr, fr, saturated)
+
+    def imu(self, w_in, f_in, saturated=False):
+        """One tick: sensor-axes rate (rad/s) and specific force (m/s^2)."""
+        self.tick += 1
+        if saturated:
+            self._sat_until = self.tick + self._ticks_second
+        if not self._calibrate(w_in, f_in):
+            self._fault_until = self.tick + self._ticks_second
+            self._update_health()
+            return
+        if self.tick & 3 == 0:
+            self._still_update()
+        if self.state == NAVIGATING:
+            self._navigate()
+        else:
+            self._align()
+        self._update_health()
+
+    def gnss(
+        self,
+        lat_e7,
+        lon_e7,
+        h_m,
+        quality,
+        hdop,
+        speed_m_s,
+        course_rad,
+        fix_tick=-1,
+        sigma_h_m=0.0,
+        sigma_v_m=0.0,
+    ):
+        """A completed fix of the antenna: integer lat/lon (1e-7 deg), height (m), fix quality
+        (0 none), HDOP, speed (m/s) and course over ground (rad clockwise from north, < 0 if
+        unknown), the tick of its measurement time (the PPS tick; < 0: arrival - latency),
+        and optional 1-sigma errors (0: from HDOP). Processed at the next tick."""
+        self._fix_lat = lat_e7
+        self._fix_lon = lon_e7
+        self._fix_quality = quality
+        if fix_tick < 0:
+            fix_tick = self.tick - self._ticks_latency
+        self._fix_tick = fix_tick
+        fx = self._fx
+        fx[_FX_H] = h_m
+        fx[_FX_HDOP] = hdop
+        fx[_FX_SPEED] = speed_m_s
+        fx[_FX_COURSE] = course_rad
+        fx[_FX_SIG_H] = sigma_h_m
+        fx[_FX_SIG_V] = sigma_v_m
+        self._fix_pending = True
+
+    # ---- per tick ------------------------------------------------------------------------
+
+    def _calibrate(self, w_in, f_in):
+        cfg = self.cfg
+        w = self._w
+        f = self._f
+        _apply_cal(w, w_in, cfg.gyro_bias0, cfg.gyro_matrix)
+        _apply_cal(f, f_in, cfg.accel_bias0, cfg.accel_matrix)
+        s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
+        return s - s == 0.0
+
+    def _still_update(self):
+        """Standstill detector at 50 Hz: low-passed specific-force changes and rotation rate."""
+        cfg = self.cfg
+        st = self._st
+        f = self._f
+        w = self._w
+        bg = self.ins.bg
+        alpha = _STILL_ALPHA
+        if self.tick == 4:
+            for i in range(3):
+                st[_ST_FX + i] = f[i]  # start the low-pass at the first sample, not at zero
+        var = 0.0
+        for i in range(3):
+            lp = st[_ST_FX + i]
+            d = f[i] - lp
+            st[_ST_FX + i] = lp + alpha * d
+            var = var + d * d
+        st[_ST_VAR] = st[_ST_VAR] + alpha * (var - st[_ST_VAR])
+        wx = w[0] - bg[0]
+        wy = w[1] - bg[1]
+        wz = w[2] - bg[2]
+        st[_ST_GYRO] = st[_ST_GYRO] + alpha * ((wx * wx + wy * wy + wz * wz) - st[_ST_GYRO])
+        ga = cfg.still_gyro
+        aa = cfg.still_accel
+        quiet = st[_ST_VAR] < aa * aa and st[_ST_GYRO] < ga * ga
+        # A smooth road at constant speed is as quiet as standing still: speed must agree.
+        if quiet and self.tick - self._last_fix_tick < self._ticks_second:
+            if self._fx[_FX_SPEED] > cfg.still_gnss_speed:
+                quiet = False
+        if quiet and self.state == NAVIGATING:
+            v = self.ins.v_n
+            lim = cfg.still_max_speed
+            if v[0] * v[0] + v[1] * v[1] > lim * lim:
+                quiet = False
+        if quiet:
+            self._n_still += 4
+        else:
+            self._n_still = 0
+        self.still = self._n_still >= self._ticks_still
+
+    def _align(self):
+        cfg = self.cfg
+        ins = self.ins
+        w = self._w
+        f = self._f
+        lv = self._lvl
+        if self.still or not self.leveled:
+            for i in range(3):
+                lv[i] = lv[i] + f[i]
+                lv[3 + i] = lv[3 + i] + w[i]
+            self._n_level += 1
+            if self._n_level >= self._ticks_level:
+                self._level()
+        if self.leveled and not self.still:
+            # keep roll and pitch current while waiting for a heading
+            th = self._tmp3
+            dt = cfg.dt_s
+            bg = ins.bg
+            for i in range(3):
+                th[i] = (w[i] - bg[i]) * dt
+            rot.q_update(ins.q_bn, th)
+            rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        if self._fix_pending:
+            self._fix_pending = False
+            self._align_fix()
+
+    def _level(self):
+        """Roll and pitch from the mean specific force (it points up at rest), gyro bias from
+        the mean rate when static; the heading is kept (zero until the GNSS course gives it)."""
+        ins = self.ins
+        lv = self._lvl
+        n = f32.f32(self._n_level)
+        fx = lv[0] / n
+        fy = lv[1] / n
+        fz = lv[2] / n
+        g = sqrt(fx * fx + fy * fy + fz * fz)
+        ypr = self.ypr
+        rot.dcm_to_euler(ypr, ins.c_bn)
+        s = fy / g
+        ypr[rot.PITCH] = asin(s)
+        ypr[rot.ROLL] = atan2(-fx, fz)
+        rot.euler_to_q(ins.q_bn, ypr)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        if self.still:
+            for i in range(3):
+                ins.bg[i] = lv[3 + i] / n
+        for i in range(6):
+            lv[i] = 0.0
+        self._n_level = 0
+        self.leveled = True
+
+    def _fix_usable(self):
+        cfg = self.cfg
+        return self._fix_quality >= cfg.gnss_min_quality and self._fx[_FX_HDOP] <= cfg.gnss_hdop_max
+
+    def _align_fix(self):
+        cfg = self.cfg
+        self._last_fix_tick = self.tick
+        if not self._fix_usable():
+            self._n_stable = 0
+            return
+        self._n_stable += 1
+        if self._n_stable < cfg.gnss_stable_fixes:
+            return
+        fx = self._fx
+        if not self.frame.valid:
+            if not self.frame.set_origin(self._fix_lat, self._fix_lon, fx[_FX_H]):
+                return
+            self.ins.set_frame(self.frame)
+        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
+        ins = self.ins
+        for i in range(3):
+            ins.p_n[i] = self._gp[i]
+        course = fx[_FX_COURSE]
+        if self.leveled and course >= 0.0 and fx[_FX_SPEED] >= cfg.heading_speed_m_s:
+            self._start_navigation(course)
+
+    def _start_navigation(self, course):
+        ins = self.ins
+        ypr = self.ypr
+        rot.dcm_to_euler(ypr, ins.c_bn)
+        ypr[rot.YAW] = -course
+        rot.euler_to_q(ins.q_bn, ypr)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        fx = self._fx
+        sp = fx[_FX_SPEED]
+        v = self._tmp3
+        v[0] = sp * sin(course)
+        v[1] = sp * cos(course)
+        v[2] = 0.0
+        # IMU position = antenna - C_bn lever
+        p = self._tmp4
+        self._lever_n(p)
+        for i in range(3):
+            p[i] = self._gp[i] - p[i]
+        ins.reset_kinematics(p, v)
+        ini = self._init
+        sh = self._sigma_h()
+        sv = self._sigma_v(sh)
+        ini[0] = sh * sh
+        ini[1] = sh * sh
+        ini[2] = sv * sv
+        self.kf.reset_p(ini)
+        for i in range(6):
+            self._corr[i] = 0.0
+        ins.take_dvn(self._tmp3)
+        ins.slow_update(f32.f32(0))
+        self._since_prop = 0
+        self._last_accept_tick = self.tick
+        self.state = NAVIGATING
+
+    def _lever_n(self, out):
+        """out[0:3] = C_bn lever_b (antenna offset in the navigation frame)."""
+        c = self.ins.c_bn
+        lv = self.cfg.lever_b_m
+        lx = lv[0]
+        ly = lv[1]
+        lz = lv[2]
+        out[0] = c[0] * lx + c[1] * ly + c[2] * lz
+        out[1] = c[3] * lx + c[4] * ly + c[5] * lz
+        out[2] = c[6] * lx + c[7] * ly + c[8] * lz
+
+    def _sigma_h(self):
+        cfg = self.cfg
+        fx = self._fx
+        s = fx[_FX_SIG_H]
+        if not s > 0.0:
+            s = fx[_FX_HDOP] * cfg.gnss_uere_m
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _sigma_v(self, sigma_h):
+        cfg = self.cfg
+        s = self._fx[_FX_SIG_V]
+        if not s > 0.0:
+            s = sigma_h * cfg.gnss_vert_factor
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _navigate(self):
+        ins = self.ins
+        ins.step(self._w, self._f)
+        # ring of state history, minus the corrections injected so far
+        b = (self.tick % RING) * 3
+        p = ins.p_n
+        v = ins.v_n
+        c = self._corr
+        rp = self._ring_p
+        rv = self._ring_v
+        for i in range(3):
+            rp[b + i] = p[i] - c[i]
+            rv[b + i] = v[i] - c[3 + i]
+        self._since_prop += 1
+        self._since_zupt += 1
+        self._since_nhc += 1
+        if self._fix_pending:
+            self._nav_fix()
+        kf = self.kf
+        if kf.job == eskf.IDLE and not kf.ready:
+            self._schedule()
+        kf.work(self.cfg.slices_per_tick)
+        if kf.ready:
+            self._inject()
+        if kf.job == eskf.IDLE and not kf.diagonal_ok():
+            self._fault_reset()
+            return
+        s = p[0] + p[1] + p[2] + v[0] + v[1] + v[2] + ins.q_bn[0]
+        if s - s != 0.0:
+            self._fault_reset()
+
+    def _nav_fix(self):
+        """A fix while navigating: screen it, re-anchor if far, keep it for the next update."""
+        self._last_fix_tick = self.tick
+        if not self._fix_usable():
+            self._fix_pending = False
+            self._gated_until = self.tick + self._ticks_second
+            return
+        ins = self.ins
+        p = ins.p_n
+        lim = self.cfg.reanchor_m
+        if p[0] > lim or p[0] < -lim or p[1] > lim or p[1] < -lim:
+            self._reanchor()
+        fx = self._fx
+        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
+        # the fix stays pending until the filter is free (see _schedule)
+
+    def _reanchor(self):
+        """New integer origin at the current position; state re-expressed in the new frame."""
+        fr = self.frame
+        ins = self.ins
+        e7 = self._e7
+        h = fr.to_e7(e7, ins.p_n)
+        dp = self._tmp3
+        fr.to_enu(dp, e7[0], e7[1], h)  # the new origin, in the old frame
+        c = fr.coef
+        rho = self._tmp4
+        # the tangent plane tilts by the angle subtended at the Earth's centre
+        rho[0] = -dp[1] * c[geo.INV_RM]
+        rho[1] = dp[0] * c[geo.INV_RN]
+        rho[2] = dp[0] * c[geo.INV_RN] * (c[geo.SIN_LAT] / c[geo.COS_LAT])
+        ins.shift_origin(dp, rho)
+        corr = self._corr
+        for i in range(3):
+            corr[i] = corr[i] - dp[i]
+        fr.set_origin(e7[0], e7[1], h)
+        ins.set_frame(fr)
+
+    def _schedule(self):
+        """Start the next filter job (the filter is idle)."""
+        cfg = self.cfg
+        kf = self.kf
+        overdue = self._since_prop >= 2 * self._ticks_prop
+        if self._fix_pending and not overdue:
+            self._fix_pending = False
+            self._start_gnss_update()
+        elif self._since_prop >= self._ticks_prop:
+            ins = self.ins
+            t = f32.f32(self._since_prop) * cfg.dt_s
+            ins.take_dvn(self._tmp3)
+            ins.slow_update(t)
+            kf.start_propagation(self._tmp3, t, ins.c_bn, ins.w_ie_n)
+            self._since_prop = 0
+        elif cfg.zupt and self.still and self._since_zupt >= self._ticks_zupt:
+            self._since_zupt = 0
+            r = cfg.zupt_sigma * cfg.zupt_sigma
+            v = self.ins.v_n
+            for i in range(3):
+                kf.add_scalar(v[i], r, 1, eskf.IX_VEL + i, 1.0)
+            kf.start_update()
+            self._job = _JOB_AID
+        elif cfg.nhc and not self.still and self._since_nhc >= self._ticks_nhc:
+            self._since_nhc = 0
+            self._start_nhc()
+
+    def _start_gnss_update(self):
+        cfg = self.cfg
+        kf = self.kf
+        ins = self.ins
+        age = self.tick - self._fix_tick
+        if age < 0:
+            age = 0
+        elif age > RING - 1:
+            age = RING - 1
+        b = ((self.tick - age) % RING) * 3
+        rp = self._ring_p
+        rv = self._ring_v
+        corr = self._corr
+        ln = self._tmp4
+        self._lever_n(ln)
+        sh = self._sigma_h()
+        sv = self._sigma_v(sh)
+        rh = sh * sh
+        rv_ = sv * sv
+        gp = self._gp
+        lx = ln[0]
+        ly = ln[1]
+        lz = ln[2]
+        # z = (p + C l) - p_gnss = dp + [(C l) x] phi
+        z = (rp[b] + corr[0] + lx) - gp[0]
+        kf.add_scalar(z, rh, 3, 0, 1.0, eskf.IX_ATT + 1, -lz, eskf.IX_ATT + 2, ly)
+        z = (rp[b + 1] + corr[1] + ly) - gp[1]
+        kf.add_scalar(z, rh, 3, 1, 1.0, eskf.IX_ATT, lz, eskf.IX_ATT + 2, -lx)
+        z = (rp[b + 2] + corr[2] + lz) - gp[2]
+        kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
+        fx = self._fx
+        course = fx[_FX_COURSE]
+        sp = fx[_FX_SPEED]
+        if course >= 0.0:
+            # (no course, no velocity: standing still is the zero-velocity update's business)
+            ve = sp * sin(course)
+            vn = sp * cos(course)
+            # antenna velocity = v + C (w x l); its attitude sensitivity is neglected
+            w = self._w
+            bg = ins.bg
+            lv = cfg.lever_b_m
+            wx = w[0] - bg[0]
+            wy = w[1] - bg[1]
+            wz = w[2] - bg[2]
+            ax = wy * lv[2] - wz * lv[1]
+            ay = wz * lv[0] - wx * lv[2]
+            az = wx * lv[1] - wy * lv[0]
+            c = ins.c_bn
+            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
+            z = (rv[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve
+            kf.add_scalar(z, rvel, 1, eskf.IX_VEL, 1.0)
+            z = (rv[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn
+            kf.add_scalar(z, rvel, 1, eskf.IX_VEL + 1, 1.0)
+        kf.start_update()
+        self._job = _JOB_GNSS
+        self.updates += 1
+
+    def _start_nhc(self):
+        """Body lateral (x) and vertical (z) velocity are zero for a car: z = (C_bn^T v)_k,
+        h = [0, c_k^T, (v x c_k)^T, 0, 0] with c_k the k-th column of C_bn."""
+        kf = self.kf
+        ins = self.ins
+        c = ins.c_bn
+        v = ins.v_n
+        v0 = v[0]
+        v1 = v[1]
+        v2 = v[2]
+        r = self.cfg.nhc_sigma * self.cfg.nhc_sigma
+        for k in range(0, 3, 2):
+            c0 = c[k]
+            c1 = c[3 + k]
+            c2 = c[6 + k]
+            z = c0 * v0 + c1 * v1 + c2 * v2
+            m = kf.add_scalar(z, r, 3, eskf.IX_VEL, c0, eskf.IX_VEL + 1, c1, eskf.IX_VEL + 2, c2)
+            kf.add_scalar_terms(
+                m,
+                eskf.IX_ATT,
+                v1 * c2 - v2 * c1,
+                eskf.IX_ATT + 1,
+                v2 * c0 - v0 * c2,
+                eskf.IX_ATT + 2,
+                v0 * c1 - v1 * c0,
+            )
+        kf.start_update()
+        self._job = _JOB_AID
+
+    def _inject(self):
+        """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
+        kf = self.kf
+        ins = self.ins
+        dx = kf.dx
+        p = ins.p_n
+        v = ins.v_n
+        corr = self._corr
+        for i in range(3):
+            d = dx[eskf.IX_POS + i]
+            p[i] = p[i] - d
+            corr[i] = corr[i] - d
+            d = dx[eskf.IX_VEL + i]
+            v[i] = v[i] - d
+            corr[3 + i] = corr[3 + i] - d
+            ins.bg[i] = ins.bg[i] + dx[eskf.IX_BG + i]
+            ins.ba[i] = ins.ba[i] + dx[eskf.IX_BA + i]
+            self._tmp3[i] = dx[eskf.IX_ATT + i]
+        dq = self._tmp4
+        rot.q_from_rotvec(dq, self._tmp3)
+        q = self._tmp4b
+        for i in range(4):
+            q[i] = ins.q_bn[i]
+        rot.q_mul(ins.q_bn, dq, q)
+        rot.q_normalize(ins.q_bn)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        for i in range(eskf.N):
+            dx[i] = 0.0
+        kf.ready = False
+        if self._job == _JOB_GNSS:
+            if kf.gate_mask & 7 == 7:
+                self._rejects += 1
+                self._gated_until = self.tick + self._ticks_second
+                if self._rejects >= self.cfg.reset_after_rejects:
+                    self._reset_to_gnss()
+            else:
+                self._rejects = 0
+                self._last_accept_tick = self.tick
+                if kf.gate_mask:
+                    self._gated_until = self.tick + self._ticks_second
+        self._job = _JOB_NONE
+
+    def _reset_to_gnss(self):
+        """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): take
+        position and horizontal velocity from GNSS and restart the covariance; attitude and
+        biases are kept."""
+        ins = self.ins
+        p = self._tmp4
+        self._lever_n(p)
+        for i in range(3):
+            p[i] = self._gp[i] - p[i]
+        v = self._tmp3
+        fx = self._fx
+        course = fx[_FX_COURSE]
+        sp = fx[_FX_SPEED]
+        v[2] = ins.v_n[2]
+        if course >= 0.0:
+            v[0] = sp * sin(course)
+            v[1] = sp * cos(course)
+        else:
+            v[0] = ins.v_n[0]
+            v[1] = ins.v_n[1]
+        ins.reset_kinematics(p, v)
+        ini = self._init
+        sh = self._sigma_h()
+        sv = self._sigma_v(sh)
+        ini[0] = sh * sh
+        ini[1] = sh * sh
+        ini[2] = sv * sv
+        self.kf.reset_p(ini)
+        for i in range(6):
+            self._corr[i] = 0.0
+        self._rejects = 0
+        self.resets += 1
+
+    def _fault_reset(self):
+        """Non-finite state or covariance: back to a safe state and re-align."""
+        ins = self.ins
+        self.state = ALIGNING
+        rot.q_identity(ins.q_bn)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        z = self._tmp3
+        for i in range(3):
+            z[i] = 0.0
+            ins.bg[i] = 0.0
+            ins.ba[i] = 0.0
+        ins.reset_kinematics(self._gp, z)
+        self.kf.reset_p(self._init)
+        for i in range(6):
+            self._lvl[i] = 0.0
+            self._corr[i] = 0.0
+        self._n_level = 0
+        self._n_stable = 0
+        self.leveled = False
+        self._fault_until = self.tick + self._ticks_second
+        self.resets += 1
+
+    def _update_health(self):
+        t = self.tick
+        if t < self._fault_until:
+            self.health = 2
+        elif t < self._sat_until or t < self._gated_until:
+            self.health = 1
+        elif self.state == NAVIGATING and t - self._last_accept_tick > self._ticks_timeout:
+            self.health = 1
+        else:
+            self.health = 0
+
+    # ---- outputs -------------------------------------------------------------------------
+
+    def euler(self):
+        """self.ypr = yaw, pitch, roll (rad) of the current attitude."""
+        rot.dcm_to_euler(self.ypr, self.ins.c_bn)
+        return self.ypr
+
+    def p_diag(self, out):
+        p = self.kf.P
+        for i in range(eskf.N):
+            out[i] = p[i * (eskf.N + 1)]
+
+    def lat_lon(self, out_e7):
+        """Integrated position as integer lat/lon (1e-7 deg) into out_e7; returns height (m)."""
+        return self.frame.to_e7(out_e7, self.ins.p_n)
+
+
+def _apply_cal(out, x, b0, m):
+    x0 = x[0] - b0[0]
+    x1 = x[1] - b0[1]
+    x2 = x[2] - b0[2]
+    if m is None:
+        out[0] = x0
+        out[1] = x1
+        out[2] = x2
+    else:
+        out[0] = m[0] * x0 + m[1] * x1 + m[2] * x2
+        out[1] = m[3] * x0 + m[4] * x1 + m[5] * x2
+        out[2] = m[6] * x0 + m[7] * x1 + m[8] * x2

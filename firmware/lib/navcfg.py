@@ -1,0 +1,91 @@
+"""Navigator configuration: every tunable in one place, in SI units, with its source.
+
+Floats are float32 values built from exact integer ratios below 2**24 (the float32
+contract: larger ints are long ints on the board, converted with extra roundings); a value set
+from elsewhere (a configuration file) is converted with f32.f32 by the navigator. Two
+profiles: `car` (zero-velocity updates at standstill and the non-holonomic constraint on) and
+`handheld` (both off).
+"""
+
+import f32
+
+_DEG = f32.from_bits(0x3C8EFA35)  # pi / 180
+G0_M_S2 = f32.from_bits(0x411CE80A)  # 9.80665 m/s^2, standard gravity (the unit g)
+
+
+def _deg(num, den=1):
+    return f32.ratio(num, den) * _DEG
+
+
+class NavConfig:
+    def __init__(self, profile="car"):
+        self.profile = profile
+        self.dt_s = f32.ratio(1, 200)  # IMU period (seed 001: 5 ms timer)
+        self.earth_terms = True  # Earth rate, Coriolis, gravity tilt (False: board's model)
+        self.coning = True  # two-sample coning and sculling corrections
+
+        # Sensor noise: BMI055 datasheet figures (DESIGN.md 7) with a margin of 2 for
+        # vibration and quantisation: gyro 0.014 deg/s/sqrt(Hz), accel 150 ug/sqrt(Hz).
+        self.gyro_arw = _deg(28, 1000)  # rad/s/sqrt(Hz) = rad/sqrt(s)
+        self.accel_vrw = f32.ratio(2942, 1000000)  # m/s^2/sqrt(Hz) (300 ug)
+        # Bias instability as first-order Gauss-Markov processes (sigma, correlation time).
+        self.gyro_bias_sigma = _deg(1, 100)  # rad/s (36 deg/h)
+        self.gyro_bias_tau_s = f32.f32(600)
+        self.accel_bias_sigma = f32.ratio(4903, 1000000)  # m/s^2 (0.5 mg)
+        self.accel_bias_tau_s = f32.f32(600)
+
+        # Initial uncertainty when navigation starts (1 sigma).
+        self.init_vel_sigma = f32.ratio(1, 2)  # m/s
+        self.init_tilt_sigma = _deg(2)  # rad, roll and pitch from levelling
+        self.init_yaw_sigma = _deg(10) if profile == "car" else _deg(60)  # from GNSS course
+        self.init_gyro_bias_sigma = _deg(1, 10)  # rad/s residual after the static average
+        self.init_accel_bias_sigma = f32.ratio(1961, 10000)  # m/s^2 (20 mg)
+
+        # GNSS: 1-sigma = HDOP x UERE horizontally, twice that vertically, unless the caller
+        # gives sigmas; never below the floor (a receiver reporting 0 must not make R singular).
+        self.gnss_uere_m = f32.f32(2)
+        self.gnss_vert_factor = f32.f32(2)
+        self.gnss_sigma_floor_m = f32.ratio(1, 20)
+        self.gnss_vel_sigma = f32.ratio(1, 5)  # m/s, speed/course velocity
+        self.gnss_hdop_max = f32.f32(2)  # reject fixes with HDOP above (seed 000 NFR)
+        self.gnss_min_quality = 1
+        self.gnss_latency_s = f32.ratio(1, 10)  # fix time = arrival - latency when no PPS
+        self.gnss_stable_fixes = 5  # consecutive good fixes before GNSS counts as stable
+        self.gnss_timeout_s = f32.f32(2)  # no accepted fix for this long: health 1
+        self.gate_sigma = f32.f32(5)  # innovation gate, sigmas
+        self.reset_after_rejects = 5  # consecutive fully gated fixes: reset to GNSS
+        self.lever_b_m = f32.zeros(3)  # IMU -> antenna, body axes, m
+
+        # Alignment
+        self.level_s = f32.f32(2)  # static averaging for roll, pitch and gyro bias
+        self.heading_speed_m_s = f32.f32(3)  # GNSS course becomes the heading above this
+
+        # Standstill detection (zero-velocity update) and non-holonomic constraint.
+        self.zupt = profile == "car"
+        self.nhc = profile == "car"
+        self.still_gyro = _deg(1, 2)  # rad/s rms below which the vehicle may be still
+        self.still_accel = f32.ratio(1, 20)  # m/s^2 rms of specific-force changes (BMI055
+        # noise alone: ~0.035 at 200 Hz)
+        self.still_s = f32.ratio(1, 2)  # both must hold this long
+        self.still_gnss_speed = f32.ratio(1, 2)  # m/s: a recent fix faster than this vetoes
+        self.still_max_speed = f32.ratio(1, 2)  # m/s: and so does the navigator's own speed
+        self.zupt_sigma = f32.ratio(2, 100)  # m/s
+        self.zupt_period_s = f32.ratio(1, 4)
+        self.nhc_sigma = f32.ratio(1, 10)  # m/s, lateral and vertical body velocity
+        self.nhc_period_s = f32.ratio(1, 2)
+
+        # Time distribution (see eskf.py): covariance propagation every prop_period_s at the
+        # earliest, slices of filter work per tick.
+        self.prop_period_s = f32.ratio(1, 5)
+        self.slices_per_tick = 2
+        self.reanchor_m = f32.f32(2000)  # move the origin beyond this horizontal distance
+
+        # IMU calibration (seed 000 1.2.1), sensor -> body: x_b = M (x_raw - b0). Identity
+        # M (None) skips the matrix product. Raw scale: counts per SI unit at the ranges.
+        self.gyro_bias0 = f32.zeros(3)  # rad/s
+        self.accel_bias0 = f32.zeros(3)  # m/s^2
+        self.gyro_matrix = None  # 9 values, row-major, or None for identity
+        self.accel_matrix = None
+        # BMI055 at +-250 deg/s: 131.2 LSB/(deg/s); at +-2 g: 1024 LSB/g (DESIGN.md 7)
+        self.gyro_counts_per_rad_s = f32.ratio(1312, 10) / _DEG
+        self.accel_counts_per_m_s2 = f32.f32(1024) / G0_M_S2

@@ -1,0 +1,186 @@
+"""Drive the firmware's Navigator directly with simulated IMU counts and GNSS fixes, and score
+it against truth. (The host emulator proper runs the whole firmware loop through emulated
+peripherals; this runner isolates the navigation core for its tests and benchmark.)
+
+The navigator runs on CPython through the float32 seam, so what it computes is what the board
+computes. Fixes are handed over at the first tick at or after their availability time, with
+the PPS tick of their measurement time (the board's loop does the same once PPS is wired).
+Tick T holds the state at time T dt: IMU sample k (taken at k dt) is integrated over
+[k dt, (k+1) dt] by tick k+1.
+Errors are measured in the simulation's frame from the navigator's integrated lat/lon, so
+they include everything the board would output (origin choice and re-anchoring too).
+"""
+
+import array
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pymap3d
+
+from host_emulator import firmware_env
+
+firmware_env.install()
+
+import navcfg  # noqa: E402
+from nav import NAVIGATING, Navigator  # noqa: E402
+
+import f32  # noqa: E402
+
+
+@dataclass
+class NavRun:
+    """Navigator outputs sampled every `decimate` ticks (t_s is the sample time)."""
+
+    t_s: np.ndarray
+    p_n: np.ndarray  # in the simulation's frame, from the integrated lat/lon
+    v_n: np.ndarray
+    ypr: np.ndarray
+    bg: np.ndarray
+    ba: np.ndarray
+    p_sigma: np.ndarray  # sqrt of P's diagonal (15)
+    state: np.ndarray
+    health: np.ndarray
+    ticks: int
+    wall_s: float
+    align_time_s: float | None
+    gnss_updates: int
+    resets: int
+    extra: dict = field(default_factory=dict)
+
+
+def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None):
+    """Run the navigator over a simulated scenario; returns a NavRun."""
+    cfg = cfg or navcfg.NavConfig("car")
+    lever = getattr(getattr(gnss, "model", None), "lever_b_m", None)
+    if lever is not None:
+        for i in range(3):
+            cfg.lever_b_m[i] = lever[i]
+    nav = Navigator(cfg)
+    dt = float(cfg.dt_s)
+    # the last truth sample is the state after the last tick
+    n = len(truth.t_s) - 1
+    if duration_s is not None:
+        n = min(n, int(round(duration_s / dt)))
+    gyro = imu.gyro_counts[:n].astype(int).tolist()
+    accel = imu.accel_counts[:n].astype(int).tolist()
+    sat = imu.saturated[:n].tolist()
+    fixes = [f for f in gnss if f.t_avail_s < n * dt]
+    fi = 0
+    rows = []
+    align_t = None
+    e7 = np.zeros(2, dtype=np.int32)
+    e7_buf = array.array("i", bytes(8))
+    pd = f32.zeros(15)
+    t0 = time.perf_counter()
+    for k in range(n):
+        t = k * dt
+        while fi < len(fixes) and fixes[fi].t_avail_s <= t + 1e-9:
+            fx = fixes[fi]
+            course = fx.course_deg
+            course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
+            nav.gnss(
+                int(fx.lat_e7),
+                int(fx.lon_e7),
+                f32.f32(fx.h_m),
+                int(fx.quality),
+                f32.f32(fx.hdop),
+                f32.f32(fx.speed_m_s),
+                f32.f32(course_rad),
+                fix_tick=int(round(fx.t_fix_s / dt)),
+            )
+            fi += 1
+        nav.imu_raw(gyro[k], accel[k], sat[k])
+        t = (k + 1) * dt  # tick k+1 holds the state at (k+1) dt: sample k spans [k dt, (k+1) dt]
+        if align_t is None and nav.state == NAVIGATING:
+            align_t = t
+        if k % decimate == 0 and nav.state == NAVIGATING:
+            h = nav.lat_lon(e7_buf)
+            e7[:] = e7_buf
+            nav.euler()
+            nav.p_diag(pd)
+            ins = nav.ins
+            rows.append(
+                (
+                    t,
+                    int(e7[0]),
+                    int(e7[1]),
+                    float(h),
+                    *map(float, ins.v_n),
+                    *map(float, nav.ypr),
+                    *map(float, ins.bg),
+                    *map(float, ins.ba),
+                    *np.sqrt(np.maximum(np.asarray(pd, float), 0)),
+                    nav.state,
+                    nav.health,
+                )
+            )
+        if progress and k % 2000 == 0:
+            progress(k, n)
+    wall = time.perf_counter() - t0
+    a = np.array(rows, dtype=float) if rows else np.zeros((0, 34))
+    o = truth.origin
+    if len(a):
+        e, nn, u = pymap3d.geodetic2enu(
+            a[:, 1] / 1e7, a[:, 2] / 1e7, a[:, 3], o.lat_e7 / 1e7, o.lon_e7 / 1e7, o.h_m
+        )
+        p = np.stack([e, nn, u], axis=-1)
+    else:
+        p = np.zeros((0, 3))
+    return NavRun(
+        t_s=a[:, 0],
+        p_n=p,
+        v_n=a[:, 4:7],
+        ypr=a[:, 7:10],
+        bg=a[:, 10:13],
+        ba=a[:, 13:16],
+        p_sigma=a[:, 16:31],
+        state=a[:, 31].astype(int),
+        health=a[:, 32].astype(int),
+        ticks=n,
+        wall_s=wall,
+        align_time_s=align_t,
+        gnss_updates=nav.updates,
+        resets=nav.resets,
+    )
+
+
+def wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def metrics(run_, truth, outages=(), skip_s=0.0):
+    """Errors over the navigation phase (after `skip_s` more seconds), angles wrapped."""
+    dt = float(truth.t_s[1] - truth.t_s[0])
+    idx = np.rint(run_.t_s / dt).astype(int)
+    keep = run_.t_s >= (run_.align_time_s or 0.0) + skip_s
+    i = idx[keep]
+    dp = run_.p_n[keep] - truth.p_n[i]
+    dv = run_.v_n[keep] - truth.v_n[i]
+    da = wrap(run_.ypr[keep] - truth.ypr[i])
+    rms = lambda x: float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")  # noqa: E731
+    out = {
+        "horiz_rms_m": rms(np.hypot(dp[:, 0], dp[:, 1])),
+        "vert_rms_m": rms(dp[:, 2]),
+        "vel_rms_m_s": rms(np.linalg.norm(dv, axis=1)),
+        "yaw_rms_deg": float(np.degrees(rms(da[:, 0]))),
+        "pitch_rms_deg": float(np.degrees(rms(da[:, 1]))),
+        "roll_rms_deg": float(np.degrees(rms(da[:, 2]))),
+        "align_time_s": run_.align_time_s,
+        "outages": [],
+    }
+    for start, length in outages:
+        end = start + length
+        j = np.searchsorted(run_.t_s, end)
+        if j < len(run_.t_s) and run_.t_s[j] - end < 1.0:
+            k = int(round(run_.t_s[j] / dt))
+            e = run_.p_n[j] - truth.p_n[k]
+            out["outages"].append(
+                {
+                    "start_s": start,
+                    "length_s": length,
+                    "horiz_err_end_m": float(np.hypot(e[0], e[1])),
+                }
+            )
+    return out

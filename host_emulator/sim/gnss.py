@@ -1,0 +1,211 @@
+"""GNSS receiver model: fixes of the antenna (position, speed, course) with realistic errors.
+
+Epochs fall on whole multiples of 1/rate_hz of truth time (t = 0 is the top of a GPS second),
+each exactly at a truth sample. The antenna sits at `lever_b_m` from the IMU in body axes
+(default 0.5 m forward, 1 m up), so its position is p_n + C_bn l and its velocity
+v_n + C_bn (w_nb_b x l).
+
+Errors, per epoch k, scaled by s_k = hdop_k / hdop_nominal:
+    position  s_k sigma (sqrt(w) white_k + sqrt(1 - w) gm_k), per axis E, N (sigma_h_m)
+              and U (sigma_v_m); w = white_fraction (default 0.5: half the variance white,
+              half a first-order Gauss-Markov process with 60 s correlation, the slowly
+              wandering multipath/atmosphere part that a filter cannot average away)
+    velocity  s_k sigma_vel_m_s white noise per axis (default 0.05 m/s)
+    sigma_h_m / sigma_v_m / sigma_vel_m_s report s_k sigma, the 1-sigma per axis actually used.
+Speed is the horizontal speed over ground, course the track angle in degrees clockwise from
+north in [0, 360); like RMC/VTG, course is NaN below course_min_speed_m_s (0.5 m/s).
+HDOP wanders in nominal +- hdop_wander (Gauss-Markov, 120 s) and jumps to 2-4 during random
+excursions (one per 300 s on average, 5-20 s long), with fewer satellites.
+During an outage, or before ttff_s, the receiver still reports each epoch but with quality 0,
+lat/lon 0 and NaN floats (an empty GGA). The sentence becomes available latency_s +-
+latency_jitter_s after the epoch (default 100 +- 30 ms, DESIGN 8: 50-150 ms). PPS edges are at
+whole seconds while the receiver has a fix (always, if pps_without_fix).
+Defaults: 1 Hz, sigma 2/2/4 m E/N/U (the KF-GINS benchmark set-up, DESIGN 10).
+"""
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .noise import gauss_markov
+from .trajectory import RATE_HZ, body_to_nav, euler_to_dcm
+
+_STREAM_GNSS = 0x474E5353  # seeds the receiver's random stream apart from the others
+
+
+@dataclass(frozen=True)
+class GnssModel:
+    """Receiver parameters (see the module docstring)."""
+
+    rate_hz: float = 1.0  # must divide 200 Hz: 1, 2, 4, 5, 10
+    sigma_h_m: float = 2.0  # per horizontal axis at nominal HDOP
+    sigma_v_m: float = 4.0
+    white_fraction: float = 0.5  # share of the position variance that is white
+    error_tau_s: float = 60.0  # correlation time of the rest
+    sigma_vel_m_s: float = 0.05  # per axis
+    course_min_speed_m_s: float = 0.5
+    hdop_nominal: float = 1.0
+    hdop_wander: float = 0.2
+    hdop_tau_s: float = 120.0
+    excursion_every_s: float = 300.0  # mean interval between HDOP excursions
+    excursion_length_s: tuple = (5.0, 20.0)
+    excursion_hdop: tuple = (2.0, 4.0)
+    latency_s: float = 0.1
+    latency_jitter_s: float = 0.03
+    lever_b_m: tuple = (0.0, 0.5, 1.0)  # IMU -> antenna, body axes (right, forward, up)
+    ttff_s: float = 0.0  # no fix before this time
+    pps_without_fix: bool = False
+
+
+class GnssFix(NamedTuple):
+    """One epoch as a receiver would report it (quality 0: no fix, other fields empty)."""
+
+    t_fix_s: float
+    t_avail_s: float
+    lat_e7: int
+    lon_e7: int
+    h_m: float
+    speed_m_s: float
+    course_deg: float
+    hdop: float
+    quality: int
+    nsat: int
+    sigma_h_m: float
+    sigma_v_m: float
+    sigma_vel_m_s: float
+
+
+_FIX_FIELDS = GnssFix._fields
+
+
+@dataclass(frozen=True, eq=False)
+class GnssData:
+    """All epochs of a run as arrays (M epochs), the PPS edges, and the truth behind them."""
+
+    t_fix_s: np.ndarray  # (M,) epoch (measurement) time, s, on truth samples
+    t_avail_s: np.ndarray  # (M,) when the sentence is available, s
+    lat_e7: np.ndarray  # (M,) int64, 1e-7 deg (0 without fix)
+    lon_e7: np.ndarray  # (M,) int64
+    h_m: np.ndarray  # (M,) ellipsoidal height, m
+    speed_m_s: np.ndarray  # (M,) horizontal speed over ground
+    course_deg: np.ndarray  # (M,) clockwise from north, [0, 360), NaN when slow or no fix
+    hdop: np.ndarray  # (M,)
+    quality: np.ndarray  # (M,) int8: 1 GPS fix, 0 none
+    nsat: np.ndarray  # (M,) int8
+    sigma_h_m: np.ndarray  # (M,) 1-sigma per horizontal axis used for this epoch
+    sigma_v_m: np.ndarray  # (M,)
+    sigma_vel_m_s: np.ndarray  # (M,)
+    pps_s: np.ndarray  # (P,) PPS rising edges, s
+    # Truth, for evaluation only:
+    p_ant_n: np.ndarray  # (M, 3) true antenna ENU position, m
+    v_ant_n: np.ndarray  # (M, 3) true antenna ENU velocity, m/s
+    err_n_m: np.ndarray  # (M, 3) position error applied (ENU), m
+    outages: tuple
+    model: GnssModel
+
+    def __len__(self):
+        return self.t_fix_s.size
+
+    @property
+    def valid(self):
+        return self.quality > 0
+
+    def __iter__(self):
+        for k in range(len(self)):
+            yield self[k]
+
+    def __getitem__(self, k):
+        return GnssFix(*(getattr(self, name)[k].item() for name in _FIX_FIELDS))
+
+
+def _hdop(rng, model, t):
+    lim = model.hdop_wander
+    hdop = model.hdop_nominal + np.clip(
+        gauss_markov(rng, t.size, 1.0 / model.rate_hz, model.hdop_tau_s, 0.5 * lim), -lim, lim
+    )
+    duration = t[-1] - t[0]
+    count = rng.poisson(duration / model.excursion_every_s)
+    starts = rng.uniform(t[0], t[0] + duration, count)
+    lengths = rng.uniform(*model.excursion_length_s, count)
+    peaks = rng.uniform(*model.excursion_hdop, count)
+    for start, length, peak in zip(starts, lengths, peaks, strict=True):
+        inside = (t >= start) & (t < start + length)
+        hdop[inside] = np.maximum(hdop[inside], peak)
+    return hdop
+
+
+def simulate(truth, model=None, seed=0, outages=None):
+    """Receiver output for a Truth. outages: ((start_s, length_s), ...), default truth.outages;
+    epochs in [start, start + length) have no fix. Same seed -> same data."""
+    model = GnssModel() if model is None else model
+    outages = truth.outages if outages is None else tuple(outages)
+    step = RATE_HZ / model.rate_hz
+    if abs(step - round(step)) > 1e-9 or step < 1:
+        raise ValueError(f"rate_hz must divide {RATE_HZ} Hz")
+    step = int(round(step))
+    rng = np.random.default_rng([seed, _STREAM_GNSS])
+
+    idx = np.arange(0, len(truth.t_s), step)
+    t = truth.t_s[idx]
+    m = idx.size
+    fix = t >= model.ttff_s
+    for start, length in outages:
+        fix &= ~((t >= start) & (t < start + length))
+
+    # Truth of the antenna.
+    c_bn = euler_to_dcm(truth.ypr[idx])
+    lever = np.asarray(model.lever_b_m, dtype=float)
+    p_ant = truth.p_n[idx] + body_to_nav(c_bn, lever)
+    v_ant = truth.v_n[idx] + body_to_nav(c_bn, np.cross(truth.w_nb_b[idx], lever))
+
+    # Errors (drawn for every epoch, fix or not, so outages do not shift the random stream).
+    dt = 1.0 / model.rate_hz
+    hdop = _hdop(rng, model, t)
+    scale = hdop / model.hdop_nominal
+    sigma = np.array([model.sigma_h_m, model.sigma_h_m, model.sigma_v_m])
+    wf = model.white_fraction
+    unit = np.sqrt(wf) * rng.standard_normal((m, 3)) + np.sqrt(1.0 - wf) * gauss_markov(
+        rng, m, dt, model.error_tau_s, 1.0, (3,)
+    )
+    err = scale[:, None] * sigma * unit
+    v_meas = v_ant + scale[:, None] * model.sigma_vel_m_s * rng.standard_normal((m, 3))
+    nsat = np.clip(np.rint(11.0 / hdop + 0.7 * rng.standard_normal(m)), 4, 20)
+    nsat_nofix = rng.integers(0, 4, m)
+    latency = model.latency_s + rng.uniform(-1.0, 1.0, m) * model.latency_jitter_s
+
+    lat_e7, lon_e7, h_m = truth.origin.to_geodetic(p_ant + err)
+    speed = np.hypot(v_meas[:, 0], v_meas[:, 1])
+    course = np.degrees(np.arctan2(v_meas[:, 0], v_meas[:, 1])) % 360.0
+    course[course >= 360.0] = 0.0  # -1e-17 % 360 rounds to 360
+    course[speed < model.course_min_speed_m_s] = np.nan
+    nan = np.full(m, np.nan)
+
+    pps = np.arange(np.ceil(truth.t_s[0]), truth.t_s[-1] + 1e-9, 1.0)
+    if not model.pps_without_fix:
+        has_fix = pps >= model.ttff_s
+        for start, length in outages:
+            has_fix &= ~((pps >= start) & (pps < start + length))
+        pps = pps[has_fix]
+
+    return GnssData(
+        t_fix_s=t,
+        t_avail_s=t + latency,
+        lat_e7=np.where(fix, lat_e7, 0),
+        lon_e7=np.where(fix, lon_e7, 0),
+        h_m=np.where(fix, h_m, nan),
+        speed_m_s=np.where(fix, speed, nan),
+        course_deg=np.where(fix, course, nan),
+        hdop=np.where(fix, hdop, nan),
+        quality=fix.astype(np.int8),
+        nsat=np.where(fix, nsat, nsat_nofix).astype(np.int8),
+        sigma_h_m=np.where(fix, scale * model.sigma_h_m, nan),
+        sigma_v_m=np.where(fix, scale * model.sigma_v_m, nan),
+        sigma_vel_m_s=np.where(fix, scale * model.sigma_vel_m_s, nan),
+        pps_s=pps,
+        p_ant_n=p_ant,
+        v_ant_n=v_ant,
+        err_n_m=err,
+        outages=outages,
+        model=model,
+    )
