@@ -143,6 +143,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
         align_time_s=align_t,
         gnss_updates=nav.updates,
         resets=nav.resets,
+        extra={"reanchors": nav.reanchors},
     )
 
 

@@ -163,6 +163,7 @@ class Navigator:
         self._job = _JOB_NONE
         self.updates = 0  # GNSS updates run (for reports)
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
+        self.reanchors = 0  # origin moves
 
     # ---- inputs --------------------------------------------------------------------------
 
@@ -485,6 +486,7 @@ class Navigator:
             corr[i] = corr[i] - dp[i]
         fr.set_origin(e7[0], e7[1], h)
         ins.set_frame(fr)
+        self.reanchors += 1
 
     def _schedule(self):
         """Start the next filter job (the filter is idle)."""
