@@ -143,7 +143,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
         align_time_s=align_t,
         gnss_updates=nav.updates,
         resets=nav.resets,
-        extra={"reanchors": nav.reanchors},
+        extra={"reanchors": nav.reanchors, "p_n_final": [float(x) for x in nav.ins.p_n]},
     )
 
 
@@ -152,7 +152,8 @@ def wrap(a):
 
 
 def metrics(run_, truth, outages=(), skip_s=0.0):
-    """Errors over the navigation phase (after `skip_s` more seconds), angles wrapped."""
+    """Errors over the navigation phase (after `skip_s` more seconds), angles wrapped; the
+    `_gnss` figures leave out the outage windows."""
     dt = float(truth.t_s[1] - truth.t_s[0])
     idx = np.rint(run_.t_s / dt).astype(int)
     keep = run_.t_s >= (run_.align_time_s or 0.0) + skip_s
@@ -161,8 +162,14 @@ def metrics(run_, truth, outages=(), skip_s=0.0):
     dv = run_.v_n[keep] - truth.v_n[i]
     da = wrap(run_.ypr[keep] - truth.ypr[i])
     rms = lambda x: float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")  # noqa: E731
+    t = run_.t_s[keep]
+    gnss_ok = np.ones(len(t), bool)
+    for start, length in outages:
+        gnss_ok &= ~((t >= start) & (t < start + length))
     out = {
         "horiz_rms_m": rms(np.hypot(dp[:, 0], dp[:, 1])),
+        "horiz_rms_gnss_m": rms(np.hypot(dp[gnss_ok, 0], dp[gnss_ok, 1])),
+        "vel_rms_gnss_m_s": rms(np.linalg.norm(dv[gnss_ok], axis=1)),
         "vert_rms_m": rms(dp[:, 2]),
         "vel_rms_m_s": rms(np.linalg.norm(dv, axis=1)),
         "yaw_rms_deg": float(np.degrees(rms(da[:, 0]))),
