@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint accuracy clean
+.PHONY: demo test lint accuracy bench-nav clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,10 @@ lint: $(STAMP)
 # Measure the float32 math functions' accuracy over their domains (minutes; see docs/float32.md).
 accuracy: $(STAMP)
 	$(BIN)/python -m host_emulator.reference.accuracy
+
+# Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
+bench-nav: $(STAMP)
+	$(BIN)/python -m host_emulator.bench_nav
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

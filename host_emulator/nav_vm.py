@@ -60,8 +60,12 @@ for k in range(N):
     if k & 31 == 0:
         gc.collect()
         gc.disable()
+# the per-tick arrays as hex lines (a JSON list of 36k ints does not fit the VM's heap)
+import binascii
+for i in range(0, N, 2048):
+    print('B', binascii.hexlify(blocks[i:i + 2048]).decode())
+    print('S', binascii.hexlify(state[i:i + 2048]).decode())
 print(json.dumps({{
-    "blocks": list(blocks), "state": list(state),
     "p_n": list(n.ins.p_n), "v_n": list(n.ins.v_n), "q_bn": list(n.ins.q_bn),
     "updates": n.updates, "tick": n.tick,
 }}))
@@ -80,20 +84,42 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
         if k >= n:
             break
         course = -1.0 if np.isnan(f.course_deg) else float(np.radians(f.course_deg))
-        fixes.append([k, int(f.lat_e7), int(f.lon_e7), float(f.h_m), int(f.quality),
-                      float(f.hdop), float(f.speed_m_s), course, int(round(f.t_fix_s / dt))])
+        fixes.append(
+            [
+                k,
+                int(f.lat_e7),
+                int(f.lon_e7),
+                float(f.h_m),
+                int(f.quality),
+                float(f.hdop),
+                float(f.speed_m_s),
+                course,
+                int(round(f.t_fix_s / dt)),
+            ]
+        )
     with tempfile.TemporaryDirectory() as d:
         imu_path = pathlib.Path(d) / "imu.bin"
         fix_path = pathlib.Path(d) / "fixes.json"
         imu_path.write_bytes(counts.astype("<i2").tobytes())
         fix_path.write_text(json.dumps(fixes))
         lever = [float(x) for x in gnss.model.lever_b_m]
-        out = mpvm.run_json(_SCRIPT.format(profile=profile, lever=lever, slices=slices_per_tick,
-                                           coning=coning,
-                                           imu_path=str(imu_path), fix_path=str(fix_path)),
-                            timeout=timeout)
-    out["blocks"] = np.array(out["blocks"])
-    out["state"] = np.array(out["state"])
+        text = mpvm.run(
+            _SCRIPT.format(
+                profile=profile,
+                lever=lever,
+                slices=slices_per_tick,
+                coning=coning,
+                imu_path=str(imu_path),
+                fix_path=str(fix_path),
+            ),
+            timeout=timeout,
+        )
+    lines = text.strip().splitlines()
+    out = json.loads(lines[-1])
+    blocks = b"".join(bytes.fromhex(ln[2:]) for ln in lines if ln.startswith("B "))
+    state = b"".join(bytes.fromhex(ln[2:]) for ln in lines if ln.startswith("S "))
+    out["blocks"] = np.frombuffer(blocks, dtype="<u2").astype(int)
+    out["state"] = np.frombuffer(state, dtype=np.uint8).astype(int)
     return out
 
 
@@ -103,6 +129,10 @@ def block_stats(blocks, state):
     for name, s in (("aligning", 1), ("navigating", 2)):
         b = blocks[state == s]
         if len(b):
-            res[name] = {"ticks": int(len(b)), "mean": float(np.mean(b)),
-                         "p99": float(np.percentile(b, 99)), "max": int(np.max(b))}
+            res[name] = {
+                "ticks": int(len(b)),
+                "mean": float(np.mean(b)),
+                "p99": float(np.percentile(b, 99)),
+                "max": int(np.max(b)),
+            }
     return res
