@@ -193,8 +193,10 @@ def main():
     print("   60 s standing still, then driving up to 15 m/s with a 10 s GNSS outage at 200 s")
     m, align_t, wall = navigator_section()
     print(f"   navigation starts at {align_t:.1f} s (heading from the GNSS course once moving)")
-    print(f"   horizontal RMS {m['horiz_rms_m']:.2f} m (raw GNSS {m['gnss_horiz_rms_m']:.2f} m), "
-          f"yaw RMS {m['yaw_rms_deg']:.2f} deg")
+    print(
+        f"   horizontal RMS {m['horiz_rms_m']:.2f} m (raw GNSS {m['gnss_horiz_rms_m']:.2f} m), "
+        f"yaw RMS {m['yaw_rms_deg']:.2f} deg"
+    )
     for o in m["outages"]:
         print(f"   {o['length_s']:g} s without GNSS: {o['horiz_err_end_m']:.2f} m off at its end")
     print(f"   ({wall:.1f} s on this PC; full benchmark: make bench-nav)")

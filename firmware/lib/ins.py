@@ -204,6 +204,7 @@ class Ins:
             q[3] = self.q_bn[3]
             rot.q_mul(self.q_bn, r, q)
             rot.q_normalize(self.q_bn)
+            rot.q_to_dcm(self.c_bn, self.q_bn)
         wy2 = w[1] + w[1]
         wz2 = w[2] + w[2]
         # -2 w x v with w = (0, wy, wz)

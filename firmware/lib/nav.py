@@ -36,7 +36,8 @@ from fmath import asin, atan2, cos, sin, sqrt
 
 ALIGNING = const(1)
 NAVIGATING = const(2)
-RING = const(64)  # ticks of state history for the GNSS delay (320 ms at 200 Hz)
+RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz): the fix
+# latency plus the wait for the filter (a propagation is 31 ticks at one slice per tick)
 
 _JOB_NONE = const(0)
 _JOB_GNSS = const(1)
@@ -50,10 +51,18 @@ _FX_COURSE = const(3)
 _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
 
+# self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes)
+_US_P = const(0)  # antenna position in the frame (3)
+_US_SPEED = const(3)
+_US_COURSE = const(4)
+_US_SIG_H = const(5)
+_US_SIG_V = const(6)
+
 # self._st: standstill detector
 _ST_FX = const(0)  # low-passed specific force (3)
 _ST_VAR = const(3)  # low-passed |f - f_lp|^2
 _ST_GYRO = const(4)  # low-passed |w - b_g|^2
+_ST_SPEED = const(5)  # speed of the last usable fix, m/s
 
 
 _STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
@@ -88,7 +97,8 @@ class Navigator:
         self._gp = f32.zeros(3)  # GNSS antenna position in the frame, m
         self._gv = f32.zeros(2)  # GNSS horizontal velocity, m/s
         self._fx = f32.zeros(6)
-        self._st = f32.zeros(5)
+        self._used = f32.zeros(7)
+        self._st = f32.zeros(6)
         self._lvl = f32.zeros(6)  # sums of f and w while levelling
         self._init = f32.zeros(eskf.N)  # initial P diagonal
         # configuration derived once
@@ -146,12 +156,15 @@ class Navigator:
         self._n_level = 0
         self._n_still = 0
         self._n_stable = 0
-        self._fix_pending = False
+        self._fix_pending = False  # a fix arrived, not screened yet
+        self._fix_queued = False  # a usable fix waits for the filter
+        self._used_tick = 0  # measurement tick of the fix in self._used
         self._fix_lat = 0
         self._fix_lon = 0
         self._fix_quality = 0
         self._fix_tick = 0
         self._last_fix_tick = -1000000
+        self._speed_tick = -1000000  # tick of the last usable fix (its speed: self._st)
         self._last_accept_tick = 0
         self._rejects = 0
         self._gated_until = 0
@@ -263,15 +276,18 @@ class Navigator:
         ga = cfg.still_gyro
         aa = cfg.still_accel
         quiet = st[_ST_VAR] < aa * aa and st[_ST_GYRO] < ga * ga
-        # A smooth road at constant speed is as quiet as standing still: speed must agree.
-        if quiet and self.tick - self._last_fix_tick < self._ticks_second:
-            if self._fx[_FX_SPEED] > cfg.still_gnss_speed:
-                quiet = False
-        if quiet and self.state == NAVIGATING:
-            v = self.ins.v_n
-            lim = cfg.still_max_speed
-            if v[0] * v[0] + v[1] * v[1] > lim * lim:
-                quiet = False
+        # A smooth road at constant speed is as quiet as standing still: speed must agree,
+        # the GNSS speed when there is a recent usable fix (so an INS velocity error cannot
+        # lock the zero-velocity update out), else the navigator's own.
+        if quiet:
+            if self.tick - self._speed_tick < self._ticks_second:
+                if st[_ST_SPEED] > cfg.still_gnss_speed:
+                    quiet = False
+            elif self.state == NAVIGATING:
+                v = self.ins.v_n
+                lim = cfg.still_max_speed
+                if v[0] * v[0] + v[1] * v[1] > lim * lim:
+                    quiet = False
         if quiet:
             self._n_still += 4
         else:
@@ -330,8 +346,14 @@ class Navigator:
         self.leveled = True
 
     def _fix_usable(self):
+        """Quality and HDOP acceptable; a usable fix's speed also feeds standstill detection."""
         cfg = self.cfg
-        return self._fix_quality >= cfg.gnss_min_quality and self._fx[_FX_HDOP] <= cfg.gnss_hdop_max
+        fx = self._fx
+        if self._fix_quality >= cfg.gnss_min_quality and fx[_FX_HDOP] <= cfg.gnss_hdop_max:
+            self._st[_ST_SPEED] = fx[_FX_SPEED]
+            self._speed_tick = self.tick
+            return True
+        return False
 
     def _align_fix(self):
         cfg = self.cfg
@@ -368,26 +390,34 @@ class Navigator:
         v[0] = sp * sin(course)
         v[1] = sp * cos(course)
         v[2] = 0.0
-        # IMU position = antenna - C_bn lever
-        p = self._tmp4
-        self._lever_n(p)
-        for i in range(3):
-            p[i] = self._gp[i] - p[i]
-        ins.reset_kinematics(p, v)
-        ini = self._init
         sh = self._sigma_h()
-        sv = self._sigma_v(sh)
-        ini[0] = sh * sh
-        ini[1] = sh * sh
-        ini[2] = sv * sv
-        self.kf.reset_p(ini)
-        for i in range(6):
-            self._corr[i] = 0.0
+        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh))
         ins.take_dvn(self._tmp3)
         ins.slow_update(f32.f32(0))
         self._since_prop = 0
         self._last_accept_tick = self.tick
         self.state = NAVIGATING
+
+    def _restart(self, gp, v, age, sigma_h, sigma_v):
+        """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
+        covariance from the initial diagonal and the fix's sigmas."""
+        ins = self.ins
+        p = self._tmp4
+        self._lever_n(p)
+        if age < 0:
+            age = 0
+        t = f32.f32(age) * self.cfg.dt_s
+        for i in range(3):
+            # IMU = antenna - C_bn lever, carried forward over the fix's age
+            p[i] = (gp[i] - p[i]) + v[i] * t
+        ins.reset_kinematics(p, v)
+        ini = self._init
+        ini[0] = sigma_h * sigma_h
+        ini[1] = sigma_h * sigma_h
+        ini[2] = sigma_v * sigma_v
+        self.kf.reset_p(ini)
+        for i in range(6):
+            self._corr[i] = 0.0
 
     def _lever_n(self, out):
         """out[0:3] = C_bn lever_b (antenna offset in the navigation frame)."""
@@ -436,6 +466,7 @@ class Navigator:
         self._since_zupt += 1
         self._since_nhc += 1
         if self._fix_pending:
+            self._fix_pending = False
             self._nav_fix()
         kf = self.kf
         if kf.job == eskf.IDLE and not kf.ready:
@@ -451,10 +482,9 @@ class Navigator:
             self._fault_reset()
 
     def _nav_fix(self):
-        """A fix while navigating: screen it, re-anchor if far, keep it for the next update."""
+        """A new fix while navigating: screen it, re-anchor if far, queue it for the filter."""
         self._last_fix_tick = self.tick
         if not self._fix_usable():
-            self._fix_pending = False
             self._gated_until = self.tick + self._ticks_second
             return
         ins = self.ins
@@ -464,7 +494,7 @@ class Navigator:
             self._reanchor()
         fx = self._fx
         self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
-        # the fix stays pending until the filter is free (see _schedule)
+        self._fix_queued = True  # until the filter is free (see _schedule)
 
     def _reanchor(self):
         """New integer origin at the current position; state re-expressed in the new frame."""
@@ -493,8 +523,8 @@ class Navigator:
         cfg = self.cfg
         kf = self.kf
         overdue = self._since_prop >= 2 * self._ticks_prop
-        if self._fix_pending and not overdue:
-            self._fix_pending = False
+        if self._fix_queued and not overdue:
+            self._fix_queued = False
             self._start_gnss_update()
         elif self._since_prop >= self._ticks_prop:
             ins = self.ins
@@ -535,6 +565,15 @@ class Navigator:
         rh = sh * sh
         rv_ = sv * sv
         gp = self._gp
+        fx = self._fx
+        used = self._used
+        for i in range(3):
+            used[_US_P + i] = gp[i]
+        used[_US_SPEED] = fx[_FX_SPEED]
+        used[_US_COURSE] = fx[_FX_COURSE]
+        used[_US_SIG_H] = sh
+        used[_US_SIG_V] = sv
+        self._used_tick = self._fix_tick
         lx = ln[0]
         ly = ln[1]
         lz = ln[2]
@@ -545,7 +584,6 @@ class Navigator:
         kf.add_scalar(z, rh, 3, 1, 1.0, eskf.IX_ATT, lz, eskf.IX_ATT + 2, -lx)
         z = (rp[b + 2] + corr[2] + lz) - gp[2]
         kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
-        fx = self._fx
         course = fx[_FX_COURSE]
         sp = fx[_FX_SPEED]
         if course >= 0.0:
@@ -644,18 +682,14 @@ class Navigator:
         self._job = _JOB_NONE
 
     def _reset_to_gnss(self):
-        """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): take
-        position and horizontal velocity from GNSS and restart the covariance; attitude and
-        biases are kept."""
+        """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
+        and horizontal velocity from the fix it last rejected, a fresh covariance; attitude
+        and biases are kept."""
         ins = self.ins
-        p = self._tmp4
-        self._lever_n(p)
-        for i in range(3):
-            p[i] = self._gp[i] - p[i]
+        used = self._used
         v = self._tmp3
-        fx = self._fx
-        course = fx[_FX_COURSE]
-        sp = fx[_FX_SPEED]
+        course = used[_US_COURSE]
+        sp = used[_US_SPEED]
         v[2] = ins.v_n[2]
         if course >= 0.0:
             v[0] = sp * sin(course)
@@ -663,16 +697,7 @@ class Navigator:
         else:
             v[0] = ins.v_n[0]
             v[1] = ins.v_n[1]
-        ins.reset_kinematics(p, v)
-        ini = self._init
-        sh = self._sigma_h()
-        sv = self._sigma_v(sh)
-        ini[0] = sh * sh
-        ini[1] = sh * sh
-        ini[2] = sv * sv
-        self.kf.reset_p(ini)
-        for i in range(6):
-            self._corr[i] = 0.0
+        self._restart(used, v, self.tick - self._used_tick, used[_US_SIG_H], used[_US_SIG_V])
         self._rejects = 0
         self.resets += 1
 
@@ -694,6 +719,7 @@ class Navigator:
             self._corr[i] = 0.0
         self._n_level = 0
         self._n_stable = 0
+        self._fix_queued = False
         self.leveled = False
         self._fault_until = self.tick + self._ticks_second
         self.resets += 1

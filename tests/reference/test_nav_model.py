@@ -1,0 +1,471 @@
+"""The NumPy float32 model of the navigator (host_emulator/reference/nav.py) against the
+firmware's Navigator (firmware/lib/nav.py on the float32 seam), bit for bit after every tick.
+
+Both are fed the same simulated drive the way host_emulator/nav_runner.py feeds the firmware
+(BMI055 counts every 5 ms, each GNSS fix at the first tick after it becomes available, with its
+PPS tick). After every tick every piece of navigator state is compared through its float32 bit
+pattern: p, v, q, C, biases, the 225 elements of P (also between the slices of a propagation
+or update), dx, the filter's work buffers, the state-history ring, the corrections, the
+standstill detector, the alignment sums, the origin and its coefficients, and all integer
+state (tick, state, health, job, slice step, counters). NaN payloads are not compared (any NaN
+equals any NaN), as in docs/float32.md. Each scenario also asserts that the features it is
+meant to exercise really happened, so it cannot pass vacuously.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import navcfg
+import numpy as np
+import pytest
+from nav import NAVIGATING, Navigator
+
+import f32
+from host_emulator.reference.nav import NavModel
+from host_emulator.sim import gnss as sim_gnss
+from host_emulator.sim import imu as sim_imu
+from host_emulator.sim import trajectory
+
+F32 = np.float32
+DT = trajectory.DT_S
+E7_PER_M_NORTH = 1e7 / 111_000.0  # ~ 1e-7 deg of latitude per metre
+
+
+# ---- scenarios -------------------------------------------------------------------------------
+
+
+@dataclass
+class Drive:
+    truth: trajectory.Truth
+    imu: sim_imu.ImuData
+    fixes: list  # GnssFix, possibly edited
+    outage: tuple  # (start_s, length_s) or ()
+    gyro: list = field(init=False)
+    accel: list = field(init=False)
+
+    def __post_init__(self):
+        self.gyro = self.imu.gyro_counts.astype(int).tolist()
+        self.accel = self.imu.accel_counts.astype(int).tolist()
+
+
+def simulate(script, duration_s, seed, outages=(), origin=trajectory.ORIGIN_XIAN):
+    truth = trajectory.truth_from_script(script, duration_s, outages=outages, origin=origin)
+    imu = sim_imu.simulate(truth, seed=seed)
+    gnss = sim_gnss.simulate(truth, seed=seed, outages=outages)
+    return truth, imu, list(gnss)
+
+
+def glitch(fix, metres):
+    """The same fix displaced by about `metres` north, east and (1.5x) up: fully gated."""
+    lon_per_m = E7_PER_M_NORTH / math.cos(math.radians(fix.lat_e7 * 1e-7))
+    return fix._replace(
+        lat_e7=fix.lat_e7 + round(metres * E7_PER_M_NORTH),
+        lon_e7=fix.lon_e7 + round(metres * lon_per_m),
+        h_m=fix.h_m + 1.5 * metres,
+    )
+
+
+def fix_at(fixes, t_s):
+    return min(range(len(fixes)), key=lambda i: abs(fixes[i].t_fix_s - t_s))
+
+
+def city_drive(duration_s):
+    """Static start (levelling), away past 3 m/s (heading from the GNSS course), a left turn,
+    a 5 s stop (zero-velocity updates), away again, a right turn inside a 12 s GNSS outage,
+    re-acquisition, a left turn; gentle grade and bank throughout. One fully gated fix (a 40 m
+    jump), one fix above the HDOP limit and one whose speed is 4 m/s off (velocity gated)."""
+    s = trajectory.DriveScript(yaw0_rad=0.6)
+    s.add_road(np.random.default_rng(11), 1500.0, 0.03, 0.02, (60.0, 150.0), (20.0, 50.0))
+    s.hold(6.0)
+    s.speed_to(9.0, 1.5)  # past 3 m/s at ~8 s
+    s.hold(4.0)
+    s.turn(0.5 * math.pi, 0.5)
+    s.hold(3.0)
+    s.speed_to(0.0, 1.5)
+    s.hold(5.0)  # stop: ~30-35 s
+    s.speed_to(10.0, 1.5)
+    s.hold(4.0)
+    s.turn(-0.5 * math.pi, 0.5)  # inside the outage
+    s.hold(6.0)
+    s.turn(0.25 * math.pi, 0.4)
+    s.hold(max(0.0, duration_s - s.t_s))
+    outage = (44.0, 12.0)
+    truth, imu, fixes = simulate(s, duration_s, seed=21, outages=[outage])
+    i = fix_at(fixes, 20.0)
+    fixes[i] = glitch(fixes[i], 40.0)
+    i = fix_at(fixes, 25.0)
+    fixes[i] = fixes[i]._replace(hdop=3.0)
+    i = fix_at(fixes, 40.0)
+    fixes[i] = fixes[i]._replace(speed_m_s=fixes[i].speed_m_s + 4.0)
+    return Drive(truth, imu, fixes, outage)
+
+
+def fast_drive(duration_s):
+    """Static start 250 m west of the 180th meridian, then away to 15 m/s east-south-east on
+    a gently curving road: hundreds of metres, across the meridian (longitudes wrap)."""
+    s = trajectory.DriveScript(yaw0_rad=-2.0)
+    s.hold(6.0)
+    s.speed_to(15.0, 2.0)
+    s.hold(3.0)
+    s.turn(0.3, 0.1, ramp_s=3.0)
+    s.hold(max(0.0, duration_s - s.t_s))
+    origin = trajectory.Origin(lat_e7=342600000, lon_e7=1799972000, h_m=400.0)
+    truth, imu, fixes = simulate(s, duration_s, seed=5, origin=origin)
+    return Drive(truth, imu, fixes, ())
+
+
+def simple_drive(duration_s):
+    """For the board's simple model: no fix for the first 2.5 s, static start, away to 8 m/s,
+    five consecutive fixes 40 m off (rejected five times: the navigator resets to GNSS, then,
+    rejecting the good fixes, back), a 5 s stop, away again."""
+    s = trajectory.DriveScript(yaw0_rad=2.5)
+    s.hold(6.0)
+    s.speed_to(8.0, 1.5)
+    s.hold(2.0)
+    s.turn(-0.4 * math.pi, 0.5)
+    s.hold(8.0)
+    s.speed_to(0.0, 2.0)
+    s.hold(5.0)  # stop: ~29.8-34.8 s
+    s.speed_to(8.0, 2.0)
+    s.hold(max(0.0, duration_s - s.t_s))
+    truth, imu, fixes = simulate(s, duration_s, seed=8, outages=[(0.0, 2.5)])
+    i = fix_at(fixes, 11.0)
+    for k in range(i, i + 5):
+        fixes[k] = glitch(fixes[k], 40.0)
+    return Drive(truth, imu, fixes, ())
+
+
+def car_config(**settings):
+    """The car profile with `settings` applied. What a test means to cover is set explicitly,
+    so that retuning the defaults cannot silently drop it."""
+    cfg = navcfg.NavConfig("car")
+    for name, value in settings.items():
+        assert hasattr(cfg, name), name
+        setattr(cfg, name, value)
+    return cfg
+
+
+# ---- side by side ----------------------------------------------------------------------------
+
+
+def firmware_snapshot(nav):
+    """The firmware's state under the model's names (see NavModel.snapshot)."""
+    ins, kf, fr = nav.ins, nav.kf, nav.frame
+    floats = {
+        "p_n": ins.p_n,
+        "v_n": ins.v_n,
+        "q_bn": ins.q_bn,
+        "c_bn": ins.c_bn,
+        "bg": ins.bg,
+        "ba": ins.ba,
+        "dvn_sum": ins.dvn_sum,
+        "a_n": ins.a_n,
+        "w_ie_n": ins.w_ie_n,
+        "p_comp": ins._pk,
+        "theta_prev": ins._th_prev,
+        "dv_prev": ins._dv_prev,
+        "earth_model": [ins._g0, ins._inv_rn, ins._inv_rm, ins._h0],
+        "P": kf.P,
+        "dx": kf.dx,
+        "kf_A": kf._a,
+        "kf_v": kf._v,
+        "kf_K": kf._k,
+        "kf_f_n": kf._fn,
+        "kf_c_bn": kf._c,
+        "kf_w_ie_n": kf._w,
+        "kf_scalars": kf._s,
+        "q_psd": kf.q_psd,
+        "p_floor": kf.p_floor,
+        "p_ceiling": kf.p_ceiling,
+        "w_b": nav._w,
+        "f_b": nav._f,
+        "still_lp": nav._st,
+        "level_sums": nav._lvl,
+        "init_diag": nav._init,
+        "ring_p": nav._ring_p,
+        "ring_v": nav._ring_v,
+        "corr": nav._corr,
+        "gnss_p": nav._gp,
+        "fix": nav._fx,
+        "used_fix": nav._used,
+        "ypr": nav.ypr,
+        "frame_coef": fr.coef,
+    }
+    ints = {
+        "tick": nav.tick,
+        "state": nav.state,
+        "health": nav.health,
+        "leveled": nav.leveled,
+        "still": nav.still,
+        "n_level": nav._n_level,
+        "n_still": nav._n_still,
+        "n_stable": nav._n_stable,
+        "fix_pending": nav._fix_pending,
+        "fix_queued": nav._fix_queued,
+        "used_tick": nav._used_tick,
+        "speed_tick": nav._speed_tick,
+        "fix_lat_e7": nav._fix_lat,
+        "fix_lon_e7": nav._fix_lon,
+        "fix_quality": nav._fix_quality,
+        "fix_tick": nav._fix_tick,
+        "last_fix_tick": nav._last_fix_tick,
+        "last_accept_tick": nav._last_accept_tick,
+        "rejects": nav._rejects,
+        "gated_until": nav._gated_until,
+        "fault_until": nav._fault_until,
+        "sat_until": nav._sat_until,
+        "since_prop": nav._since_prop,
+        "since_zupt": nav._since_zupt,
+        "since_nhc": nav._since_nhc,
+        "job": nav._job,
+        "updates": nav.updates,
+        "resets": nav.resets,
+        "reanchors": nav.reanchors,
+        "kf_job": kf.job,
+        "kf_step": kf._step,
+        "kf_m": kf._m,
+        "kf_ready": kf.ready,
+        "kf_n_scalars": kf.n_scalars,
+        "kf_accepted": kf.accepted,
+        "kf_rejected": kf.rejected,
+        "kf_gate_mask": kf.gate_mask,
+        "origin_lat_e7": fr.lat0_e7,
+        "origin_lon_e7": fr.lon0_e7,
+        "frame_valid": fr.valid,
+    }
+    return floats, {k: int(v) for k, v in ints.items()}
+
+
+def _flat(floats, names):
+    return np.concatenate([np.asarray(floats[k], dtype=F32).ravel() for k in names])
+
+
+def first_difference(tick, fw, model):
+    """A readable account of the first differing field (None if all agree)."""
+    fw_f, fw_i = fw
+    mo_f, mo_i = model
+    for k in mo_i:
+        if fw_i[k] != mo_i[k]:
+            return f"tick {tick}: {k} firmware {fw_i[k]} model {mo_i[k]}"
+    for k in mo_f:
+        a = np.asarray(fw_f[k], dtype=F32).ravel()
+        b = np.asarray(mo_f[k], dtype=F32).ravel()
+        if a.shape != b.shape:
+            return f"tick {tick}: {k} shapes {a.shape} vs {b.shape}"
+        bad = (a.view(np.uint32) != b.view(np.uint32)) & ~(np.isnan(a) & np.isnan(b))
+        if bad.any():
+            i = np.flatnonzero(bad)
+            return (
+                f"tick {tick}: {k}[{i.tolist()[:8]}] firmware {a[i][:8].tolist()} "
+                f"model {b[i][:8].tolist()} (bits {a[i][:4].view(np.uint32).tolist()} vs "
+                f"{b[i][:4].view(np.uint32).tolist()})"
+            )
+    return None
+
+
+@dataclass
+class Seen:
+    """What happened during a run (firmware side; the model agrees bit for bit)."""
+
+    nav_tick: int | None = None  # first tick in NAVIGATING
+    nav_ticks: int = 0
+    accepted_gnss: list = field(default_factory=list)  # ticks of accepted GNSS injections
+    rejected_gnss: int = 0  # GNSS updates with every position scalar gated out
+    partly_gated: int = 0  # GNSS updates with some scalars gated out
+    unusable_fixes: int = 0  # quality or HDOP, while navigating
+    unusable_aligning: int = 0  # ... while aligning
+    timeout_ticks: list = field(default_factory=list)  # health 1 for lack of accepted GNSS
+    still_ticks: int = 0
+    zupts: int = 0
+    nhcs: int = 0
+    propagations: int = 0
+    floored: int = 0  # ticks with a variance at its floor
+    ceiled: int = 0  # ticks with a variance at its ceiling
+    origins: set = field(default_factory=set)
+    health: set = field(default_factory=set)
+
+
+def observe(seen, nav, before):
+    t = nav.tick
+    kf = nav.kf
+    seen.health.add(nav.health)
+    if nav.frame.valid:
+        seen.origins.add((nav.frame.lat0_e7, nav.frame.lon0_e7))
+    new_fix = nav._last_fix_tick == t and before["last_fix_tick"] != t
+    if nav.state != NAVIGATING:
+        seen.unusable_aligning += new_fix and not nav._fix_usable()
+        return
+    if seen.nav_tick is None:
+        seen.nav_tick = t
+    seen.nav_ticks += 1
+    seen.still_ticks += nav.still
+    seen.zupts += nav._since_zupt == 0 and nav.still  # started this tick
+    seen.nhcs += nav._since_nhc == 0
+    seen.propagations += nav._since_prop == 0 and kf.job == 1
+    seen.unusable_fixes += new_fix and not nav._fix_usable()
+    injected_gnss = before["job"] == 1 and nav._job == 0
+    if injected_gnss and kf.gate_mask & 7 == 7:
+        seen.rejected_gnss += 1
+    elif injected_gnss:
+        seen.accepted_gnss.append(t)
+        seen.partly_gated += kf.gate_mask != 0
+    if nav.health == 1 and t - nav._last_accept_tick > nav._ticks_timeout:
+        seen.timeout_ticks.append(t)
+    d = np.diagonal(np.asarray(kf.P).reshape(15, 15))
+    seen.floored += bool(np.any(d == kf.p_floor))
+    seen.ceiled += bool(np.any(np.abs(d - kf.p_ceiling) <= 1e-5 * kf.p_ceiling))
+
+
+def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
+    """Feed firmware and model identically for n_ticks, comparing all state after every tick.
+    hooks: {tick index k: fn(nav, model, k)} runs instead of tick k's IMU input (the same
+    input or edit to both); setup(nav, model) runs once at the start; pps=False hands the
+    fixes over without their measurement tick (the navigator assumes its configured latency).
+    """
+    lever = sim_gnss.GnssModel().lever_b_m
+    for i in range(3):
+        cfg.lever_b_m[i] = lever[i]
+    nav = Navigator(cfg)
+    model = NavModel(cfg)
+    if setup:
+        setup(nav, model)
+    hooks = hooks or {}
+    names = list(model.snapshot()[0])
+    fixes = [f for f in drive.fixes if f.t_avail_s < n_ticks * DT]
+    sat = drive.imu.saturated.tolist()
+    fi = 0
+    seen = Seen()
+    for k in range(n_ticks):
+        while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
+            fx = fixes[fi]
+            course = fx.course_deg
+            course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
+            args = (
+                int(fx.lat_e7),
+                int(fx.lon_e7),
+                f32.f32(fx.h_m),
+                int(fx.quality),
+                f32.f32(fx.hdop),
+                f32.f32(fx.speed_m_s),
+                f32.f32(course_rad),
+            )
+            fix_tick = int(round(fx.t_fix_s / DT)) if pps else -1
+            nav.gnss(*args, fix_tick=fix_tick)
+            model.gnss(*args, fix_tick=fix_tick)
+            fi += 1
+        before = {"last_fix_tick": nav._last_fix_tick, "job": nav._job}
+        if k in hooks:
+            hooks[k](nav, model, k)
+        else:
+            nav.imu_raw(drive.gyro[k], drive.accel[k], sat[k])
+            model.imu_raw(drive.gyro[k], drive.accel[k], sat[k])
+        fw = firmware_snapshot(nav)
+        mo = model.snapshot()
+        if fw[1] != mo[1] or not _bits_equal(_flat(fw[0], names), _flat(mo[0], names)):
+            pytest.fail("model and firmware differ: " + str(first_difference(nav.tick, fw, mo)))
+        observe(seen, nav, before)
+    return nav, model, seen
+
+
+def _bits_equal(a, b):
+    same = a.view(np.uint32) == b.view(np.uint32)
+    return bool(same.all()) or bool((same | (np.isnan(a) & np.isnan(b))).all())
+
+
+def assert_gnss_seen(seen, outage):
+    assert seen.nav_tick is not None and seen.nav_tick * DT < 12.0, seen.nav_tick
+    assert len(seen.accepted_gnss) >= 10
+    assert seen.propagations > 50 and seen.nhcs > 10
+    if outage:
+        start, length = outage
+        end = round((start + length) / DT)
+        in_outage = [t for t in seen.timeout_ticks if round(start / DT) < t <= end]
+        # no accepted fix for the whole outage: the timeout warning holds to its end
+        assert len(in_outage) > round((length - 3.0) / DT)
+        assert any(t > end for t in seen.accepted_gnss)  # re-acquired
+
+
+# ---- tests -------------------------------------------------------------------------------------
+
+
+def test_model_tracks_the_firmware_bit_for_bit_for_a_minute_with_an_outage():
+    """> 60 s of navigation of the city drive: levelling, heading from the course, GNSS
+    updates (one fully gated, one partly, one unusable), turns (NHC), a stop (ZUPT), a 12 s
+    outage inside a turn and the re-acquisition after it."""
+    drive = city_drive(80.0)
+    n = len(drive.truth.t_s) - 1
+    cfg = car_config(earth_terms=True, coning=True, zupt=True, nhc=True, slices_per_tick=1)
+    _, _, seen = side_by_side(drive, cfg, n)
+    assert seen.nav_ticks * DT > 60.0
+    assert_gnss_seen(seen, drive.outage)
+    assert seen.rejected_gnss >= 1 and seen.partly_gated >= 1 and seen.unusable_fixes >= 10
+    assert seen.zupts >= 3 and seen.still_ticks >= 400
+    assert seen.health == {0, 1}
+
+
+def test_model_follows_re_anchoring_across_the_180th_meridian():
+    """With a 200 m re-anchoring radius the origin moves twice, from east of the meridian to
+    west of it. Also: two filter slices per tick, sensor calibration offsets and matrices (the
+    input stage's other path), and P floors and ceilings set so that both clamps act."""
+    cfg = car_config(earth_terms=True, coning=True, slices_per_tick=2, reanchor_m=f32.f32(200))
+    cfg.gyro_bias0[:] = np.array([2e-4, -1e-4, 3e-4], dtype=F32)
+    cfg.accel_bias0[:] = np.array([-0.01, 0.02, 0.005], dtype=F32)
+    cfg.gyro_matrix = f32.zeros(9)
+    cfg.gyro_matrix[:] = np.array([1.001, 2e-4, -1e-4, -3e-4, 0.999, 5e-4, 1e-4, 0, 1.002], F32)
+    cfg.accel_matrix = f32.zeros(9)
+    cfg.accel_matrix[:] = np.array([0.998, -1e-3, 0, 1e-3, 1.001, 2e-4, 0, -2e-4, 1.0], F32)
+
+    def tight_bounds(nav, model):
+        for kf in (nav.kf, model.kf):
+            kf.p_ceiling[0:3] = np.array([1.0, 1.0, 4.0], dtype=F32)  # m^2
+            kf.p_floor[9:12] = F32(9e-8)  # (0.017 deg/s)^2
+            kf.p_floor[14] = F32(1e-5)  # (3 mm/s^2)^2
+
+    drive = fast_drive(42.0)
+    n = len(drive.truth.t_s) - 1
+    nav, _, seen = side_by_side(drive, cfg, n, setup=tight_bounds)
+    assert nav.reanchors >= 2 and len(seen.origins) >= 3
+    lons = [lon for _, lon in seen.origins]
+    assert max(lons) > 1799000000 and min(lons) < -1799000000
+    assert_gnss_seen(seen, ())
+    assert seen.floored >= 10 and seen.ceiled >= 10
+    assert nav.resets == 0
+
+
+def test_model_of_the_simple_board_model_and_the_recovery_paths():
+    """earth_terms=False and coning=False (the board's simple model), fixes without their
+    PPS tick (arrival minus the configured latency), and the recovery paths: fixes without a
+    position while aligning, five rejected fixes (reset to GNSS, twice), a non-finite IMU
+    sample (fault), a saturated tick, and a non-finite state (fault reset, re-alignment while
+    moving, navigation again)."""
+    cfg = car_config(earth_terms=False, coning=False, zupt=True, nhc=True)
+    drive = simple_drive(50.0)
+    n = len(drive.truth.t_s) - 1
+
+    def saturated(nav, model, k):
+        nav.imu_raw(drive.gyro[k], drive.accel[k], True)
+        model.imu_raw(drive.gyro[k], drive.accel[k], True)
+
+    def nan_sample(nav, model, k):
+        w = f32.zeros(3)
+        w[1] = F32(np.nan)
+        f = f32.zeros(3)
+        f[2] = F32(9.8)
+        nav.imu(w, f)
+        model.imu(w.copy(), f.copy())
+
+    def blow_up(nav, model, k):
+        nav.ins.v_n[0] = F32(np.inf)
+        model.ins.v_n[0] = F32(np.inf)
+        nav.imu_raw(drive.gyro[k], drive.accel[k])
+        model.imu_raw(drive.gyro[k], drive.accel[k])
+
+    hooks = {round(23.0 / DT): nan_sample, round(32.0 / DT): saturated}
+    hooks[round(41.0 / DT)] = blow_up
+    nav, model, seen = side_by_side(drive, cfg, n, hooks, pps=False)
+    assert seen.unusable_aligning >= 2
+    assert seen.nav_tick is not None and len(seen.accepted_gnss) >= 5
+    assert seen.rejected_gnss >= 5 and nav.resets >= 3  # reset to GNSS twice, fault reset
+    assert seen.zupts >= 3 and seen.nhcs >= 10
+    assert seen.health == {0, 1, 2}
+    assert nav.state == NAVIGATING  # navigating again after the fault
