@@ -50,6 +50,41 @@ class NavRun:
     extra: dict = field(default_factory=dict)
 
 
+def deliver_fix(nav, fx, dt_s):
+    """Hand one simulated fix to the navigator as the board's loop will: integer lat/lon,
+    float32 values, course in radians (-1 when unknown), and the PPS tick of its epoch."""
+    course = fx.course_deg
+    course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
+    nav.gnss(
+        int(fx.lat_e7),
+        int(fx.lon_e7),
+        f32.f32(fx.h_m),
+        int(fx.quality),
+        f32.f32(fx.hdop),
+        f32.f32(fx.speed_m_s),
+        f32.f32(course_rad),
+        fix_tick=int(round(fx.t_fix_s / dt_s)),
+    )
+
+
+def feed(nav, imu, gnss, k0, k1, on_tick=None):
+    """Ticks k0..k1-1: the fixes available by each tick, then the tick's IMU counts;
+    on_tick(nav, k) after each tick."""
+    dt = float(nav.cfg.dt_s)
+    gyro = imu.gyro_counts[k0:k1].astype(int).tolist()
+    accel = imu.accel_counts[k0:k1].astype(int).tolist()
+    sat = imu.saturated[k0:k1].tolist()
+    fixes = [f for f in gnss if k0 * dt <= f.t_avail_s < k1 * dt]
+    fi = 0
+    for j, k in enumerate(range(k0, k1)):
+        while fi < len(fixes) and fixes[fi].t_avail_s <= k * dt + 1e-9:
+            deliver_fix(nav, fixes[fi], dt)
+            fi += 1
+        nav.imu_raw(gyro[j], accel[j], sat[j])
+        if on_tick:
+            on_tick(nav, k)
+
+
 def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None):
     """Run the navigator over a simulated scenario; returns a NavRun."""
     cfg = cfg or navcfg.NavConfig("car")
@@ -63,35 +98,14 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
     n = len(truth.t_s) - 1
     if duration_s is not None:
         n = min(n, int(round(duration_s / dt)))
-    gyro = imu.gyro_counts[:n].astype(int).tolist()
-    accel = imu.accel_counts[:n].astype(int).tolist()
-    sat = imu.saturated[:n].tolist()
-    fixes = [f for f in gnss if f.t_avail_s < n * dt]
-    fi = 0
     rows = []
     align_t = None
     e7 = np.zeros(2, dtype=np.int32)
     e7_buf = array.array("i", bytes(8))
     pd = f32.zeros(15)
-    t0 = time.perf_counter()
-    for k in range(n):
-        t = k * dt
-        while fi < len(fixes) and fixes[fi].t_avail_s <= t + 1e-9:
-            fx = fixes[fi]
-            course = fx.course_deg
-            course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
-            nav.gnss(
-                int(fx.lat_e7),
-                int(fx.lon_e7),
-                f32.f32(fx.h_m),
-                int(fx.quality),
-                f32.f32(fx.hdop),
-                f32.f32(fx.speed_m_s),
-                f32.f32(course_rad),
-                fix_tick=int(round(fx.t_fix_s / dt)),
-            )
-            fi += 1
-        nav.imu_raw(gyro[k], accel[k], sat[k])
+
+    def record(nav, k):
+        nonlocal align_t
         t = (k + 1) * dt  # tick k+1 holds the state at (k+1) dt: sample k spans [k dt, (k+1) dt]
         if align_t is None and nav.state == NAVIGATING:
             align_t = t
@@ -118,6 +132,9 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
             )
         if progress and k % 2000 == 0:
             progress(k, n)
+
+    t0 = time.perf_counter()
+    feed(nav, imu, gnss, 0, n, on_tick=record)
     wall = time.perf_counter() - t0
     a = np.array(rows, dtype=float) if rows else np.zeros((0, 34))
     o = truth.origin

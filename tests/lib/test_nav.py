@@ -2,8 +2,6 @@
 robustness (gating, R floor, faults, outages) and re-anchoring. Bit-exactness against the
 NumPy model is in tests/reference/test_nav_model.py."""
 
-import math
-
 import navcfg
 import numpy as np
 import pytest
@@ -25,31 +23,7 @@ def scenario(name, duration_s, seed, outages=None, gnss_model=None):
     return truth, imu, gnss
 
 
-def feed(nav, imu, gnss, k0, k1, on_tick=None):
-    """Ticks k0..k1-1 like the board's loop: fixes due by the tick, then the IMU sample."""
-    g = imu.gyro_counts.astype(int).tolist()
-    a = imu.accel_counts.astype(int).tolist()
-    fixes = [f for f in gnss if k0 * DT <= f.t_avail_s < k1 * DT]
-    fi = 0
-    for k in range(k0, k1):
-        while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
-            fx = fixes[fi]
-            c = fx.course_deg
-            course = -1.0 if math.isnan(c) else math.radians(c)
-            nav.gnss(
-                int(fx.lat_e7),
-                int(fx.lon_e7),
-                f32.f32(fx.h_m),
-                int(fx.quality),
-                f32.f32(fx.hdop),
-                f32.f32(fx.speed_m_s),
-                f32.f32(course),
-                fix_tick=int(round(fx.t_fix_s / DT)),
-            )
-            fi += 1
-        nav.imu_raw(g[k], a[k], False)
-        if on_tick:
-            on_tick(nav, k)
+feed = nav_runner.feed
 
 
 def car_nav(gnss):
