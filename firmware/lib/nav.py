@@ -471,10 +471,12 @@ class Navigator:
         kf = self.kf
         if kf.job == eskf.IDLE and not kf.ready:
             self._schedule()
+        busy = kf.job != eskf.IDLE
         kf.work(self.cfg.slices_per_tick)
         if kf.ready:
             self._inject()
-        if kf.job == eskf.IDLE and not kf.diagonal_ok():
+        # P changes only when a job finishes: check it then, not every tick
+        if busy and kf.job == eskf.IDLE and not kf.diagonal_ok():
             self._fault_reset()
             return
         s = p[0] + p[1] + p[2] + v[0] + v[1] + v[2] + ins.q_bn[0]

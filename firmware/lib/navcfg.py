@@ -22,8 +22,9 @@ class NavConfig:
         self.profile = profile
         self.dt_s = f32.ratio(1, 200)  # IMU period (seed 001: 5 ms timer)
         self.earth_terms = True  # Earth rate, Coriolis, gravity tilt (False: board's model)
-        # Two-sample coning and sculling corrections: 48 float operations a tick for no
-        # measurable gain on the car scenarios (docs/navigation.md), so off by default.
+        # Two-sample coning and sculling corrections: ~48 float operations a tick for a small
+        # gain on the car drive (with 2 slices per tick: 0.70 vs 0.72 m horizontal RMS,
+        # docs/benchmarks/navigation.md), so off by default to spare the tick.
         self.coning = False
 
         # Sensor noise: BMI055 datasheet figures (DESIGN.md 7) with a margin of 2 for

@@ -808,10 +808,11 @@ class NavModel:
             self._nav_fix()
         if kf.job == IDLE and not kf.ready:
             self._schedule()
+        busy = kf.job != IDLE
         kf.work(self.cfg.slices_per_tick)
         if kf.ready:
             self._inject()
-        if kf.job == IDLE and not kf.diagonal_ok():
+        if busy and kf.job == IDLE and not kf.diagonal_ok():  # P changed only if a job ended
             self._fault_reset()
             return
         p, v = ins.p_n, ins.v_n
