@@ -1,0 +1,226 @@
+"""Board configuration persisted on the filesystem, CRC-32 protected, validated on load.
+
+Binary, because a float written as text would be parsed differently on the board (MicroPython's
+float32 parser is not correctly rounded) and on the desktop: the file holds float32 bit patterns,
+so both see the same values. Layout, little-endian:
+    b"INSC", version u8, record count u8, records, CRC-32 (u32) of everything before it
+    record: id u8, kind u8 (0 int32, 1 float32), n u8, n values of 4 bytes
+Unknown ids are skipped (a newer file on an older firmware), missing ids keep their defaults.
+
+`load(path)` never raises: it returns (config, status) with status OK, MISSING, CORRUPT
+(unreadable, bad magic or CRC) or INVALID (a value out of range); on anything but OK the config
+is the defaults, and the caller reports it (console and health code). Runs at start-up only:
+it allocates freely.
+"""
+
+import struct
+from binascii import crc32
+
+import navcfg
+
+import f32
+
+OK = 0
+MISSING = 1
+CORRUPT = 2
+INVALID = 3
+STATUS_TEXT = ("ok", "missing", "corrupt", "invalid")
+
+_MAGIC = b"INSC"
+_VERSION = 1
+_INT = 0
+_FLOAT = 1
+
+# id, name, kind, count, default (floats as (num, den) integer ratios or raw values 0/1 only)
+_SCHEMA = (
+    (1, "profile", _INT, 1, 0),  # 0 car, 1 handheld
+    (2, "gyro_range_dps", _INT, 1, 250),
+    (3, "accel_range_g", _INT, 1, 2),
+    (4, "output_every_ticks", _INT, 1, 1),  # 52-byte frame every n ticks (1: 200 Hz)
+    (5, "output_baud", _INT, 1, 460800),
+    (6, "ext_every_ticks", _INT, 1, 20),  # extended frame every n ticks, 0: off
+    (7, "raw_record", _INT, 1, 0),  # 1: a raw-input record every tick (replay)
+    (8, "gnss_baud", _INT, 1, 9600),
+    (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
+    (21, "accel_bias0", _FLOAT, 3, None),  # m/s^2
+    (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)
+    (23, "accel_matrix", _FLOAT, 9, None),
+    (24, "lever_b_m", _FLOAT, 3, None),
+    (30, "gyro_arw", _FLOAT, 1, None),
+    (31, "accel_vrw", _FLOAT, 1, None),
+    (32, "gyro_bias_sigma", _FLOAT, 1, None),
+    (33, "accel_bias_sigma", _FLOAT, 1, None),
+    (34, "gnss_latency_s", _FLOAT, 1, None),
+    (35, "gnss_hdop_max", _FLOAT, 1, None),
+    (36, "gate_sigma", _FLOAT, 1, None),
+    (37, "gnss_uere_m", _FLOAT, 1, None),
+)
+_GYRO_RANGES = (125, 250, 500, 1000, 2000)
+_ACCEL_RANGES = (2, 4, 8, 16)
+_BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)
+
+
+class BoardConfig:
+    """Every persisted setting; floats default to the navigator's defaults (navcfg)."""
+
+    def __init__(self):
+        nav = navcfg.NavConfig("car")
+        for _id, name, kind, n, default in _SCHEMA:
+            if kind == _INT:
+                setattr(self, name, default)
+            elif name in ("gyro_matrix", "accel_matrix"):
+                setattr(self, name, None)  # identity
+            elif n == 1:
+                setattr(self, name, getattr(nav, name))
+            else:
+                setattr(self, name, [getattr(nav, name)[i] for i in range(n)])
+
+    def nav_config(self):
+        """The navigator's configuration with these settings applied."""
+        nav = navcfg.NavConfig("handheld" if self.profile == 1 else "car")
+        for _id, name, kind, n, _default in _SCHEMA:
+            if kind != _FLOAT or not hasattr(nav, name):
+                continue
+            value = getattr(self, name)
+            if value is None:
+                setattr(nav, name, None)
+            elif n == 1:
+                setattr(nav, name, f32.f32(value))
+            else:
+                b = f32.zeros(n)
+                for i in range(n):
+                    b[i] = value[i]
+                setattr(nav, name, b)
+        # the sensor ranges set the raw-count scale (BMI055 datasheet sensitivities)
+        nav.gyro_counts_per_rad_s = f32.ratio(GYRO_LSB_X10[self.gyro_range_dps], 10) / _DEG
+        nav.accel_counts_per_m_s2 = f32.f32(ACCEL_LSB[self.accel_range_g]) / navcfg.G0_M_S2
+        return nav
+
+    def validate(self):
+        """None if every value is in range, else a message naming the first bad one."""
+        if self.profile not in (0, 1):
+            return "profile must be 0 (car) or 1 (handheld)"
+        if self.gyro_range_dps not in _GYRO_RANGES:
+            return f"gyro_range_dps must be one of {_GYRO_RANGES}"
+        if self.accel_range_g not in _ACCEL_RANGES:
+            return f"accel_range_g must be one of {_ACCEL_RANGES}"
+        for name in ("output_baud", "gnss_baud"):
+            if getattr(self, name) not in _BAUDS:
+                return f"{name} must be one of {_BAUDS}"
+        if not 1 <= self.output_every_ticks <= 200:
+            return "output_every_ticks must be 1..200"
+        if not 0 <= self.ext_every_ticks <= 2000:
+            return "ext_every_ticks must be 0..2000"
+        if self.raw_record not in (0, 1):
+            return "raw_record must be 0 or 1"
+        for _id, name, kind, _n, _default in _SCHEMA:
+            value = getattr(self, name)
+            if kind != _FLOAT or value is None:
+                continue
+            for x in value if isinstance(value, list) else (value,):
+                if not x - x == 0.0:
+                    return f"{name} is not finite"
+        for name in (
+            "gyro_arw",
+            "accel_vrw",
+            "gyro_bias_sigma",
+            "accel_bias_sigma",
+            "gnss_hdop_max",
+            "gate_sigma",
+            "gnss_uere_m",
+        ):
+            if not getattr(self, name) > 0.0:
+                return f"{name} must be positive"
+        if not 0.0 <= self.gnss_latency_s < 1.0:
+            return "gnss_latency_s must be in [0, 1) s"
+        return None
+
+
+GYRO_LSB_X10 = {125: 2624, 250: 1312, 500: 656, 1000: 328, 2000: 164}  # LSB per deg/s x10
+ACCEL_LSB = {2: 1024, 4: 512, 8: 256, 16: 128}  # LSB per g (12-bit)
+_DEG = f32.from_bits(0x3C8EFA35)  # pi / 180
+
+
+def _fmt(kind, n):
+    return "<{}{}".format(n, "i" if kind == _INT else "f")
+
+
+def encode(cfg):
+    """The file's bytes for a BoardConfig."""
+    parts = [_MAGIC, bytes((_VERSION, len(_SCHEMA)))]
+    for rid, name, kind, n, _default in _SCHEMA:
+        value = getattr(cfg, name)
+        if value is None:  # identity matrix
+            value = [1.0 if i % 4 == 0 else 0.0 for i in range(9)]
+        values = value if isinstance(value, list) else [value]
+        parts.append(bytes((rid, kind, n)) + struct.pack(_fmt(kind, n), *values))
+    body = b"".join(parts)
+    return body + struct.pack("<I", crc32(body) & 0xFFFFFFFF)
+
+
+def decode(data):
+    """A BoardConfig from the file's bytes; ValueError if they are not a valid file."""
+    if len(data) < 10 or data[:4] != _MAGIC:
+        raise ValueError("not a configuration file (bad magic)")
+    body = data[:-4]
+    (want,) = struct.unpack("<I", data[-4:])
+    if crc32(body) & 0xFFFFFFFF != want:
+        raise ValueError("CRC-32 mismatch")
+    if data[4] != _VERSION:
+        raise ValueError(f"unsupported version {data[4]}")
+    cfg = BoardConfig()
+    by_id = {}
+    for rid, name, kind, n, _default in _SCHEMA:
+        by_id[rid] = (name, kind, n)
+    pos = 6
+    for _ in range(data[5]):
+        if pos + 3 > len(body):
+            raise ValueError("truncated record")
+        rid, kind, n = body[pos], body[pos + 1], body[pos + 2]
+        end = pos + 3 + 4 * n
+        if end > len(body) or kind not in (_INT, _FLOAT):
+            raise ValueError("truncated or malformed record")
+        values = list(struct.unpack(_fmt(kind, n), body[pos + 3 : end]))
+        pos = end
+        if rid not in by_id:
+            continue  # written by a newer firmware
+        name, want_kind, want_n = by_id[rid]
+        if kind != want_kind or n != want_n:
+            raise ValueError(f"record {name} has the wrong shape")
+        value = values[0] if n == 1 else values
+        if name.endswith("_matrix") and value == [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]:
+            value = None
+        setattr(cfg, name, value)
+    return cfg
+
+
+def load(path):
+    """(config, status): the file's configuration if it is present, intact and valid, else
+    the defaults with the reason (MISSING, CORRUPT or INVALID) and a message."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return BoardConfig(), MISSING, f"no configuration file {path}: using defaults"
+    try:
+        cfg = decode(data)
+    except (ValueError, IndexError) as e:
+        return BoardConfig(), CORRUPT, f"configuration {path} is corrupt ({e}): using defaults"
+    problem = cfg.validate()
+    if problem:
+        return (
+            BoardConfig(),
+            INVALID,
+            f"configuration {path} is invalid ({problem}): using defaults",
+        )
+    return cfg, OK, f"configuration {path} loaded"
+
+
+def save(path, cfg):
+    """Write cfg (validated first: ValueError names the bad value)."""
+    problem = cfg.validate()
+    if problem:
+        raise ValueError(problem)
+    data = encode(cfg)
+    with open(path, "wb") as f:
+        f.write(data)

@@ -1,0 +1,167 @@
+"""The 52-byte output frame (DESIGN.md section 6, seed 001 4.4), packed without allocating.
+
+| bytes | field | scale |
+|---|---|---|
+| 0-1 | header 0xEB 0x90 | |
+| 2 | counter, u8 wrapping | |
+| 3-8 | gyro x, y, z, int16 | 131.07 per deg/s |
+| 9-14 | accel x, y, z, int16 | 16383 per g |
+| 15 / 16 / 17 | PPS flag / GGA flag / GNSS valid, u8 | |
+| 18-21 / 22-25 | latitude / longitude, int32 | 1e7 per deg (the GNSS fix) |
+| 26-27 | height, int16 | 10 per m (the GNSS fix) |
+| 28 | navigation state, u8 | 1 aligning, 2 navigating |
+| 29-34 | yaw, pitch, roll, int16 | 100 per deg |
+| 35-40 | velocity E, N, U, int16 | 100 per m/s |
+| 41-48 | position E, N, int32 | 100 per m |
+| 49-50 | position U, int16 | 10 per m |
+| 51 | checksum, u8 | sum of bytes 2..50 mod 256 |
+
+Little-endian, signed unless noted; every value is physical x scale, rounded half away from
+zero and clamped to the field's range (a clamped value is the field's limit, never a wrap).
+
+The sensor fields are what the sensor measured (before calibration) at the frame's own scale:
+the BMI055's sensitivity is not the frame's (131.2 vs 131.07 LSB per deg/s at +-250 deg/s,
+16384 vs 16383 per g at +-2 g), so counts are converted exactly in integer arithmetic, for any
+configured range. Values beyond what the frame can hold (over 250 deg/s, over 2 g) clamp.
+
+Longitudes beyond +-107.37 deg do not fit MicroPython's 31-bit small ints in 1e-7 deg, so
+angles are passed as (whole degrees, fraction in 1e-7 deg, same sign) and packed through
+16-bit halves: 1e7 = 152 * 65536 + 38528.
+"""
+
+from micropython import const
+
+FRAME_LEN = const(52)
+_GYRO_FRAME_X100 = const(13107)  # 131.07 per deg/s, x100
+_ACCEL_FRAME = const(16383)  # per g
+
+
+def _round_div(num, den):
+    """num / den (den > 0) rounded half away from zero, in integers."""
+    if num >= 0:
+        return (2 * num + den) // (2 * den)
+    return -((-2 * num + den) // (2 * den))
+
+
+def _clamp16(x):
+    if x > 32767:
+        return 32767
+    if x < -32768:
+        return -32768
+    return x
+
+
+def _round_clamp(x, lo, hi):
+    """The float x rounded half away from zero, clamped to [lo, hi] (ints)."""
+    if x >= hi:
+        return hi
+    if x <= lo:
+        return lo
+    if x >= 0.0:
+        return int(x + 0.5)
+    return -int(0.5 - x)
+
+
+def gyro_to_frame(counts, lsb_per_dps_x10):
+    """Frame gyro value of `counts` at a sensitivity of lsb_per_dps_x10/10 LSB per deg/s."""
+    return _clamp16(_round_div(counts * _GYRO_FRAME_X100, 10 * lsb_per_dps_x10))
+
+
+def accel_to_frame(counts, lsb_per_g):
+    """Frame accel value of 12-bit `counts` at lsb_per_g LSB per g."""
+    return _clamp16(_round_div(counts * _ACCEL_FRAME, lsb_per_g))
+
+
+def put_u8(buf, off, x):
+    buf[off] = x & 0xFF
+
+
+def put_i16(buf, off, x):
+    x = _clamp16(x)
+    buf[off] = x & 0xFF
+    buf[off + 1] = (x >> 8) & 0xFF
+
+
+def put_i32(buf, off, x):
+    """x a small int (|x| < 2**30 on the board)."""
+    buf[off] = x & 0xFF
+    buf[off + 1] = (x >> 8) & 0xFF
+    buf[off + 2] = (x >> 16) & 0xFF
+    buf[off + 3] = (x >> 24) & 0xFF
+
+
+def put_e7(buf, off, deg, frac_e7):
+    """int32 deg * 1e7 + frac_e7 (frac with deg's sign), without forming the (long) int."""
+    t = deg * 38528 + frac_e7  # |t| < 2**25
+    lo = t & 0xFFFF
+    hi = deg * 152 + (t >> 16)
+    buf[off] = lo & 0xFF
+    buf[off + 1] = lo >> 8
+    buf[off + 2] = hi & 0xFF
+    buf[off + 3] = (hi >> 8) & 0xFF
+
+
+def put_scaled16(buf, off, x, scale):
+    """int16 of the float x * scale, rounded half away from zero, clamped."""
+    put_i16(buf, off, _round_clamp(x * scale, -32768, 32767))
+
+
+def put_scaled32(buf, off, x, scale):
+    """int32 of the float x * scale (the board's small ints bound it to +-2**30)."""
+    put_i32(buf, off, _round_clamp(x * scale, -1073741823, 1073741823))
+
+
+def checksum(buf):
+    s = 0
+    for i in range(2, FRAME_LEN - 1):
+        s += buf[i]
+    return s & 0xFF
+
+
+def finish(buf, counter):
+    """Header, counter and checksum; the fields must already be in place."""
+    buf[0] = 0xEB
+    buf[1] = 0x90
+    buf[2] = counter & 0xFF
+    buf[FRAME_LEN - 1] = checksum(buf)
+
+
+def pack(
+    buf,
+    counter,
+    gyro,
+    accel,
+    gyro_lsb_x10,
+    accel_lsb_per_g,
+    pps,
+    gga,
+    gnss_valid,
+    lat,
+    lon,
+    height_dm,
+    nav_state,
+    ypr_cdeg_scale,
+    ypr,
+    v_n,
+    p_n,
+):
+    """Fill buf[0:52]. gyro, accel: sensor counts (3 each) at the given sensitivities;
+    lat, lon: (degrees, fraction in 1e-7 deg) pairs in 2-element int buffers; height_dm: the
+    fix height in decimetres (int); ypr (rad), v_n (m/s), p_n (m): float32 buffers;
+    ypr_cdeg_scale: centidegrees per radian (18000/pi, float32)."""
+    for i in range(3):
+        put_i16(buf, 3 + 2 * i, gyro_to_frame(gyro[i], gyro_lsb_x10))
+        put_i16(buf, 9 + 2 * i, accel_to_frame(accel[i], accel_lsb_per_g))
+        put_scaled16(buf, 29 + 2 * i, ypr[i], ypr_cdeg_scale)
+        put_scaled16(buf, 35 + 2 * i, v_n[i], 100)
+    buf[15] = 1 if pps else 0
+    buf[16] = 1 if gga else 0
+    buf[17] = 1 if gnss_valid else 0
+    put_e7(buf, 18, lat[0], lat[1])
+    put_e7(buf, 22, lon[0], lon[1])
+    put_i16(buf, 26, height_dm)
+    buf[28] = nav_state & 0xFF
+    put_scaled32(buf, 41, p_n[0], 100)
+    put_scaled32(buf, 45, p_n[1], 100)
+    put_scaled16(buf, 49, p_n[2], 10)
+    finish(buf, counter)

@@ -1,0 +1,130 @@
+"""firmware/lib/config.py: round trip, corrupt, truncated, missing and invalid files fall back
+to defaults with the reason, unknown records are skipped, the navigator configuration follows,
+and the board (MicroPython VM) reads a file written on the desktop to the same values."""
+
+import json
+import struct
+from binascii import crc32
+
+import config
+import numpy as np
+import pytest
+
+from host_emulator import mpvm
+
+
+def custom():
+    c = config.BoardConfig()
+    c.profile = 1
+    c.gyro_range_dps = 500
+    c.accel_range_g = 4
+    c.output_baud = 921600
+    c.ext_every_ticks = 0
+    c.raw_record = 1
+    c.lever_b_m = [0.1, 0.5, 1.25]
+    c.gyro_bias0 = [0.001, -0.002, 0.0005]
+    c.gyro_matrix = [1.003, 0.001, 0.0, -0.001, 0.998, 0.0005, 0.0, 0.0, 1.0]
+    c.gnss_latency_s = 0.08
+    c.gnss_hdop_max = 3.0
+    return c
+
+
+def f32list(x):
+    return list(np.asarray(x, np.float32))
+
+
+def test_round_trip_keeps_every_value_as_float32(tmp_path):
+    path = tmp_path / "ins.cfg"
+    config.save(str(path), custom())
+    cfg, status, msg = config.load(str(path))
+    assert status == config.OK and "loaded" in msg
+    assert (cfg.profile, cfg.gyro_range_dps, cfg.accel_range_g) == (1, 500, 4)
+    assert (cfg.output_baud, cfg.ext_every_ticks, cfg.raw_record) == (921600, 0, 1)
+    assert cfg.lever_b_m == f32list([0.1, 0.5, 1.25])
+    assert cfg.gyro_matrix == f32list(custom().gyro_matrix)
+    assert cfg.accel_matrix is None  # identity stays identity
+    assert cfg.gnss_latency_s == np.float32(0.08)
+
+
+def test_navigator_configuration_follows(tmp_path):
+    nav = custom().nav_config()
+    assert nav.profile == "handheld" and not nav.zupt and not nav.nhc
+    assert list(nav.lever_b_m) == f32list([0.1, 0.5, 1.25])
+    assert nav.gnss_hdop_max == np.float32(3.0)
+    # +-500 deg/s: 65.6 LSB per deg/s; +-4 g: 512 LSB per g
+    assert abs(float(nav.gyro_counts_per_rad_s) - 65.6 * 180 / np.pi) < 1e-3
+    assert abs(float(nav.accel_counts_per_m_s2) - 512 / 9.80665) < 1e-4
+
+
+@pytest.mark.parametrize("damage", ["flip", "truncate", "magic", "empty"])
+def test_damaged_files_fall_back_to_defaults(tmp_path, damage):
+    path = tmp_path / "ins.cfg"
+    data = bytearray(config.encode(custom()))
+    if damage == "flip":
+        data[20] ^= 0x04
+    elif damage == "truncate":
+        data = data[:-7]
+    elif damage == "magic":
+        data[:4] = b"XXXX"
+    else:
+        data = bytearray()
+    path.write_bytes(bytes(data))
+    cfg, status, msg = config.load(str(path))
+    assert status == config.CORRUPT and "using defaults" in msg
+    assert cfg.profile == 0 and cfg.gyro_range_dps == 250 and cfg.lever_b_m == [0, 0, 0]
+
+
+def test_missing_file_is_reported_not_raised(tmp_path):
+    cfg, status, msg = config.load(str(tmp_path / "nothing.cfg"))
+    assert status == config.MISSING and "no configuration file" in msg
+    assert cfg.gyro_range_dps == 250
+
+
+def test_out_of_range_values_are_refused(tmp_path):
+    bad = custom()
+    bad.gyro_range_dps = 300
+    with pytest.raises(ValueError, match="gyro_range_dps"):
+        config.save(str(tmp_path / "x.cfg"), bad)
+    # a file with a valid CRC but an invalid value (e.g. written by another tool)
+    path = tmp_path / "ins.cfg"
+    bad.validate = lambda: None
+    path.write_bytes(config.encode(bad))
+    cfg, status, msg = config.load(str(path))
+    assert status == config.INVALID and "gyro_range_dps" in msg and cfg.gyro_range_dps == 250
+    nan = custom()
+    nan.lever_b_m = [0.0, float("nan"), 0.0]
+    assert "lever_b_m" in nan.validate()
+
+
+def test_unknown_records_from_a_newer_firmware_are_skipped(tmp_path):
+    data = config.encode(custom())
+    body = bytearray(data[:-4])
+    body[5] += 1  # one more record
+    body += bytes((200, 1, 2)) + struct.pack("<2f", 1.5, 2.5)
+    path = tmp_path / "ins.cfg"
+    path.write_bytes(bytes(body) + struct.pack("<I", crc32(bytes(body))))
+    cfg, status, _ = config.load(str(path))
+    assert status == config.OK and cfg.gyro_range_dps == 500
+
+
+def test_the_board_reads_the_desktop_file(tmp_path):
+    path = tmp_path / "ins.cfg"
+    config.save(str(path), custom())
+    (tmp_path / "bad.cfg").write_bytes(b"INSC\x01\x00garbage")
+    out = json.loads(
+        mpvm.run(f"""
+import json, config
+cfg, status, msg = config.load({str(path)!r})
+nav = cfg.nav_config()
+bad, bad_status, bad_msg = config.load({str(tmp_path / "bad.cfg")!r})
+print(json.dumps([status, cfg.gyro_range_dps, list(cfg.lever_b_m), cfg.gnss_latency_s,
+                  list(nav.lever_b_m), nav.profile, bad_status, bad.gyro_range_dps]))
+""")
+        .strip()
+        .splitlines()[-1]
+    )
+    assert out[0] == config.OK and out[1] == 500
+    assert out[2] == [float(x) for x in f32list([0.1, 0.5, 1.25])]  # the float32 values, exactly
+    assert out[3] == float(np.float32(0.08))
+    assert out[4] == out[2] and out[5] == "handheld"
+    assert out[6] == config.CORRUPT and out[7] == 250
