@@ -8,9 +8,20 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m host_emulator", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser(
-        "demo", help="self-check of the float32 core (the main job until the emulator exists)"
+        "demo", help="self-check of the float32 core and the navigator (the main job for now)"
     )
-    args = parser.parse_args(argv)
+    sub.add_parser(
+        "gnss-dump",
+        help="what the firmware's NMEA parser makes of a receiver log (FILE [--json])",
+        add_help=False,
+    )
+    args, rest = parser.parse_known_args(argv)
+    if args.command == "gnss-dump":
+        from host_emulator import gnss_dump
+
+        return gnss_dump.main(rest)
+    if rest:
+        parser.error("unrecognized arguments: " + " ".join(rest))
     if args.command == "demo":
         from host_emulator import demo
 

@@ -27,3 +27,20 @@ def install():
             sys.path.insert(0, path)
     # The board raises on x / 0.0 and silently produces inf/nan otherwise: mirror that.
     np.seterr(divide="raise", over="ignore", under="ignore", invalid="ignore")
+
+
+def install_machine(hw):
+    """Install the fake `machine` module backed by the emulated board hw (fake_machine)."""
+    from host_emulator import fake_machine
+
+    install()
+    fake_machine.use(hw)
+    sys.modules["machine"] = fake_machine
+    import time
+
+    for name in ("ticks_us", "ticks_ms", "ticks_diff", "sleep_ms"):  # not in CPython's time
+        setattr(time, name, getattr(fake_machine, name))
+    import gc
+
+    if not hasattr(gc, "mem_free"):  # CPython's heap is not the board's: report plenty free
+        gc.mem_free = lambda: 1 << 20

@@ -36,7 +36,7 @@ _GYRO_FRAME_X100 = const(13107)  # 131.07 per deg/s, x100
 _ACCEL_FRAME = const(16383)  # per g
 
 
-def _round_div(num, den):
+def round_div(num, den):
     """num / den (den > 0) rounded half away from zero, in integers."""
     if num >= 0:
         return (2 * num + den) // (2 * den)
@@ -52,11 +52,14 @@ def _clamp16(x):
 
 
 def _round_clamp(x, lo, hi):
-    """The float x rounded half away from zero, clamped to [lo, hi] (ints)."""
+    """The float x rounded half away from zero, clamped to [lo, hi] (ints); NaN gives 0
+    (int() of a NaN would raise and end the loop)."""
     if x >= hi:
         return hi
     if x <= lo:
         return lo
+    if x != x:
+        return 0
     if x >= 0.0:
         return int(x + 0.5)
     return -int(0.5 - x)
@@ -64,12 +67,12 @@ def _round_clamp(x, lo, hi):
 
 def gyro_to_frame(counts, lsb_per_dps_x10):
     """Frame gyro value of `counts` at a sensitivity of lsb_per_dps_x10/10 LSB per deg/s."""
-    return _clamp16(_round_div(counts * _GYRO_FRAME_X100, 10 * lsb_per_dps_x10))
+    return _clamp16(round_div(counts * _GYRO_FRAME_X100, 10 * lsb_per_dps_x10))
 
 
 def accel_to_frame(counts, lsb_per_g):
     """Frame accel value of 12-bit `counts` at lsb_per_g LSB per g."""
-    return _clamp16(_round_div(counts * _ACCEL_FRAME, lsb_per_g))
+    return _clamp16(round_div(counts * _ACCEL_FRAME, lsb_per_g))
 
 
 def put_u8(buf, off, x):

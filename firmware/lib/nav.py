@@ -65,6 +65,7 @@ _ST_GYRO = const(4)  # low-passed |w - b_g|^2
 _ST_SPEED = const(5)  # speed of the last usable fix, m/s
 
 
+_MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
 _STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
 
 
@@ -330,6 +331,11 @@ class Navigator:
         fy = lv[1] / n
         fz = lv[2] / n
         g = sqrt(fx * fx + fy * fy + fz * fz)
+        if not g > _MIN_LEVEL_F:  # a dead accelerometer or free fall: nothing to level on
+            for i in range(6):
+                lv[i] = 0.0
+            self._n_level = 0
+            return
         ypr = self.ypr
         rot.dcm_to_euler(ypr, ins.c_bn)
         s = fy / g

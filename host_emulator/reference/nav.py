@@ -699,6 +699,10 @@ class NavModel:
         f_mean = self.level_sums[0:3] / n
         fx, fy, fz = f_mean
         g = np.sqrt((fx * fx + fy * fy) + fz * fz)
+        if not g > fw_nav._MIN_LEVEL_F:  # no gravity to level on: start over
+            self.level_sums = np.zeros(6, F32)
+            self.n_level = 0
+            return
         ypr = ref_rot.dcm_to_euler(ins.c_bn)
         ypr[fw_rot.PITCH] = ref_fmath.asin(fy / g)
         ypr[fw_rot.ROLL] = ref_fmath.atan2(-fx, fz)

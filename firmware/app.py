@@ -1,0 +1,220 @@
+"""The 5 ms loop (seed 001 5.2): the timer ISR counts a due tick; the loop reads the IMU,
+drains the GNSS bytes, runs the navigator and sends the frame.
+
+Per tick, in this order: BMI055 burst read -> bytes waiting on the GNSS UART into the NMEA
+parser -> a completed fix to the navigator (its measurement tick from the PPS edge when one
+was seen in the last second, else the configured latency) -> navigator tick -> the 52-byte
+frame (every `output_every_ticks`) -> watchdog -> timing statistics -> garbage collection if
+the heap runs low. Automatic collection is off: a collection only ever runs here, after the
+frame has gone out, so it never delays a sample or a frame.
+
+Nothing here allocates per tick but the navigator's float results (and, in the frame, the
+float-to-int conversions); buffers are made once in `__init__`.
+
+Errors a user meets never end the loop: a missing or wrong configuration falls back to
+defaults and says so; a missing IMU is reported on the console every second and retried
+(the watchdog is fed meanwhile, so the board does not reset-loop).
+"""
+
+import gc
+import time
+from array import array
+
+import config
+import frame
+from drivers.bmi055 import BMI055, Bmi055Error
+from drivers.gnss import Nmea
+from micropython import const
+from nav import NAVIGATING, Navigator
+
+import f32
+
+_CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
+_RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
+_US_PER_TICK = const(5000)
+_E7 = const(10000000)
+_GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
+_RX_LEN = const(256)
+
+
+class App:
+    def __init__(self, board_module, console=print):
+        self.console = console
+        cfg, status, msg = config.load(board_module.CONFIG_PATH)
+        console(msg)
+        self.cfg = cfg
+        self.config_status = status
+        self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)
+        self.nav = Navigator(cfg.nav_config())
+        self.gnss = Nmea()
+        self.rx = bytearray(_RX_LEN)
+        self.out = bytearray(frame.FRAME_LEN)
+        self.lat = array("i", (0, 0))  # (degrees, 1e-7 deg fraction) of the last fix
+        self.lon = array("i", (0, 0))
+        self.height_dm = 0
+        self.gnss_valid = False
+        self.counter = 0
+        self.due = 0  # ticks signalled by the timer, not yet run
+        self.ticks = 0
+        self.overruns = 0
+        self.t_worst_us = 0
+        self.t_sum_us = 0
+        self.gc_runs = 0
+        self.imu = None
+        self.imu_error = None
+        self._start_imu()
+
+    # ---- start-up --------------------------------------------------------------------
+
+    def _start_imu(self):
+        cfg = self.cfg
+        b = self.board
+        try:
+            self.imu = BMI055(
+                b.spi,
+                b.cs_accel,
+                b.cs_gyro,
+                gyro_range_dps=cfg.gyro_range_dps,
+                accel_range_g=cfg.accel_range_g,
+            )
+            self.imu_error = None
+        except (Bmi055Error, OSError) as e:
+            self.imu = None
+            self.imu_error = str(e)
+            self.console("IMU not ready: " + self.imu_error)
+
+    def start(self):
+        """Timer, PPS interrupt, watchdog; automatic garbage collection off."""
+        b = self.board
+        b.on_pps(self.gnss.pps_isr)
+        b.start_tick(self.isr_tick)
+        b.start_watchdog()
+        gc.collect()
+        gc.disable()
+
+    def isr_tick(self, _timer):
+        self.due += 1  # the ISR's only job
+
+    # ---- per tick --------------------------------------------------------------------
+
+    def run(self):
+        """Forever: run each due tick; a tick found more than one behind is an overrun."""
+        while True:
+            if self.due:
+                if self.due > 1:
+                    self.overruns += self.due - 1
+                self.due = 0
+                self.tick()
+
+    def tick(self):
+        t0 = time.ticks_us()
+        self.ticks += 1
+        b = self.board
+        imu = self.imu
+        if imu is None:
+            if self.ticks % 200 == 0:
+                self._start_imu()
+            b.wdt_feed()
+            return
+        imu.read()
+        self._gnss_poll()
+        nav = self.nav
+        nav.imu_raw(imu.gyro, imu.accel, imu.saturated)
+        cfg = self.cfg
+        if self.ticks % cfg.output_every_ticks == 0:
+            self._send_frame(imu)
+        b.wdt_feed()
+        dt = time.ticks_diff(time.ticks_us(), t0)
+        if dt > self.t_worst_us:
+            self.t_worst_us = dt
+        self.t_sum_us += dt
+        if gc.mem_free() < _GC_LOW_WATER:
+            gc.collect()
+            self.gc_runs += 1
+
+    def _gnss_poll(self):
+        """Feed the bytes waiting on the GNSS UART to the parser; hand a completed fix to
+        the navigator."""
+        uart = self.board.gnss_uart
+        n = uart.any()
+        if n:
+            if n > _RX_LEN:
+                n = _RX_LEN
+            n = uart.readinto(self.rx, n) or 0
+            self.gnss.feed(self.rx, n)
+        if self.gnss.epoch_take():
+            self._deliver_fix()
+
+    def _deliver_fix(self):
+        """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
+        the navigator's input. The measurement tick is the PPS edge's when the edge came less
+        than a second before the epoch's first sentence, else the configured latency is used
+        (fix_tick -1)."""
+        g = self.gnss
+        nav = self.nav
+        ok = g.epoch_pos_ok and g.epoch_quality > 0
+        self.gnss_valid = ok
+        if not ok:
+            nav.gnss(0, 0, 0.0, 0, f32.f32(99), 0.0, -1.0)  # a no-fix epoch (counts as lost)
+            return
+        lat = g.epoch_lat_e7
+        deg = lat // _E7 if lat >= 0 else -((-lat) // _E7)
+        self.lat[0] = deg
+        self.lat[1] = lat - deg * _E7
+        self.lon[0] = g.epoch_lon_deg
+        self.lon[1] = g.epoch_lon_frac_e7
+        msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
+        alt_mm = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal height
+        self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
+        hdop = self.cfg.gnss_hdop_max  # unknown HDOP: the worst still accepted
+        if g.epoch_hdop_x100 >= 0:
+            hdop = f32.ratio(g.epoch_hdop_x100, 100)
+        speed = 0.0
+        course = -1.0
+        if g.epoch_speed_mm_s >= 0:
+            speed = f32.ratio(g.epoch_speed_mm_s, 1000)
+            if g.epoch_course_cdeg >= 0:
+                course = f32.f32(g.epoch_course_cdeg) * _RAD_PER_CDEG
+        fix_tick = -1
+        age_us = time.ticks_diff(time.ticks_us(), g.epoch_pps_us)
+        if g.epoch_pps_us and 0 <= age_us < 1000000:
+            fix_tick = nav.tick - age_us // _US_PER_TICK
+        # a longitude past +-107.37 deg is a long int on the board: one allocation per fix
+        nav.gnss(
+            lat,
+            g.epoch_lon_e7(),
+            f32.ratio(alt_mm, 1000),
+            g.epoch_quality,
+            hdop,
+            speed,
+            course,
+            fix_tick,
+        )
+
+    def _send_frame(self, imu):
+        nav = self.nav
+        ins = nav.ins
+        nav.euler()
+        g = self.gnss
+        frame.pack(
+            self.out,
+            self.counter,
+            imu.gyro,
+            imu.accel,
+            imu.gyro_lsb_per_dps_x10,
+            imu.accel_lsb_per_g,
+            g.pps_flag_take(),
+            g.gga_flag_take(),
+            self.gnss_valid,
+            self.lat,
+            self.lon,
+            self.height_dm,
+            nav.state,
+            _CDEG_PER_RAD,
+            nav.ypr,
+            ins.v_n,
+            ins.p_n,
+        )
+        self.counter = (self.counter + 1) & 0xFF
+        self.board.out_uart.write(self.out)
+        self.board.navigating_led(nav.state == NAVIGATING)

@@ -1,0 +1,1 @@
+"""Emulated peripherals: what the firmware's drivers talk to on the desktop."""

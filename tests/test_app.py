@@ -1,0 +1,132 @@
+"""firmware/app.py with the firmware's own board.py and drivers on an emulated board (fake
+`machine`, BMI055 register model on SPI, UARTs): frames out, GNSS silence, a missing or wrong
+IMU, a corrupt configuration, and a real receiver log flowing through to the frames."""
+
+import importlib
+import pathlib
+import struct
+
+import numpy as np
+import pytest
+
+from host_emulator import fake_machine, firmware_env
+from host_emulator.periph.bmi055_model import Bmi055Model
+
+NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
+LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z
+
+
+class Bench:
+    """An emulated board with the firmware loaded on it."""
+
+    def __init__(self, tmp_path, chip=True, chip_id=None, cfg_bytes=None):
+        self.hw = fake_machine.Hardware()
+        firmware_env.install_machine(self.hw)
+        import board
+
+        self.board = importlib.reload(board)
+        self.board.CONFIG_PATH = str(tmp_path / "ins.cfg")
+        if cfg_bytes is not None:
+            pathlib.Path(self.board.CONFIG_PATH).write_bytes(cfg_bytes)
+        pins = self.board.PINS
+        self.imu = Bmi055Model(present=chip, gyro_chip_id=chip_id)
+        self.imu.attach(
+            self.hw.spi(pins["spi_id"]), self.hw.pin(pins["cs_accel"]), self.hw.pin(pins["cs_gyro"])
+        )
+        self.imu.set_sample(*LEVEL_COUNTS)
+        self.console = []
+        import app
+
+        self.app = app.App(self.board, console=self.console.append)
+        self.app.start()
+        self.gnss_uart = self.hw.uart(pins["gnss_uart"])
+        self.out_uart = self.hw.uart(pins["out_uart"])
+
+    def run(self, ticks, nmea=b"", per_tick=8):
+        """`ticks` timer periods; NMEA bytes arrive `per_tick` at a time (9600 baud: ~5)."""
+        for k in range(ticks):
+            self.imu.set_sample(*LEVEL_COUNTS)  # the sensor's next sample
+            self.gnss_uart.feed(nmea[k * per_tick : (k + 1) * per_tick])
+            self.hw.advance_us(5000)
+            self.hw.fire_timers()
+            if self.app.due:
+                self.app.due = 0
+                self.app.tick()
+        return frames(self.out_uart.take_tx())
+
+
+def frames(data):
+    assert len(data) % 52 == 0
+    out = []
+    for i in range(0, len(data), 52):
+        f = data[i : i + 52]
+        assert f[:2] == b"\xeb\x90" and f[51] == sum(f[2:51]) & 0xFF
+        out.append(f)
+    return out
+
+
+def field(f, fmt, off):
+    return struct.unpack_from("<" + fmt, f, off)[0]
+
+
+def test_the_app_constants_are_the_correctly_rounded_values():
+    import app
+
+    assert app._CDEG_PER_RAD == np.float32(18000 / np.pi)
+    assert app._RAD_PER_CDEG == np.float32(np.pi / 18000)
+
+
+def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
+    bench = Bench(tmp_path)
+    assert any("no configuration file" in m for m in bench.console)
+    out = bench.run(600)
+    assert len(out) == 600
+    assert [f[2] for f in out[:3]] == [0, 1, 2] and out[256][2] == 0  # the counter wraps
+    last = out[-1]
+    assert last[28] == 1  # aligning: no GNSS, no heading
+    assert last[17] == 0 and sum(f[16] for f in out) == 0  # no fix, no GGA
+    # raw sensor fields: gyro 3 counts at 131.2 -> 3 at 131.07; accel 1024 (1 g) -> 16383
+    assert struct.unpack_from("<3h", last, 3) == (3, -2, 1)
+    assert struct.unpack_from("<3h", last, 9) == (160, -80, 16383)
+    assert bench.hw.wdt is not None and bench.hw.wdt.feeds == 600
+    assert bench.app.t_worst_us >= 0 and bench.app.overruns == 0
+
+
+def test_a_missing_imu_is_reported_and_retried_without_crashing(tmp_path):
+    bench = Bench(tmp_path, chip=False)
+    assert any("IMU not ready" in m and "read 0xFF" in m and "no power" in m for m in bench.console)
+    assert bench.run(300) == []  # no frames without an IMU, the loop goes on
+    assert bench.hw.wdt.feeds == 300  # and keeps the watchdog fed
+    bench.imu.accel.responds = bench.imu.gyro.responds = True  # a loose connector, pressed
+    out = bench.run(300)
+    assert bench.app.imu is not None and len(out) > 0
+
+
+def test_a_wrong_chip_id_names_what_was_read(tmp_path):
+    bench = Bench(tmp_path, chip_id=0x33)
+    msg = [m for m in bench.console if "IMU not ready" in m]
+    assert msg and "read 0x33" in msg[0] and "expected chip ID 0x0F" in msg[0]
+    assert bench.run(50) == []
+
+
+def test_a_corrupt_configuration_falls_back_to_defaults(tmp_path):
+    bench = Bench(tmp_path, cfg_bytes=b"INSC\x01\x02not a configuration")
+    assert any("corrupt" in m and "using defaults" in m for m in bench.console)
+    assert len(bench.run(20)) == 20
+
+
+@pytest.mark.parametrize("log", ["neo-m8n.log", "ublox-lea-4h.log"])
+def test_a_real_receiver_log_reaches_the_frames(tmp_path, log):
+    """Frames carry the GGA flag on the tick its sentence completes, the fix's lat/lon and
+    height, and the valid flag once the receiver has a fix."""
+    data = (NMEA / log).read_bytes()
+    bench = Bench(tmp_path)
+    out = bench.run(len(data) // 8 + 10, nmea=data)
+    g = bench.app.gnss
+    assert g.n_gga > 0 and sum(f[16] for f in out) == g.n_gga
+    valid = [f for f in out if f[17] == 1]
+    assert valid, "the log has fixes"
+    last = valid[-1]
+    assert field(last, "i", 18) == g.epoch_lat_e7
+    assert field(last, "i", 22) == g.epoch_lon_e7()
+    assert field(last, "h", 26) == round(g.epoch_alt_mm / 100)
