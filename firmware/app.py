@@ -22,6 +22,7 @@ from array import array
 
 import config
 import frame
+import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
 from micropython import const
@@ -34,7 +35,7 @@ _RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians 
 _US_PER_TICK = const(5000)
 _E7 = const(10000000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
-_RX_LEN = const(256)
+_RX_LEN = const(255)  # at most this many GNSS bytes per tick (one raw record holds them)
 
 
 class App:
@@ -60,6 +61,18 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
+        self.t0_us = 0
+        self.rx_n = 0  # GNSS bytes fed to the parser this tick
+        self.ext = records.ExtFrame()
+        self.raw = records.RawRecord()
+        nav = self.nav
+        self._views = (
+            f32.byte_view(nav.kf.P),
+            f32.byte_view(nav.ins.bg),
+            f32.byte_view(nav.ins.ba),
+            f32.byte_view(nav.ins.p_n),
+        )
+        self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self.imu = None
         self.imu_error = None
         self._start_imu()
@@ -108,6 +121,7 @@ class App:
 
     def tick(self):
         t0 = time.ticks_us()
+        self.t0_us = t0
         self.ticks += 1
         b = self.board
         imu = self.imu
@@ -123,11 +137,27 @@ class App:
         cfg = self.cfg
         if self.ticks % cfg.output_every_ticks == 0:
             self._send_frame(imu)
+        if cfg.ext_every_ticks and self.ticks % cfg.ext_every_ticks == 0:
+            self._send_ext(imu)
+        if cfg.raw_record:
+            raw = self.raw
+            raw.pack(
+                self.counter,
+                t0,
+                self.gnss.pps_us,
+                imu.raw_gyro,
+                imu.raw_accel,
+                imu.saturated,
+                self.rx,
+                self.rx_n,
+            )
+            b.out_uart.write(raw._mv[0 : raw.length])
         b.wdt_feed()
         dt = time.ticks_diff(time.ticks_us(), t0)
         if dt > self.t_worst_us:
             self.t_worst_us = dt
         self.t_sum_us += dt
+        self._period_ticks += 1
         if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
@@ -142,6 +172,7 @@ class App:
                 n = _RX_LEN
             n = uart.readinto(self.rx, n) or 0
             self.gnss.feed(self.rx, n)
+        self.rx_n = n
         if self.gnss.epoch_take():
             self._deliver_fix()
 
@@ -218,3 +249,38 @@ class App:
         self.counter = (self.counter + 1) & 0xFF
         self.board.out_uart.write(self.out)
         self.board.navigating_led(nav.state == NAVIGATING)
+
+    def _send_ext(self, imu):
+        """The extended frame: health, timing, covariance, biases, position and origin."""
+        nav = self.nav
+        health = nav.health
+        if self.config_status != config.OK and health == 0:
+            health = 1  # running on defaults is a warning
+        flags = (
+            (1 if self.gnss_valid else 0) | (2 if nav.still else 0) | (4 if imu.saturated else 0)
+        )
+        mean = self.t_sum_us // self._period_ticks if self._period_ticks else 0
+        p, bg, ba, pos = self._views
+        fr = nav.frame
+        self.ext.pack(
+            self.counter,
+            health,
+            nav.state,
+            self.config_status,
+            flags,
+            self.t_worst_us,
+            mean,
+            self.overruns & 0xFFFF,
+            self.gc_runs & 0xFFFF,
+            p,
+            bg,
+            ba,
+            pos,
+            fr.lat0_e7,
+            fr.lon0_deg,
+            fr.lon0_frac,
+            nav.tick & 0x3FFFFFFF,
+        )
+        self.board.out_uart.write(self.ext.data)
+        self.t_sum_us = 0
+        self._period_ticks = 0

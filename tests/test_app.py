@@ -9,7 +9,7 @@ import struct
 import numpy as np
 import pytest
 
-from host_emulator import fake_machine, firmware_env
+from host_emulator import fake_machine, firmware_env, frames
 from host_emulator.periph.bmi055_model import Bmi055Model
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
@@ -52,17 +52,10 @@ class Bench:
             if self.app.due:
                 self.app.due = 0
                 self.app.tick()
-        return frames(self.out_uart.take_tx())
-
-
-def frames(data):
-    assert len(data) % 52 == 0
-    out = []
-    for i in range(0, len(data), 52):
-        f = data[i : i + 52]
-        assert f[:2] == b"\xeb\x90" and f[51] == sum(f[2:51]) & 0xFF
-        out.append(f)
-    return out
+        self.decoded = frames.decode(self.out_uart.take_tx())
+        d = self.decoded
+        assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
+        return [f["raw"] for f in d.frames]
 
 
 def field(f, fmt, off):
@@ -130,3 +123,41 @@ def test_a_real_receiver_log_reaches_the_frames(tmp_path, log):
     assert field(last, "i", 18) == g.epoch_lat_e7
     assert field(last, "i", 22) == g.epoch_lon_e7()
     assert field(last, "h", 26) == round(g.epoch_alt_mm / 100)
+
+
+def test_extended_frames_carry_the_navigators_bits(tmp_path):
+    """Every 20 ticks by default: health (1: running on defaults), timing, and P's diagonal,
+    biases and position copied bit for bit from the navigator's float32 buffers."""
+    bench = Bench(tmp_path)
+    bench.run(600)
+    ext = bench.decoded.ext
+    assert len(ext) == 30 and [e["counter"] for e in ext[:2]] == [20, 40]
+    last = ext[-1]
+    nav = bench.app.nav
+    assert last["health"] == 1 and last["config_status"] == 1  # MISSING: defaults
+    assert last["nav_state"] == 1 and last["tick"] == nav.tick == 600
+    p_diag = np.asarray(nav.kf.P, np.float32)[::16]
+    assert np.array_equal(
+        np.asarray(last["p_diag"], np.float32).view(np.uint32), p_diag.view(np.uint32)
+    )
+    assert np.array_equal(np.float32(last["gyro_bias_rad_s"]), np.asarray(nav.ins.bg))
+    assert 0 <= last["mean_tick_us"] <= last["worst_tick_us"]
+
+
+def test_raw_records_reproduce_the_input_exactly(tmp_path):
+    """With raw_record on, one record per tick: the BMI055 register bytes and every GNSS byte
+    fed to the parser, so a board session can be replayed bit for bit."""
+    import config
+
+    cfg = config.BoardConfig()
+    cfg.raw_record = 1
+    data = (NMEA / "triton400.log").read_bytes()[:3000]
+    bench = Bench(tmp_path, cfg_bytes=config.encode(cfg))
+    n = len(data) // 8 + 5
+    bench.run(n, nmea=data)
+    raw = bench.decoded.raw
+    assert len(raw) == n
+    assert b"".join(r["gnss_bytes"] for r in raw) == data
+    assert list(struct.unpack("<3h", raw[-1]["gyro_regs"])) == LEVEL_COUNTS[0]
+    accel = [v >> 4 for v in struct.unpack("<3h", raw[-1]["accel_regs"])]
+    assert accel == LEVEL_COUNTS[1]

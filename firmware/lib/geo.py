@@ -69,6 +69,8 @@ class LocalFrame:
     def __init__(self):
         self.lat0_e7 = 0
         self.lon0_e7 = 0
+        self.lon0_deg = 0
+        self.lon0_frac = 0
         self.valid = False
         self.coef = f32.zeros(_NCOEF)
 
@@ -102,6 +104,10 @@ class LocalFrame:
         c[_COS_LAT] = co
         self.lat0_e7 = lat0_e7
         self.lon0_e7 = lon0_e7
+        # the longitude as (degrees, 1e-7 deg fraction): small ints for allocation-free packing
+        d = lon0_e7 // 10000000 if lon0_e7 >= 0 else -((-lon0_e7) // 10000000)
+        self.lon0_deg = d
+        self.lon0_frac = lon0_e7 - d * 10000000
         self.valid = True
         return True
 
