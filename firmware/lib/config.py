@@ -19,6 +19,8 @@ from binascii import crc32
 import navcfg
 
 import f32
+import mat
+import rot
 
 OK = 0
 MISSING = 1
@@ -46,6 +48,7 @@ _SCHEMA = (
     (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)
     (23, "accel_matrix", _FLOAT, 9, None),
     (24, "lever_b_m", _FLOAT, 3, None),
+    (25, "mount_ypr_deg", _FLOAT, 3, None),  # sensor axes vs body axes, rot.py's convention
     (30, "gyro_arw", _FLOAT, 1, None),
     (31, "accel_vrw", _FLOAT, 1, None),
     (32, "gyro_bias_sigma", _FLOAT, 1, None),
@@ -70,6 +73,8 @@ class BoardConfig:
                 setattr(self, name, default)
             elif name in ("gyro_matrix", "accel_matrix"):
                 setattr(self, name, None)  # identity
+            elif name == "mount_ypr_deg":
+                setattr(self, name, [0.0, 0.0, 0.0])  # sensor axes = body axes
             elif n == 1:
                 setattr(self, name, getattr(nav, name))
             else:
@@ -91,6 +96,7 @@ class BoardConfig:
                 for i in range(n):
                     b[i] = value[i]
                 setattr(nav, name, b)
+        _apply_mounting(nav, self.mount_ypr_deg)
         # the sensor ranges set the raw-count scale (BMI055 datasheet sensitivities)
         nav.gyro_counts_per_rad_s = f32.ratio(GYRO_LSB_X10[self.gyro_range_dps], 10) / _DEG
         nav.accel_counts_per_m_s2 = f32.f32(ACCEL_LSB[self.accel_range_g]) / navcfg.G0_M_S2
@@ -134,6 +140,26 @@ class BoardConfig:
         if not 0.0 <= self.gnss_latency_s < 1.0:
             return "gnss_latency_s must be in [0, 1) s"
         return None
+
+
+def _apply_mounting(nav, ypr_deg):
+    """x_b = C_mount M (x_raw - b0): C_mount = rot.euler_to_dcm of the sensor axes' yaw,
+    pitch, roll relative to the body, composed into both calibration matrices."""
+    if ypr_deg[0] == 0.0 and ypr_deg[1] == 0.0 and ypr_deg[2] == 0.0:
+        return
+    ypr = f32.zeros(3)
+    for i in range(3):
+        ypr[i] = f32.f32(ypr_deg[i]) * _DEG
+    c = f32.zeros(9)
+    rot.euler_to_dcm(c, ypr)
+    for name in ("gyro_matrix", "accel_matrix"):
+        m = getattr(nav, name)
+        out = f32.zeros(9)
+        if m is None:
+            mat.copy(out, c, 9)
+        else:
+            mat.mul(out, c, m, 3, 3, 3)
+        setattr(nav, name, out)
 
 
 GYRO_LSB_X10 = {125: 2624, 250: 1312, 500: 656, 1000: 328, 2000: 164}  # LSB per deg/s x10

@@ -128,3 +128,22 @@ print(json.dumps([status, cfg.gyro_range_dps, list(cfg.lever_b_m), cfg.gnss_late
     assert out[3] == float(np.float32(0.08))
     assert out[4] == out[2] and out[5] == "handheld"
     assert out[6] == config.CORRUPT and out[7] == 250
+
+
+def test_mounting_rotation_turns_sensor_axes_into_body_axes():
+    """A board mounted turned 90 deg about up (sensor x = body forward): a rate about the
+    sensor's x axis is a rate about the body's y axis once calibrated."""
+    import navcfg  # noqa: F401
+    from nav import Navigator
+
+    import f32
+
+    c = config.BoardConfig()
+    c.mount_ypr_deg = [90.0, 0.0, 0.0]
+    c.gyro_matrix = [1.01, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]  # x scale first, then mount
+    nav = Navigator(c.nav_config())
+    w = f32.zeros(3)
+    w[0] = np.float32(0.1)
+    assert nav._calibrate(w, f32.zeros(3) + np.float32(0.0))
+    assert np.allclose(np.asarray(nav._w, float), [0.0, 0.101, 0.0], atol=1e-7)
+    assert config.decode(config.encode(c)).mount_ypr_deg == [90.0, 0.0, 0.0]
