@@ -85,8 +85,13 @@ def put_i16(buf, off, x):
     buf[off + 1] = (x >> 8) & 0xFF
 
 
+def put_u16(buf, off, x):
+    buf[off] = x & 0xFF
+    buf[off + 1] = (x >> 8) & 0xFF
+
+
 def put_i32(buf, off, x):
-    """x a small int (|x| < 2**30 on the board)."""
+    """The low 32 bits of x, a small int (|x| < 2**30 on the board): int32 or uint32."""
     buf[off] = x & 0xFF
     buf[off + 1] = (x >> 8) & 0xFF
     buf[off + 2] = (x >> 16) & 0xFF

@@ -39,19 +39,6 @@ RAW_MAX_GNSS = const(255)
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
 
 
-def put_u16(buf, off, x):
-    buf[off] = x & 0xFF
-    buf[off + 1] = (x >> 8) & 0xFF
-
-
-def put_u32(buf, off, x):
-    """x a small int: its low 32 bits."""
-    buf[off] = x & 0xFF
-    buf[off + 1] = (x >> 8) & 0xFF
-    buf[off + 2] = (x >> 16) & 0xFF
-    buf[off + 3] = (x >> 24) & 0xFF
-
-
 def copy_f32(buf, off, view, index, n):
     """n float32 values from a byte view (f32.byte_view) starting at float `index`."""
     b = 4 * index
@@ -68,7 +55,7 @@ def _head(buf, rtype, n, counter):
 
 def seal(buf, mv, n):
     """CRC-32 of buf[0:n] (mv: a memoryview of exactly buf[0:n], made once) into buf[n:n+4]."""
-    put_u32(buf, n, crc32(mv) & 0xFFFFFFFF)
+    frame.put_i32(buf, n, crc32(mv) & 0xFFFFFFFF)
 
 
 class ExtFrame:
@@ -104,18 +91,18 @@ class ExtFrame:
         d[5] = state
         d[6] = cfg_status
         d[7] = flags
-        put_u16(d, 8, worst_us if worst_us < 65535 else 65535)
-        put_u16(d, 10, mean_us if mean_us < 65535 else 65535)
-        put_u16(d, 12, overruns)
-        put_u16(d, 14, gc_runs)
+        frame.put_u16(d, 8, worst_us if worst_us < 65535 else 65535)
+        frame.put_u16(d, 10, mean_us if mean_us < 65535 else 65535)
+        frame.put_u16(d, 12, overruns)
+        frame.put_u16(d, 14, gc_runs)
         for i in range(15):
             copy_f32(d, 16 + 4 * i, p_view, 16 * i, 1)  # P[i][i]
         copy_f32(d, 76, bg_view, 0, 3)
         copy_f32(d, 88, ba_view, 0, 3)
         copy_f32(d, 100, pos_view, 0, 3)
-        put_u32(d, 112, lat0_e7)
+        frame.put_i32(d, 112, lat0_e7)
         frame.put_e7(d, 116, lon0_deg, lon0_frac)
-        put_u32(d, 120, tick)
+        frame.put_i32(d, 120, tick)
         seal(d, self._mv, EXT_LEN - 4)
 
 
@@ -130,8 +117,8 @@ class RawRecord:
     def pack(self, counter, t0_us, pps_us, raw_gyro, raw_accel, saturated, rx, n):
         d = self.data
         _head(d, RAW_TYPE, 23 + n, counter)
-        put_u32(d, 4, t0_us)
-        put_u32(d, 8, pps_us)
+        frame.put_i32(d, 4, t0_us)
+        frame.put_i32(d, 8, pps_us)
         for i in range(6):
             d[12 + i] = raw_gyro[i]
             d[18 + i] = raw_accel[i]
