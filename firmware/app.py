@@ -73,6 +73,7 @@ class App:
             f32.byte_view(nav.ins.p_n),
         )
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
+        self._led = False
         self.imu = None
         self.imu_error = None
         self._start_imu()
@@ -111,13 +112,18 @@ class App:
     # ---- per tick --------------------------------------------------------------------
 
     def run(self):
-        """Forever: run each due tick; a tick found more than one behind is an overrun."""
+        """Forever: run each due tick."""
         while True:
-            if self.due:
-                if self.due > 1:
-                    self.overruns += self.due - 1
-                self.due = 0
-                self.tick()
+            self.service()
+
+    def service(self):
+        """One pass of the loop: run the tick if one is due; every further tick the timer
+        signalled meanwhile is an overrun (its IMU sample is lost)."""
+        if self.due:
+            if self.due > 1:
+                self.overruns += self.due - 1
+            self.due = 0
+            self.tick()
 
     def tick(self):
         t0 = time.ticks_us()
@@ -248,7 +254,10 @@ class App:
         )
         self.counter = (self.counter + 1) & 0xFF
         self.board.out_uart.write(self.out)
-        self.board.navigating_led(nav.state == NAVIGATING)
+        navigating = nav.state == NAVIGATING
+        if navigating != self._led:
+            self._led = navigating
+            self.board.navigating_led(navigating)
 
     def _send_ext(self, imu):
         """The extended frame: health, timing, covariance, biases, position and origin."""

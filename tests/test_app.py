@@ -49,9 +49,7 @@ class Bench:
             self.gnss_uart.feed(nmea[k * per_tick : (k + 1) * per_tick])
             self.hw.advance_us(5000)
             self.hw.fire_timers()
-            if self.app.due:
-                self.app.due = 0
-                self.app.tick()
+            self.app.service()
         self.decoded = frames.decode(self.out_uart.take_tx())
         d = self.decoded
         assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
@@ -82,7 +80,7 @@ def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
     assert struct.unpack_from("<3h", last, 3) == (3, -2, 1)
     assert struct.unpack_from("<3h", last, 9) == (160, -80, 16383)
     assert bench.hw.wdt is not None and bench.hw.wdt.feeds == 600
-    assert bench.app.t_worst_us >= 0 and bench.app.overruns == 0
+    assert bench.app.overruns == 0
 
 
 def test_a_missing_imu_is_reported_and_retried_without_crashing(tmp_path):
@@ -161,3 +159,16 @@ def test_raw_records_reproduce_the_input_exactly(tmp_path):
     assert list(struct.unpack("<3h", raw[-1]["gyro_regs"])) == LEVEL_COUNTS[0]
     accel = [v >> 4 for v in struct.unpack("<3h", raw[-1]["accel_regs"])]
     assert accel == LEVEL_COUNTS[1]
+
+
+def test_a_late_loop_counts_overruns(tmp_path):
+    """The timer fired three times before the loop got round to it: one tick runs, two are
+    overruns (their samples are lost), and the frame counter moves by one."""
+    bench = Bench(tmp_path)
+    bench.run(5)
+    for _ in range(3):
+        bench.hw.advance_us(5000)
+        bench.hw.fire_timers()
+    bench.app.service()
+    assert bench.app.overruns == 2 and bench.app.ticks == 6
+    assert [f["counter"] for f in frames.decode(bench.out_uart.take_tx()).frames] == [5]
