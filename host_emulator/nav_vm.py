@@ -124,13 +124,14 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
 
 
 def block_stats(blocks, state):
-    """Mean, 99th percentile and maximum blocks per tick, aligning and navigating."""
+    """Minimum, mean, 99th percentile and maximum blocks per tick, aligning and navigating."""
     res = {}
     for name, s in (("aligning", 1), ("navigating", 2)):
         b = blocks[state == s]
         if len(b):
             res[name] = {
                 "ticks": int(len(b)),
+                "min": int(np.min(b)),
                 "mean": float(np.mean(b)),
                 "p99": float(np.percentile(b, 99)),
                 "max": int(np.max(b)),

@@ -22,9 +22,9 @@ class NavConfig:
         self.profile = profile
         self.dt_s = f32.ratio(1, 200)  # IMU period (seed 001: 5 ms timer)
         self.earth_terms = True  # Earth rate, Coriolis, gravity tilt (False: board's model)
-        # Two-sample coning and sculling corrections: ~48 float operations a tick for a small
-        # gain on the car drive (with 2 slices per tick: 0.70 vs 0.72 m horizontal RMS,
-        # docs/benchmarks/navigation.md), so off by default to spare the tick.
+        # Two-sample coning and sculling corrections: a small gain on the car drive, measured
+        # together with 2 filter slices per tick (0.70 vs 0.72 m horizontal RMS for 503 vs 397
+        # float operations per tick, docs/benchmarks/navigation.md), so off by default.
         self.coning = False
 
         # Sensor noise: BMI055 datasheet figures (DESIGN.md 7) with a margin of 2 for
