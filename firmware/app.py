@@ -71,6 +71,7 @@ class App:
             f32.byte_view(nav.ins.bg),
             f32.byte_view(nav.ins.ba),
             f32.byte_view(nav.ins.p_n),
+            f32.byte_view(nav.frame.coef),
         )
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self._led = False
@@ -269,7 +270,7 @@ class App:
             (1 if self.gnss_valid else 0) | (2 if nav.still else 0) | (4 if imu.saturated else 0)
         )
         mean = self.t_sum_us // self._period_ticks if self._period_ticks else 0
-        p, bg, ba, pos = self._views
+        p, bg, ba, pos, coef = self._views
         fr = nav.frame
         self.ext.pack(
             self.counter,
@@ -289,6 +290,7 @@ class App:
             fr.lon0_deg,
             fr.lon0_frac,
             nav.tick & 0x3FFFFFFF,
+            coef,
         )
         self.board.out_uart.write(self.ext.data)
         self.t_sum_us = 0

@@ -65,13 +65,21 @@ class UARTPort:
     def __init__(self, id):
         self.id = id
         self.baudrate = None
+        self.rxbuf = 64  # the stm32 port's default receive ring
+        self.overflow = 0  # received bytes dropped because the ring was full
         self._rx = bytearray()
         self._tx = bytearray()
 
-    def init(self, baudrate=9600, **kwargs):
+    def init(self, baudrate=9600, rxbuf=64, **kwargs):
         self.baudrate = baudrate
+        self.rxbuf = rxbuf
 
     def feed(self, data):
+        """Bytes that arrived; what does not fit the receive ring is lost, as on the board."""
+        room = self.rxbuf - len(self._rx)
+        if len(data) > room:
+            self.overflow += len(data) - max(room, 0)
+            data = data[: max(room, 0)]
         self._rx += data
 
     def take_tx(self):

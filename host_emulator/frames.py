@@ -51,7 +51,7 @@ def frame_fields(f):
 
 
 def ext_fields(r):
-    f = struct.unpack_from("<4B4H15f3f3f3fiiI", r, 4)
+    f = struct.unpack_from("<4B4H15f3f3f3fiiIf", r, 4)
     return {
         "counter": r[3],
         "health": f[0],
@@ -69,6 +69,7 @@ def ext_fields(r):
         "origin_lat_e7": f[32],
         "origin_lon_e7": f[33],
         "tick": f[34],
+        "origin_h_m": f[35],
     }
 
 
@@ -108,9 +109,9 @@ def decode(data):
             if end <= n:
                 r = data[i:end]
                 if struct.unpack_from("<I", r, len(r) - 4)[0] == _crc32(bytes(r[:-4])):
-                    (out.ext if t == EXT_TYPE else out.raw).append(
-                        ext_fields(r) if t == EXT_TYPE else raw_fields(r)
-                    )
+                    rec = ext_fields(r) if t == EXT_TYPE else raw_fields(r)
+                    rec["frame_index"] = len(out.frames) - 1  # the 52-byte frame before it
+                    (out.ext if t == EXT_TYPE else out.raw).append(rec)
                     i = end
                     continue
                 out.bad_crc += 1

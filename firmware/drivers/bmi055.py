@@ -47,12 +47,15 @@ from micropython import const
 
 try:
     from time import sleep_ms as _sleep_ms
-except ImportError:  # CPython (host emulator): no sleep_ms in its time module
+except ImportError:  # CPython: the emulator may add sleep_ms (its virtual clock) later
 
     def _sleep_ms(ms):
-        from time import sleep
+        import time
 
-        sleep(ms / 1000)
+        if hasattr(time, "sleep_ms"):
+            time.sleep_ms(ms)
+        else:
+            time.sleep(ms / 1000)
 
 
 # Registers common to both dies

@@ -14,7 +14,8 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
     72 gyro bias rad/s 3 x f32, 84 accel bias m/s^2 3 x f32
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32
        (1e-7 deg; the integrated lat/lon is the origin plus the position, through geo.py)
-   116 tick u32 (navigator ticks, wrapping)
+   116 tick u32 (navigator ticks, wrapping), 120 origin height f32 (m, ellipsoidal: the
+       position's U is relative to it)
 Raw-input record, type 0x92 (every tick when `raw_record`; what a bit-exact replay needs):
      0 tick start us u32 (time.ticks_us), 4 PPS edge us u32 (the parser's pps_us)
      8 gyro data registers 6 bytes, 14 accel data registers 6 bytes (as read from the chip)
@@ -29,11 +30,12 @@ per record, against hundreds of float boxes per tick. The extended frame's defau
 from binascii import crc32
 
 import frame
+import geo
 from micropython import const
 
 EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)
-EXT_PAYLOAD = const(120)  # bytes after the counter
+EXT_PAYLOAD = const(124)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
 RAW_MAX_GNSS = const(255)
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
@@ -84,6 +86,7 @@ class ExtFrame:
         lon0_deg,
         lon0_frac,
         tick,
+        coef_view,
     ):
         d = self.data
         _head(d, EXT_TYPE, EXT_PAYLOAD + 1, counter)
@@ -103,6 +106,7 @@ class ExtFrame:
         frame.put_i32(d, 112, lat0_e7)
         frame.put_e7(d, 116, lon0_deg, lon0_frac)
         frame.put_i32(d, 120, tick)
+        copy_f32(d, 124, coef_view, geo.H0, 1)
         seal(d, self._mv, EXT_LEN - 4)
 
 

@@ -172,6 +172,14 @@ class _Die:
             self.regs[REG_DATA + 2 * i + 1] = msb
         self.regs[REG_INT_STATUS] |= 0x80
 
+    def set_registers(self, data6):
+        """The data registers 0x02..0x07 exactly as given (a recorded or simulated sample,
+        new_data bits included); sets data_int."""
+        self.regs[REG_DATA : REG_DATA + 6] = data6
+        w = [self.regs[REG_DATA + 2 * i] | self.regs[REG_DATA + 2 * i + 1] << 8 for i in range(3)]
+        self.counts = tuple(self._decode(x) for x in w)
+        self.regs[REG_INT_STATUS] |= 0x80
+
     # -- SPI device --
 
     def select(self):
@@ -214,6 +222,10 @@ class GyroDie(_Die):
         w = c & 0xFFFF
         return w & 0xFF, w >> 8
 
+    @staticmethod
+    def _decode(w):
+        return w - 0x10000 if w & 0x8000 else w
+
     @property
     def range_dps(self):
         """Configured range in deg/s (None for a reserved code)."""
@@ -237,6 +249,10 @@ class AccelDie(_Die):
     def _encode(c):
         w = (c & 0xFFF) << 4 | 0x01  # new_data
         return w & 0xFF, w >> 8
+
+    @staticmethod
+    def _decode(w):
+        return (w - 0x10000 if w & 0x8000 else w) >> 4
 
     def _data_read(self, reg):
         super()._data_read(reg)
@@ -280,6 +296,11 @@ class Bmi055Model:
         host_emulator.sim.imu produces them; sets the new-data bits."""
         self.gyro.set_counts(gyro_counts)
         self.accel.set_counts(accel_counts)
+
+    def set_registers(self, gyro6, accel6):
+        """The next sample as data-register bytes (a stimulus record: host_emulator.stimulus)."""
+        self.gyro.set_registers(gyro6)
+        self.accel.set_registers(accel6)
 
     def set_temperature_raw(self, raw):
         """int8: 0.5 K per LSB, 0 = 23 degC (both dies)."""

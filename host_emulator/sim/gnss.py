@@ -20,6 +20,10 @@ During an outage, or before ttff_s, the receiver still reports each epoch but wi
 lat/lon 0 and NaN floats (an empty GGA). The sentence becomes available latency_s +-
 latency_jitter_s after the epoch (default 100 +- 30 ms, DESIGN 8: 50-150 ms). PPS edges are at
 whole seconds while the receiver has a fix (always, if pps_without_fix).
+Fix quality is 1 (GPS), or 2 (DGPS) during segments of dgps_length_s starting on average
+every dgps_every_s (a label only: the errors are the same).
+The byte stream the receiver sends (NMEA sentences, baud rate, corrupted sentences) is made by
+`sim/nmea.py` from the fields below the line in GnssModel.
 Defaults: 1 Hz, sigma 2/2/4 m E/N/U (the KF-GINS benchmark set-up, DESIGN 10).
 """
 
@@ -56,6 +60,15 @@ class GnssModel:
     lever_b_m: tuple = (0.0, 0.5, 1.0)  # IMU -> antenna, body axes (right, forward, up)
     ttff_s: float = 0.0  # no fix before this time
     pps_without_fix: bool = False
+    dgps_every_s: float = 240.0
+    dgps_length_s: tuple = (30.0, 90.0)
+    # ---- the byte stream (sim/nmea.py) ----
+    baud: int = 9600
+    talker: str = "GN"
+    sentences: tuple = ("GGA", "GSA", "RMC")  # per epoch, in this order (MTK-like)
+    geoid_sep_m: float = -28.0  # GGA separation: MSL altitude = ellipsoidal height - this
+    corrupt_per_sentence: float = 0.002  # chance a sentence arrives damaged (a flipped byte)
+    utc_start: str = "2026-11-22T02:00:00"  # UTC at t = 0 (a whole second)
 
 
 class GnssFix(NamedTuple):
@@ -91,7 +104,7 @@ class GnssData:
     speed_m_s: np.ndarray  # (M,) horizontal speed over ground
     course_deg: np.ndarray  # (M,) clockwise from north, [0, 360), NaN when slow or no fix
     hdop: np.ndarray  # (M,)
-    quality: np.ndarray  # (M,) int8: 1 GPS fix, 0 none
+    quality: np.ndarray  # (M,) int8: 1 GPS fix, 2 DGPS, 0 none
     nsat: np.ndarray  # (M,) int8
     sigma_h_m: np.ndarray  # (M,) 1-sigma per horizontal axis used for this epoch
     sigma_v_m: np.ndarray  # (M,)
@@ -174,6 +187,15 @@ def simulate(truth, model=None, seed=0, outages=None):
     nsat_nofix = rng.integers(0, 4, m)
     latency = model.latency_s + rng.uniform(-1.0, 1.0, m) * model.latency_jitter_s
 
+    # DGPS segments (drawn last, so the streams above do not change with them)
+    dgps = np.zeros(m, bool)
+    duration = t[-1] - t[0] if m else 0.0
+    count = rng.poisson(duration / model.dgps_every_s) if model.dgps_every_s > 0 else 0
+    starts = rng.uniform(t[0], t[0] + duration, count) if m else []
+    lengths = rng.uniform(*model.dgps_length_s, count)
+    for start, length in zip(starts, lengths, strict=True):
+        dgps |= (t >= start) & (t < start + length)
+
     lat_e7, lon_e7, h_m = truth.origin.to_geodetic(p_ant + err)
     speed = np.hypot(v_meas[:, 0], v_meas[:, 1])
     course = np.degrees(np.arctan2(v_meas[:, 0], v_meas[:, 1])) % 360.0
@@ -197,7 +219,7 @@ def simulate(truth, model=None, seed=0, outages=None):
         speed_m_s=np.where(fix, speed, nan),
         course_deg=np.where(fix, course, nan),
         hdop=np.where(fix, hdop, nan),
-        quality=fix.astype(np.int8),
+        quality=np.where(fix, np.where(dgps, 2, 1), 0).astype(np.int8),
         nsat=np.where(fix, nsat, nsat_nofix).astype(np.int8),
         sigma_h_m=np.where(fix, scale * model.sigma_h_m, nan),
         sigma_v_m=np.where(fix, scale * model.sigma_v_m, nan),

@@ -28,6 +28,11 @@ Defaults and their sources (DESIGN.md sections 7 and 10, Bosch BMI055 datasheet 
           figure)
     scale factor error 0.3 % (1 sigma per axis), misalignment/cross-axis 1 mrad (1 sigma per
           off-diagonal element)
+    temperature: the board warms up from 25 degC by 6 K with a 400 s time constant; the
+          biases drift with it, 0.002 deg/s/K (gyro) and 0.05 mg/K (accel) per axis, with
+          the sign of each axis' turn-on bias (the datasheet's typical 0.015 deg/s/K and 1 mg/K
+          are for an uncompensated part; the same, deterministic, in every run); the
+          temperature register reads round((T - 23) * 2)
 """
 
 from dataclasses import dataclass
@@ -70,6 +75,11 @@ class ImuModel:
     accel_scale_error: float = 3e-3
     gyro_misalignment_rad: float = 1e-3  # 1 sigma per off-diagonal element
     accel_misalignment_rad: float = 1e-3
+    temp_start_c: float = 25.0
+    temp_rise_c: float = 6.0
+    temp_tau_s: float = 400.0
+    gyro_tempco_dps_per_k: float = 0.002
+    accel_tempco_mg_per_k: float = 0.05
 
     @classmethod
     def ideal(cls):
@@ -85,6 +95,9 @@ class ImuModel:
             accel_scale_error=0.0,
             gyro_misalignment_rad=0.0,
             accel_misalignment_rad=0.0,
+            temp_rise_c=0.0,
+            gyro_tempco_dps_per_k=0.0,
+            accel_tempco_mg_per_k=0.0,
         )
 
     @property
@@ -124,11 +137,13 @@ class ImuData:
     w_b_rad_s: np.ndarray  # (N, 3) what the gyro counts represent, rad/s
     f_b_m_s2: np.ndarray  # (N, 3) what the accel counts represent, m/s^2
     saturated: np.ndarray  # (N,) bool: some axis hit its register limit
-    bg_rad_s: np.ndarray  # (N, 3) gyro bias applied (turn-on + instability), rad/s
+    bg_rad_s: np.ndarray  # (N, 3) gyro bias applied (turn-on + instability + thermal), rad/s
     ba_m_s2: np.ndarray  # (N, 3) accel bias applied, m/s^2
     gyro_matrix: np.ndarray  # (3, 3) M_g applied (scale and misalignment)
     accel_matrix: np.ndarray  # (3, 3) M_a
     model: ImuModel
+    temp_c: np.ndarray = None  # (N,) die temperature, degC
+    temp_raw: np.ndarray = None  # (N,) int8 temperature register (0.5 K per LSB, 0 = 23 degC)
 
 
 def _turn_on(rng, lo_hi, unit):
@@ -165,6 +180,11 @@ def simulate(truth, model=None, seed=0):
     ba = ba0 + gauss_markov(
         rng, n, DT_S, model.bias_tau_s, model.accel_bias_instability_mg * 1e-3 * g, (3,)
     )
+    temp_c = model.temp_start_c + model.temp_rise_c * -np.expm1(-truth.t_s / model.temp_tau_s)
+    warm = (temp_c - model.temp_start_c)[:, None]
+    bg = bg + warm * (model.gyro_tempco_dps_per_k * _DEG) * np.sign(bg0)
+    ba = ba + warm * (model.accel_tempco_mg_per_k * 1e-3 * g) * np.sign(ba0)
+    temp_raw = np.clip(np.rint((temp_c - 23.0) * 2.0), -128, 127).astype(np.int8)
     w = truth.w_ib_b @ m_g.T + bg + rng.standard_normal((n, 3)) * model.gyro_noise_rad_s
     f = truth.f_b @ m_a.T + ba + rng.standard_normal((n, 3)) * model.accel_noise_m_s2
 
@@ -184,4 +204,6 @@ def simulate(truth, model=None, seed=0):
         gyro_matrix=m_g,
         accel_matrix=m_a,
         model=model,
+        temp_c=temp_c,
+        temp_raw=temp_raw,
     )

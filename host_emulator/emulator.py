@@ -1,0 +1,168 @@
+"""Run the unmodified firmware loop on CPython, fed from a stimulus, on an emulated board.
+
+The firmware's own `board.py`, drivers and `app.py` run against the fake `machine`
+(`fake_machine`: pins, SPI with the BMI055 register model, UARTs with their receive rings,
+the PPS interrupt, the timer, the watchdog) and a virtual clock. Floats are the float32 seam's
+NumPy backend, so what comes out is what the board computes, bit for bit.
+
+Per stimulus record k (see `stimulus.py`): the BMI055 data and temperature registers take the
+record's values, the GNSS UART receives the record's bytes, the clock advances to the PPS
+edge (its interrupt fires) and to the tick's moment, the timer fires, and the loop makes one
+pass (`App.service()`). Time starts at power-on: the firmware's start-up (configuration, the
+BMI055 resets and their waits) takes virtual time, and tick 0 is the first timer moment after
+it. The loop's own run time is zero on the virtual clock (the board's timing is not modelled:
+the extended frame's tick times read 0).
+
+The board's flash is a directory: its configuration file is written there from the stimulus
+header's "config" (plus any overrides) before the firmware starts.
+"""
+
+import gc
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host_emulator import fake_machine, firmware_env
+from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.periph.bmi055_model import Bmi055Model
+
+
+@dataclass(eq=False)
+class FirmwareRun:
+    """What a firmware run produced, whatever the runtime."""
+
+    runtime: str  # "cpython" or "micropython"
+    out: bytes  # everything written to the output UART
+    console: list  # lines the firmware printed on its console
+    ticks: int
+    wall_s: float
+    blocks_per_tick: np.ndarray | None = None  # GC blocks allocated by each tick (micropython)
+    stats: dict = field(default_factory=dict)  # runtime-specific counters
+
+
+def board_config(cfg_values):
+    """A firmware BoardConfig with the given values (dict of BoardConfig attribute names);
+    EmulatorError for a name or value the firmware does not accept."""
+    firmware_env.install()
+    import config
+
+    cfg = config.BoardConfig()
+    for name, value in cfg_values.items():
+        if not hasattr(cfg, name):
+            raise EmulatorError(f"unknown board configuration setting {name!r}")
+        setattr(cfg, name, list(value) if isinstance(value, (list, tuple)) else value)
+    problem = cfg.validate()
+    if problem:
+        raise EmulatorError(f"board configuration rejected by the firmware: {problem}")
+    return cfg
+
+
+def config_bytes(cfg_values):
+    """The configuration file the board would hold (firmware/lib/config.py's encoding)."""
+    cfg = board_config(cfg_values)
+    import config
+
+    return config.encode(cfg)
+
+
+def _firmware_traceback(exc):
+    """The traceback frames inside firmware/ (what a firmware developer needs)."""
+    fw = str(firmware_env.FIRMWARE_DIR)
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if f.filename.startswith(fw)]
+    lines = traceback.format_list(frames or traceback.extract_tb(exc.__traceback__))
+    return "".join(lines) + f"{type(exc).__name__}: {exc}"
+
+
+def _firmware_failed(exc, where):
+    return FirmwareError(f"the firmware raised {where}:\n{_firmware_traceback(exc)}")
+
+
+def run_cpython(stim, workdir, config_overrides=None, progress=None):
+    """Run the firmware on CPython over a whole Stimulus; returns a FirmwareRun.
+
+    workdir: the emulated board's flash (a directory; the configuration file goes there).
+    progress(k, n): called every 2000 ticks. A firmware exception -> FirmwareError."""
+    values = {"ext_every_ticks": 20}
+    values.update(stim.config)
+    values.update(config_overrides or {})
+    flash = workdir / "flash"
+    flash.mkdir(parents=True, exist_ok=True)
+    cfg_path = flash / "ins.cfg"
+    cfg_path.write_bytes(config_bytes(values))
+
+    hw = fake_machine.Hardware()
+    firmware_env.install_machine(hw)
+    import app
+    import board
+
+    board.CONFIG_PATH = str(cfg_path)
+    pins = board.PINS
+    imu = Bmi055Model(clock_ms=lambda: hw.now_us / 1000.0)
+    imu.attach(hw.spi(pins["spi_id"]), hw.pin(pins["cs_accel"]), hw.pin(pins["cs_gyro"]))
+    console = []
+    gc_was_enabled = gc.isenabled()
+    t_wall = time.perf_counter()
+    k = -1
+    try:
+        try:
+            a = app.App(board, console=console.append)
+            a.start()
+        except Exception as e:
+            raise _firmware_failed(e, "at start-up") from e
+        gnss_uart = hw.uart(pins["gnss_uart"])
+        out_uart = hw.uart(pins["out_uart"])
+        pps = hw.pin(pins["pps"])
+        tick_us = stim.tick_us
+        t0_us = -(-hw.now_us // tick_us) * tick_us  # the first timer moment after start-up
+        out = bytearray()
+        g = stim.gyro_regs.tobytes()
+        acc = stim.accel_regs.tobytes()
+        temp = stim.temp_raw.tolist()
+        pps_before = stim.pps_before_us.tolist()
+        offs = stim.uart_offsets.tolist()
+        ub = stim.uart_bytes
+        n = len(stim)
+        for k in range(n):
+            imu.set_registers(g[6 * k : 6 * k + 6], acc[6 * k : 6 * k + 6])
+            imu.set_temperature_raw(temp[k])
+            if offs[k + 1] > offs[k]:
+                gnss_uart.feed(ub[offs[k] : offs[k + 1]])
+            t_k = t0_us + k * tick_us
+            if pps_before[k] >= 0:
+                hw.now_us = t_k - pps_before[k]
+                pps.fire()
+            hw.now_us = t_k
+            hw.fire_timers()
+            try:
+                a.service()
+            except Exception as e:
+                raise _firmware_failed(e, f"at tick {k} (t = {k * tick_us * 1e-6:.3f} s)") from e
+            if k % 2000 == 1999:
+                out += out_uart.take_tx()
+                if progress:
+                    progress(k + 1, n)
+        out += out_uart.take_tx()
+    finally:
+        if gc_was_enabled:
+            gc.enable()  # app.start() turned the collector off (board behaviour)
+    wall = time.perf_counter() - t_wall
+    if progress:
+        progress(n, n)
+    stats = {
+        "overruns": a.overruns,
+        "gnss_rx_overflow": gnss_uart.overflow,
+        "nmea_rejected": a.gnss.rejected(),
+        "wdt_feeds": hw.wdt.feeds if hw.wdt else 0,
+        "imu_error": a.imu_error,
+        "config_status": a.config_status,
+    }
+    return FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
+
+
+def main_error(msg):
+    """Print a user-facing error and return the exit status."""
+    print(f"error: {msg}", file=sys.stderr)
+    return 1

@@ -1,0 +1,210 @@
+"""Plots (PNG) and report.md of one emulator run.
+
+    trajectory.png  truth, the firmware's track and the GNSS fixes; outages in red
+    errors.png      position and velocity errors (E, N, U) with the filter's own 3-sigma
+    attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw against truth
+    biases.png      gyro and accel bias estimates with 3-sigma against the simulated biases
+GNSS outages are shaded in every time plot.
+"""
+
+import numpy as np
+
+_DEG = 180.0 / np.pi
+PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _shade(ax, outages, t_end):
+    for i, (start, length) in enumerate(outages):
+        if start < t_end:
+            ax.axvspan(
+                start,
+                min(start + length, t_end),
+                color="tab:red",
+                alpha=0.12,
+                lw=0,
+                label="GNSS outage" if i == 0 else None,
+            )
+
+
+def _err_panel(ax, t, e, s, label, unit, outages, t_end, colors=("C0", "C1", "C2")):
+    for j, name in enumerate(label):
+        ax.plot(t, e[:, j], color=colors[j], lw=0.8, label=f"{name} error")
+        ax.plot(t, 3 * s[:, j], color=colors[j], lw=0.6, ls="--")
+        ax.plot(t, -3 * s[:, j], color=colors[j], lw=0.6, ls="--")
+    _shade(ax, outages, t_end)
+    ax.set_ylabel(unit)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=7, ncol=4)
+
+
+def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=None):
+    """Write the PNGs of PLOTS into out_dir. truth: object with t_s, p_n, ypr (truth frame);
+    gnss_fixes: (K, 3) valid fix positions in the truth frame (optional); bias_truth:
+    (t_s, bg (N, 3) rad/s, ba (N, 3) m/s^2) or None."""
+    plt = _plt()
+    t_end = float(truth.t_s[-1])
+    nav = tr.state == 2
+
+    fig, ax = plt.subplots(figsize=(8, 7))
+    ax.plot(truth.p_n[:, 0], truth.p_n[:, 1], color="k", lw=1.0, label="truth")
+    if gnss_fixes is not None and len(gnss_fixes):
+        ax.plot(gnss_fixes[:, 0], gnss_fixes[:, 1], ".", ms=2, color="C2", label="GNSS fixes")
+    ax.plot(tr.p_n[nav, 0], tr.p_n[nav, 1], color="C0", lw=0.9, label="firmware (navigating)")
+    for i, (start, length) in enumerate(outages):
+        sel = (truth.t_s >= start) & (truth.t_s < start + length)
+        if sel.any():
+            ax.plot(
+                truth.p_n[sel, 0],
+                truth.p_n[sel, 1],
+                color="tab:red",
+                lw=3,
+                alpha=0.5,
+                label="GNSS outage" if i == 0 else None,
+            )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("East, m")
+    ax.set_ylabel("North, m")
+    ax.set_title(f"{title}: trajectory")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out_dir / "trajectory.png", dpi=110)
+    plt.close(fig)
+
+    t = err.t_s
+    fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    _err_panel(axs[0], t, err.dp, err.sigma[:, 0:3], "ENU", "position, m", outages, t_end)
+    _err_panel(axs[1], t, err.dv, err.sigma[:, 3:6], "ENU", "velocity, m/s", outages, t_end)
+    axs[0].set_title(f"{title}: errors (dashed: the filter's 3-sigma)")
+    axs[1].set_xlabel("time, s")
+    fig.tight_layout()
+    fig.savefig(out_dir / "errors.png", dpi=110)
+    plt.close(fig)
+
+    fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    tilt = np.sqrt(0.5 * (err.sigma[:, 6] ** 2 + err.sigma[:, 7] ** 2))
+    s_att = np.stack([err.sigma[:, 8], tilt, tilt], axis=-1) * _DEG
+    _err_panel(axs[0], t, err.da * _DEG, s_att, ("yaw", "pitch", "roll"), "deg", outages, t_end)
+    nav_t = tr.t_s[nav]
+    axs[1].plot(truth.t_s, truth.ypr[:, 0] * _DEG, color="k", lw=1.0, label="truth yaw")
+    axs[1].plot(nav_t, tr.ypr[nav, 0] * _DEG, color="C0", lw=0.8, label="firmware yaw")
+    _shade(axs[1], outages, t_end)
+    axs[1].set_ylabel("yaw, deg (CCW from north)")
+    axs[1].set_xlabel("time, s")
+    axs[1].grid(alpha=0.3)
+    axs[1].legend(fontsize=7)
+    axs[0].set_title(f"{title}: attitude errors (dashed: 3-sigma; tilt sigma for roll/pitch)")
+    fig.tight_layout()
+    fig.savefig(out_dir / "attitude.png", dpi=110)
+    plt.close(fig)
+
+    fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    g_scale = _DEG * 3600.0  # rad/s -> deg/h
+    a_scale = 1000.0 / 9.80665  # m/s^2 -> mg
+    for ax, est, idx, scale, unit, key in (
+        (axs[0], tr.bg, 9, g_scale, "gyro bias, deg/h", 1),
+        (axs[1], tr.ba, 12, a_scale, "accel bias, mg", 2),
+    ):
+        for j, name in enumerate("xyz"):
+            c = f"C{j}"
+            ax.plot(tr.t_s[nav], est[nav, j] * scale, color=c, lw=0.9, label=f"{name} estimate")
+            s = tr.sigma[nav, idx + j] * scale
+            ax.fill_between(
+                tr.t_s[nav], (est[nav, j] * scale) - 3 * s, (est[nav, j] * scale) + 3 * s,
+                color=c, alpha=0.1, lw=0,
+            )  # fmt: skip
+            if bias_truth is not None:
+                ax.plot(bias_truth[0], bias_truth[key][:, j] * scale, color=c, ls=":", lw=1.0,
+                        label=f"{name} simulated")  # fmt: skip
+        _shade(ax, outages, t_end)
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=3)
+    axs[0].set_title(f"{title}: bias estimates (band: 3-sigma)")
+    axs[1].set_xlabel("time, s")
+    fig.tight_layout()
+    fig.savefig(out_dir / "biases.png", dpi=110)
+    plt.close(fig)
+
+
+def _fmt(x, digits=2):
+    if x is None:
+        return "n/a"
+    if isinstance(x, float):
+        return f"{x:.{digits}f}"
+    return str(x)
+
+
+def markdown(m, description="", console=(), notes=()):
+    """report.md text from the metrics dict."""
+    lines = [
+        f"# Emulator run: {m['scenario']} ({m['duration_s']:g} s, seed {m['seed']}, "
+        f"{m['runtime']})",
+        "",
+    ]
+    if description:
+        lines += [description, ""]
+    lines += [
+        "The unmodified firmware loop ran on an emulated board (BMI055 registers over SPI, NMEA "
+        "bytes on the GNSS UART at the receiver's baud rate, PPS interrupt, 5 ms timer on a "
+        "virtual clock). Errors are those of its output frames against the simulation's truth, "
+        "over the navigation phase (from the first navigating frame), at 10 Hz.",
+        "",
+        "| figure | value | reference |",
+        "|---|---|---|",
+        f"| horizontal position RMS | {_fmt(m['horiz_rms_m'])} m | WMH601 spec 3 m |",
+        f"| ... with GNSS available | {_fmt(m.get('horiz_rms_gnss_m'))} m | "
+        f"raw GNSS input {_fmt(m['gnss_horiz_rms_m'])} m |",
+        f"| vertical position RMS | {_fmt(m['vert_rms_m'])} m | |",
+        f"| velocity RMS (3D) | {_fmt(m['vel_rms_m_s'], 3)} m/s | WMH601 spec 0.05 m/s |",
+        f"| roll / pitch RMS | {_fmt(m['roll_rms_deg'])} / {_fmt(m['pitch_rms_deg'])} deg | "
+        "WMH601 spec 0.5 deg |",
+        f"| yaw RMS | {_fmt(m['yaw_rms_deg'])} deg | WMH601 spec 3 deg |",
+        f"| position inside 3-sigma (E, N) | {_fmt(m.get('pos_3sigma_coverage'), 3)} | "
+        "0.997 if the filter's covariance were right |",
+        f"| time to navigation | {_fmt(m['align_time_s'], 1)} s | |",
+        "",
+    ]
+    if m["outages"]:
+        lines += ["| GNSS outage | length | horizontal error at its end |", "|---|---|---|"]
+        for o in m["outages"]:
+            lines.append(
+                f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
+                f"{_fmt(o['horiz_err_end_m'])} m |"
+            )
+        lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
+    rt = m["realtime_factor"]
+    lines += [
+        "## The run",
+        "",
+        f"- {m['ticks']} ticks in {m['wall_s']:.1f} s of wall time: {rt:.1f}x real time "
+        f"({m['runtime']}).",
+        f"- Output: {m['frames']} frames, {m['frame_errors']} frame errors "
+        "(checksum/CRC failures, undecodable bytes, counter gaps).",
+        f"- GNSS input: {m.get('nmea_damaged_sentences', 'n/a')} damaged NMEA sentences sent, "
+        f"{m.get('nmea_rejected', 'n/a')} rejected by the firmware's parser; "
+        f"{m.get('gnss_rx_overflow', 'n/a')} bytes lost to a full UART ring.",
+    ]
+    if m.get("gc_blocks_per_tick_mean") is not None:
+        lines.append(
+            f"- GC blocks allocated per tick (MicroPython VM): mean "
+            f"{m['gc_blocks_per_tick_mean']:.0f}, max {m['gc_blocks_per_tick_max']} "
+            "(design target: mean <= 300, max <= 2x mean)."
+        )
+    lines += [f"- {n}" for n in notes]
+    lines += ["", "## Plots", ""]
+    for p in PLOTS:
+        lines.append(f"![{p[:-4]}]({p})")
+        lines.append("")
+    if console:
+        lines += ["## Firmware console", "", "```", *console, "```", ""]
+    return "\n".join(lines)

@@ -1,0 +1,256 @@
+"""`python -m host_emulator run`: simulate a scenario, run the firmware on it, evaluate.
+
+    simulate -> DIR/stimulus.bin -> firmware (CPython or the MicroPython VM) -> DIR/frames.bin
+             -> decode -> errors against truth -> DIR/metrics.json, DIR/report.md, DIR/*.png
+
+The stimulus file is the seam: the firmware run reads it back from disk, so a run can be
+repeated from it (`run --stimulus FILE`) on any runtime. A stimulus made by a simulation
+carries its scenario, seed and duration, so its truth is rebuilt for the evaluation.
+
+Outputs of an earlier run in DIR are removed first; metrics.json and report.md are written only
+when everything succeeded (a failed run leaves no report that could be mistaken for a result).
+"""
+
+import json
+import pathlib
+import shutil
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from host_emulator import emulator, evaluate, frames, report
+from host_emulator import stimulus as stim_mod
+from host_emulator.errors import EmulatorError
+from host_emulator.sim import board_input, trajectory
+
+RUNTIMES = ("cpython", "micropython")
+OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
+MAX_DURATION_S = 24 * 3600.0
+
+
+class Progress:
+    """A one-line progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+
+    def __init__(self, label, duration_s, stream=None, enabled=True):
+        self.label = label
+        self.duration_s = duration_s
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.t0 = time.perf_counter()
+        self.last_decile = -1
+        self.last_draw = 0.0
+
+    def __call__(self, k, n):
+        if not self.enabled or n <= 0:
+            return
+        frac = k / n
+        now = time.perf_counter()
+        wall = now - self.t0
+        sim_s = frac * self.duration_s
+        rate = f"{sim_s / wall:5.1f}x real time" if wall > 0 else ""
+        if self.tty:
+            if now - self.last_draw < 0.2 and k < n:
+                return
+            self.last_draw = now
+            bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
+            self.stream.write(
+                f"\r  {self.label:<10} [{bar}] {100 * frac:3.0f}%  {sim_s:6.0f}/"
+                f"{self.duration_s:.0f} s  {rate}"
+            )
+            if k >= n:
+                self.stream.write("\n")
+            self.stream.flush()
+        else:
+            decile = int(10 * frac)
+            if decile > self.last_decile:
+                self.last_decile = decile
+                self.stream.write(f"  {self.label}: {100 * frac:3.0f}%  {rate}\n")
+                self.stream.flush()
+
+
+def check_scenario(name):
+    if name not in trajectory.SCENARIOS:
+        known = ", ".join(sorted(trajectory.SCENARIOS))
+        raise EmulatorError(f"unknown scenario {name!r}; known scenarios: {known}")
+
+
+def check_duration(duration_s):
+    if duration_s is not None and not (0 < duration_s <= MAX_DURATION_S):
+        raise EmulatorError(f"--duration must be > 0 and <= {MAX_DURATION_S:g} s")
+
+
+def run_firmware(stim, runtime, stim_path, progress=None):
+    """FirmwareRun of the stimulus (read back from stim_path) on the runtime."""
+    with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
+        work = pathlib.Path(tmp)
+        if runtime == "cpython":
+            return emulator.run_cpython(stim_mod.read(stim_path), work, progress=progress)
+        if runtime == "micropython":
+            from host_emulator import vm_runner
+
+            return vm_runner.run_micropython(stim_path, work, progress=progress)
+    raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+
+
+def _clean(out_dir):
+    for name in (*OUTPUTS, "stimulus.bin"):
+        p = out_dir / name
+        if p.exists():
+            p.unlink()
+
+
+def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
+    """metrics dict (and the report's inputs) of a finished firmware run."""
+    tick_s = stim.tick_us * 1e-6
+    decoded = frames.decode(fw.out)
+    o = sim.truth.origin
+    tr = evaluate.track(decoded, tick_s, (o.lat_e7, o.lon_e7, o.h_m))
+    outages = [tuple(x) for x in stim.header.get("outages", [])]
+    truth = sim.truth
+    err = evaluate.errors(tr, truth.t_s, truth.p_n, truth.v_n, truth.ypr, outages)
+    acc = evaluate.accuracy(err, outages)
+    g = sim.gnss
+    align = tr.align_time_s
+    ok = g.valid & (g.t_fix_s >= (align if align is not None else np.inf))
+    fe = evaluate.frame_errors(decoded)
+    blocks = fw.blocks_per_tick
+    metrics = {
+        "scenario": sim.name,
+        "duration_s": float(stim.duration_s),
+        "seed": int(sim.seed),
+        "runtime": runtime,
+        "ticks": int(fw.ticks),
+        "wall_s": float(fw.wall_s),
+        "realtime_factor": float(stim.duration_s / fw.wall_s) if fw.wall_s > 0 else None,
+        "horiz_rms_m": acc["horiz_rms_m"],
+        "vert_rms_m": acc["vert_rms_m"],
+        "vel_rms_m_s": acc["vel_rms_m_s"],
+        "roll_rms_deg": acc["roll_rms_deg"],
+        "pitch_rms_deg": acc["pitch_rms_deg"],
+        "yaw_rms_deg": acc["yaw_rms_deg"],
+        "gnss_horiz_rms_m": evaluate._rms(np.hypot(*g.err_n_m[ok, :2].T)) if ok.any() else None,
+        "outages": acc["outages"],
+        "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
+        "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
+        "tick_float_ops_max": None,  # not counted separately: GC blocks are the proxy
+        "align_time_s": align,
+        "frames": len(decoded.frames),
+        "frame_errors": fe["total"],
+        # more detail
+        "horiz_rms_gnss_m": acc["horiz_rms_gnss_m"],
+        "horiz_max_m": acc["horiz_max_m"],
+        "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
+        "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
+        "frame_error_detail": fe,
+        "ext_frames": len(decoded.ext),
+        "nmea_damaged_sentences": int(sim.damaged_sentences),
+        "nmea_rejected": fw.stats.get("nmea_rejected"),
+        "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
+        "overruns": fw.stats.get("overruns"),
+    }
+    if blocks is not None:
+        metrics["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
+    metrics.update(extra or {})
+    return metrics, tr, err
+
+
+def write_outputs(out_dir, sim, metrics, tr, err, console):
+    truth = sim.truth
+    g = sim.gnss
+    fixes = (g.p_ant_n + g.err_n_m)[g.valid]
+    outages = [tuple(x) for x in sim.stimulus.header.get("outages", [])]
+    title = f"{sim.name} ({metrics['runtime']})"
+    report.plots(
+        out_dir,
+        title,
+        tr,
+        err,
+        truth,
+        outages,
+        fixes,
+        (sim.imu.t_s, sim.imu.bg_rad_s, sim.imu.ba_m_s2),
+    )
+    desc = trajectory.SCENARIOS[sim.name].description
+    (out_dir / "report.md").write_text(report.markdown(metrics, desc, console))
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+
+
+def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print):
+    """The whole `run` command; returns the metrics. EmulatorError on bad input or failure."""
+    check_scenario(scenario)
+    check_duration(duration_s)
+    if runtime not in RUNTIMES:
+        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    out_dir = pathlib.Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise EmulatorError(f"cannot create output directory {out_dir}: {e.strerror}") from None
+    _clean(out_dir)
+    t0 = time.perf_counter()
+    sim = board_input.simulate(scenario, duration_s, seed)
+    stim_path = out_dir / "stimulus.bin"
+    sim.stimulus.write(stim_path)
+    log(
+        f"simulated {scenario}: {sim.stimulus.duration_s:g} s, seed {seed} "
+        f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
+    )
+    prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
+    fw = run_firmware(sim.stimulus, runtime, stim_path, prog)
+    (out_dir / "frames.bin").write_bytes(fw.out)
+    metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
+    if not tr.t_s.size:
+        raise EmulatorError("the firmware sent no extended frames: nothing to evaluate")
+    write_outputs(out_dir, sim, metrics, tr, err, fw.console)
+    return metrics
+
+
+def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
+    """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
+    is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
+    only the output is checked (frames, frame errors, time to navigation)."""
+    if runtime not in RUNTIMES:
+        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    stim = stim_mod.read(path)  # StimulusError (an EmulatorError) if unusable
+    out_dir = pathlib.Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name in OUTPUTS:
+        if (out_dir / name).exists():
+            (out_dir / name).unlink()
+    h = stim.header
+    src = pathlib.Path(path)
+    local = out_dir / "stimulus.bin"
+    if src.resolve() != local.resolve():
+        shutil.copyfile(src, local)
+    prog = Progress(runtime, stim.duration_s, enabled=show_progress)
+    fw = run_firmware(stim, runtime, local, prog)
+    (out_dir / "frames.bin").write_bytes(fw.out)
+    if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
+        sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
+        if sim.stimulus.to_bytes() != stim.to_bytes():
+            log("note: the file differs from a fresh simulation of its scenario; evaluating "
+                "against that simulation's truth anyway")  # fmt: skip
+        sim.stimulus = stim
+        metrics, tr, err = evaluate_run(sim, fw, stim, out_dir, runtime)
+        write_outputs(out_dir, sim, metrics, tr, err, fw.console)
+        return metrics
+    decoded = frames.decode(fw.out)
+    tr = evaluate.track(decoded, stim.tick_us * 1e-6, (0, 0, 0.0))
+    fe = evaluate.frame_errors(decoded)
+    metrics = {
+        "source": h.get("source"),
+        "duration_s": stim.duration_s,
+        "runtime": runtime,
+        "ticks": fw.ticks,
+        "wall_s": fw.wall_s,
+        "realtime_factor": stim.duration_s / fw.wall_s if fw.wall_s > 0 else None,
+        "align_time_s": tr.align_time_s,
+        "frames": len(decoded.frames),
+        "frame_errors": fe["total"],
+        "note": "no truth for this stimulus: accuracy not evaluated",
+    }
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    return metrics
