@@ -38,7 +38,10 @@ def summary(m, out_dir):
     ]
     lines += ["  ".join(c.ljust(w[i]) for i, c in enumerate(r)).rstrip() for r in rows]
     lines.append("")
-    lines.append(f"navigating after       {_f(m['align_time_s'], 's', 1)} from power-on")
+    if m["align_time_s"] is None:
+        lines.append("navigating after       never: no heading without motion (no magnetometer)")
+    else:
+        lines.append(f"navigating after       {m['align_time_s']:.1f} s from power-on")
     for o in m["outages"]:
         lines.append(
             f"GNSS outage            {o['length_s']:g} s at {o['start_s']:g} s: "

@@ -136,12 +136,11 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     plt.close(fig)
 
 
-def _fmt(x, digits=2):
+def _fmt(x, digits=2, unit=""):
     if x is None:
         return "n/a"
-    if isinstance(x, float):
-        return f"{x:.{digits}f}"
-    return str(x)
+    text = f"{x:.{digits}f}" if isinstance(x, float) else str(x)
+    return f"{text} {unit}" if unit else text
 
 
 def markdown(m, description="", console=(), notes=()):
@@ -153,6 +152,14 @@ def markdown(m, description="", console=(), notes=()):
     ]
     if description:
         lines += [description, ""]
+    if m.get("align_time_s") is None:
+        lines += [
+            "**The navigator never reached the navigating state in this run**, so there is no "
+            "navigation phase to score. That is expected while the board does not move: it "
+            "levels itself at rest but has no magnetometer, and takes its heading from the "
+            "GNSS course once moving faster than the heading threshold.",
+            "",
+        ]
     lines += [
         "The unmodified firmware loop ran on an emulated board (BMI055 registers over SPI, NMEA "
         "bytes on the GNSS UART at the receiver's baud rate, PPS interrupt, 5 ms timer on a "
@@ -161,17 +168,17 @@ def markdown(m, description="", console=(), notes=()):
         "",
         "| figure | value | reference |",
         "|---|---|---|",
-        f"| horizontal position RMS | {_fmt(m['horiz_rms_m'])} m | WMH601 spec 3 m |",
-        f"| ... with GNSS available | {_fmt(m.get('horiz_rms_gnss_m'))} m | "
-        f"raw GNSS input {_fmt(m['gnss_horiz_rms_m'])} m |",
-        f"| vertical position RMS | {_fmt(m['vert_rms_m'])} m | |",
-        f"| velocity RMS (3D) | {_fmt(m['vel_rms_m_s'], 3)} m/s | WMH601 spec 0.05 m/s |",
-        f"| roll / pitch RMS | {_fmt(m['roll_rms_deg'])} / {_fmt(m['pitch_rms_deg'])} deg | "
-        "WMH601 spec 0.5 deg |",
-        f"| yaw RMS | {_fmt(m['yaw_rms_deg'])} deg | WMH601 spec 3 deg |",
+        f"| horizontal position RMS | {_fmt(m['horiz_rms_m'], unit='m')} | WMH601 spec 3 m |",
+        f"| ... with GNSS available | {_fmt(m.get('horiz_rms_gnss_m'), unit='m')} | "
+        f"raw GNSS input {_fmt(m['gnss_horiz_rms_m'], unit='m')} |",
+        f"| vertical position RMS | {_fmt(m['vert_rms_m'], unit='m')} | |",
+        f"| velocity RMS (3D) | {_fmt(m['vel_rms_m_s'], 3, unit='m/s')} | WMH601 spec 0.05 m/s |",
+        f"| roll / pitch RMS | {_fmt(m['roll_rms_deg'])} / "
+        f"{_fmt(m['pitch_rms_deg'], unit='deg')} | WMH601 spec 0.5 deg |",
+        f"| yaw RMS | {_fmt(m['yaw_rms_deg'], unit='deg')} | WMH601 spec 3 deg |",
         f"| position inside 3-sigma (E, N) | {_fmt(m.get('pos_3sigma_coverage'), 3)} | "
         "0.997 if the filter's covariance were right |",
-        f"| time to navigation | {_fmt(m['align_time_s'], 1)} s | |",
+        f"| time to navigation | {_fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]
     if m["outages"]:
@@ -179,7 +186,7 @@ def markdown(m, description="", console=(), notes=()):
         for o in m["outages"]:
             lines.append(
                 f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
-                f"{_fmt(o['horiz_err_end_m'])} m |"
+                f"{_fmt(o['horiz_err_end_m'], unit='m')} |"
             )
         lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
     rt = m["realtime_factor"]

@@ -174,10 +174,10 @@ class _Die:
 
     def set_registers(self, data6):
         """The data registers 0x02..0x07 exactly as given (a recorded or simulated sample,
-        new_data bits included); sets data_int."""
+        new_data bits included); sets data_int. `counts` is then None (not decoded here: this
+        runs every tick of an emulation)."""
         self.regs[REG_DATA : REG_DATA + 6] = data6
-        w = [self.regs[REG_DATA + 2 * i] | self.regs[REG_DATA + 2 * i + 1] << 8 for i in range(3)]
-        self.counts = tuple(self._decode(x) for x in w)
+        self.counts = None
         self.regs[REG_INT_STATUS] |= 0x80
 
     # -- SPI device --
@@ -222,10 +222,6 @@ class GyroDie(_Die):
         w = c & 0xFFFF
         return w & 0xFF, w >> 8
 
-    @staticmethod
-    def _decode(w):
-        return w - 0x10000 if w & 0x8000 else w
-
     @property
     def range_dps(self):
         """Configured range in deg/s (None for a reserved code)."""
@@ -249,10 +245,6 @@ class AccelDie(_Die):
     def _encode(c):
         w = (c & 0xFFF) << 4 | 0x01  # new_data
         return w & 0xFF, w >> 8
-
-    @staticmethod
-    def _decode(w):
-        return (w - 0x10000 if w & 0x8000 else w) >> 4
 
     def _data_read(self, reg):
         super()._data_read(reg)

@@ -101,6 +101,7 @@ class FakeSPI:
         self.bytes_clocked = 0
         self.stray_bytes = 0  # clocked with no device selected (non-strict)
         self._devices = []  # (device, cs pin)
+        self._low = []  # devices whose chip select is low now (kept by the pins' edges)
         self._open = None  # the transaction being recorded
         self.init(baudrate, polarity, phase, bits, firstbit)
 
@@ -126,11 +127,14 @@ class FakeSPI:
 
         def on_edge(level):
             if level == 0:
+                self._low.append(device)
                 device.select()
                 if self.record:
                     self._open = [getattr(device, "name", repr(device)), bytearray(), bytearray()]
                     self.transactions.append(self._open)
             else:
+                if device in self._low:
+                    self._low.remove(device)
                 device.deselect()
                 self._open = None
 
@@ -141,11 +145,13 @@ class FakeSPI:
     # -- one byte --
 
     def _selected(self):
-        low = [d for d, cs in self._devices if cs.value() == 0]
+        low = self._low
+        if not low:
+            return None
         if len(low) > 1:
             names = ", ".join(getattr(d, "name", repr(d)) for d in low)
             raise RuntimeError(f"SPI bus contention: several chip selects low ({names})")
-        return low[0] if low else None
+        return low[0]
 
     def _exchange(self, mosi):
         self.bytes_clocked += 1
