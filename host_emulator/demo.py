@@ -54,8 +54,10 @@ def summary(m, out_dir):
     if m.get("gc_blocks_per_tick_mean") is not None:
         lines.append(
             f"GC blocks per tick     mean {m['gc_blocks_per_tick_mean']:.0f}, "
-            f"max {m['gc_blocks_per_tick_max']}"
+            f"max {m['gc_blocks_per_tick_max']} (design: mean <= 300, max <= 2x mean)"
         )
+        for state, b in (m.get("gc_blocks_by_state") or {}).items():
+            lines.append(f"  {state:<20} mean {b['mean']:.0f}, max {b['max']}")
     lines.append(f"frames                 {m['frames']} sent, {m['frame_errors']} errors")
     lines.append("")
     lines.append(f"report: {out_dir}/report.md   plots: {out_dir}/*.png   metrics: "

@@ -132,7 +132,8 @@ def run_cpython(stim, workdir, config_overrides=None, progress=None):
                 gnss_uart.feed(ub[offs[k] : offs[k + 1]])
             t_k = t0_us + k * tick_us
             if pps_before[k] >= 0:
-                hw.now_us = t_k - pps_before[k]
+                # never back in time (an edge recorded during the firmware's start-up)
+                hw.now_us = max(hw.now_us, t_k - pps_before[k])
                 pps.fire()
             hw.now_us = t_k
             hw.fire_timers()

@@ -207,6 +207,11 @@ def markdown(m, description="", console=(), notes=()):
             f"{m['gc_blocks_per_tick_mean']:.0f}, max {m['gc_blocks_per_tick_max']} "
             "(design target: mean <= 300, max <= 2x mean)."
         )
+        for state, b in (m.get("gc_blocks_by_state") or {}).items():
+            lines.append(
+                f"  - {state}: {b['ticks']} ticks, min {b['min']}, mean {b['mean']:.0f}, "
+                f"p99 {b['p99']:.0f}, max {b['max']}"
+            )
     lines += [f"- {n}" for n in notes]
     lines += ["", "## Plots", ""]
     for p in PLOTS:

@@ -153,6 +153,7 @@ def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
     }
     if blocks is not None:
         metrics["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
+        metrics["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
     metrics.update(extra or {})
     return metrics, tr, err
 

@@ -1,0 +1,238 @@
+"""Run the unmodified firmware loop inside the MicroPython VM, fed from a stimulus file, and
+count the GC blocks every tick allocates. Started by host_emulator/vm_runner.py:
+
+    micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR
+
+sys.path: this directory first (the VM puts the script's directory there), so `machine` and
+`time` are the emulated ones beside this file; then FIRMWARE_DIR/lib and FIRMWARE_DIR, the
+board's layout. board.CONFIG_PATH = CONFIG, then `app.App(board, console=...)`, `start()`.
+
+Per stimulus record k (host_emulator/stimulus.py; the host has checked the CRC), exactly as
+emulator.run_cpython: the BMI055 data and temperature registers take the record's bytes, the
+GNSS UART receives its bytes, the clock moves to t_k - pps_before_us and the PPS pin fires
+(if the record has an edge), the clock moves to t_k, the timer fires, `app.service()` runs.
+t_k = t0 + k * tick_us (virtual us since power-on), t0 = the first multiple of tick_us at or
+after the clock when start-up ended.
+
+Counting: the collector is off (the app turns it off in start()); gc.mem_alloc() is read just
+before and after service(), and the difference in GC blocks (bytes / bytes per block,
+measured like mpvm's `_bytes_per_block`: one boxed float) is the tick's count. Garbage is
+collected between ticks, outside that window, whenever the free heap gets below a margin of
+several worst ticks, so the app's own low-water collection (12 KB) never runs during a tick
+(its gc_runs counter is reported to prove it).
+
+Output (OUT_DIR): out.bin (the output UART's bytes), blocks.bin (int32 LE per tick: GC
+blocks of the tick), state.bin (u8 per tick: the navigation state after it). Stdout lines:
+    C <text>        a line the firmware printed on its console
+    P <k> <n>       progress: k of n ticks done
+    E <k>           the firmware raised at tick k (-1: at start-up); the VM's traceback
+                    follows (sys.print_exception), then a line "E-END"; exit status 3
+    S <json>        statistics at the end (exit status 0)
+"""
+
+import gc
+import json
+import struct
+import sys
+import time  # vm_board/time.py: this directory is sys.path[0]
+from array import array
+
+import machine  # vm_board/machine.py
+
+if len(sys.argv) != 5:
+    print("usage: micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR")
+    sys.exit(2)
+FIRMWARE_DIR = sys.argv[1]
+STIM_PATH = sys.argv[2]
+CONFIG_PATH = sys.argv[3]
+OUT_DIR = sys.argv[4]
+sys.path.insert(1, FIRMWARE_DIR + "/lib")  # the firmware's modules, after this directory
+sys.path.insert(2, FIRMWARE_DIR)
+
+if not hasattr(time, "now_us") or not hasattr(machine, "fire_timers"):
+    print("emulate.py: the built-in time/machine modules shadow the emulated ones")
+    sys.exit(2)
+
+MAGIC = b"INSSTIM1"
+REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
+FLAG_PPS = 1
+PROGRESS_EVERY = 1000  # ticks between progress lines
+CHUNK = 2000  # ticks per write of the per-tick arrays
+MARGIN0 = 65536  # free heap bytes to keep before a tick, at least
+OUT_FLUSH = 8192  # write the output UART's bytes to the file beyond this many
+EXIT_FIRMWARE_ERROR = 3
+
+
+def bytes_per_block():
+    """Bytes of one GC block: what boxing one float allocates (as mpvm's prelude)."""
+    a = array("f", bytes(4))
+    gc.collect()
+    gc.disable()
+    m0 = gc.mem_alloc()
+    x = a[0]
+    m1 = gc.mem_alloc()
+    gc.enable()
+    del x
+    return m1 - m0
+
+
+def console(msg):
+    """The firmware's console: one "C" line per line of text (no allocation for one line)."""
+    if "\n" in msg:
+        for line in msg.split("\n"):
+            print("C", line)
+    else:
+        print("C", msg)
+
+
+def read_exact(f, buf, n, what):
+    got = f.readinto(buf, n) if n else 0
+    if got != n:
+        raise EOFError("stimulus file cut short in " + what)
+
+
+def main():
+    bpb = bytes_per_block()
+    f = open(STIM_PATH, "rb")
+    if f.read(8) != MAGIC:
+        raise ValueError("not a stimulus file: " + STIM_PATH)
+    hlen = struct.unpack("<I", f.read(4))[0]
+    header = json.loads(f.read(hlen))
+    tick_us = header.get("tick_us", 5000)
+    size = f.seek(0, 2)
+    f.seek(size - 8)
+    n_ticks = struct.unpack("<I", f.read(4))[0]
+    f.seek(12 + hlen)
+    rec = bytearray(REC_LEN)
+    ubuf = bytearray(2048)
+
+    imu = machine.Bmi055()
+    k = -1
+    try:  # the firmware's start-up: its modules, the App (configuration, BMI055 init), start()
+        import board
+
+        board.CONFIG_PATH = CONFIG_PATH
+        pins = board.PINS
+        imu.attach(
+            machine.spi_bus(pins["spi_id"]),
+            machine.pin(pins["cs_accel"]),
+            machine.pin(pins["cs_gyro"]),
+        )
+        import app
+
+        a = app.App(board, console=console)
+        a.start()
+    except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
+        firmware_error(k, e)
+    gc.disable()
+    gnss = machine.uart(pins["gnss_uart"])
+    out_uart = machine.uart(pins["out_uart"])
+    pps = machine.pin(pins["pps"])
+    fo = open(OUT_DIR + "/out.bin", "wb")
+    fb = open(OUT_DIR + "/blocks.bin", "wb")
+    fs = open(OUT_DIR + "/state.bin", "wb")
+    blocks = array("i", bytes(4 * CHUNK))
+    state = bytearray(CHUNK)
+    nav = a.nav
+    now = time.now_us()
+    t0 = (now + tick_us - 1) // tick_us * tick_us
+    gc.collect()
+    live = gc.mem_alloc()  # bytes in use after start-up (firmware bytecode, buffers)
+    total = gc.mem_free() + live  # heap bytes
+    worst = 0  # most bytes one tick allocated so far
+    margin = MARGIN0  # collect when less than this is free (grows with the worst tick)
+    m1 = gc.mem_alloc()
+    collects = 0
+    negative = 0  # ticks whose count went down (a collection inside the tick)
+    j = 0
+    for k in range(n_ticks):
+        read_exact(f, rec, REC_LEN, "a record")
+        imu.set_registers(rec, 0, 6)
+        t = rec[12]
+        imu.set_temperature_raw(t - 256 if t >= 128 else t)
+        n = rec[16] | (rec[17] << 8)
+        if n:
+            if n > len(ubuf):
+                ubuf = bytearray(n)
+            read_exact(f, ubuf, n, "UART bytes")
+            gnss.feed(ubuf, n)
+        t_k = t0 + k * tick_us
+        if total - m1 < margin:  # free heap (m1: after the last tick; little since)
+            gc.collect()
+            collects += 1
+        try:  # the firmware's code: its interrupt handlers and one pass of its loop
+            if rec[13] & FLAG_PPS:
+                edge = t_k - (rec[14] | (rec[15] << 8))
+                if edge > time.now_us():  # never back in time (an edge during start-up)
+                    time.set_us(edge)
+                pps.fire()
+            time.set_us(t_k)
+            machine.fire_timers()
+            m0 = gc.mem_alloc()
+            a.service()
+            m1 = gc.mem_alloc()
+        except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
+            fo.write(out_uart.tx, out_uart.tx_n)
+            fo.close()
+            firmware_error(k, e)
+        d = m1 - m0
+        if d > worst:
+            worst = d
+            if 4 * d + 16384 > margin:  # the app collects below 12 KB free
+                margin = 4 * d + 16384
+        if d < 0:
+            negative += 1
+        blocks[j] = d // bpb
+        state[j] = nav.state
+        j += 1
+        if j == CHUNK:
+            fb.write(blocks, 4 * j)
+            fs.write(state, j)
+            j = 0
+        if out_uart.tx_n >= OUT_FLUSH:
+            fo.write(out_uart.tx, out_uart.tx_n)
+            out_uart.tx_clear()
+        if (k + 1) % PROGRESS_EVERY == 0:
+            print("P", k + 1, n_ticks)
+    if j:
+        fb.write(blocks, 4 * j)
+        fs.write(state, j)
+    fo.write(out_uart.tx, out_uart.tx_n)
+    out_uart.tx_clear()
+    fo.close()
+    fb.close()
+    fs.close()
+    f.close()
+    if n_ticks % PROGRESS_EVERY or not n_ticks:
+        print("P", n_ticks, n_ticks)
+    wdt = machine.watchdog
+    stats = {
+        "ticks": n_ticks,
+        "t0_us": t0,
+        "overruns": a.overruns,
+        "gnss_rx_overflow": gnss.overflow,
+        "nmea_rejected": a.gnss.rejected(),
+        "wdt_feeds": wdt.feeds if wdt else 0,
+        "imu_error": a.imu_error,
+        "config_status": a.config_status,
+        "app_gc_runs": a.gc_runs,
+        "gc_collects": collects,
+        "negative_ticks": negative,
+        "bytes_per_block": bpb,
+        "heap_bytes": total,
+        "live_bytes_at_start": live,
+        "tx_overflow": out_uart.tx_overflow,
+        "spi_bytes": machine.spi_bus(pins["spi_id"]).bytes_clocked,
+    }
+    print("S", json.dumps(stats))
+
+
+def firmware_error(k, e):
+    """Report an exception the firmware raised (at tick k, -1 at start-up) and exit."""
+    print("E", k)
+    sys.print_exception(e, sys.stdout)
+    print("E-END")
+    sys.exit(EXIT_FIRMWARE_ERROR)
+
+
+main()

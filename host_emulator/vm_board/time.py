@@ -1,0 +1,87 @@
+"""MicroPython-side `time` for the host emulator: the board's tick functions on a virtual clock.
+
+Runs inside the MicroPython VM only (host_emulator/vm_board/emulate.py puts this directory first
+on sys.path, so `import time` in the firmware finds this file instead of the built-in module).
+
+The clock is an integer count of microseconds since power-on, `now_us()`. Only the emulator
+moves it forward (`set_us`, `advance_us`), and the firmware's own waits (`sleep_ms`,
+`sleep_us`) advance it by the time they ask for: the firmware's run time is zero on this clock.
+`ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and host_emulator/fake_machine.py);
+`ticks_diff`/`ticks_add` do the port's modular arithmetic. Nothing here allocates (all values
+are small ints), so a tick's GC blocks are the firmware's own.
+"""
+
+_PERIOD = 1 << 30  # ticks_us / ticks_ms wrap here (MICROPY_PY_TIME_TICKS_PERIOD)
+_HALF = 1 << 29
+_MASK = _PERIOD - 1
+
+_now = 0  # us since power-on
+
+
+def now_us():
+    """The virtual clock: us since power-on (not wrapped)."""
+    return _now
+
+
+def set_us(t):
+    """Set the clock to t us since power-on. The emulator only moves it forward, except (as
+    emulator.run_cpython does) for a PPS edge in tick 0 that came before start-up ended."""
+    global _now
+    _now = t
+
+
+def advance_us(dt):
+    """Move the clock forward by dt us."""
+    global _now
+    _now += dt
+
+
+def ticks_us():
+    """us since power-on, wrapped to 0 .. 2**30 - 1."""
+    return _now & _MASK
+
+
+def ticks_ms():
+    """ms since power-on, wrapped to 0 .. 2**30 - 1."""
+    return (_now // 1000) & _MASK
+
+
+def ticks_cpu():
+    """Same as ticks_us (no CPU cycle counter on the virtual board)."""
+    return _now & _MASK
+
+
+def ticks_diff(a, b):
+    """a - b for two tick values, in -2**29 .. 2**29 - 1 (the port's signed difference)."""
+    return ((a - b + _HALF) & _MASK) - _HALF
+
+
+def ticks_add(t, delta):
+    """A tick value delta ticks after t (wrapped)."""
+    return (t + delta) & _MASK
+
+
+def sleep_ms(ms):
+    """Wait ms milliseconds: the clock advances by them."""
+    global _now
+    if ms > 0:
+        _now += 1000 * ms
+
+
+def sleep_us(us):
+    """Wait us microseconds: the clock advances by them."""
+    global _now
+    if us > 0:
+        _now += us
+
+
+def sleep(s):
+    """Wait s seconds (int or float): the clock advances by them (rounded down to 1 us)."""
+    global _now
+    if s > 0:
+        _now += int(s * 1000000)
+
+
+def time():
+    """Seconds since power-on (int), for code that only wants a coarse clock."""
+    return _now // 1000000

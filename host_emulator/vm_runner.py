@@ -1,0 +1,250 @@
+"""Run the unmodified firmware loop in the real MicroPython VM, fed from a stimulus, and count
+the GC blocks every tick allocates (the MicroPython runtime of the host emulator).
+
+The VM (`micropython`, MicroPython 1.29's unix port, see mpvm.py) runs
+`vm_board/emulate.py`, which imports the firmware's own `board.py`, drivers and `app.py` on
+top of the emulated `machine` and `time` beside it (`vm_board/machine.py`, `vm_board/time.py`:
+pins, SPI with the BMI055 register model, UARTs, the timer, the watchdog, a virtual clock in
+us since power-on). Each stimulus record is replayed exactly as `emulator.run_cpython`
+replays it, so both runtimes see the same input at the same virtual times.
+
+What differs from the CPython runtime: the VM's floats are doubles (the board's are float32,
+which the CPython runtime reproduces bit for bit), so integer output (counters, raw sensor
+fields, flags, GNSS fix fields, navigation state) is the same and float output agrees to a
+tolerance. What it adds: `blocks_per_tick`, the GC blocks each `App.service()` allocated
+(gc.mem_alloc() difference with the collector off; one block = one boxed float on the board
+and in the VM, DESIGN.md 4), with the navigation state per tick to split them by phase.
+
+Heap: the VM heap also holds the firmware's compiled bytecode (~85 KB on this 64-bit VM) and
+the emulator's buffers (~200 KB live in all). gc.mem_alloc() scans the whole heap twice a
+tick, so the heap size sets the speed: 512 KB (default) runs 90 s of urban_drive in ~10 s,
+2 MB in ~26 s. Garbage is collected between ticks, never during one.
+"""
+
+import json
+import os
+import pathlib
+import subprocess
+import threading
+import time
+
+import numpy as np
+
+from host_emulator import emulator, mpvm, nav_vm
+from host_emulator import stimulus as stim_mod
+from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.firmware_env import FIRMWARE_DIR
+
+VM_BOARD_DIR = pathlib.Path(__file__).resolve().parent / "vm_board"
+EMULATE = VM_BOARD_DIR / "emulate.py"
+HEAP_KB = 512
+EXIT_FIRMWARE_ERROR = 3  # emulate.py's exit status after an "E" report
+
+
+def _default_timeout_s(stim):
+    """Generous: the VM runs ~8x faster than real time on a desktop (measured)."""
+    return 60.0 + 1.0 * stim.duration_s
+
+
+def _block_stats(blocks):
+    if not len(blocks):
+        return {"blocks_mean": None, "blocks_p99": None, "blocks_max": None}
+    return {
+        "blocks_mean": float(np.mean(blocks)),
+        "blocks_p99": float(np.percentile(blocks, 99)),
+        "blocks_max": int(np.max(blocks)),
+    }
+
+
+class _Output:
+    """The VM's stdout lines, sorted by their prefix (see vm_board/emulate.py)."""
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.console = []
+        self.other = []  # lines that are none of the known kinds (VM errors, stray prints)
+        self.stats = None
+        self.error_tick = None  # "E k" seen
+        self.error_lines = []
+        self.last_tick = 0
+        self._in_error = False
+
+    def line(self, text):
+        text = text.rstrip("\n")
+        if self._in_error:
+            if text == "E-END":
+                self._in_error = False
+            else:
+                self.error_lines.append(text)
+            return
+        kind, _, rest = text.partition(" ")
+        fields = rest.split()
+        if kind == "P" and len(fields) == 2 and all(x.isdigit() for x in fields):
+            self.last_tick = int(fields[0])
+            if self.progress:
+                self.progress(int(fields[0]), int(fields[1]))
+        elif kind == "C":
+            self.console.append(rest)
+        elif kind == "E" and len(fields) == 1 and fields[0].lstrip("-").isdigit():
+            self.error_tick = int(fields[0])
+            self._in_error = True
+        elif kind == "S" and rest.startswith("{"):
+            try:
+                self.stats = json.loads(rest)
+            except ValueError:
+                self.other.append(text)
+        else:
+            self.other.append(text)
+
+
+def _firmware_error(out, stim, heap_kb):
+    k = out.error_tick
+    where = "at start-up" if k < 0 else f"at tick {k} (t = {k * stim.tick_us * 1e-6:.3f} s)"
+    tb = "\n".join(out.error_lines)
+    msg = f"the firmware raised {where} in the MicroPython VM:\n{tb}"
+    if "MemoryError" in tb:
+        msg += (
+            f"\n(the VM heap is {heap_kb} KB and the collector is off during a tick: a tick that "
+            "allocates more than is free runs out; a larger heap_kb tells whether the "
+            "firmware or the heap size is at fault)"
+        )
+    err = FirmwareError(msg)
+    err.tick = k
+    err.t_s = None if k < 0 else k * stim.tick_us * 1e-6
+    err.vm_traceback = tb
+    return err
+
+
+def run_micropython(
+    stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None
+):
+    """Run the firmware in the MicroPython VM over a whole stimulus; returns a FirmwareRun.
+
+    stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin for the VM) or the path of a
+        stimulus file (read here, which checks its CRC, and given to the VM as it is).
+    workdir: the emulated board's flash (workdir/flash/ins.cfg: the configuration, the
+        stimulus header's "config" plus `config_overrides` over {"ext_every_ticks": 20}, as
+        run_cpython) and the VM's output files (workdir/vm/).
+    progress(k, n): called as the VM reports ticks done (every 1000 ticks and at the end).
+    heap_kb: the VM's heap; timeout_s: wall-time limit (default 60 s + the stimulus duration).
+
+    The FirmwareRun's stats hold the blocks' mean/p99/max, overall and by navigation state
+    ("blocks_by_state"), and the run's counters; its extra attribute `nav_state` is the
+    navigation state after each tick (uint8, 1 aligning, 2 navigating).
+
+    FirmwareError (with .tick, .t_s, .vm_traceback) if the firmware raises in the VM;
+    EmulatorError if the VM cannot start, fails otherwise, or times out."""
+    workdir = pathlib.Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    if isinstance(stim, (str, os.PathLike)):
+        stim_path = pathlib.Path(stim)
+        stim = stim_mod.read(stim_path)
+    else:
+        stim_path = workdir / "stimulus.bin"
+        stim.write(stim_path)
+    values = {"ext_every_ticks": 20}
+    values.update(stim.config)
+    values.update(config_overrides or {})
+    flash = workdir / "flash"
+    flash.mkdir(exist_ok=True)
+    cfg_path = flash / "ins.cfg"
+    cfg_path.write_bytes(emulator.config_bytes(values))
+    out_dir = workdir / "vm"
+    out_dir.mkdir(exist_ok=True)
+    for name in ("out.bin", "blocks.bin", "state.bin"):
+        (out_dir / name).unlink(missing_ok=True)
+    try:
+        exe = mpvm.micropython_exe()
+    except RuntimeError as e:
+        raise EmulatorError(f"cannot run the MicroPython VM: {e}") from None
+    cmd = [
+        exe,
+        "-X",
+        f"heapsize={int(heap_kb)}K",
+        str(EMULATE),
+        str(FIRMWARE_DIR),
+        str(stim_path.resolve()),
+        str(cfg_path.resolve()),
+        str(out_dir.resolve()),
+    ]
+    timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
+    out = _Output(progress)
+    t_wall = time.perf_counter()
+    try:
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1
+        )
+    except OSError as e:
+        raise EmulatorError(f"cannot start the MicroPython VM ({exe}): {e.strerror}") from None
+    timed_out = threading.Event()
+
+    def kill():
+        timed_out.set()
+        proc.kill()
+
+    watchdog = threading.Timer(timeout_s, kill)
+    watchdog.start()
+    try:
+        for text in proc.stdout:
+            out.line(text)
+        rc = proc.wait()
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+    wall = time.perf_counter() - t_wall
+    n = len(stim)
+    if timed_out.is_set():
+        raise EmulatorError(
+            f"the MicroPython VM did not finish within {timeout_s:g} s (at tick "
+            f"{out.last_tick} of {n}); it was stopped"
+        )
+    if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
+        raise _firmware_error(out, stim, heap_kb)
+    if rc != 0 or out.stats is None:
+        tail = "\n".join(out.other[-20:]) or "(no output)"
+        raise EmulatorError(f"the MicroPython VM failed (exit status {rc}):\n{tail}")
+    blocks = np.fromfile(out_dir / "blocks.bin", dtype="<i4").astype(np.int64)
+    state = np.fromfile(out_dir / "state.bin", dtype=np.uint8)
+    if len(blocks) != n or len(state) != n or out.stats.get("ticks") != n:
+        raise EmulatorError(
+            f"the MicroPython VM reported {len(blocks)} ticks of {n}: its output is incomplete"
+        )
+    vm = out.stats
+    stats = {
+        "overruns": vm["overruns"],
+        "gnss_rx_overflow": vm["gnss_rx_overflow"],
+        "nmea_rejected": vm["nmea_rejected"],
+        "wdt_feeds": vm["wdt_feeds"],
+        "imu_error": vm["imu_error"],
+        "config_status": vm["config_status"],
+        **_block_stats(blocks),
+        "blocks_by_state": nav_vm.block_stats(blocks, state),
+        "ticks_navigating": int(np.sum(state == 2)),
+        "app_gc_runs": vm["app_gc_runs"],  # collections inside a tick: 0, else counts are off
+        "negative_ticks": vm["negative_ticks"],
+        "vm_gc_collects": vm["gc_collects"],
+        "bytes_per_block": vm["bytes_per_block"],
+        "heap_bytes": vm["heap_bytes"],
+        "live_bytes_at_start": vm["live_bytes_at_start"],
+        "tx_overflow": vm["tx_overflow"],
+        "realtime_factor": stim.duration_s / wall if wall > 0 else None,
+    }
+    if stats["tx_overflow"]:
+        raise EmulatorError(
+            f"the emulated output UART dropped {stats['tx_overflow']} bytes (its buffer is "
+            "emptied between ticks): a tick wrote more than it holds"
+        )
+    result = emulator.FirmwareRun(
+        "micropython",
+        (out_dir / "out.bin").read_bytes(),
+        out.console,
+        n,
+        wall,
+        blocks,
+        stats,
+    )
+    result.nav_state = state  # per tick, after it (1 aligning, 2 navigating)
+    return result

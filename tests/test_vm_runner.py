@@ -1,0 +1,339 @@
+"""The firmware loop in the real MicroPython VM (host_emulator/vm_runner.py, vm_board/): the same
+frames as the CPython runtime, GC blocks per tick, firmware exceptions with their tick, and
+the VM's emulated peripherals (BMI055 register model, UART, pins) against the CPython ones.
+
+The VM is a double-precision build: integer-only output must match the CPython runtime (the
+float32 model of the board) exactly; float output only to a tolerance (see below)."""
+
+import shutil
+import struct
+
+import numpy as np
+import pytest
+
+from host_emulator import emulator, frames, mpvm, vm_runner
+from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.firmware_env import FIRMWARE_DIR
+from host_emulator.periph.bmi055_model import Bmi055Model
+from host_emulator.periph.spi import FakePin, FakeSPI
+from host_emulator.sim import board_input
+
+# urban_drive (seed 0) stands still for 60 s, then pulls away; at this duration the firmware
+# starts navigating at ~64.3 s, so the run holds both phases.
+DURATION_S = 68.0
+
+
+@pytest.fixture(scope="module")
+def urban():
+    return board_input.simulate("urban_drive", DURATION_S, seed=0).stimulus
+
+
+@pytest.fixture(scope="module")
+def runs(urban, tmp_path_factory):
+    vm = vm_runner.run_micropython(urban, tmp_path_factory.mktemp("vm"))
+    cpy = emulator.run_cpython(urban, tmp_path_factory.mktemp("cpy"))
+    return vm, cpy
+
+
+def _clean(out):
+    d = frames.decode(out)
+    assert (d.bad_checksum, d.bad_crc, d.skipped_bytes) == (0, 0, 0)
+    return d
+
+
+def test_one_clean_frame_per_tick(urban, runs):
+    vm, _ = runs
+    d = _clean(vm.out)
+    n = len(urban)
+    assert vm.runtime == "micropython" and vm.ticks == n
+    assert len(d.frames) == n
+    assert [f["counter"] for f in d.frames] == [k & 0xFF for k in range(n)]
+    assert len(d.ext) == n // 20  # ext_every_ticks defaults to 20, as run_cpython
+    assert any("loaded" in line for line in vm.console)  # the configuration file was used
+    assert vm.stats["overruns"] == 0 and vm.stats["gnss_rx_overflow"] == 0
+    assert vm.stats["wdt_feeds"] == n
+
+
+def test_integer_fields_equal_the_cpython_run(runs):
+    """Bytes 2..28 (counter, raw gyro/accel, PPS/GGA/valid flags, lat/lon/height, navigation
+    state) come from integer work only: identical in every frame."""
+    vm, cpy = runs
+    fv = [f["raw"] for f in _clean(vm.out).frames]
+    fc = [f["raw"] for f in _clean(cpy.out).frames]
+    assert len(fv) == len(fc)
+    assert [f[2:29] for f in fv] == [f[2:29] for f in fc]
+    state = np.array([f[28] for f in fc])
+    assert np.sum(state == 2) > 500  # the comparison covers navigation (~3.7 s of it)
+    assert sum(f[16] for f in fc) >= DURATION_S - 2  # a GGA every second reached the frames
+    assert np.array_equal(vm.nav_state, state)  # the per-tick state the VM reports
+    for key in ("nmea_rejected", "gnss_rx_overflow", "overruns", "imu_error", "config_status"):
+        assert vm.stats[key] == cpy.stats[key], key
+
+
+def test_float_fields_agree_within_a_tolerance(runs):
+    """Attitude (0.01 deg), velocity (0.01 m/s) and position (0.01 m E/N, 0.1 m U) in the
+    frames: the VM computes in double what the board computes in float32, so a value near a
+    rounding boundary of the frame's scale can land one step away; the values themselves
+    differ by far less than a step (nav_vm: 0.2 mm after 30 s). Measured here: at most 1 step,
+    99.99 % of the fields identical (120 s: 1 step, 99.5 %). Allowed: 2 steps, 95 %. The
+    covariance diagonal (float32 bytes in the extended frame) agrees to 3e-6 relative."""
+    vm, cpy = runs
+    fmt = "<3h3hiih"
+    a = np.array([struct.unpack_from(fmt, f["raw"], 29) for f in _clean(vm.out).frames])
+    b = np.array([struct.unpack_from(fmt, f["raw"], 29) for f in _clean(cpy.out).frames])
+    diff = np.abs(a - b)
+    assert diff.max() <= 2
+    assert np.mean(diff == 0) > 0.95  # almost every field is the same integer
+    assert np.any(b[:, 7] != 0)  # and the fields are not trivially zero (it moved)
+    ev, ec = _clean(vm.out).ext, _clean(cpy.out).ext
+    pv = np.array([e["p_diag"] for e in ev])
+    pc = np.array([e["p_diag"] for e in ec])
+    assert np.allclose(pv, pc, rtol=1e-3, atol=1e-9)  # covariance diagonal (float32 bytes)
+
+
+def test_blocks_per_tick_are_counted(urban, runs):
+    vm, _ = runs
+    b = vm.blocks_per_tick
+    s = vm.stats
+    assert b.shape == (len(urban),) and b.dtype.kind == "i"
+    assert s["app_gc_runs"] == 0 and s["negative_ticks"] == 0  # no collection inside a tick
+    assert s["bytes_per_block"] in (16, 32)
+    assert b.min() > 0  # every tick does float work (levelling, standstill detection)
+    by = s["blocks_by_state"]
+    nav, align = by["navigating"], by["aligning"]
+    assert nav["ticks"] > 500 and nav["ticks"] + align["ticks"] == len(urban)
+    # measured: aligning ~170 mean, navigating ~470 mean / ~700 max (INS + filter slices)
+    assert 50 < align["mean"] < nav["mean"] < 1500
+    assert nav["max"] < 4000 and np.isfinite(s["blocks_p99"])
+    assert s["blocks_max"] == b.max() and s["blocks_mean"] == pytest.approx(b.mean())
+
+
+def _faulty_firmware(tmp_path, old, new):
+    """A copy of firmware/ with one source line replaced (an injected bug)."""
+    fw = tmp_path / "firmware"
+    shutil.copytree(FIRMWARE_DIR, fw)
+    app = fw / "app.py"
+    src = app.read_text()
+    assert src.count(old) == 1
+    app.write_text(src.replace(old, new))
+    return fw
+
+
+def test_a_firmware_exception_gives_the_tick_and_the_vm_traceback(tmp_path, monkeypatch):
+    """Injected fault: a copy of the firmware whose app.py divides by zero on its 137th tick
+    (tick index 136); the VM runs that copy (vm_runner.FIRMWARE_DIR patched)."""
+    fw = _faulty_firmware(
+        tmp_path,
+        "        self._gnss_poll()\n",
+        "        self._gnss_poll()\n        self.ticks // (self.ticks - 137)\n",
+    )
+    monkeypatch.setattr(vm_runner, "FIRMWARE_DIR", fw)
+    stim = board_input.simulate("static", 1.0, seed=0).stimulus
+    with pytest.raises(FirmwareError) as e:
+        vm_runner.run_micropython(stim, tmp_path / "work")
+    assert e.value.tick == 136 and e.value.t_s == pytest.approx(0.68)
+    msg = str(e.value)
+    assert "at tick 136 (t = 0.680 s)" in msg and "MicroPython VM" in msg
+    assert "ZeroDivisionError" in msg and "app.py" in msg and "in tick" in msg
+
+
+def test_a_firmware_exception_at_start_up_says_so(tmp_path, monkeypatch):
+    """Injected fault: a copy of the firmware whose App.start() raises after the watchdog."""
+    fw = _faulty_firmware(
+        tmp_path,
+        "        b.start_watchdog()\n",
+        "        b.start_watchdog()\n        raise OSError(19)\n",
+    )
+    monkeypatch.setattr(vm_runner, "FIRMWARE_DIR", fw)
+    stim = board_input.simulate("static", 0.5, seed=0).stimulus
+    with pytest.raises(FirmwareError, match="at start-up in the MicroPython VM") as e:
+        vm_runner.run_micropython(stim, tmp_path / "work")
+    assert e.value.tick == -1 and e.value.t_s is None
+    assert "OSError: [Errno 19] ENODEV" in str(e.value) and "in start" in str(e.value)
+
+
+def test_a_vm_that_cannot_start_or_finish_is_a_clear_error(tmp_path, monkeypatch):
+    stim = board_input.simulate("static", 2.0, seed=0).stimulus
+    with pytest.raises(EmulatorError, match=r"did not finish within 0.2 s \(at tick \d+ of 400\)"):
+        vm_runner.run_micropython(stim, tmp_path / "a", timeout_s=0.2)
+    monkeypatch.setattr(mpvm, "micropython_exe", lambda: str(tmp_path / "no-such-vm"))
+    with pytest.raises(EmulatorError, match="cannot start the MicroPython VM") as e:
+        vm_runner.run_micropython(stim, tmp_path / "b")
+    assert not isinstance(e.value, FirmwareError)
+
+
+# ---- the VM's emulated peripherals --------------------------------------------------------
+
+_VM_BOARD = str(vm_runner.VM_BOARD_DIR)
+
+
+def _transactions(seed=0, n=400):
+    """Random SPI transactions, sample updates and clock steps over both dies, weighted to
+    the registers that matter (ID, data, temperature, status, range, bandwidth, reset)."""
+    rng = np.random.default_rng(seed)
+    regs = [0x00, 0x02, 0x03, 0x05, 0x07, 0x08, 0x0A, 0x0E, 0x0F, 0x10, 0x14, 0x21, 0x7E]
+    ops = []
+    for _ in range(n):
+        r = rng.random()
+        if r < 0.1:
+            ops.append(("sample", rng.integers(0, 256, 12).tolist(), int(rng.integers(-128, 128))))
+        elif r < 0.2:
+            ops.append(("clock", int(rng.choice([777, 1333, 5003, 29111]))))
+        else:
+            die = "AG"[int(rng.integers(0, 2))]
+            reg = int(rng.choice(regs))
+            if r < 0.25:
+                mosi = [0x14, 0xB6]  # soft reset (on the chip select's rise)
+            elif rng.random() < 0.5:
+                mosi = [reg | 0x80] + [0] * int(rng.integers(1, 8))
+            else:
+                value = 0xB6 if reg == 0x14 and rng.random() < 0.5 else int(rng.integers(0, 256))
+                mosi = [reg, value] + rng.integers(0, 256, int(rng.integers(0, 3))).tolist()
+            ops.append(("xfer", die, mosi))
+    return ops
+
+
+def _run_cpython_model(ops):
+    now = [0]
+    model = Bmi055Model(clock_ms=lambda: now[0] / 1000.0)
+    spi = FakeSPI(1)
+    pins = {"A": FakePin("A", FakePin.OUT, 1), "G": FakePin("G", FakePin.OUT, 1)}
+    model.attach(spi, pins["A"], pins["G"])
+    miso = []
+    for op in ops:
+        if op[0] == "sample":
+            model.set_registers(bytes(op[1][:6]), bytes(op[1][6:]))
+            model.set_temperature_raw(op[2])
+        elif op[0] == "clock":
+            now[0] += op[1]
+        else:
+            buf = bytearray(len(op[2]))
+            pins[op[1]].value(0)
+            spi.write_readinto(bytes(op[2]), buf)
+            pins[op[1]].value(1)
+            miso.append(bytes(buf).hex())
+    return miso, model
+
+
+_VM_MODEL = """
+sys.path.insert(0, {vm_board!r})
+import json, machine, time
+imu = machine.Bmi055()
+bus = machine.spi_bus(1)
+pins = {{"A": machine.pin("A"), "G": machine.pin("G")}}
+imu.attach(bus, pins["A"], pins["G"])
+out = []
+for op in json.loads({ops!r}):
+    if op[0] == "sample":
+        imu.set_registers(bytes(op[1]), 0, 6)
+        imu.set_temperature_raw(op[2])
+    elif op[0] == "clock":
+        time.advance_us(op[1])
+    else:
+        w = bytes(op[2])
+        r = bytearray(len(w))
+        pins[op[1]].value(0)
+        bus.write_readinto(w, r)
+        pins[op[1]].value(1)
+        out.append(_hex(r))
+print(json.dumps([out, _hex(imu.accel.regs), _hex(imu.gyro.regs), imu.accel.resets,
+                  imu.gyro.resets]))
+"""
+
+
+def test_the_vm_bmi055_model_answers_like_the_cpython_model():
+    import json
+
+    ops = _transactions()
+    want, model = _run_cpython_model(ops)
+    got, accel_regs, gyro_regs, resets_a, resets_g = mpvm.run_json(
+        _VM_MODEL.format(vm_board=_VM_BOARD, ops=json.dumps(ops))
+    )
+    assert model.accel.resets > 2 and model.gyro.resets > 2  # resets (and start-up) exercised
+    assert any(m[2:] != "ff" * (len(m) // 2 - 1) for m in want)  # not all floating
+    assert got == want
+    assert (resets_a, resets_g) == (model.accel.resets, model.gyro.resets)
+    assert bytes.fromhex(accel_regs) == bytes(model.accel.regs)
+    assert bytes.fromhex(gyro_regs) == bytes(model.gyro.regs)
+
+
+_VM_PERIPHERALS = """
+sys.path.insert(0, {vm_board!r})
+import machine, time
+from drivers.bmi055 import BMI055
+imu = machine.Bmi055()
+cs_a = machine.Pin("B6", machine.Pin.OUT, value=1)
+cs_g = machine.Pin("B7", machine.Pin.OUT, value=1)
+bus = machine.SPI(1, baudrate=4000000, polarity=0, phase=0)
+imu.attach(bus, cs_a, cs_g)
+drv = BMI055(bus, cs_a, cs_g, gyro_range_dps=500, accel_range_g=4)
+res = {{"t_after_init": time.now_us(), "gyro_range": imu.gyro.regs[0x0F],
+        "accel_range": imu.accel.regs[0x0F], "same_pin": machine.Pin("B6") is cs_a}}
+imu.set_registers(bytes([123, 0, 0, 0x80, 0xFF, 0x7F, 0xF1, 0x7F, 0x00, 0x80, 0x51, 0x00]), 0, 6)
+imu.set_temperature_raw(-7)
+res["read_locked"] = _locked(drv.read)
+res["gyro"] = list(drv.gyro)
+res["accel"] = list(drv.accel)
+res["accel_new"] = drv.accel_new
+res["temp"] = drv.read_temperature()
+u = machine.UART(2, baudrate=9600, rxbuf=16, timeout=0)
+u.feed(b"0123456789")
+u.feed(b"abcdefghij")
+res["any"] = u.any()
+res["overflow"] = u.overflow
+buf = bytearray(8)
+res["n1"] = u.readinto(buf, 8)
+res["buf"] = bytes(buf).decode()
+res["n2"] = u.readinto(bytearray(20))
+res["n3"] = u.readinto(buf)
+o = machine.UART(1, baudrate=460800, txbuf=512)
+frame = bytearray(52)
+frame_mv = memoryview(frame)
+fired = bytearray(1)
+def isr(t):
+    fired[0] += 1
+tm = machine.Timer(-1, mode=machine.Timer.PERIODIC, freq=200, callback=isr)
+pps = machine.Pin("B0", machine.Pin.IN)
+seen = bytearray(1)
+def pps_isr(p):
+    seen[0] += 1
+pps.irq(trigger=machine.Pin.IRQ_RISING, handler=pps_isr)
+wdt = machine.WDT(timeout=1000)
+chunk = bytearray(b"$GPGGA,1")
+def per_tick():
+    u.feed(chunk, 8)
+    u.any()
+    u.readinto(buf, 8)
+    imu.set_registers(chunk, 0, 0)
+    o.write(frame)
+    o.write(frame_mv)
+    time.set_us(time.now_us() + 5000)
+    time.ticks_diff(time.ticks_us(), time.ticks_add(time.ticks_ms(), 3))
+    pps.fire()
+    machine.fire_timers()
+    cs_a.value(0)
+    cs_a.value(1)
+    wdt.feed()
+res["per_tick_locked"] = _locked(per_tick)
+res["tx_n"] = o.tx_n
+res["pps_seen"] = seen[0]
+res["timer_fired"] = fired[0]
+res["feeds"] = wdt.feeds
+res["diff"] = time.ticks_diff(5, (1 << 30) - 5)
+print(json.dumps(res))
+"""
+
+
+def test_the_vm_peripherals_serve_the_firmware_driver_without_allocating():
+    r = mpvm.run_json("import json\n" + _VM_PERIPHERALS.format(vm_board=_VM_BOARD))
+    assert r["t_after_init"] >= 32000  # the driver waited for both dies' start-up
+    assert r["gyro_range"] == 2 and r["accel_range"] == 0x05 and r["same_pin"]
+    assert r["read_locked"]  # the driver's burst read over the emulated bus: no allocation
+    assert r["gyro"] == [123, -32768, 32767]
+    assert r["accel"] == [2047, -2048, 5]  # 12-bit left-justified, new_data in bit 0
+    assert r["accel_new"] == 0b101 and r["temp"] == -7
+    assert (r["any"], r["overflow"], r["n1"], r["buf"]) == (16, 4, 8, "01234567")
+    assert (r["n2"], r["n3"]) == (8, None)
+    assert r["per_tick_locked"]  # every per-tick peripheral call: no allocation
+    assert r["tx_n"] == 104 and r["pps_seen"] == r["timer_fired"] == r["feeds"] == 1
+    assert r["diff"] == 10  # ticks_diff across the 2**30 wrap
