@@ -153,8 +153,10 @@ def test_a_firmware_exception_at_start_up_says_so(tmp_path, monkeypatch):
 
 
 def test_a_vm_that_cannot_start_or_finish_is_a_clear_error(tmp_path, monkeypatch):
-    stim = board_input.simulate("static", 2.0, seed=0).stimulus
-    with pytest.raises(EmulatorError, match=r"did not finish within 0.2 s \(at tick \d+ of 400\)"):
+    stim = board_input.simulate("static", 60.0, seed=0).stimulus  # ~5 s in the VM
+    with pytest.raises(
+        EmulatorError, match=r"did not finish within 0.2 s \(at tick \d+ of 12000\)"
+    ):
         vm_runner.run_micropython(stim, tmp_path / "a", timeout_s=0.2)
     monkeypatch.setattr(mpvm, "micropython_exe", lambda: str(tmp_path / "no-such-vm"))
     with pytest.raises(EmulatorError, match="cannot start the MicroPython VM") as e:
