@@ -150,7 +150,7 @@ def run_cpython(stim, workdir, config_overrides=None, progress=None):
         if gc_was_enabled:
             gc.enable()  # app.start() turned the collector off (board behaviour)
     wall = time.perf_counter() - t_wall
-    if progress:
+    if progress and n % 2000:
         progress(n, n)
     stats = {
         "overruns": a.overruns,

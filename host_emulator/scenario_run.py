@@ -83,16 +83,22 @@ def check_duration(duration_s):
 
 
 def run_firmware(stim, runtime, stim_path, progress=None):
-    """FirmwareRun of the stimulus (read back from stim_path) on the runtime."""
+    """FirmwareRun of the stimulus (read back from stim_path) on the runtime; EmulatorError if
+    the firmware sent nothing at all (its console says why, e.g. the IMU did not start)."""
     with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
         work = pathlib.Path(tmp)
         if runtime == "cpython":
-            return emulator.run_cpython(stim_mod.read(stim_path), work, progress=progress)
-        if runtime == "micropython":
+            fw = emulator.run_cpython(stim_mod.read(stim_path), work, progress=progress)
+        elif runtime == "micropython":
             from host_emulator import vm_runner
 
-            return vm_runner.run_micropython(stim_path, work, progress=progress)
-    raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+            fw = vm_runner.run_micropython(stim_path, work, progress=progress)
+        else:
+            raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    if not fw.out:
+        said = "; ".join(fw.console) or "nothing"
+        raise EmulatorError(f"the firmware sent no output in {fw.ticks} ticks; its console: {said}")
+    return fw
 
 
 def _clean(out_dir):

@@ -30,8 +30,9 @@ per record, against hundreds of float boxes per tick. The extended frame's defau
 from binascii import crc32
 
 import frame
-import geo
 from micropython import const
+
+import geo
 
 EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)

@@ -1,0 +1,396 @@
+"""The board's output stream computed by the NumPy float32 model: the parity oracle of
+`emulator.run_cpython` (see `parity.py`).
+
+    out = run(stim)        # bytes: what firmware/app.py would send for this stimulus
+
+Modelled independently here (NumPy float32, or plain integers):
+- the navigator: `reference/nav.py` NavModel (bit-exact with firmware/lib/nav.py, proven by
+  tests/reference/test_nav_model.py), fed every tick as app.py feeds the Navigator;
+- BMI055 decoding and the over-range flag, vectorised from the stimulus registers;
+- the GNSS UART: the receive ring (board.py's rxbuf, bytes beyond it lost) and the loop's
+  reads of at most 255 bytes per tick;
+- the virtual clock: tick k at t_k = t0 + k tick_us, PPS edges at t_k - pps_before_us,
+  MicroPython's 30-bit ticks_us/ticks_diff; t0 is derived from the BMI055 driver's start-up
+  waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
+  tests/test_parity.py against the tick start times the firmware's raw records carry);
+- app._deliver_fix: lat/lon split, height in dm, f32 ratios for height, HDOP and speed,
+  course x pi/18000 (rebuilt from its float32 bits), the fallback HDOP, the no-fix epoch and
+  the measurement tick from the PPS edge (or -1: the configured latency);
+- the 52-byte frame, vectorised over all ticks: euler angles through `reference/rot.py`,
+  x * scale in float32 rounded half away from zero, clamped, NaN -> 0; the sensor fields'
+  integer conversions; the checksum;
+- the extended frame 0x91 (P diagonal, biases, position and the origin's height as the
+  model's float32 bits; the tick timing, overrun and GC fields are 0 as on the emulator,
+  whose loop takes no virtual time and whose heap never runs low) and the raw-input record
+  0x92, with their CRC-32 (binascii.crc32, as on the board).
+Shared with the firmware (integer or bit-level code, validated on its own):
+- the NMEA parser `drivers/gnss.py` Nmea (checked against gpsd on real logs), including its
+  `pps_isr`, which stamps the edge from the emulator's virtual clock (fake_machine.ticks_us),
+  and its flag/epoch "take" methods;
+- the configuration: the file run_cpython writes (emulator.config_bytes) is decoded by
+  firmware/lib/config.py and `BoardConfig.nav_config()` builds the navigator's configuration,
+  as on the board (an explicit identity matrix becomes None there, for instance);
+- constants of firmware modules: the BMI055 driver's sensitivities, over-range thresholds
+  and reset waits; NavModel and the reference rot/fmath models use the firmware's constants.
+Not modelled: a missing IMU (the emulated BMI055 always answers), overruns, garbage
+collection, tick timing (none of them happen on the emulator).
+"""
+
+import binascii
+import struct
+import sys
+import time
+
+import numpy as np
+
+from host_emulator import emulator, fake_machine, firmware_env
+from host_emulator import stimulus as stim_mod
+from host_emulator.reference import rot as ref_rot
+from host_emulator.reference.nav import NavModel
+
+firmware_env.install()
+import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
+from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
+
+import geo as fw_geo  # noqa: E402  (the index of the origin height in the coefficients)
+
+F32 = np.float32
+DEFAULTS = {"ext_every_ticks": 20}  # run_cpython's board configuration before stim.config
+
+# app.py
+_CDEG_PER_RAD = np.array(0x45B30CA0, np.uint32).view(F32)[()]  # 18000 / pi
+_RAD_PER_CDEG = np.array(0x393702D3, np.uint32).view(F32)[()]  # pi / 18000
+_APP_US_PER_TICK = 5000  # app._US_PER_TICK: the firmware's tick, for the fix's age
+_RX_LEN = 255  # app._RX_LEN: GNSS bytes read per tick at most
+_E7 = 10_000_000
+_PPS_MAX_AGE_US = 1_000_000  # an older PPS edge is not the fix's (app._deliver_fix)
+# board.py: the GNSS UART's receive ring (machine.UART(..., rxbuf=1024)); what does not fit
+# is lost (fake_machine.UARTPort.feed, as on the board)
+GNSS_RXBUF = 1024
+# MicroPython's ticks_us wraps at 2**30
+_TICKS_PERIOD = 1 << 30
+
+# frame layout (DESIGN.md 6): little-endian, 52 bytes
+_FRAME = np.dtype(
+    [
+        ("head", "u1", 2),
+        ("counter", "u1"),
+        ("gyro", "<i2", 3),
+        ("accel", "<i2", 3),
+        ("pps", "u1"),
+        ("gga", "u1"),
+        ("valid", "u1"),
+        ("lat", "<u4"),
+        ("lon", "<u4"),
+        ("height", "<i2"),
+        ("state", "u1"),
+        ("ypr", "<i2", 3),
+        ("vel", "<i2", 3),
+        ("pos_en", "<u4", 2),
+        ("pos_u", "<i2"),
+        ("checksum", "u1"),
+    ]
+)
+assert _FRAME.itemsize == 52
+_GYRO_FRAME_X100 = 13107  # 131.07 LSB per deg/s, x100
+_ACCEL_FRAME = 16383  # per g
+_I32_LIM = 1073741823  # frame.put_scaled32's clamp (small ints on the board)
+
+EXT_TYPE = 0x91
+RAW_TYPE = 0x92
+_EXT_PAYLOAD = 124
+
+
+def _bmi055():
+    """firmware/drivers/bmi055.py (sensitivities, over-range thresholds, reset waits). It binds
+    time.sleep_ms when first imported, so the virtual clock's time functions must be in place
+    by then: imported earlier, the driver would sleep in real time on a later emulated board,
+    whose BMI055 then never comes out of reset (run_cpython: no frames at all)."""
+    if "drivers.bmi055" not in sys.modules and not hasattr(time, "sleep_ms"):
+        firmware_env.install_machine(fake_machine.Hardware())
+    from drivers import bmi055
+
+    return bmi055
+
+
+def board_values(stim, config_overrides=None):
+    """The board configuration values run_cpython uses: DEFAULTS, stim.config, overrides."""
+    values = dict(DEFAULTS)
+    values.update(stim.config)
+    values.update(config_overrides or {})
+    return values
+
+
+def first_tick_us(tick_us):
+    """t0: the first timer moment after the firmware's start-up, whose only virtual time is
+    the BMI055 driver's waits after the two soft resets (us since power-on)."""
+    bmi055 = _bmi055()
+    startup_us = 1000 * (bmi055.GYRO_RESET_MS + bmi055.ACCEL_RESET_MS)
+    return -(-startup_us // tick_us) * tick_us
+
+
+def _ticks_diff(a, b):
+    d = (a - b) % _TICKS_PERIOD
+    return d - _TICKS_PERIOD if d >= _TICKS_PERIOD // 2 else d
+
+
+def _round_div(num, den):
+    """num / den rounded half away from zero, elementwise in int64 (den > 0)."""
+    num = np.asarray(num, np.int64)
+    pos = (2 * num + den) // (2 * den)
+    neg = -((-2 * num + den) // (2 * den))
+    return np.where(num >= 0, pos, neg)
+
+
+def _round_clamp(y, lo, hi):
+    """Float32 y rounded half away from zero in float32 (int(y + 0.5), -int(0.5 - y)),
+    clamped to [lo, hi]; NaN -> 0 (frame._round_clamp, elementwise)."""
+    y = np.asarray(y, F32)
+    half = F32(0.5)
+    with np.errstate(invalid="ignore", over="ignore"):
+        up = np.trunc(np.where(y >= 0, y + half, half - y))
+        r = np.where(np.isfinite(up), up, 0).astype(np.int64)
+        r = np.where(y >= 0, r, -r)
+        r = np.where(y != y, 0, r)
+        r = np.where(y <= F32(lo), lo, r)
+        return np.where(y >= F32(hi), hi, r)
+
+
+def frame_bytes(t, cfg):
+    """(F, 52) uint8: the frames of the ticks in t (dict of per-frame arrays, see `run`)."""
+    bmi055 = _bmi055()
+    f = len(t["counter"])
+    fr = np.zeros(f, _FRAME)
+    fr["head"] = (0xEB, 0x90)
+    fr["counter"] = t["counter"]
+    lsb_x10 = bmi055.GYRO_LSB_PER_DPS_X10[cfg.gyro_range_dps]
+    lsb_g = bmi055.ACCEL_LSB_PER_G[cfg.accel_range_g]
+    fr["gyro"] = np.clip(_round_div(t["gyro"] * _GYRO_FRAME_X100, 10 * lsb_x10), -32768, 32767)
+    fr["accel"] = np.clip(_round_div(t["accel"] * _ACCEL_FRAME, lsb_g), -32768, 32767)
+    fr["pps"] = t["pps"]
+    fr["gga"] = t["gga"]
+    fr["valid"] = t["valid"]
+    fr["lat"] = t["lat_e7"] & 0xFFFFFFFF
+    fr["lon"] = t["lon_e7"] & 0xFFFFFFFF
+    fr["height"] = np.clip(t["height_dm"], -32768, 32767)
+    fr["state"] = t["state"] & 0xFF
+    ypr = ref_rot.dcm_to_euler(t["c_bn"])  # (F, 3) yaw, pitch, roll, rad
+    fr["ypr"] = _round_clamp(ypr * _CDEG_PER_RAD, -32768, 32767)
+    fr["vel"] = _round_clamp(t["v_n"] * F32(100), -32768, 32767)
+    fr["pos_en"] = _round_clamp(t["p_n"][:, 0:2] * F32(100), -_I32_LIM, _I32_LIM) & 0xFFFFFFFF
+    fr["pos_u"] = _round_clamp(t["p_n"][:, 2] * F32(10), -32768, 32767)
+    b = fr.view(np.uint8).reshape(f, 52)
+    b[:, 51] = b[:, 2:51].sum(axis=1, dtype=np.int64) & 0xFF
+    return b
+
+
+def _seal(body):
+    return body + struct.pack("<I", binascii.crc32(body) & 0xFFFFFFFF)
+
+
+def ext_frame(counter, health, state, cfg_status, flags, model):
+    """The extended frame (records.py) of the model's state after this tick."""
+    kf, ins = model.kf, model.ins
+    timing = (0, 0, 0, 0)  # worst and mean tick us, overruns, GC runs: 0 on the emulator
+    body = (
+        struct.pack("<4B", 0xEB, EXT_TYPE, _EXT_PAYLOAD + 1, counter & 0xFF)
+        + struct.pack("<4B4H", health, state, cfg_status, flags, *timing)
+        + np.diagonal(kf.P).astype("<f4").tobytes()
+        + np.asarray(ins.bg, "<f4").tobytes()
+        + np.asarray(ins.ba, "<f4").tobytes()
+        + np.asarray(ins.p_n, "<f4").tobytes()
+        + struct.pack(
+            "<III",
+            model.origin_lat_e7 & 0xFFFFFFFF,
+            model.origin_lon_e7 & 0xFFFFFFFF,
+            model.tick & 0x3FFFFFFF,
+        )
+        + np.asarray(model.coef[fw_geo.H0], "<f4").tobytes()  # origin height, m
+    )
+    return _seal(body)
+
+
+def raw_record(counter, t_us, pps_us, gyro6, accel6, saturated, rx):
+    """The raw-input record (records.py) of one tick: rx are the GNSS bytes it read."""
+    n = len(rx)
+    head = struct.pack("<4B", 0xEB, RAW_TYPE, 23 + n, counter & 0xFF)
+    body = head + struct.pack("<II", t_us & 0xFFFFFFFF, pps_us & 0xFFFFFFFF)
+    body += gyro6 + accel6 + bytes((1 if saturated else 0, n))
+    return _seal(body + bytes(rx))
+
+
+class _Fix:
+    """The app's fix fields for the frame (lat/lon in 1e-7 deg, height in dm, valid)."""
+
+    def __init__(self):
+        self.valid = 0
+        self.lat_e7 = 0
+        self.lon_e7 = 0
+        self.height_dm = 0
+
+
+def deliver_fix(g, model, fix, hdop_max, now_us):
+    """app._deliver_fix on the model: g is the parser with a completed epoch; now_us the
+    tick's ticks_us value."""
+    ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
+    fix.valid = 1 if ok else 0
+    if not ok:
+        model.gnss(0, 0, 0.0, 0, F32(99), 0.0, -1.0)  # a no-fix epoch
+        return
+    lat = g.epoch_lat_e7
+    lon = g.epoch_lon_deg * _E7 + g.epoch_lon_frac_e7
+    fix.lat_e7 = lat
+    fix.lon_e7 = lon
+    msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
+    alt_mm = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)
+    fix.height_dm = int(_round_div(msl_mm, 100))
+    hdop = F32(hdop_max)
+    if g.epoch_hdop_x100 >= 0:
+        hdop = F32(g.epoch_hdop_x100) / F32(100)
+    speed = 0.0
+    course = -1.0
+    if g.epoch_speed_mm_s >= 0:
+        speed = F32(g.epoch_speed_mm_s) / F32(1000)
+        if g.epoch_course_cdeg >= 0:
+            course = F32(g.epoch_course_cdeg) * _RAD_PER_CDEG
+    fix_tick = -1
+    age_us = _ticks_diff(now_us, g.epoch_pps_us)
+    if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
+        fix_tick = model.tick - age_us // _APP_US_PER_TICK
+    h = F32(alt_mm) / F32(1000)
+    model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
+
+
+def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
+    """The output byte stream (frames, extended frames, raw records as configured) that the
+    firmware produces for `stim` under run_cpython's board configuration plus the overrides.
+
+    progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
+    before the navigator's step (tests use it to perturb the model)."""
+    values = board_values(stim, config_overrides)
+    cfg = config.decode(emulator.config_bytes(values))  # what the board reads from flash
+    cfg_status = config.OK if cfg.validate() is None else config.INVALID
+    model = NavModel(cfg.nav_config())
+    g = Nmea()
+    hw = fake_machine.Hardware()  # the virtual clock pps_isr stamps from
+    firmware_env.install_machine(hw)
+    bmi055 = _bmi055()
+
+    n = len(stim)
+    tick_us = stim.tick_us
+    t0 = first_tick_us(tick_us)
+    gyro = stim_mod.gyro_counts(stim.gyro_regs).astype(np.int64)
+    accel = stim_mod.accel_counts(stim.accel_regs).astype(np.int64)
+    gyro_sat = (gyro >= bmi055.GYRO_SAT_HI) | (gyro <= bmi055.GYRO_SAT_LO)
+    accel_sat = (accel >= bmi055.ACCEL_SAT_HI) | (accel <= bmi055.ACCEL_SAT_LO)
+    sat = gyro_sat.any(axis=1) | accel_sat.any(axis=1)  # the driver's `saturated`
+    gyro_l = gyro.tolist()
+    accel_l = accel.tolist()
+    sat_l = sat.tolist()
+    pps_before = stim.pps_before_us.tolist()
+    offs = stim.uart_offsets.tolist()
+    ub = stim.uart_bytes
+    g_regs = stim.gyro_regs.tobytes()
+    a_regs = stim.accel_regs.tobytes()
+
+    out_every = cfg.output_every_ticks
+    ext_every = cfg.ext_every_ticks
+    frame_ticks = np.flatnonzero((np.arange(n) + 1) % out_every == 0)
+    nf = len(frame_ticks)
+    t = {
+        "counter": np.arange(nf) & 0xFF,
+        "gyro": gyro[frame_ticks],
+        "accel": accel[frame_ticks],
+        "pps": np.zeros(nf, np.uint8),
+        "gga": np.zeros(nf, np.uint8),
+        "valid": np.zeros(nf, np.uint8),
+        "lat_e7": np.zeros(nf, np.int64),
+        "lon_e7": np.zeros(nf, np.int64),
+        "height_dm": np.zeros(nf, np.int64),
+        "state": np.zeros(nf, np.int64),
+        "c_bn": np.zeros((nf, 3, 3), F32),
+        "v_n": np.zeros((nf, 3), F32),
+        "p_n": np.zeros((nf, 3), F32),
+    }
+    extra = {}  # tick -> bytes sent after that tick's frame (extended frame, raw record)
+    ring = bytearray()
+    fix = _Fix()
+    counter = 0
+    j = 0  # frames so far
+    for k in range(n):
+        # the interval before tick k: bytes arrive in the ring, the PPS edge fires
+        a, b = offs[k], offs[k + 1]
+        if b > a:
+            chunk = ub[a:b][: max(GNSS_RXBUF - len(ring), 0)]
+            ring += chunk
+        t_k = t0 + k * tick_us
+        if pps_before[k] >= 0:
+            hw.now_us = t_k - pps_before[k]
+            g.pps_isr(None)
+        hw.now_us = t_k
+        now = t_k % _TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
+        # tick k: IMU read, GNSS poll, fix, navigator
+        rx = b""
+        if ring:
+            m = min(len(ring), _RX_LEN)
+            rx = bytes(ring[:m])
+            del ring[:m]
+            g.feed(rx, m)
+        if g.epoch_take():
+            deliver_fix(g, model, fix, cfg.gnss_hdop_max, now)
+        if tick_hook is not None:
+            tick_hook(k, model)
+        model.imu_raw(gyro_l[k], accel_l[k], sat_l[k])
+        ticks = k + 1
+        parts = []
+        if ticks % out_every == 0:
+            t["pps"][j] = g.pps_flag_take()
+            t["gga"][j] = g.gga_flag_take()
+            t["valid"][j] = fix.valid
+            t["lat_e7"][j] = fix.lat_e7
+            t["lon_e7"][j] = fix.lon_e7
+            t["height_dm"][j] = fix.height_dm
+            t["state"][j] = model.state
+            t["c_bn"][j] = model.ins.c_bn
+            t["v_n"][j] = model.ins.v_n
+            t["p_n"][j] = model.ins.p_n
+            j += 1
+            counter = (counter + 1) & 0xFF
+        if ext_every and ticks % ext_every == 0:
+            health = model.health
+            if cfg_status != config.OK and health == 0:
+                health = 1
+            flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
+            parts.append(ext_frame(counter, health, model.state, cfg_status, flags, model))
+        if cfg.raw_record:
+            parts.append(
+                raw_record(
+                    counter,
+                    now,
+                    g.pps_us,
+                    g_regs[6 * k : 6 * k + 6],
+                    a_regs[6 * k : 6 * k + 6],
+                    sat_l[k],
+                    rx,
+                )
+            )
+        if parts:
+            extra[k] = b"".join(parts)
+        if progress and k % 2000 == 1999:
+            progress(k + 1, n)
+    frames = frame_bytes(t, cfg)
+    if progress:
+        progress(n, n)
+    if not extra:
+        return frames.tobytes()
+    out = bytearray()
+    is_frame = np.zeros(n, bool)
+    is_frame[frame_ticks] = True
+    fi = 0
+    for k in range(n):
+        if is_frame[k]:
+            out += frames[fi].tobytes()
+            fi += 1
+        if k in extra:
+            out += extra[k]
+    return bytes(out)

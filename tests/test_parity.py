@@ -1,0 +1,254 @@
+"""Parity of the host emulator: the firmware loop on CPython (emulator.run_cpython) and the
+NumPy float32 model (model_runner.run) produce the same output stream, byte for byte, and a
+difference is found and reported with the tick and the field's name."""
+
+import numpy as np
+import pytest
+
+from host_emulator import frames, model_runner, parity, stimulus
+from host_emulator.reference import rot as ref_rot
+from host_emulator.sim import board_input
+
+F32 = np.float32
+NAV_START_TICK = 30 * 200  # highway_outage stands still for 30 s, then accelerates
+
+
+@pytest.fixture(scope="module")
+def highway():
+    """50 s of highway_outage: 30 s standing (levelling), away to 30 m/s, navigation from
+    ~37 s with GNSS updates and the non-holonomic constraint."""
+    return board_input.simulate("highway_outage", 50.0, seed=0).stimulus
+
+
+@pytest.fixture(scope="module")
+def highway_parity(highway):
+    calls = []
+    r = parity.compare(highway, progress=lambda k, n: calls.append((k, n)))
+    return r, calls
+
+
+def _frames(out):
+    d = frames.decode(out)
+    assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
+    return d
+
+
+def test_parity_holds_through_levelling_heading_and_navigation(highway, highway_parity):
+    r, calls = highway_parity
+    assert r.identical, r.summary()
+    assert r.frame.compared == r.frame.firmware == 10000 and r.frame.first is None
+    assert r.ext.compared == 500 and r.ext.identical and r.raw.firmware == 0
+    assert sorted(set(calls)) == [(k, 10000) for k in range(2000, 10001, 2000)]
+    assert calls[-1] == (10000, 10000) and len(calls) >= 10  # both sides, to the end
+    # not vacuous: the stream shows a fix every second, a heading, and navigation with a
+    # covariance the filter keeps working on
+    d = _frames(r.out_firmware)
+    states = np.array([f["nav_state"] for f in d.frames])
+    nav = np.flatnonzero(states == 2)
+    assert nav[0] > NAV_START_TICK and len(nav) > 10 * 200 and (states[nav[0] :] == 2).all()
+    assert sum(f["gga"] for f in d.frames) == 50 and sum(f["pps"] for f in d.frames) == 50
+    speed = np.hypot(*np.array([f["vel_enu_m_s"][:2] for f in d.frames[-200:]]).T)
+    assert (speed > 20.0).all()
+    p_pos = np.array([e["p_diag"][0] for e in d.ext if e["nav_state"] == 2])
+    assert len(set(p_pos.tolist())) > 50  # propagations and GNSS updates change P
+    assert {e["health"] for e in d.ext} == {0}
+
+
+def test_a_flipped_state_bit_is_found_at_its_tick_and_named(highway, highway_parity):
+    """One bit of the model's north velocity flipped before the navigator's step at tick K:
+    the first differing frame is K's, and the report names the velocity field."""
+    r0, _ = highway_parity
+    k_flip = 9000  # 45 s: navigating at ~30 m/s
+
+    def flip(k, model):
+        if k == k_flip:
+            assert model.state == 2
+            v = model.ins.v_n.copy()
+            v.view(np.uint32)[1] ^= 1 << 22  # the top mantissa bit: several m/s
+            model.ins.v_n = v
+
+    out = model_runner.run(highway, tick_hook=flip)
+    r = parity.compare_streams(r0.out_firmware, out)
+    assert not r.identical
+    assert r.frame.first == r.frame.tick == k_flip and r.frame.compared == 10000
+    fields = {f.name: f for f in r.frame.fields}
+    assert "vel_n_cm_s" in fields and "checksum" in fields
+    f = fields["vel_n_cm_s"]
+    assert abs(f.firmware - f.model) > 100  # > 1 m/s
+    # the next extended frame (tick 9019) carries the position that has drifted since
+    assert r.ext.first == 450 and r.ext.tick == 9019
+    assert "pos_enu_m[1]" in {f.name for f in r.ext.fields}
+    text = r.summary()
+    assert "frame 9000 (tick 9000, t = 45.000 s)" in text and "vel_n_cm_s firmware" in text
+    assert "DIFFERENT" in text
+
+
+def test_parity_with_raw_records_other_rates_mounting_and_pps_lost(highway):
+    """Raw-input records every tick, a frame every 3 ticks (flags accumulate between frames),
+    an extended frame every 7, a mounting rotation, other sensor ranges, an explicit identity
+    matrix, and no PPS after 40 s (fixes then take the configured latency)."""
+    pps = highway.pps_before_us.copy()
+    pps[40 * 200 :] = -1
+    stim = stimulus.Stimulus(
+        dict(highway.header),
+        highway.gyro_regs,
+        highway.accel_regs,
+        highway.temp_raw,
+        pps,
+        highway.uart_offsets,
+        highway.uart_bytes,
+    )
+    overrides = {
+        "raw_record": 1,
+        "output_every_ticks": 3,
+        "ext_every_ticks": 7,
+        "mount_ypr_deg": [1.5, -0.75, 0.5],
+        "gyro_range_dps": 500,
+        "accel_range_g": 4,
+        "accel_matrix": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+    }
+    r = parity.compare(stim, overrides)
+    assert r.identical, r.summary()
+    d = _frames(r.out_firmware)
+    assert len(d.frames) == 10000 // 3 and len(d.ext) == 10000 // 7 and len(d.raw) == 10000
+    # the raw records measure the firmware's clock: tick k starts at t0 + 5 ms k, where t0
+    # is the first timer moment after the BMI055 start-up waits (as the model derives it)
+    t0 = model_runner.first_tick_us(5000)
+    assert t0 == 35000
+    assert [x["t0_us"] for x in d.raw[:3]] == [t0, t0 + 5000, t0 + 10000]
+    edges = np.flatnonzero(pps >= 0)  # the parser stamped each edge at t_k - pps_before
+    assert len(edges) == 40
+    assert all(d.raw[k]["pps_us"] == d.raw[k]["t0_us"] - pps[k] for k in edges)
+    late = d.frames[40 * 200 // 3 :]
+    assert sum(f["pps"] for f in late) == 0 and sum(f["gga"] for f in late) >= 9
+    assert late[-1]["nav_state"] == 2
+
+
+def test_parity_when_the_gnss_receive_ring_overflows():
+    """Five seconds of NMEA bytes arrive at once: the 255-byte reads drain the 1 KB receive
+    ring over several ticks and the rest is lost, the same way on both sides."""
+    s = board_input.simulate("highway_outage", 45.0, seed=3).stimulus
+    k = np.arange(len(s) + 1)
+    burst = np.minimum(-(-k // 1000) * 1000, len(s))
+    stim = stimulus.Stimulus(
+        dict(s.header),
+        s.gyro_regs,
+        s.accel_regs,
+        s.temp_raw,
+        s.pps_before_us,
+        s.uart_offsets[burst],
+        s.uart_bytes,
+    )
+    r = parity.compare(stim)
+    assert r.identical, r.summary()
+    assert r.firmware_stats["gnss_rx_overflow"] > 0 and r.firmware_stats["nmea_rejected"] > 0
+    d = _frames(r.out_firmware)
+    assert sum(f["gga"] for f in d.frames) > 10 and d.frames[-1]["nav_state"] == 2
+
+
+def test_the_command_exit_status(capsys, monkeypatch):
+    assert parity.main(["--scenario", "static", "--duration", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "600 compared, identical" in out and "PARITY: identical" in out
+
+    assert parity.main(["--scenario", "no_such_place", "--duration", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown scenario 'no_such_place'" in err
+    for bad in ("0", "-5", "nan", "ten"):
+        assert parity.main(["--scenario", "static", "--duration", bad]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--duration" in err and "Traceback" not in err
+
+    real_run = model_runner.run
+
+    def off_by_one_yaw(stim, overrides=None, progress=None):
+        out = bytearray(real_run(stim, overrides, progress))
+        ext_len = len(parity.split(out)[1][0])
+        out[100 * 52 + 5 * ext_len + 29] ^= 1  # frame 100's yaw (after 5 extended frames)
+        return bytes(out)
+
+    monkeypatch.setattr(parity.model_runner, "run", off_by_one_yaw)
+    assert parity.main(["--scenario", "static", "--duration", "3"]) == 1
+    out = capsys.readouterr().out
+    assert "first difference at frame 100 (tick 100" in out and "yaw_cdeg firmware" in out
+
+
+def test_the_vectorised_frame_equals_the_firmware_packer():
+    """model_runner.frame_bytes against firmware/lib/frame.pack row by row, over the whole
+    range of every field: rounding ties, the int16/int32 clamps, NaN and infinities, pitch
+    at +-90 deg, longitudes beyond 107.37 deg, all sensor ranges."""
+    import app
+    import frame
+
+    import rot
+
+    rng = np.random.default_rng(5)
+    n = 2000
+    q = rng.normal(size=(n, 4))
+    q[:50] = [1.0, 1.0, 0.0, 0.0]  # pitch +90 deg
+    c = ref_rot.q_to_dcm((q / np.linalg.norm(q, axis=1, keepdims=True)).astype(F32))
+    c[50:60, 1, 1] = np.nan
+    scale = 10.0 ** rng.uniform(-3.0, 8.5, (n, 3))
+    v = (rng.standard_normal((n, 3)) * np.minimum(scale, 3e3)).astype(F32)
+    p = (rng.standard_normal((n, 3)) * scale).astype(F32)
+    ties = np.array([0.005, -0.005, 0.015, -0.025, 327.675, -327.685, 3276.75, 0.0, -0.0])
+    special = np.array([np.nan, np.inf, -np.inf, 1e30, -1e30, 10737418.23, -10737418.24])
+    edge = np.concatenate([ties, special, special * 0.01]).astype(F32)
+    v[60 : 60 + len(edge), 0] = edge
+    p[60 : 60 + len(edge), 0] = edge
+    p[100 : 100 + len(edge), 2] = edge
+    t = {
+        "counter": np.arange(n) & 0xFF,
+        "gyro": rng.integers(-32768, 32768, (n, 3)),
+        "accel": rng.integers(-2048, 2048, (n, 3)),
+        "pps": rng.integers(0, 2, n),
+        "gga": rng.integers(0, 2, n),
+        "valid": rng.integers(0, 2, n),
+        "lat_e7": rng.integers(-900000000, 900000001, n),
+        "lon_e7": rng.integers(-1800000000, 1800000001, n),
+        "height_dm": rng.integers(-40000, 40000, n),
+        "state": rng.integers(1, 3, n),
+        "c_bn": c,
+        "v_n": v,
+        "p_n": p,
+    }
+    t["gyro"][:4] = [[-32768, 32767, 0], [32766, -32767, 1], [-1, 1, 65], [-65, 66, -66]]
+
+    def pair(e7):
+        deg = e7 // 10**7 if e7 >= 0 else -((-e7) // 10**7)
+        return [deg, e7 - deg * 10**7]
+
+    buf = bytearray(frame.FRAME_LEN)
+    ypr = np.zeros(3, F32)
+    for gyro_range, accel_range in ((250, 2), (2000, 16), (125, 4)):
+        cfg = type("Cfg", (), {"gyro_range_dps": gyro_range, "accel_range_g": accel_range})
+        model = model_runner.frame_bytes(t, cfg)
+        lsb_x10 = model_runner._bmi055().GYRO_LSB_PER_DPS_X10[gyro_range]
+        lsb_g = model_runner._bmi055().ACCEL_LSB_PER_G[accel_range]
+        for i in range(n):
+            rot.dcm_to_euler(ypr, c[i].ravel())
+            frame.pack(
+                buf, int(t["counter"][i]), t["gyro"][i].tolist(), t["accel"][i].tolist(),
+                lsb_x10, lsb_g, int(t["pps"][i]), int(t["gga"][i]), int(t["valid"][i]),
+                pair(int(t["lat_e7"][i])), pair(int(t["lon_e7"][i])), int(t["height_dm"][i]),
+                int(t["state"][i]), app._CDEG_PER_RAD, ypr, v[i], p[i],
+            )  # fmt: skip
+            assert bytes(buf) == model[i].tobytes(), (gyro_range, i)
+
+
+def test_the_model_uses_the_apps_constants():
+    import app
+    import records
+
+    for name in ("_CDEG_PER_RAD", "_RAD_PER_CDEG"):
+        assert getattr(model_runner, name).view(np.uint32) == getattr(app, name).view(np.uint32)
+    assert model_runner._RX_LEN == app._RX_LEN and model_runner._APP_US_PER_TICK == app._US_PER_TICK
+
+    class State:  # what ext_frame reads
+        kf = type("Kf", (), {"P": np.zeros((15, 15), F32)})
+        ins = type("Ins", (), {"bg": np.zeros(3, F32), "ba": np.zeros(3, F32)})
+        ins.p_n = np.zeros(3, F32)
+        origin_lat_e7 = origin_lon_e7 = tick = 0
+        coef = np.zeros(12, F32)
+
+    assert len(model_runner.ext_frame(0, 0, 1, 0, 0, State)) == records.EXT_LEN
