@@ -18,7 +18,6 @@ header's "config" (plus any overrides) before the firmware starts.
 """
 
 import gc
-import sys
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -162,8 +161,3 @@ def run_cpython(stim, workdir, config_overrides=None, progress=None):
     }
     return FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
 
-
-def main_error(msg):
-    """Print a user-facing error and return the exit status."""
-    print(f"error: {msg}", file=sys.stderr)
-    return 1
