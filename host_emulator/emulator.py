@@ -160,4 +160,3 @@ def run_cpython(stim, workdir, config_overrides=None, progress=None):
         "config_status": a.config_status,
     }
     return FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
-

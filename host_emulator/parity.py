@@ -291,6 +291,8 @@ def main(argv=None):
         if args.scenario not in trajectory.SCENARIOS:
             known = ", ".join(sorted(trajectory.SCENARIOS))
             raise _UsageError(f"unknown scenario {args.scenario!r} (known: {known})")
+        if args.seed < 0:
+            raise _UsageError("--seed must be 0 or more")
     except _UsageError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

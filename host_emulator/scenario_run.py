@@ -78,8 +78,13 @@ def check_scenario(name):
 
 
 def check_duration(duration_s):
-    if duration_s is not None and not (0 < duration_s <= MAX_DURATION_S):
-        raise EmulatorError(f"--duration must be > 0 and <= {MAX_DURATION_S:g} s")
+    if duration_s is not None and not (1.0 <= duration_s <= MAX_DURATION_S):
+        raise EmulatorError(f"--duration must be 1 to {MAX_DURATION_S:g} s")
+
+
+def check_seed(seed):
+    if seed < 0:
+        raise EmulatorError("--seed must be 0 or more")
 
 
 def run_firmware(stim, runtime, stim_path, progress=None):
@@ -189,6 +194,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     """The whole `run` command; returns the metrics. EmulatorError on bad input or failure."""
     check_scenario(scenario)
     check_duration(duration_s)
+    check_seed(seed)
     if runtime not in RUNTIMES:
         raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
     out_dir = pathlib.Path(out_dir)

@@ -148,6 +148,8 @@ def test_cli_replays_its_own_stimulus_to_the_same_frames(tmp_path):
     [
         (["run", "--scenario", "moon_landing", "--out", "X"], "unknown scenario 'moon_landing'"),
         (["run", "--scenario", "static", "--duration", "-3", "--out", "X"], "--duration"),
+        (["run", "--scenario", "static", "--duration", "0.001", "--out", "X"], "--duration"),
+        (["run", "--scenario", "static", "--seed", "-1", "--out", "X"], "--seed"),
         (["run", "--stimulus", "MISSING", "--out", "X"], "cannot read stimulus file"),
         (["run", "--stimulus", "GARBAGE", "--out", "X"], "not a stimulus file"),
     ],

@@ -158,6 +158,8 @@ def test_the_command_exit_status(capsys, monkeypatch):
         assert parity.main(["--scenario", "static", "--duration", bad]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "--duration" in err and "Traceback" not in err
+    assert parity.main(["--scenario", "static", "--duration", "3", "--seed", "-2"]) == 2
+    assert "--seed must be 0 or more" in capsys.readouterr().err
 
     real_run = model_runner.run
 
