@@ -5,10 +5,7 @@ Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
 from host_emulator import scenario_run
-
-
-def _f(x, unit, digits=2):
-    return "n/a" if x is None else f"{x:.{digits}f} {unit}"
+from host_emulator.report import fmt
 
 
 def summary(m, out_dir):
@@ -16,17 +13,17 @@ def summary(m, out_dir):
     if "scenario" not in m:  # a stimulus without truth
         return (
             f"\n{m['frames']} frames, {m['frame_errors']} frame errors; navigating after "
-            f"{_f(m['align_time_s'], 's', 1)}. No truth: accuracy not evaluated.\n"
+            f"{fmt(m['align_time_s'], 1, 's')}. No truth: accuracy not evaluated.\n"
             f"Output in {out_dir}/ (frames.bin, metrics.json)"
         )
     att = "/".join("n/a" if m[k] is None else f"{m[k]:.2f}" for k in
                    ("roll_rms_deg", "pitch_rms_deg", "yaw_rms_deg"))  # fmt: skip
     rows = [
         ("", "firmware", "GNSS alone", "board spec"),
-        ("horizontal position error (RMS)", _f(m["horiz_rms_m"], "m"),
-         _f(m["gnss_horiz_rms_m"], "m"), "3 m"),
-        ("vertical position error (RMS)", _f(m["vert_rms_m"], "m"), "", ""),
-        ("velocity error (RMS)", _f(m["vel_rms_m_s"], "m/s", 3), "", "0.05 m/s"),
+        ("horizontal position error (RMS)", fmt(m["horiz_rms_m"], unit="m"),
+         fmt(m["gnss_horiz_rms_m"], unit="m"), "3 m"),
+        ("vertical position error (RMS)", fmt(m["vert_rms_m"], unit="m"), "", ""),
+        ("velocity error (RMS)", fmt(m["vel_rms_m_s"], 3, "m/s"), "", "0.05 m/s"),
         ("roll / pitch / yaw error (RMS)", att + " deg", "", "0.5/0.5/3 deg"),
     ]  # fmt: skip
     w = [max(len(r[i]) for r in rows) for i in range(4)]
@@ -45,7 +42,7 @@ def summary(m, out_dir):
     for o in m["outages"]:
         lines.append(
             f"GNSS outage            {o['length_s']:g} s at {o['start_s']:g} s: "
-            f"{_f(o['horiz_err_end_m'], 'm')} off at its end"
+            f"{fmt(o['horiz_err_end_m'], unit='m')} off at its end"
         )
     lines.append(
         f"run speed              {m['ticks']} ticks of 5 ms in {m['wall_s']:.1f} s: "

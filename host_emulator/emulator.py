@@ -42,6 +42,23 @@ class FirmwareRun:
     stats: dict = field(default_factory=dict)  # runtime-specific counters
 
 
+def board_values(stim, config_overrides=None):
+    """The board configuration values of a run: the stimulus header's "config", then the
+    overrides (everything else keeps firmware/lib/config.py's defaults)."""
+    values = stim.config
+    values.update(config_overrides or {})
+    return values
+
+
+def write_flash_config(workdir, values):
+    """The emulated board's flash: workdir/flash/ins.cfg holding `values`; returns its path."""
+    flash = workdir / "flash"
+    flash.mkdir(parents=True, exist_ok=True)
+    path = flash / "ins.cfg"
+    path.write_bytes(config_bytes(values))
+    return path
+
+
 def board_config(cfg_values):
     """A firmware BoardConfig with the given values (dict of BoardConfig attribute names);
     EmulatorError for a name or value the firmware does not accept."""
@@ -84,13 +101,7 @@ def run_cpython(stim, workdir, config_overrides=None, progress=None):
 
     workdir: the emulated board's flash (a directory; the configuration file goes there).
     progress(k, n): called every 2000 ticks. A firmware exception -> FirmwareError."""
-    values = {"ext_every_ticks": 20}
-    values.update(stim.config)
-    values.update(config_overrides or {})
-    flash = workdir / "flash"
-    flash.mkdir(parents=True, exist_ok=True)
-    cfg_path = flash / "ins.cfg"
-    cfg_path.write_bytes(config_bytes(values))
+    cfg_path = write_flash_config(workdir, board_values(stim, config_overrides))
 
     hw = fake_machine.Hardware()
     firmware_env.install_machine(hw)

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import pymap3d
 
+from host_emulator.sim.trajectory import wrap_pi
+
 NAVIGATING = 2
 
 
@@ -39,10 +41,6 @@ class Track:
     health: np.ndarray  # (M,)
     gnss_valid: np.ndarray  # (M,) bool
     align_time_s: float | None  # first navigating state time
-
-
-def wrap_pi(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def track(decoded, tick_s, origin):
@@ -121,7 +119,7 @@ def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=()):
     )
 
 
-def _rms(x):
+def rms(x):
     return float(np.sqrt(np.mean(np.square(x)))) if np.size(x) else None
 
 
@@ -135,15 +133,15 @@ def accuracy(err, outages=(), skip_s=0.0):
     sig = err.sigma[keep]
     inside = np.abs(dp[:, :2]) <= 3 * sig[:, :2]
     res = {
-        "horiz_rms_m": _rms(horiz),
-        "horiz_rms_gnss_m": _rms(horiz[ok]),
+        "horiz_rms_m": rms(horiz),
+        "horiz_rms_gnss_m": rms(horiz[ok]),
         "horiz_max_m": float(horiz.max()) if horiz.size else None,
-        "vert_rms_m": _rms(dp[:, 2]),
-        "vel_rms_m_s": _rms(np.linalg.norm(dv, axis=1)),
-        "vel_rms_gnss_m_s": _rms(np.linalg.norm(dv[ok], axis=1)),
-        "yaw_rms_deg": None if not da.size else _rms(da[:, 0]) * deg,
-        "pitch_rms_deg": None if not da.size else _rms(da[:, 1]) * deg,
-        "roll_rms_deg": None if not da.size else _rms(da[:, 2]) * deg,
+        "vert_rms_m": rms(dp[:, 2]),
+        "vel_rms_m_s": rms(np.linalg.norm(dv, axis=1)),
+        "vel_rms_gnss_m_s": rms(np.linalg.norm(dv[ok], axis=1)),
+        "yaw_rms_deg": None if not da.size else rms(da[:, 0]) * deg,
+        "pitch_rms_deg": None if not da.size else rms(da[:, 1]) * deg,
+        "roll_rms_deg": None if not da.size else rms(da[:, 2]) * deg,
         "pos_3sigma_coverage": float(inside.mean()) if inside.size else None,
         "outages": [],
     }

@@ -55,7 +55,6 @@ from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
 import geo as fw_geo  # noqa: E402  (the index of the origin height in the coefficients)
 
 F32 = np.float32
-DEFAULTS = {"ext_every_ticks": 20}  # run_cpython's board configuration before stim.config
 
 # app.py
 _CDEG_PER_RAD = np.array(0x45B30CA0, np.uint32).view(F32)[()]  # 18000 / pi
@@ -111,14 +110,6 @@ def _bmi055():
     from drivers import bmi055
 
     return bmi055
-
-
-def board_values(stim, config_overrides=None):
-    """The board configuration values run_cpython uses: DEFAULTS, stim.config, overrides."""
-    values = dict(DEFAULTS)
-    values.update(stim.config)
-    values.update(config_overrides or {})
-    return values
 
 
 def first_tick_us(tick_us):
@@ -267,7 +258,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
 
     progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
     before the navigator's step (tests use it to perturb the model)."""
-    values = board_values(stim, config_overrides)
+    values = emulator.board_values(stim, config_overrides)
     cfg = config.decode(emulator.config_bytes(values))  # what the board reads from flash
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())

@@ -136,7 +136,8 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     plt.close(fig)
 
 
-def _fmt(x, digits=2, unit=""):
+def fmt(x, digits=2, unit=""):
+    """x with `digits` decimals and its unit, or n/a for None."""
     if x is None:
         return "n/a"
     text = f"{x:.{digits}f}" if isinstance(x, float) else str(x)
@@ -168,17 +169,17 @@ def markdown(m, description="", console=(), notes=()):
         "",
         "| figure | value | reference |",
         "|---|---|---|",
-        f"| horizontal position RMS | {_fmt(m['horiz_rms_m'], unit='m')} | WMH601 spec 3 m |",
-        f"| ... with GNSS available | {_fmt(m.get('horiz_rms_gnss_m'), unit='m')} | "
-        f"raw GNSS input {_fmt(m['gnss_horiz_rms_m'], unit='m')} |",
-        f"| vertical position RMS | {_fmt(m['vert_rms_m'], unit='m')} | |",
-        f"| velocity RMS (3D) | {_fmt(m['vel_rms_m_s'], 3, unit='m/s')} | WMH601 spec 0.05 m/s |",
-        f"| roll / pitch RMS | {_fmt(m['roll_rms_deg'])} / "
-        f"{_fmt(m['pitch_rms_deg'], unit='deg')} | WMH601 spec 0.5 deg |",
-        f"| yaw RMS | {_fmt(m['yaw_rms_deg'], unit='deg')} | WMH601 spec 3 deg |",
-        f"| position inside 3-sigma (E, N) | {_fmt(m.get('pos_3sigma_coverage'), 3)} | "
+        f"| horizontal position RMS | {fmt(m['horiz_rms_m'], unit='m')} | WMH601 spec 3 m |",
+        f"| ... with GNSS available | {fmt(m.get('horiz_rms_gnss_m'), unit='m')} | "
+        f"raw GNSS input {fmt(m['gnss_horiz_rms_m'], unit='m')} |",
+        f"| vertical position RMS | {fmt(m['vert_rms_m'], unit='m')} | |",
+        f"| velocity RMS (3D) | {fmt(m['vel_rms_m_s'], 3, unit='m/s')} | WMH601 spec 0.05 m/s |",
+        f"| roll / pitch RMS | {fmt(m['roll_rms_deg'])} / "
+        f"{fmt(m['pitch_rms_deg'], unit='deg')} | WMH601 spec 0.5 deg |",
+        f"| yaw RMS | {fmt(m['yaw_rms_deg'], unit='deg')} | WMH601 spec 3 deg |",
+        f"| position inside 3-sigma (E, N) | {fmt(m.get('pos_3sigma_coverage'), 3)} | "
         "0.997 if the filter's covariance were right |",
-        f"| time to navigation | {_fmt(m['align_time_s'], 1, unit='s')} | |",
+        f"| time to navigation | {fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]
     if m["outages"]:
@@ -186,7 +187,7 @@ def markdown(m, description="", console=(), notes=()):
         for o in m["outages"]:
             lines.append(
                 f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
-                f"{_fmt(o['horiz_err_end_m'], unit='m')} |"
+                f"{fmt(o['horiz_err_end_m'], unit='m')} |"
             )
         lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
     rt = m["realtime_factor"]

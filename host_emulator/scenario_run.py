@@ -106,8 +106,9 @@ def run_firmware(stim, runtime, stim_path, progress=None):
     return fw
 
 
-def _clean(out_dir):
-    for name in (*OUTPUTS, "stimulus.bin"):
+def _clean(out_dir, keep_stimulus=False):
+    """Remove an earlier run's outputs (so a failed run cannot leave them behind)."""
+    for name in OUTPUTS if keep_stimulus else (*OUTPUTS, "stimulus.bin"):
         p = out_dir / name
         if p.exists():
             p.unlink()
@@ -142,7 +143,7 @@ def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
         "roll_rms_deg": acc["roll_rms_deg"],
         "pitch_rms_deg": acc["pitch_rms_deg"],
         "yaw_rms_deg": acc["yaw_rms_deg"],
-        "gnss_horiz_rms_m": evaluate._rms(np.hypot(*g.err_n_m[ok, :2].T)) if ok.any() else None,
+        "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[ok, :2].T)) if ok.any() else None,
         "outages": acc["outages"],
         "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
         "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
@@ -230,9 +231,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
     stim = stim_mod.read(path)  # StimulusError (an EmulatorError) if unusable
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    for name in OUTPUTS:
-        if (out_dir / name).exists():
-            (out_dir / name).unlink()
+    _clean(out_dir, keep_stimulus=True)
     h = stim.header
     src = pathlib.Path(path)
     local = out_dir / "stimulus.bin"

@@ -123,7 +123,7 @@ def run_micropython(
     stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin for the VM) or the path of a
         stimulus file (read here, which checks its CRC, and given to the VM as it is).
     workdir: the emulated board's flash (workdir/flash/ins.cfg: the configuration, the
-        stimulus header's "config" plus `config_overrides` over {"ext_every_ticks": 20}, as
+        stimulus header's "config" plus `config_overrides`: emulator.board_values, as
         run_cpython) and the VM's output files (workdir/vm/).
     progress(k, n): called as the VM reports ticks done (every 1000 ticks and at the end).
     heap_kb: the VM's heap; timeout_s: wall-time limit (default 60 s + the stimulus duration).
@@ -142,13 +142,7 @@ def run_micropython(
     else:
         stim_path = workdir / "stimulus.bin"
         stim.write(stim_path)
-    values = {"ext_every_ticks": 20}
-    values.update(stim.config)
-    values.update(config_overrides or {})
-    flash = workdir / "flash"
-    flash.mkdir(exist_ok=True)
-    cfg_path = flash / "ins.cfg"
-    cfg_path.write_bytes(emulator.config_bytes(values))
+    cfg_path = emulator.write_flash_config(workdir, emulator.board_values(stim, config_overrides))
     out_dir = workdir / "vm"
     out_dir.mkdir(exist_ok=True)
     for name in ("out.bin", "blocks.bin", "state.bin"):

@@ -42,6 +42,9 @@ def test_a_file_round_trips_exactly(tmp_path):
     assert r.pps_before_us.tolist() == [-1, 0, -1, 4999, -1]
     h = r.head(3)
     assert len(h) == 3 and h.uart_bytes == b"$GPGGA,1,2*00\r\n" and h.to_bytes() != s.to_bytes()
+    r3 = stimulus.from_bytes(h.to_bytes())  # a head is a file of its own
+    assert r3.header["ticks"] == 3 and r3.header["duration_s"] == pytest.approx(0.015)
+    assert r3.uart_bytes == h.uart_bytes and r3.pps_before_us.tolist() == [-1, 0, -1]
 
 
 @pytest.mark.parametrize(

@@ -44,34 +44,30 @@ _timers = []
 watchdog = None  # the WDT the firmware created, if any
 
 
+def _part(table, cls, key):
+    """The emulated part `key` of class cls (made on first use with cls._setup, not through
+    its constructor, so that it is not re-initialised)."""
+    part = table.get(key)
+    if part is None:
+        part = object.__new__(cls)
+        part._setup(key)
+        table[key] = part
+    return part
+
+
 def pin(name):
-    """The emulated pin `name` (made on first use, level 1), without re-initialising it."""
-    p = _pins.get(name)
-    if p is None:
-        p = object.__new__(Pin)
-        p._setup(name)
-        _pins[name] = p
-    return p
+    """The emulated pin `name` (level 1 when new)."""
+    return _part(_pins, Pin, name)
 
 
 def spi_bus(id):
-    """The emulated SPI bus `id` (made on first use), without re-initialising it."""
-    b = _buses.get(id)
-    if b is None:
-        b = object.__new__(SPI)
-        b._setup(id)
-        _buses[id] = b
-    return b
+    """The emulated SPI bus `id`."""
+    return _part(_buses, SPI, id)
 
 
 def uart(id):
-    """The emulated UART `id` (made on first use), without re-initialising it."""
-    u = _uarts.get(id)
-    if u is None:
-        u = object.__new__(UART)
-        u._setup(id)
-        _uarts[id] = u
-    return u
+    """The emulated UART `id`."""
+    return _part(_uarts, UART, id)
 
 
 def fire_timers():
