@@ -35,7 +35,7 @@ _RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians 
 _US_PER_TICK = const(5000)
 _E7 = const(10000000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
-_RX_LEN = const(255)  # at most this many GNSS bytes per tick (one raw record holds them)
+_RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 
 
 class App:
@@ -47,7 +47,9 @@ class App:
         self.config_status = status
         self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)
         self.nav = Navigator(cfg.nav_config())
-        self.gnss = Nmea()
+        # a receiver configured for GGA only never sends the speed sentence that completes
+        # an epoch by default: gnss_need_speed 0 completes it at the GGA (no speed, no course)
+        self.gnss = Nmea(need_speed=cfg.gnss_need_speed != 0)
         self.rx = bytearray(_RX_LEN)
         self.out = bytearray(frame.FRAME_LEN)
         self.lat = array("i", (0, 0))  # (degrees, 1e-7 deg fraction) of the last fix
@@ -187,13 +189,15 @@ class App:
         """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
         the navigator's input. The measurement tick is the PPS edge's when the edge came less
         than a second before the epoch's first sentence, else the configured latency is used
-        (fix_tick -1)."""
+        (fix_tick -1). An epoch without speed (empty RMC/VTG fields, a GGA-only receiver)
+        passes speed -1 and course -1: unknown, unlike a standing receiver's speed 0.00 with
+        an empty course."""
         g = self.gnss
         nav = self.nav
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         self.gnss_valid = ok
         if not ok:
-            nav.gnss(0, 0, 0.0, 0, f32.f32(99), 0.0, -1.0)  # a no-fix epoch (counts as lost)
+            nav.gnss(0, 0, 0.0, 0, f32.f32(99), -1.0, -1.0)  # a no-fix epoch (counts as lost)
             return
         lat = g.epoch_lat_e7
         deg = lat // _E7 if lat >= 0 else -((-lat) // _E7)
@@ -207,7 +211,7 @@ class App:
         hdop = self.cfg.gnss_hdop_max  # unknown HDOP: the worst still accepted
         if g.epoch_hdop_x100 >= 0:
             hdop = f32.ratio(g.epoch_hdop_x100, 100)
-        speed = 0.0
+        speed = -1.0  # unknown
         course = -1.0
         if g.epoch_speed_mm_s >= 0:
             speed = f32.ratio(g.epoch_speed_mm_s, 1000)

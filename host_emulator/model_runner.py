@@ -14,8 +14,9 @@ Modelled independently here (NumPy float32, or plain integers):
   waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
   tests/test_parity.py against the tick start times the firmware's raw records carry);
 - app._deliver_fix: lat/lon split, height in dm, f32 ratios for height, HDOP and speed,
-  course x pi/18000 (rebuilt from its float32 bits), the fallback HDOP, the no-fix epoch and
-  the measurement tick from the PPS edge (or -1: the configured latency);
+  course x pi/18000 (rebuilt from its float32 bits), speed and course -1 when unknown, the
+  fallback HDOP, the no-fix epoch and the measurement tick from the PPS edge (or -1: the
+  configured latency);
 - the 52-byte frame, vectorised over all ticks: euler angles through `reference/rot.py`,
   x * scale in float32 rounded half away from zero, clamped, NaN -> 0; the sensor fields'
   integer conversions; the checksum;
@@ -60,7 +61,7 @@ F32 = np.float32
 _CDEG_PER_RAD = np.array(0x45B30CA0, np.uint32).view(F32)[()]  # 18000 / pi
 _RAD_PER_CDEG = np.array(0x393702D3, np.uint32).view(F32)[()]  # pi / 18000
 _APP_US_PER_TICK = 5000  # app._US_PER_TICK: the firmware's tick, for the fix's age
-_RX_LEN = 255  # app._RX_LEN: GNSS bytes read per tick at most
+_RX_LEN = 232  # app._RX_LEN: GNSS bytes read per tick at most
 _E7 = 10_000_000
 _PPS_MAX_AGE_US = 1_000_000  # an older PPS edge is not the fix's (app._deliver_fix)
 # board.py: the GNSS UART's receive ring (machine.UART(..., rxbuf=1024)); what does not fit
@@ -226,7 +227,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
     fix.valid = 1 if ok else 0
     if not ok:
-        model.gnss(0, 0, 0.0, 0, F32(99), 0.0, -1.0)  # a no-fix epoch
+        model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)  # a no-fix epoch
         return
     lat = g.epoch_lat_e7
     lon = g.epoch_lon_deg * _E7 + g.epoch_lon_frac_e7
@@ -238,7 +239,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     hdop = F32(hdop_max)
     if g.epoch_hdop_x100 >= 0:
         hdop = F32(g.epoch_hdop_x100) / F32(100)
-    speed = 0.0
+    speed = -1.0  # no speed in the epoch: unknown
     course = -1.0
     if g.epoch_speed_mm_s >= 0:
         speed = F32(g.epoch_speed_mm_s) / F32(1000)
@@ -262,7 +263,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     cfg = config.decode(emulator.config_bytes(values))  # what the board reads from flash
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
-    g = Nmea()
+    g = Nmea(need_speed=cfg.gnss_need_speed != 0)  # as app.App builds its parser
     hw = fake_machine.Hardware()  # the virtual clock pps_isr stamps from
     firmware_env.install_machine(hw)
     bmi055 = _bmi055()

@@ -172,3 +172,58 @@ def test_a_late_loop_counts_overruns(tmp_path):
     bench.app.service()
     assert bench.app.overruns == 2 and bench.app.ticks == 6
     assert [f["counter"] for f in frames.decode(bench.out_uart.take_tx()).frames] == [5]
+
+
+def _sentence(body):
+    csum = 0
+    for c in body.encode():
+        csum ^= c
+    return f"${body}*{csum:02X}\r\n".encode()
+
+
+def _epoch(hms, rmc_speed_course=None):
+    """One second's GGA and, unless None, an RMC with the given 'knots,course' fields."""
+    out = _sentence(f"GPGGA,{hms}.00,3415.601386,N,10856.398020,E,1,09,0.90,429.458,M,-28.0,M,,")
+    if rmc_speed_course is not None:
+        out += _sentence(
+            f"GPRMC,{hms}.00,A,3415.601386,N,10856.398020,E,{rmc_speed_course},221126,,,A"
+        )
+    return out
+
+
+@pytest.mark.parametrize(
+    "fields, need_speed, want",
+    [
+        ("5.000,90.00", 1, (2572, 157080)),  # speed 5 kn = 2.572 m/s, course 90 deg
+        ("0.000,", 1, (0, None)),  # a standing receiver: speed 0, no course
+        (",", 1, (None, None)),  # no velocity reported: speed and course unknown (-1)
+        (None, 0, (None, None)),  # GGA only (gnss_need_speed 0): unknown
+    ],
+)
+def test_the_navigator_is_told_whether_the_speed_is_known(tmp_path, fields, need_speed, want):
+    """speed -1 and course -1 when the epoch carries no speed: an unknown speed is not a
+    standing receiver's 0 (it must not reach the standstill detector as a measurement)."""
+    import config
+
+    cfg = config.BoardConfig()
+    cfg.gnss_need_speed = need_speed
+    bench = Bench(tmp_path, cfg_bytes=config.encode(cfg))
+    calls = []
+    real = bench.app.nav.gnss
+
+    def spy(*args, **kw):
+        calls.append(args)
+        real(*args, **kw)
+
+    bench.app.nav.gnss = spy
+    data = b"".join(_epoch(f"02000{s}", fields) for s in range(3))
+    bench.run(len(data) // 8 + 2, nmea=data)
+    assert len(calls) == 3
+    speed_mm_s, course_e5 = want
+    for args in calls:
+        speed, course = float(args[5]), float(args[6])
+        assert speed == -1.0 if speed_mm_s is None else round(speed * 1000) == speed_mm_s
+        assert course == -1.0 if course_e5 is None else round(course * 100000) == course_e5
+    # the fixes were usable; only a known speed is a measurement for the standstill detector
+    tick = bench.app.nav._speed_tick
+    assert tick == -1000000 if speed_mm_s is None else tick > 0

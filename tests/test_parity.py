@@ -2,12 +2,15 @@
 NumPy float32 model (model_runner.run) produce the same output stream, byte for byte, and a
 difference is found and reported with the tick and the field's name."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from host_emulator import frames, model_runner, parity, stimulus
 from host_emulator.reference import rot as ref_rot
 from host_emulator.sim import board_input
+from host_emulator.sim import gnss as sim_gnss
 
 F32 = np.float32
 NAV_START_TICK = 30 * 200  # highway_outage stands still for 30 s, then accelerates
@@ -144,6 +147,53 @@ def test_parity_when_the_gnss_receive_ring_overflows():
     assert r.firmware_stats["gnss_rx_overflow"] > 0 and r.firmware_stats["nmea_rejected"] > 0
     d = _frames(r.out_firmware)
     assert sum(f["gga"] for f in d.frames) > 10 and d.frames[-1]["nav_state"] == 2
+
+
+def test_parity_without_receiver_speed_and_course():
+    """Position-only NMEA (RMC with empty speed and course: a receiver configured without
+    velocity, or the replay of position-only data), 1 Hz with 1.5 m noise: the app passes
+    speed -1 and course -1, the navigator takes its heading from the GNSS track and starts
+    with the track's velocity sigma; both sides agree byte for byte."""
+    model = sim_gnss.GnssModel(sigma_h_m=1.5, sigma_v_m=3.0)
+    sim = board_input.simulate("highway_outage", 50.0, seed=0, gnss_model=model)
+    g = sim.gnss
+    nan = np.full_like(g.speed_m_s, np.nan)
+    gnss = dataclasses.replace(g, speed_m_s=nan, course_deg=nan.copy())
+    stim, _ = board_input.to_stimulus(sim.truth, sim.imu, gnss, dict(sim.stimulus.header))
+    rmc = [ln.split(b",") for ln in stim.uart_bytes.split(b"\r\n") if b"GNRMC," in ln]
+    assert sum(len(f) > 8 and f[2] == b"A" and f[7] == f[8] == b"" for f in rmc) >= 45
+    r = parity.compare(stim)
+    assert r.identical, r.summary()
+    d = _frames(r.out_firmware)
+    states = np.array([f["nav_state"] for f in d.frames])
+    nav = np.flatnonzero(states == 2)
+    # the course start of this drive is at ~37 s; the track needs a 4 s window above 3 m/s
+    assert nav[0] > NAV_START_TICK + 4 * 200 and len(nav) > 5 * 200
+    assert (states[nav[0] :] == 2).all()
+    first = next(e for e in d.ext if e["nav_state"] == 2)
+    track_vel_var = 4.0  # navcfg track_vel_sigma = 2 m/s (course start: 0.25)
+    assert first["p_diag"][3] == pytest.approx(track_vel_var, rel=0.05)
+    speed = np.hypot(*np.array([f["vel_enu_m_s"][:2] for f in d.frames[-200:]]).T)
+    assert (speed > 20.0).all()
+
+
+def test_parity_with_a_gga_only_receiver():
+    """A receiver configured for GGA (and GSA) only: without gnss_need_speed 0 no epoch ever
+    completes (the parser waits for a speed sentence); with it every GGA is a fix without
+    speed and course, and the navigator starts from the track, the same on both sides."""
+    model = sim_gnss.GnssModel(sigma_h_m=1.5, sigma_v_m=3.0, sentences=("GGA", "GSA"))
+    stim = board_input.simulate("highway_outage", 50.0, seed=0, gnss_model=model).stimulus
+    assert b"RMC" not in stim.uart_bytes and b"VTG" not in stim.uart_bytes
+    waiting = _frames(model_runner.run(stim))
+    assert {f["nav_state"] for f in waiting.frames} == {1}
+    assert {f["gnss_valid"] for f in waiting.frames} == {0}
+    r = parity.compare(stim, {"gnss_need_speed": 0})
+    assert r.identical, r.summary()
+    d = _frames(r.out_firmware)
+    states = np.array([f["nav_state"] for f in d.frames])
+    nav = np.flatnonzero(states == 2)
+    assert nav[0] > NAV_START_TICK + 4 * 200 and len(nav) > 5 * 200
+    assert sum(f["gga"] for f in d.frames) == 50
 
 
 def test_the_command_exit_status(capsys, monkeypatch):

@@ -43,6 +43,7 @@ _SCHEMA = (
     (6, "ext_every_ticks", _INT, 1, 20),  # extended frame every n ticks, 0: off
     (7, "raw_record", _INT, 1, 0),  # 1: a raw-input record every tick (replay)
     (8, "gnss_baud", _INT, 1, 9600),
+    (9, "gnss_need_speed", _INT, 1, 1),  # 0: a GGA alone completes an epoch (GGA-only receiver)
     (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
     (21, "accel_bias0", _FLOAT, 3, None),  # m/s^2
     (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)
@@ -57,6 +58,8 @@ _SCHEMA = (
     (35, "gnss_hdop_max", _FLOAT, 1, None),
     (36, "gate_sigma", _FLOAT, 1, None),
     (37, "gnss_uere_m", _FLOAT, 1, None),
+    (38, "still_gyro", _FLOAT, 1, None),  # rad/s rms: standstill threshold (vibration)
+    (39, "still_accel", _FLOAT, 1, None),  # m/s^2 rms of specific-force changes
 )
 _GYRO_RANGES = (125, 250, 500, 1000, 2000)
 _ACCEL_RANGES = (2, 4, 8, 16)
@@ -119,6 +122,8 @@ class BoardConfig:
             return "ext_every_ticks must be 0..2000"
         if self.raw_record not in (0, 1):
             return "raw_record must be 0 or 1"
+        if self.gnss_need_speed not in (0, 1):
+            return "gnss_need_speed must be 0 or 1"
         for _id, name, kind, _n, _default in _SCHEMA:
             value = getattr(self, name)
             if kind != _FLOAT or value is None:
@@ -134,6 +139,8 @@ class BoardConfig:
             "gnss_hdop_max",
             "gate_sigma",
             "gnss_uere_m",
+            "still_gyro",
+            "still_accel",
         ):
             if not getattr(self, name) > 0.0:
                 return f"{name} must be positive"

@@ -7,7 +7,10 @@ allocates only float results.
 States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
 vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
 heading from the GNSS course over ground once the speed exceeds `heading_speed_m_s`: this
-board has no magnetometer, so a static board cannot know its heading. Then NAVIGATING (2):
+board has no magnetometer, so a static board cannot know its heading. A receiver that reports
+no course (GGA only, or position-only data) gives the heading from its track instead: the
+chord between two fixes `track_s` apart, whose direction is the course at the window's middle,
+turned by half the yaw change the gyros saw over the window (see `_track`). Then NAVIGATING (2):
 INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS position and velocity
 updates with the antenna lever arm, zero-velocity updates at standstill and the non-holonomic
 constraint for cars.
@@ -32,7 +35,7 @@ from micropython import const
 import f32
 import geo
 import rot
-from fmath import asin, atan2, cos, sin, sqrt
+from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
 
 ALIGNING = const(1)
 NAVIGATING = const(2)
@@ -63,6 +66,11 @@ _ST_FX = const(0)  # low-passed specific force (3)
 _ST_VAR = const(3)  # low-passed |f - f_lp|^2
 _ST_GYRO = const(4)  # low-passed |w - b_g|^2
 _ST_SPEED = const(5)  # speed of the last usable fix, m/s
+
+# self._trk: the track anchor (heading from GNSS positions, see _track)
+_TR_E = const(0)  # antenna position of the anchor fix in the frame, m
+_TR_N = const(1)
+_TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
 
 
 _MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
@@ -102,6 +110,7 @@ class Navigator:
         self._st = f32.zeros(6)
         self._lvl = f32.zeros(6)  # sums of f and w while levelling
         self._init = f32.zeros(eskf.N)  # initial P diagonal
+        self._trk = f32.zeros(3)
         # configuration derived once
         self._ticks_prop = _ticks(cfg.prop_period_s, dt)
         self._ticks_zupt = _ticks(cfg.zupt_period_s, dt)
@@ -111,6 +120,9 @@ class Navigator:
         self._ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
         self._ticks_latency = _ticks(cfg.gnss_latency_s, dt)
         self._ticks_second = _ticks(f32.f32(1), dt)
+        self._ticks_track = _ticks(cfg.track_s, dt)
+        if self._ticks_track < 1:
+            self._ticks_track = 1
         self._set_noise(cfg)
         self._reset_counters()
 
@@ -166,6 +178,8 @@ class Navigator:
         self._fix_tick = 0
         self._last_fix_tick = -1000000
         self._speed_tick = -1000000  # tick of the last usable fix (its speed: self._st)
+        self._trk_set = False  # a track anchor is held (self._trk, self._trk_tick)
+        self._trk_tick = 0  # measurement tick of the anchor fix
         self._last_accept_tick = 0
         self._rejects = 0
         self._gated_until = 0
@@ -223,9 +237,9 @@ class Navigator:
         sigma_v_m=0.0,
     ):
         """A completed fix of the antenna: integer lat/lon (1e-7 deg), height (m), fix quality
-        (0 none), HDOP, speed (m/s) and course over ground (rad clockwise from north, < 0 if
-        unknown), the tick of its measurement time (the PPS tick; < 0: arrival - latency),
-        and optional 1-sigma errors (0: from HDOP). Processed at the next tick."""
+        (0 none), HDOP, speed (m/s, < 0 if unknown) and course over ground (rad clockwise from
+        north, < 0 if unknown), the tick of its measurement time (the PPS tick; < 0: arrival -
+        latency), and optional 1-sigma errors (0: from HDOP). Processed at the next tick."""
         self._fix_lat = lat_e7
         self._fix_lon = lon_e7
         self._fix_quality = quality
@@ -352,12 +366,15 @@ class Navigator:
         self.leveled = True
 
     def _fix_usable(self):
-        """Quality and HDOP acceptable; a usable fix's speed also feeds standstill detection."""
+        """Quality and HDOP acceptable; a usable fix's speed, if it has one, also feeds
+        standstill detection (an unknown speed, < 0 or NaN, is no speed measurement)."""
         cfg = self.cfg
         fx = self._fx
         if self._fix_quality >= cfg.gnss_min_quality and fx[_FX_HDOP] <= cfg.gnss_hdop_max:
-            self._st[_ST_SPEED] = fx[_FX_SPEED]
-            self._speed_tick = self.tick
+            sp = fx[_FX_SPEED]
+            if sp >= 0.0:
+                self._st[_ST_SPEED] = sp
+                self._speed_tick = self.tick
             return True
         return False
 
@@ -366,6 +383,7 @@ class Navigator:
         self._last_fix_tick = self.tick
         if not self._fix_usable():
             self._n_stable = 0
+            self._trk_set = False
             return
         self._n_stable += 1
         if self._n_stable < cfg.gnss_stable_fixes:
@@ -379,34 +397,86 @@ class Navigator:
         ins = self.ins
         for i in range(3):
             ins.p_n[i] = self._gp[i]
+        if not self.leveled:
+            self._trk_set = False
+            return
         course = fx[_FX_COURSE]
-        if self.leveled and course >= 0.0 and fx[_FX_SPEED] >= cfg.heading_speed_m_s:
-            self._start_navigation(course)
+        if course >= 0.0:
+            self._trk_set = False
+            sp = fx[_FX_SPEED]
+            if sp >= cfg.heading_speed_m_s:
+                self._start_navigation(course, sp, cfg.init_vel_sigma)
+        else:
+            self._track()
 
-    def _start_navigation(self, course):
+    def _track(self):
+        """Heading and velocity from the track of a receiver that reports no course.
+
+        The anchor is an earlier usable fix (antenna position, measurement tick) and the yaw
+        of the attitude when it was processed (the gyros keep the attitude current while
+        levelled, `_align`). At a fix `track_s` or more after it (at most twice that), the
+        chord d from the anchor gives the mean speed |d| / T; from `heading_speed_m_s` on, d's
+        direction is the course at the window's middle, and the heading has turned since by
+        half the yaw change dyaw over the window (a steady turn): course = atan2(d_E, d_N) -
+        dyaw / 2 (course is clockwise, yaw counter-clockwise). Too slow, a turn beyond
+        `track_turn_max` or a window too long: this fix becomes the anchor. The chord speed is
+        a mean, behind a car accelerating at a by a T / 2, so the filter starts with the
+        horizontal velocity sigma `track_vel_sigma`. Cost, at fix ticks while aligning only:
+        ~25 boxed floats (one atan2), ~60 when a window is evaluated (two atan2, one sqrt)."""
+        cfg = self.cfg
+        trk = self._trk
+        gp = self._gp
+        c = self.ins.c_bn
+        yaw = atan2(-c[1], c[4])  # rot.dcm_to_euler's yaw
+        if self._trk_set:
+            n = self._fix_tick - self._trk_tick
+            if n < self._ticks_track:
+                return  # window not long enough yet: keep the anchor
+            if n <= 2 * self._ticks_track:
+                de = gp[0] - trk[_TR_E]
+                dn = gp[1] - trk[_TR_N]
+                sp = sqrt(de * de + dn * dn) / (f32.f32(n) * cfg.dt_s)
+                dyaw = yaw - trk[_TR_YAW]
+                if dyaw > PI:
+                    dyaw = dyaw - TWO_PI
+                elif dyaw < -PI:
+                    dyaw = dyaw + TWO_PI
+                lim = cfg.track_turn_max
+                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
+                    self._trk_set = False
+                    self._start_navigation(atan2(de, dn) - dyaw * 0.5, sp, cfg.track_vel_sigma)
+                    return
+        trk[_TR_E] = gp[0]
+        trk[_TR_N] = gp[1]
+        trk[_TR_YAW] = yaw
+        self._trk_tick = self._fix_tick
+        self._trk_set = True
+
+    def _start_navigation(self, course, sp, sigma_vel):
+        """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
+        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity."""
         ins = self.ins
         ypr = self.ypr
         rot.dcm_to_euler(ypr, ins.c_bn)
         ypr[rot.YAW] = -course
         rot.euler_to_q(ins.q_bn, ypr)
         rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        fx = self._fx
-        sp = fx[_FX_SPEED]
         v = self._tmp3
         v[0] = sp * sin(course)
         v[1] = sp * cos(course)
         v[2] = 0.0
         sh = self._sigma_h()
-        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh))
+        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
         ins.take_dvn(self._tmp3)
         ins.slow_update(f32.f32(0))
         self._since_prop = 0
         self._last_accept_tick = self.tick
         self.state = NAVIGATING
 
-    def _restart(self, gp, v, age, sigma_h, sigma_v):
+    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
-        covariance from the initial diagonal and the fix's sigmas."""
+        covariance from the initial diagonal, the fix's sigmas and the horizontal velocity's
+        sigma_vel."""
         ins = self.ins
         p = self._tmp4
         self._lever_n(p)
@@ -421,6 +491,9 @@ class Navigator:
         ini[0] = sigma_h * sigma_h
         ini[1] = sigma_h * sigma_h
         ini[2] = sigma_v * sigma_v
+        vv = sigma_vel * sigma_vel
+        ini[eskf.IX_VEL] = vv
+        ini[eskf.IX_VEL + 1] = vv
         self.kf.reset_p(ini)
         for i in range(6):
             self._corr[i] = 0.0
@@ -677,7 +750,9 @@ class Navigator:
             dx[i] = 0.0
         kf.ready = False
         if self._job == _JOB_GNSS:
-            if kf.gate_mask & 7 == 7:
+            # a fix whose east or north was gated out counts as rejected: one axis drifting
+            # away while the others are accepted must still end in a reset
+            if kf.gate_mask & 3:
                 self._rejects += 1
                 self._gated_until = self.tick + self._ticks_second
                 if self._rejects >= self.cfg.reset_after_rejects:
@@ -691,8 +766,9 @@ class Navigator:
 
     def _reset_to_gnss(self):
         """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
-        and horizontal velocity from the fix it last rejected, a fresh covariance; attitude
-        and biases are kept."""
+        and horizontal velocity from the fix it last rejected (the navigator's own velocity,
+        with the track start's wider sigma, when the fix has no course), a fresh covariance;
+        attitude and biases are kept."""
         ins = self.ins
         used = self._used
         v = self._tmp3
@@ -705,7 +781,12 @@ class Navigator:
         else:
             v[0] = ins.v_n[0]
             v[1] = ins.v_n[1]
-        self._restart(used, v, self.tick - self._used_tick, used[_US_SIG_H], used[_US_SIG_V])
+        sh = used[_US_SIG_H]
+        sv = used[_US_SIG_V]
+        sigma_vel = self.cfg.init_vel_sigma
+        if course < 0.0:  # the velocity is the navigator's own, and it has drifted
+            sigma_vel = self.cfg.track_vel_sigma
+        self._restart(used, v, self.tick - self._used_tick, sh, sv, sigma_vel)
         self._rejects = 0
         self.resets += 1
 
@@ -728,6 +809,7 @@ class Navigator:
         self._n_level = 0
         self._n_stable = 0
         self._fix_queued = False
+        self._trk_set = False
         self.leveled = False
         self._fault_until = self.tick + self._ticks_second
         self.resets += 1

@@ -38,7 +38,7 @@ EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)
 EXT_PAYLOAD = const(124)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
-RAW_MAX_GNSS = const(255)
+RAW_MAX_GNSS = const(232)  # the length byte counts 23 + n <= 255
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
 
 

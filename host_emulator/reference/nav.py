@@ -38,6 +38,7 @@ import eskf as fw_eskf  # noqa: E402  (constants and state indices, shared with 
 import ins as fw_ins  # noqa: E402
 import nav as fw_nav  # noqa: E402
 
+import fmath as fw_fmath  # noqa: E402
 import geo as fw_geo  # noqa: E402
 import rot as fw_rot  # noqa: E402
 
@@ -499,6 +500,9 @@ class NavModel:
         self.still_lp = np.zeros(6, F32)
         self.level_sums = np.zeros(6, F32)  # sums of f and w while levelling
         self.init_diag = np.zeros(N, F32)
+        # the track anchor (heading without a receiver course): antenna E, N of the anchor fix
+        # and the yaw of the attitude when it was processed
+        self.track = np.zeros(3, F32)
         self.ticks_prop = _ticks(cfg.prop_period_s, dt)
         self.ticks_zupt = _ticks(cfg.zupt_period_s, dt)
         self.ticks_nhc = _ticks(cfg.nhc_period_s, dt)
@@ -507,6 +511,7 @@ class NavModel:
         self.ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
         self.ticks_latency = _ticks(cfg.gnss_latency_s, dt)
         self.ticks_second = _ticks(F32(1), dt)
+        self.ticks_track = max(_ticks(cfg.track_s, dt), 1)
         self._set_noise(cfg)
         self._reset_counters()
 
@@ -556,7 +561,9 @@ class NavModel:
         self.fix_quality = 0
         self.fix_tick = 0
         self.last_fix_tick = -1000000
-        self.speed_tick = -1000000  # tick of the last usable fix
+        self.speed_tick = -1000000  # tick of the last usable fix with a speed
+        self.trk_set = False  # a track anchor is held
+        self.trk_tick = 0  # its measurement tick
         self.last_accept_tick = 0
         self.rejects = 0
         self.gated_until = 0
@@ -716,11 +723,13 @@ class NavModel:
         self.leveled = True
 
     def _fix_usable(self):
-        """Quality and HDOP acceptable; remembers a usable fix's speed for standstill."""
+        """Quality and HDOP acceptable; remembers a usable fix's speed for standstill, unless
+        the speed is unknown (< 0 or NaN)."""
         cfg = self.cfg
         if self.fix_quality >= cfg.gnss_min_quality and self.fix[1] <= cfg.gnss_hdop_max:
-            self.still_lp[5] = self.fix[2]
-            self.speed_tick = self.tick
+            if self.fix[2] >= 0.0:
+                self.still_lp[5] = self.fix[2]
+                self.speed_tick = self.tick
             return True
         return False
 
@@ -729,6 +738,7 @@ class NavModel:
         self.last_fix_tick = self.tick
         if not self._fix_usable():
             self.n_stable = 0
+            self.trk_set = False
             return
         self.n_stable += 1
         if self.n_stable < cfg.gnss_stable_fixes:
@@ -740,38 +750,78 @@ class NavModel:
             self.ins.set_frame(self.coef)
         self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, h)
         self.ins.p_n = self.gnss_p.copy()
+        if not self.leveled:
+            self.trk_set = False
+            return
         course = self.fix[3]
-        if self.leveled and course >= 0.0 and self.fix[2] >= cfg.heading_speed_m_s:
-            self._start_navigation(course)
+        if course >= 0.0:  # the receiver's course over ground
+            self.trk_set = False
+            if self.fix[2] >= cfg.heading_speed_m_s:
+                self._start_navigation(course, self.fix[2], cfg.init_vel_sigma)
+        else:
+            self._track()
 
-    def _start_navigation(self, course):
-        """Heading = GNSS course (yaw = -course), v = speed (sin, cos course, 0), p = antenna
-        - C_bn lever, P = diag(init) with the fix's sigmas."""
+    def _track(self):
+        """No course: the chord d = p - p_anchor over T = n dt (track_s <= T <= 2 track_s)
+        gives the mean speed |d| / T and, from heading_speed_m_s on and for a yaw change
+        |dyaw| <= track_turn_max (wrapped to +-pi), the course atan2(d_E, d_N) - dyaw / 2 now;
+        otherwise this fix becomes the anchor."""
+        cfg = self.cfg
+        gp = self.gnss_p
+        c = self.ins.c_bn
+        yaw = ref_fmath.atan2(-c[0, 1], c[1, 1])  # dcm_to_euler's yaw
+        if self.trk_set:
+            n = self.fix_tick - self.trk_tick
+            if n < self.ticks_track:
+                return
+            if n <= 2 * self.ticks_track:
+                de = gp[0] - self.track[0]
+                dn = gp[1] - self.track[1]
+                sp = np.sqrt(de * de + dn * dn) / (F32(n) * cfg.dt_s)
+                dyaw = yaw - self.track[2]
+                if dyaw > fw_fmath.PI:
+                    dyaw = dyaw - fw_fmath.TWO_PI
+                elif dyaw < -fw_fmath.PI:
+                    dyaw = dyaw + fw_fmath.TWO_PI
+                lim = cfg.track_turn_max
+                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
+                    self.trk_set = False
+                    course = ref_fmath.atan2(de, dn) - dyaw * _HALF
+                    self._start_navigation(course, sp, cfg.track_vel_sigma)
+                    return
+        self.track = _vec(gp[0], gp[1], yaw)
+        self.trk_tick = self.fix_tick
+        self.trk_set = True
+
+    def _start_navigation(self, course, sp, sigma_vel):
+        """Heading = course (yaw = -course), v = sp (sin, cos course, 0), p = antenna
+        - C_bn lever, P = diag(init) with the fix's sigmas and sigma_vel horizontally."""
         ins = self.ins
         ypr = ref_rot.dcm_to_euler(ins.c_bn)
         ypr[fw_rot.YAW] = -course
         self.ypr = ypr
         ins.q_bn = ref_rot.euler_to_q(ypr)
         ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
-        sp = self.fix[2]
         v = _vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
         sh = self._sigma_h()
-        self._restart(self.gnss_p, v, self.tick - self.fix_tick, sh, self._sigma_v(sh))
+        age = self.tick - self.fix_tick
+        self._restart(self.gnss_p, v, age, sh, self._sigma_v(sh), sigma_vel)
         ins.take_dvn()
         ins.slow_update(_ZERO)
         self.since_prop = 0
         self.last_accept_tick = self.tick
         self.state = NAVIGATING
 
-    def _restart(self, gp, v, age, sigma_h, sigma_v):
+    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """p = (antenna - C_bn lever) + v age dt, the fix carried forward over its age; P from
-        the initial diagonal with the fix's sigmas."""
+        the initial diagonal with the fix's sigmas and the horizontal velocity's sigma_vel."""
         t = F32(max(age, 0)) * self.cfg.dt_s
         p = (gp - self._lever_n()) + v * t
         self.ins.reset_kinematics(p, v)
         self.init_diag[0] = sigma_h * sigma_h
         self.init_diag[1] = sigma_h * sigma_h
         self.init_diag[2] = sigma_v * sigma_v
+        self.init_diag[IX_VEL : IX_VEL + 2] = sigma_vel * sigma_vel
         self.kf.reset_p(self.init_diag)
         self.corr = np.zeros(6, F32)
 
@@ -962,7 +1012,7 @@ class NavModel:
         kf.dx = np.zeros(N, F32)
         kf.ready = False
         if self.job == JOB_GNSS:
-            if kf.gate_mask & 7 == 7:
+            if kf.gate_mask & 3:
                 self.rejects += 1
                 self.gated_until = self.tick + self.ticks_second
                 if self.rejects >= self.cfg.reset_after_rejects:
@@ -984,7 +1034,8 @@ class NavModel:
             v = _vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), ins.v_n[2])
         else:
             v = _vec(ins.v_n[0], ins.v_n[1], ins.v_n[2])
-        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6])
+        sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
+        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
         self.rejects = 0
         self.resets += 1
 
@@ -1002,6 +1053,7 @@ class NavModel:
         self.n_level = 0
         self.n_stable = 0
         self.fix_queued = False
+        self.trk_set = False
         self.leveled = False
         self.fault_until = self.tick + self.ticks_second
         self.resets += 1
@@ -1062,6 +1114,7 @@ class NavModel:
             "still_lp": self.still_lp,
             "level_sums": self.level_sums,
             "init_diag": self.init_diag,
+            "track": self.track,
             "ring_p": self.ring_p,
             "ring_v": self.ring_v,
             "corr": self.corr,
@@ -1084,6 +1137,8 @@ class NavModel:
             "fix_queued": self.fix_queued,
             "used_tick": self.used_tick,
             "speed_tick": self.speed_tick,
+            "trk_set": self.trk_set,
+            "trk_tick": self.trk_tick,
             "fix_lat_e7": self.fix_lat_e7,
             "fix_lon_e7": self.fix_lon_e7,
             "fix_quality": self.fix_quality,

@@ -207,3 +207,172 @@ def test_no_standstill_while_driving_through_an_outage():
     i = np.rint(run.t_s / DT).astype(int)
     err = np.hypot(*(run.p_n[-1, :2] - truth.p_n[i[-1], :2]))
     assert run.t_s[-1] > 204 and err < 5.0  # 25 s into the outage (benchmark: 7.9 m at 60 s)
+
+
+# ---- navigation start without a receiver course (heading from the GNSS track) ---------------
+
+
+def _position_only_drive(script, duration_s, seed, ttff_s=0.0):
+    """A scripted drive with the replay protocol's GNSS: 1 Hz, 1.5 m white horizontal noise;
+    the receiver reports positions only (the app passes speed and course -1: unknown)."""
+    truth = trajectory.truth_from_script(script, duration_s)
+    imu = sim_imu.simulate(truth, seed=seed)
+    model = sim_gnss.GnssModel(sigma_h_m=1.5, sigma_v_m=3.0, white_fraction=1.0, ttff_s=ttff_s)
+    gnss = sim_gnss.simulate(truth, model, seed=seed)
+    return truth, imu, gnss
+
+
+def _feed_positions(nav, imu, gnss, k1, on_tick=None):
+    """As nav_runner.feed, but every fix without speed and course (speed -1, course -1)."""
+    gyro = imu.gyro_counts[:k1].astype(int).tolist()
+    accel = imu.accel_counts[:k1].astype(int).tolist()
+    fixes = list(gnss)
+    fi = 0
+    for k in range(k1):
+        while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
+            fx = fixes[fi]
+            nav.gnss(
+                int(fx.lat_e7),
+                int(fx.lon_e7),
+                f32.f32(fx.h_m),
+                int(fx.quality),
+                f32.f32(fx.hdop),
+                -1.0,
+                -1.0,
+                fix_tick=int(round(fx.t_fix_s / DT)),
+            )
+            fi += 1
+        nav.imu_raw(gyro[k], accel[k])
+        if on_tick:
+            on_tick(nav, k)
+
+
+def _wrap_deg(a):
+    return float(np.degrees(nav_runner.wrap(a)))
+
+
+class _Start:
+    """What the navigator did at the tick it left alignment, against the truth."""
+
+    def __init__(self, truth):
+        self.truth = truth
+        self.tick = None
+        self.yaw_err_deg = None
+
+    def __call__(self, nav, k):
+        if self.tick is not None or nav.state != NAVIGATING:
+            return
+        i = k + 1  # tick k + 1 holds the state at (k + 1) dt
+        self.tick = i
+        self.yaw_err_deg = _wrap_deg(float(nav.euler()[0]) - self.truth.ypr[i, 0])
+        # the chord's own direction, without the half-turn correction (the anchor is kept)
+        de = float(nav._gp[0] - nav._trk[0])
+        dn = float(nav._gp[1] - nav._trk[1])
+        self.chord_err_deg = _wrap_deg(-np.arctan2(de, dn) - self.truth.ypr[i, 0])
+        self.anchor_tick = nav._trk_tick
+        self.fix_tick = nav._fix_tick
+        v = np.asarray(nav.ins.v_n, float)
+        self.vel_err = float(np.hypot(*(v[:2] - self.truth.v_n[i, :2])))
+        self.p_vel = np.asarray(nav.kf.P, float).reshape(15, 15)[3, 3]
+        self.speed_tick = nav._speed_tick
+
+
+def test_position_only_straight_drive_starts_from_the_track():
+    """A receiver without speed and course: the heading comes from the chord of the track once
+    its mean speed reaches heading_speed_m_s, from a standstill start accelerating straight
+    away; the filter then refines it. The chord's mean speed lags the accelerating car: the
+    start's velocity sigma is track_vel_sigma."""
+    s = trajectory.DriveScript(yaw0_rad=0.6)
+    s.hold(6.0)
+    s.speed_to(10.0, 1.5)
+    s.hold(30.0)
+    truth, imu, gnss = _position_only_drive(s, 42.0, seed=3)
+    nav = car_nav(gnss)
+    start = _Start(truth)
+    yaw_err = []
+
+    def watch(nav, k):
+        start(nav, k)
+        if start.tick is not None and k % 200 == 0:
+            yaw_err.append(_wrap_deg(float(nav.euler()[0]) - truth.ypr[k + 1, 0]))
+
+    _feed_positions(nav, imu, gnss, len(truth.t_s) - 1, on_tick=watch)
+    cfg = nav.cfg
+    assert nav.state == NAVIGATING and nav.resets == 0
+    t_fast = truth.t_s[np.argmax(truth.speed_m_s > 3.0)]
+    t_start = start.tick * DT
+    # a window of track_s whose mean speed is 3 m/s or more, within two windows of 3 m/s
+    assert t_fast < t_start < t_fast + 2 * float(cfg.track_s) + 1.0, (t_fast, t_start)
+    assert start.fix_tick - start.anchor_tick >= round(float(cfg.track_s) / DT)
+    assert abs(start.yaw_err_deg) < 5.0, start.yaw_err_deg  # measured 1.4 deg
+    assert start.vel_err < 2 * float(cfg.track_vel_sigma), start.vel_err  # measured 3.3 m/s
+    assert start.p_vel == pytest.approx(float(cfg.track_vel_sigma) ** 2, rel=0.01)
+    assert start.speed_tick == -1000000  # unknown speeds never reached the standstill veto
+    assert max(abs(e) for e in yaw_err[-10:]) < 1.5, yaw_err  # the filter refines it
+
+
+def test_position_only_start_in_a_turn_corrects_the_chord_by_half_the_turn():
+    """The receiver's first fix comes with the car already in a steady 5.7 deg/s left curve at
+    10 m/s: the chord of the 4 s window points along the track at the window's middle, 11.5 deg
+    behind the car's heading now. The gyros saw the yaw change dyaw over the window; half of it
+    turns the chord's course into the heading now."""
+    s = trajectory.DriveScript(yaw0_rad=-2.0)
+    s.hold(6.0)
+    s.speed_to(10.0, 1.5)
+    s.turn(2.0, 0.1, ramp_s=1.0)
+    s.hold(5.0)
+    truth, imu, gnss = _position_only_drive(s, 40.0, seed=0, ttff_s=14.0)
+    nav = car_nav(gnss)
+    start = _Start(truth)
+    _feed_positions(nav, imu, gnss, len(truth.t_s) - 1, on_tick=start)
+    assert start.tick is not None
+    i0 = round(start.anchor_tick) + 1
+    true_turn = _wrap_deg(truth.ypr[start.fix_tick, 0] - truth.ypr[i0, 0])
+    assert 20.0 < true_turn < 25.0  # a steady turn through the window
+    assert abs(start.chord_err_deg) > 8.0, start.chord_err_deg  # uncorrected: measured -10.7
+    assert abs(start.yaw_err_deg) < 4.0, start.yaw_err_deg  # measured 1.0 deg
+    correction = start.yaw_err_deg - start.chord_err_deg
+    assert correction == pytest.approx(true_turn / 2, abs=1.5)
+    assert start.vel_err < 1.5  # measured 0.4 m/s: at a steady speed the chord gives it
+
+
+def test_track_start_waits_out_a_turn_too_sharp_for_the_chord():
+    """A yaw change beyond track_turn_max within the window moves the anchor on: no start
+    during a 0.3 rad/s (69 deg per window) turn, a start once the road is straight again."""
+    s = trajectory.DriveScript(yaw0_rad=1.0)
+    s.hold(6.0)
+    s.speed_to(10.0, 1.5)
+    turn_t0 = s.t_s
+    s.turn(3.0, 0.3, ramp_s=1.0)
+    turn_t1 = s.t_s
+    s.hold(15.0)
+    truth, imu, gnss = _position_only_drive(s, s.t_s, seed=1, ttff_s=13.0)
+    assert turn_t0 < 13.0 and turn_t1 > 20.0
+    nav = car_nav(gnss)
+    start = _Start(truth)
+    _feed_positions(nav, imu, gnss, len(truth.t_s) - 1, on_tick=start)
+    assert start.tick is not None and start.anchor_tick * DT > turn_t1 - 1.0
+    assert abs(start.yaw_err_deg) < 5.0, start.yaw_err_deg
+
+
+def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
+    """A fix without speed (speed -1) must not stand for "speed 0": while navigating, the
+    navigator's own speed then vetoes a standstill on a quiet IMU. A standing receiver's
+    speed 0 is a measurement and lets the standstill through."""
+    for speed, still in ((-1.0, False), (f32.f32(0.0), True)):
+        nav, truth, _, _ = navigating()
+        v = np.asarray(nav.ins.v_n, float)
+        assert np.hypot(v[0], v[1]) > 1.0
+        before = nav._speed_tick
+        lat, lon, h = int(truth.lat_e7[-1]), int(truth.lon_e7[-1]), f32.f32(truth.h_m[-1])
+        seen_still = False
+        for _ in range(3):
+            nav.gnss(lat, lon, h, 1, f32.f32(1.0), speed, -1.0)
+            for _ in range(200):
+                nav.imu(f32.zeros(3), _gravity_up())
+                seen_still |= nav.still
+        assert seen_still == still
+        if speed < 0:
+            assert nav._speed_tick == before
+        else:
+            assert nav._speed_tick > before

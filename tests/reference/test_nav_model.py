@@ -135,6 +135,33 @@ def simple_drive(duration_s):
     return Drive(truth, imu, fixes, ())
 
 
+def track_drive(duration_s):
+    """A receiver without speed and course (the heading comes from the GNSS track): static
+    start, a crawl below 3 m/s (a window too slow: the anchor moves on), one fix above the HDOP
+    limit (the anchor is dropped), a sharp right turn at 6 m/s (a window turning beyond
+    track_turn_max), a 9 s gap without fixes (a window too long), then a steady right curve
+    in which the gyro yaw crosses -pi within the window (the wrap) and navigation starts with
+    the half-turn correction; a stop (zero-velocity updates from the INS speed alone), away
+    again."""
+    s = trajectory.DriveScript(yaw0_rad=2.0)
+    s.hold(6.0)
+    s.speed_to(2.5, 1.0)
+    s.hold(3.5)
+    s.speed_to(6.0, 1.5)
+    s.turn(-2.45, 0.3, ramp_s=1.0)
+    s.turn(-1.2, 0.12, ramp_s=1.0)
+    s.speed_to(0.0, 2.0)
+    s.hold(5.0)
+    s.speed_to(8.0, 2.0)
+    s.hold(max(0.0, duration_s - s.t_s))
+    truth, imu, fixes = simulate(s, duration_s, seed=31)
+    fixes = [f._replace(speed_m_s=-1.0, course_deg=math.nan) for f in fixes]
+    i = fix_at(fixes, 9.0)
+    fixes[i] = fixes[i]._replace(hdop=3.0)
+    fixes = [f for f in fixes if not 18.5 < f.t_fix_s < 27.5]
+    return Drive(truth, imu, fixes, ())
+
+
 def car_config(**settings):
     """The car profile with `settings` applied. What a test means to cover is set explicitly,
     so that retuning the defaults cannot silently drop it."""
@@ -182,6 +209,7 @@ def firmware_snapshot(nav):
         "still_lp": nav._st,
         "level_sums": nav._lvl,
         "init_diag": nav._init,
+        "track": nav._trk,
         "ring_p": nav._ring_p,
         "ring_v": nav._ring_v,
         "corr": nav._corr,
@@ -204,6 +232,8 @@ def firmware_snapshot(nav):
         "fix_queued": nav._fix_queued,
         "used_tick": nav._used_tick,
         "speed_tick": nav._speed_tick,
+        "trk_set": nav._trk_set,
+        "trk_tick": nav._trk_tick,
         "fix_lat_e7": nav._fix_lat,
         "fix_lon_e7": nav._fix_lon,
         "fix_quality": nav._fix_quality,
@@ -469,3 +499,35 @@ def test_model_of_the_simple_board_model_and_the_recovery_paths():
     assert seen.zupts >= 3 and seen.nhcs >= 10
     assert seen.health == {0, 1, 2}
     assert nav.state == NAVIGATING  # navigating again after the fault
+
+
+def test_model_of_the_start_from_the_gnss_track():
+    """No speed and course from the receiver: the track anchor (kept, moved on by a window too
+    slow, too long or turning too much, dropped at an unusable fix), the yaw wrap within the
+    window, the start from the chord with the half-turn correction and the track's velocity
+    sigma, then navigation on positions alone with a stop, all bit for bit."""
+    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1)
+    drive = track_drive(60.0)
+    n = len(drive.truth.t_s) - 1
+    anchors = []  # the anchor fix's time (s) whenever an anchor is set anew
+    start_p_vel = []
+
+    def tick(nav, model, k):
+        held = nav._trk_set, nav._trk_tick
+        was = nav.state
+        nav.imu_raw(drive.gyro[k], drive.accel[k])
+        model.imu_raw(drive.gyro[k], drive.accel[k])
+        if nav._trk_set and (nav._trk_set, nav._trk_tick) != held:
+            anchors.append(round(nav._trk_tick * DT))
+        if was != NAVIGATING and nav.state == NAVIGATING:
+            start_p_vel.append(float(nav.kf.P[3 * 16]))
+
+    nav, _, seen = side_by_side(drive, cfg, n, hooks=dict.fromkeys(range(n), tick))
+    # 4 s: first; 8: too slow; 14: after the unusable fix; 18: turning beyond 30 deg;
+    # 28: after a window of 10 s
+    assert anchors == [4, 8, 14, 18, 28], anchors
+    assert 32.0 < seen.nav_tick * DT < 32.5, seen.nav_tick  # the 28-32 s window
+    assert start_p_vel == [float(cfg.track_vel_sigma) ** 2]
+    assert nav._speed_tick == -1000000  # no fix had a speed
+    assert len(seen.accepted_gnss) >= 15 and seen.zupts >= 3 and seen.still_ticks >= 400
+    assert nav.resets == 0 and nav.state == NAVIGATING
