@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint accuracy bench-nav clean
+.PHONY: demo test lint accuracy bench-nav accuracy-report replay clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -29,6 +29,15 @@ accuracy: $(STAMP)
 # Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
 bench-nav: $(STAMP)
 	$(BIN)/python -m host_emulator.bench_nav
+
+# Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
+# docs/accuracy.md and docs/benchmarks/accuracy.json).
+accuracy-report: $(STAMP)
+	$(BIN)/python -m host_emulator.replay.accuracy_report
+
+# The real drive through the firmware with report and plots (out/replay/).
+replay: $(STAMP)
+	$(BIN)/python -m host_emulator replay --dataset drive_0708 --out out/replay
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -4,6 +4,10 @@
     run --scenario NAME --out DIR   simulate, run the firmware on an emulated board, evaluate
     run --stimulus FILE --out DIR   replay a stimulus file through the firmware
     parity --scenario NAME --duration S   firmware on CPython vs the NumPy model, bit for bit
+    replay --dataset drive_0708 --out DIR   a real recording through the firmware, evaluated
+    replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout
+    export --scenario NAME | --dataset drive_0708 --out DIR   KF-GINS files + RTKLIB .pos
+    session record|replay ...       record a board's output; replay it bit for bit
     demo                            urban_drive on CPython, with a short summary
     gnss-dump FILE                  what the firmware's NMEA parser makes of a receiver log
 
@@ -42,6 +46,97 @@ def _run(args):
     return 0
 
 
+def _replay_options(args, has_gnss):
+    from host_emulator.replay import replay_run, to_stimulus
+
+    noise = args.gnss_noise
+    if noise is None:
+        noise = None if has_gnss else 1.5  # a recorded GNSS file as it is; else the protocol
+    elif noise < 0:
+        raise EmulatorError("--gnss-noise must be 0 or more")
+    seed = 1 if args.seed is None else args.seed
+    if seed < 0:
+        raise EmulatorError("--seed must be 0 or more")
+    if args.gnss_velocity is not None and not args.gnss_velocity >= 0:
+        raise EmulatorError("--gnss-velocity must be 0 or more")
+    return to_stimulus.ReplayOptions(
+        gnss_rate_hz=args.gnss_rate,
+        gnss_noise_m=noise,
+        outages=replay_run.parse_outages(args.outages),
+        seed=seed,
+        duration_s=args.duration,
+        gnss_velocity_sigma=args.gnss_velocity,
+    )
+
+
+def _add_replay_options(p):
+    p.add_argument("--gnss-rate", type=float, default=1.0, help="GNSS epochs per second (1)")
+    p.add_argument(
+        "--gnss-noise", type=float, default=None,
+        help="white noise sigma per horizontal axis, m (vertical twice); default 1.5 when the "
+        "GNSS input is made from the reference, none for a recorded GNSS file",
+    )  # fmt: skip
+    p.add_argument(
+        "--outages", default=None,
+        help="GNSS outages START+LENGTH,... in s after the first epoch t0 (default "
+        "60+15,200+15,400+15), or none",
+    )  # fmt: skip
+    p.add_argument(
+        "--gnss-velocity", type=float, default=None, metavar="SIGMA",
+        help="also send the reference velocity with this noise (m/s) as RMC speed/course "
+        "(default: positions only)",
+    )  # fmt: skip
+    p.add_argument("--duration", type=float, default=None, help="replay the first seconds")
+    p.add_argument(
+        "--seed", type=int, default=None,
+        help="GNSS noise seed of a replay (default 1: the protocol); a scenario's seed (0)",
+    )  # fmt: skip
+    p.add_argument("--gnss-pos", help="an RTKLIB .pos to use as the GNSS input")
+    p.add_argument("--truth-pos", help="an RTKLIB .pos to use as the reference (antenna)")
+    p.add_argument("--data", help="drive_0708's directory (default ../shared/data/drive_0708)")
+
+
+def _load(args):
+    from host_emulator.replay import replay_run
+
+    return replay_run.load_dataset(
+        getattr(args, "dataset", None), getattr(args, "kf_gins", None), args.data,
+        gnss_pos=args.gnss_pos, truth_pos=args.truth_pos,
+    )  # fmt: skip
+
+
+def _replay(args):
+    from host_emulator import demo
+    from host_emulator.replay import replay_run
+
+    ds = _load(args)
+    m = replay_run.replay(
+        ds, _replay_options(args, ds.gnss is not None), args.runtime, args.out,
+        show_progress=not args.quiet,
+    )  # fmt: skip
+    print(demo.summary(m, args.out))
+    return 0
+
+
+def _export(args):
+    from host_emulator.replay import replay_run
+
+    if args.scenario:
+        from host_emulator.scenario_run import check_duration, check_scenario, check_seed
+
+        check_scenario(args.scenario)
+        check_duration(args.duration)
+        seed = 0 if args.seed is None else args.seed
+        check_seed(seed)
+        written = replay_run.export_scenario(args.scenario, args.duration, seed, args.out)
+    else:
+        ds = _load(args)
+        written = replay_run.export_replay(ds, _replay_options(args, ds.gnss is not None), args.out)
+    for path in written:
+        print(path)
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog="python -m host_emulator",
@@ -62,6 +157,27 @@ def main(argv=None):
         "parity", help="firmware on CPython vs the NumPy float32 model, frame by frame",
         add_help=False,
     )  # fmt: skip
+    rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
+    src = rp.add_mutually_exclusive_group(required=True)
+    src.add_argument("--dataset", help="a built-in recording: drive_0708")
+    src.add_argument("--kf-gins", help="a directory in the KF-GINS layout (docs/formats.md)")
+    _add_replay_options(rp)
+    rp.add_argument("--runtime", default="cpython", choices=("cpython", "micropython"))
+    rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
+    rp.add_argument("--quiet", action="store_true", help="no progress bar")
+    ex = sub.add_parser(
+        "export", help="a scenario or a replay's input as KF-GINS text files and RTKLIB .pos"
+    )
+    src = ex.add_mutually_exclusive_group(required=True)
+    src.add_argument("--scenario", help="a simulated scenario (its truth, IMU and GNSS)")
+    src.add_argument("--dataset", help="a recording's replay input: drive_0708")
+    src.add_argument("--kf-gins", help="a KF-GINS directory (re-export with the options)")
+    _add_replay_options(ex)
+    ex.add_argument("--out", required=True, help="output directory")
+    sub.add_parser(
+        "session", help="record a board's output, or replay a recording bit for bit",
+        add_help=False,
+    )  # fmt: skip
     demo = sub.add_parser("demo", help="urban_drive on CPython with a short summary")
     demo.add_argument("--out", default="out/demo")
     sub.add_parser(
@@ -79,12 +195,20 @@ def main(argv=None):
             from host_emulator import parity
 
             return parity.main(rest)
+        if args.command == "session":
+            from host_emulator import session
+
+            return session.main(rest)
         if rest:
             parser.error("unrecognized arguments: " + " ".join(rest))
         if args.command == "scenarios":
             return _scenarios()
         if args.command == "run":
             return _run(args)
+        if args.command == "replay":
+            return _replay(args)
+        if args.command == "export":
+            return _export(args)
         if args.command == "demo":
             from host_emulator import demo
 

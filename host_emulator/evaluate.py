@@ -123,10 +123,14 @@ def rms(x):
     return float(np.sqrt(np.mean(np.square(x)))) if np.size(x) else None
 
 
-def accuracy(err, outages=(), skip_s=0.0):
-    """The accuracy figures of metrics.json from Errors (after skip_s more seconds)."""
-    keep = err.t_s >= (err.t_s[0] + skip_s if err.t_s.size else 0.0)
+def accuracy(err, outages=(), skip_s=0.0, from_s=None):
+    """The accuracy figures of metrics.json from Errors (after skip_s more seconds, or from
+    the time from_s). Attitude figures are None where the truth has no attitude (NaN)."""
+    start = err.t_s[0] + skip_s if err.t_s.size else 0.0
+    keep = err.t_s >= (start if from_s is None else from_s)
     dp, dv, da = err.dp[keep], err.dv[keep], err.da[keep]
+    if np.isnan(da).any():
+        da = np.zeros((0, 3))
     ok = ~err.in_outage[keep]
     horiz = np.hypot(dp[:, 0], dp[:, 1])
     deg = 180.0 / np.pi

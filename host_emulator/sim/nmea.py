@@ -9,7 +9,8 @@ times (8N1) and counts as arrived at the end of its stop bit.
 Fields: time hhmmss.ss (UTC = model.utc_start + t), latitude/longitude as ddmm.mmmmmm with
 six minute decimals (the 1e-7 deg fix converts exactly: frac_e7 * 6 = minutes * 1e6), GGA
 altitude above mean sea level = ellipsoidal height - geoid_sep_m with 3 decimals, HDOP with 2,
-RMC speed in knots with 3 decimals and course with 2 (empty below the course threshold);
+RMC speed in knots with 3 decimals and course with 2 (empty below the course threshold; both
+empty when the epoch's speed is NaN: no velocity reported);
 RMC mode A (D while quality 2). A no-fix epoch prints an empty GGA (quality 0) and RMC
 status V, as receivers do. GSA lists `nsat` satellite ids, PDOP/HDOP/VDOP.
 
@@ -60,6 +61,15 @@ def _utc(start, t_s):
     return f"{t:%H%M%S}.{cs % 100:02d}", f"{t:%d%m%y}"
 
 
+def _speed_course(fx):
+    """RMC/VTG speed (knots) and course fields; both empty when the speed is NaN (a receiver
+    configured not to report velocity: the replay of position-only data)."""
+    if np.isnan(fx.speed_m_s):
+        return "", ""
+    kn = f"{fx.speed_m_s * KNOTS_PER_M_S:.3f}"
+    return kn, "" if np.isnan(fx.course_deg) else f"{fx.course_deg:.2f}"
+
+
 def epoch_sentences(fx, model, start):
     """The sentences (bytes) of one epoch (a GnssFix)."""
     hms, dmy = _utc(start, fx.t_fix_s)
@@ -82,17 +92,16 @@ def epoch_sentences(fx, model, start):
             if ok:
                 lat, ns = _lat(fx.lat_e7)
                 lon, ew = _lon(fx.lon_e7)
-                kn = fx.speed_m_s * KNOTS_PER_M_S
-                course = "" if np.isnan(fx.course_deg) else f"{fx.course_deg:.2f}"
+                kn, course = _speed_course(fx)
                 mode = "D" if fx.quality == 2 else "A"
-                body = f"{tk}RMC,{hms},A,{lat},{ns},{lon},{ew},{kn:.3f},{course},{dmy},,,{mode}"
+                body = f"{tk}RMC,{hms},A,{lat},{ns},{lon},{ew},{kn},{course},{dmy},,,{mode}"
             else:
                 body = f"{tk}RMC,{hms},V,,,,,,,{dmy},,,N"
         elif name == "VTG":
             if ok:
-                kn = fx.speed_m_s * KNOTS_PER_M_S
-                course = "" if np.isnan(fx.course_deg) else f"{fx.course_deg:.2f}"
-                body = f"{tk}VTG,{course},T,,M,{kn:.3f},N,{fx.speed_m_s * 3.6:.3f},K,A"
+                kn, course = _speed_course(fx)
+                kmh = "" if np.isnan(fx.speed_m_s) else f"{fx.speed_m_s * 3.6:.3f}"
+                body = f"{tk}VTG,{course},T,,M,{kn},N,{kmh},K,A"
             else:
                 body = f"{tk}VTG,,T,,M,,N,,K,N"
         elif name == "GSA":

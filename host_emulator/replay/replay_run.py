@@ -1,0 +1,332 @@
+"""`python -m host_emulator replay`: a recorded drive through the unmodified firmware.
+
+    dataset (drive_0708, or a KF-GINS directory) -> to_stimulus.convert -> DIR/stimulus.bin
+        -> firmware (CPython or the MicroPython VM) -> DIR/frames.bin -> errors against the
+        recording's reference -> DIR/metrics.json, report.md, *.png, solution.pos
+
+The outputs are those of `run` (scenario_run.py); solution.pos is the firmware's track as an
+RTKLIB solution (10 Hz, at the extended frames) for rtkplot users.
+"""
+
+import json
+import pathlib
+import time
+
+import numpy as np
+
+from host_emulator import evaluate, frames, report, scenario_run
+from host_emulator.errors import EmulatorError
+from host_emulator.replay import to_stimulus
+
+OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
+
+# DESIGN.md 10: two open filters on drive_0708 under the same protocol (1 Hz, 1.5/1.5/3 m,
+# 15 s outages at t0 + 60/200/400 s, metrics from t0 + 30 s)
+REFERENCE_ROWS = (
+    ("raw 1 Hz GNSS input", "2.13 m", "3.17 m", "-"),
+    ("KF-GINS (C++, 21 states, tuned noise)", "2.15 m", "1.69 m", "22.3 / 27.5 / 11.5 m"),
+    ("rtklibexplorer GNSS_IMU (Python, 15 states)", "2.41 m", "1.73 m", "19.7 / 32.7 / 16.5 m"),
+)
+
+
+def parse_outages(spec):
+    """'60+15,200+15' -> ((60.0, 15.0), (200.0, 15.0)); 'none' -> ()."""
+    if spec is None:
+        return to_stimulus.PROTOCOL_OUTAGES
+    if spec.strip().lower() in ("none", ""):
+        return ()
+    out = []
+    for part in spec.split(","):
+        try:
+            start, length = (float(x) for x in part.split("+"))
+        except ValueError:
+            raise EmulatorError(
+                f"--outages: {part!r} is not START+LENGTH in seconds after t0 "
+                "(e.g. 60+15,200+15, or none)"
+            ) from None
+        if start < 0 or length <= 0:
+            raise EmulatorError(f"--outages: {part!r} needs START >= 0 and LENGTH > 0")
+        out.append((start, length))
+    return tuple(out)
+
+
+def load_dataset(dataset=None, kf_gins=None, data_dir=None, gnss_pos=None, truth_pos=None):
+    """The Dataset named by the command line: a built-in recording or a KF-GINS directory,
+    optionally with its GNSS input or its reference replaced by RTKLIB .pos files."""
+    if kf_gins:
+        from host_emulator.replay import kfgins
+
+        ds = kfgins.read(kf_gins)
+    elif dataset == "drive_0708":
+        from host_emulator.replay import drive_0708
+
+        ds = drive_0708.load(data_dir)
+    else:
+        raise EmulatorError(f"unknown dataset {dataset!r}: known: drive_0708 (or --kf-gins DIR)")
+    if gnss_pos or truth_pos:
+        from host_emulator.replay import rtklib_pos
+
+        if gnss_pos:
+            ds.gnss = rtklib_pos.read(gnss_pos).positions
+        if truth_pos:
+            ds.truth = rtklib_pos.read(truth_pos).positions
+            ds.truth_point = "antenna"
+    return ds
+
+
+def evaluate_replay(rep, fw, runtime):
+    """(metrics, track, errors) of a finished firmware run on a Replay."""
+    decoded = frames.decode(fw.out)
+    o = rep.truth.origin
+    tr = evaluate.track(decoded, rep.stimulus.tick_us * 1e-6, (o.lat_e7, o.lon_e7, o.h_m))
+    truth = rep.truth
+    err = evaluate.errors(tr, truth.t_s, truth.p_n, truth.v_n, truth.ypr, rep.outages)
+    acc = evaluate.accuracy(err, rep.outages, from_s=rep.window_s)
+    g = rep.gnss
+    sel = g.valid & (g.t_fix_s >= rep.window_s)
+    fe = evaluate.frame_errors(decoded)
+    blocks = fw.blocks_per_tick
+    opt = rep.options
+    metrics = {
+        "scenario": rep.name,
+        "dataset": rep.name,
+        "duration_s": float(rep.stimulus.duration_s),
+        "seed": int(opt.seed),
+        "runtime": runtime,
+        "ticks": int(fw.ticks),
+        "wall_s": float(fw.wall_s),
+        "realtime_factor": float(rep.stimulus.duration_s / fw.wall_s) if fw.wall_s else None,
+        "horiz_rms_m": acc["horiz_rms_m"],
+        "vert_rms_m": acc["vert_rms_m"],
+        "vel_rms_m_s": acc["vel_rms_m_s"],
+        "roll_rms_deg": acc["roll_rms_deg"],
+        "pitch_rms_deg": acc["pitch_rms_deg"],
+        "yaw_rms_deg": acc["yaw_rms_deg"],
+        "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[sel, :2].T)) if sel.any() else None,
+        "gnss_vert_rms_m": evaluate.rms(g.err_n_m[sel, 2]) if sel.any() else None,
+        "outages": acc["outages"],
+        "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
+        "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
+        "tick_float_ops_max": None,
+        "align_time_s": tr.align_time_s,
+        "frames": len(decoded.frames),
+        "frame_errors": fe["total"],
+        # the protocol and more detail
+        "t0_s": rep.t0_s,
+        "metrics_from_s": rep.window_s,
+        "t_start_gpst": rep.t_start_gpst,
+        "gnss_rate_hz": opt.gnss_rate_hz,
+        "gnss_noise_m": opt.gnss_noise_m,
+        "gnss_velocity_sigma": opt.gnss_velocity_sigma,
+        "horiz_rms_gnss_m": acc["horiz_rms_gnss_m"],
+        "horiz_max_m": acc["horiz_max_m"],
+        "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
+        "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
+        "imu_ranges": rep.ranges,
+        "frame_error_detail": fe,
+        "ext_frames": len(decoded.ext),
+        "nmea_rejected": fw.stats.get("nmea_rejected"),
+        "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
+        "overruns": fw.stats.get("overruns"),
+    }
+    if blocks is not None:
+        metrics["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
+        metrics["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
+    return metrics, tr, err
+
+
+def markdown(m, rep, console=()):
+    """report.md of a replay: the protocol, the figures, the reference filters' figures."""
+    fmt = report.fmt
+    opt = rep.options
+    outs = ", ".join(f"t0+{s:g} s for {n:g} s" for s, n in opt.outages) or "none"
+    vel = (
+        "no velocity (RMC speed and course empty)"
+        if opt.gnss_velocity_sigma is None
+        else f"velocity with {opt.gnss_velocity_sigma:g} m/s noise per axis"
+    )
+    noise = "as recorded" if opt.gnss_noise_m is None else (
+        f"white noise {opt.gnss_noise_m:g}/{opt.gnss_noise_m:g}/{2 * opt.gnss_noise_m:g} m "
+        f"(N/E/D, numpy default_rng({opt.seed}))"
+    )  # fmt: skip
+    lines = [
+        f"# Replay: {m['dataset']} ({m['duration_s']:g} s, {m['runtime']})",
+        "",
+        "The unmodified firmware loop ran on an emulated board fed from the recording: the "
+        "IMU as BMI055 registers at 200 Hz, the reference positions degraded into NMEA bytes "
+        "on the GNSS UART with PPS. Errors are those of its output frames against the "
+        "recording's reference, at 10 Hz.",
+        "",
+        f"- GNSS input: {opt.gnss_rate_hz:g} Hz, {noise}, {vel}; outages: {outs}.",
+        f"- t0 (first GNSS epoch) = {m['t0_s']:.1f} s into the run; metrics from "
+        f"{m['metrics_from_s']:.1f} s; navigating from {fmt(m['align_time_s'], 1, unit='s')}.",
+        f"- IMU ranges: gyro +-{rep.ranges['gyro_range_dps']} deg/s (peak "
+        f"{rep.ranges['gyro_peak_dps']:.1f}), accel +-{rep.ranges['accel_range_g']} g (peak "
+        f"{rep.ranges['accel_peak_g']:.2f}).",
+        "",
+        "| figure | firmware | raw GNSS input |",
+        "|---|---|---|",
+        f"| horizontal RMS, GNSS available | {fmt(m['horiz_rms_gnss_m'], unit='m')} | "
+        f"{fmt(m['gnss_horiz_rms_m'], unit='m')} |",
+        f"| horizontal RMS, all | {fmt(m['horiz_rms_m'], unit='m')} | |",
+        f"| vertical RMS | {fmt(m['vert_rms_m'], unit='m')} | "
+        f"{fmt(m['gnss_vert_rms_m'], unit='m')} |",
+        f"| velocity RMS (3D) | {fmt(m['vel_rms_m_s'], 3, unit='m/s')} | |",
+        f"| yaw / pitch / roll RMS | {fmt(m['yaw_rms_deg'])} / {fmt(m['pitch_rms_deg'])} / "
+        f"{fmt(m['roll_rms_deg'], unit='deg')} | |",
+        f"| position inside 3-sigma | {fmt(m['pos_3sigma_coverage'], 3)} | |",
+        "",
+    ]
+    if m["outages"]:
+        lines += ["| GNSS outage (run clock) | length | horizontal error at its end |",
+                  "|---|---|---|"]  # fmt: skip
+        for o in m["outages"]:
+            lines.append(
+                f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
+                f"{fmt(o['horiz_err_end_m'], unit='m')} |"
+            )
+        lines.append("")
+    if m["dataset"] == "drive_0708" and opt == to_stimulus.ReplayOptions(duration_s=None):
+        lines += [
+            "Other filters under the same protocol (DESIGN.md 10):",
+            "",
+            "| filter | horizontal RMS with GNSS | vertical RMS | end of outages 1/2/3 |",
+            "|---|---|---|---|",
+        ]
+        lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in REFERENCE_ROWS]
+        lines.append("")
+    if m["yaw_rms_deg"] is None:
+        lines += ["The reference has no attitude: attitude errors are not scored.", ""]
+    lines += [
+        "## The run",
+        "",
+        f"- {m['ticks']} ticks in {m['wall_s']:.1f} s: {m['realtime_factor']:.1f}x real time.",
+        f"- Output: {m['frames']} frames, {m['frame_errors']} frame errors; "
+        f"{m['nmea_rejected']} NMEA sentences rejected.",
+        "",
+        "## Plots",
+        "",
+    ]
+    for p in report.PLOTS:
+        lines += [f"![{p[:-4]}]({p})", ""]
+    if console:
+        lines += ["## Firmware console", "", "```", *console, "```", ""]
+    return "\n".join(lines)
+
+
+def write_solution_pos(path, rep, tr):
+    """The firmware's navigating track as an RTKLIB .pos (GPST, lat/lon/height, sigmas,
+    velocity; Q 7 "dead reckoning" where the frame said GNSS was not valid)."""
+    import pymap3d
+
+    from host_emulator.replay import rtklib_pos
+
+    nav = tr.state == 2
+    o = rep.truth.origin
+    p = tr.p_n[nav]
+    lat, lon, h = pymap3d.enu2geodetic(
+        p[:, 0], p[:, 1], p[:, 2], o.lat_e7 * 1e-7, o.lon_e7 * 1e-7, o.h_m
+    )
+    positions, q = rtklib_pos.from_track(
+        rep.t_start_gpst + tr.t_s[nav], lat, lon, h, tr.sigma[nav, 0:3], tr.v_n[nav],
+        dead_reckoning=~tr.gnss_valid[nav],
+    )  # fmt: skip
+    rtklib_pos.write(path, positions, q, comment=f"firmware solution, replay of {rep.name}")
+
+
+def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progress=True,
+           log=print):  # fmt: skip
+    """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
+    input or when the firmware never navigates."""
+    if runtime not in scenario_run.RUNTIMES:
+        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    options = options or to_stimulus.ReplayOptions()
+    if options.duration_s is not None:
+        scenario_run.check_duration(options.duration_s)
+    out_dir = pathlib.Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise EmulatorError(f"cannot create output directory {out_dir}: {e.strerror}") from None
+    for name in (*OUTPUTS, "stimulus.bin"):
+        if (out_dir / name).exists():
+            (out_dir / name).unlink()
+    t0 = time.perf_counter()
+    rep = to_stimulus.convert(ds, options)
+    stim_path = out_dir / "stimulus.bin"
+    rep.stimulus.write(stim_path)
+    log(
+        f"converted {ds.name}: {rep.stimulus.duration_s:.0f} s, {len(rep.gnss)} GNSS epochs "
+        f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
+    )
+    prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
+    fw = scenario_run.run_firmware(rep.stimulus, runtime, stim_path, prog)
+    (out_dir / "frames.bin").write_bytes(fw.out)
+    metrics, tr, err = evaluate_replay(rep, fw, runtime)
+    if not err.t_s.size:
+        said = "; ".join(fw.console) or "nothing"
+        raise EmulatorError(
+            f"the firmware never navigated on {ds.name} (its console: {said}): nothing to score"
+        )
+    g = rep.gnss
+    report.plots(
+        out_dir,
+        f"{ds.name} ({runtime})",
+        tr,
+        err,
+        rep.truth,
+        rep.outages,
+        (g.p_ant_n + g.err_n_m)[g.valid],
+    )
+    write_solution_pos(out_dir / "solution.pos", rep, tr)
+    (out_dir / "report.md").write_text(markdown(metrics, rep, fw.console))
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def export_scenario(scenario, duration_s, seed, out_dir):
+    """A simulated scenario as KF-GINS files (IMU, GNSS fixes, truth .nav, dataset.yaml) and
+    its GNSS fixes as an RTKLIB .pos; returns the paths written."""
+    from host_emulator.replay import kfgins, rtklib_pos
+    from host_emulator.sim import board_input
+
+    sim = board_input.simulate(scenario, duration_s, seed)
+    ds = kfgins.from_simulation(sim)
+    out = pathlib.Path(out_dir)
+    yaml = kfgins.write(out, ds)
+    rtklib_pos.write(out / "gnss.pos", ds.gnss, comment=f"GNSS fixes of {scenario}, seed {seed}")
+    return [yaml, out / "gnss.pos"]
+
+
+def export_replay(ds, options, out_dir):
+    """A replay's input as KF-GINS files: the recording's IMU (rotated into body FRD), the
+    GNSS fixes the firmware is sent (noise and outages applied, with the sigmas it is told),
+    the reference; plus those fixes as an RTKLIB .pos. Another filter run on these files sees
+    what the firmware sees."""
+    from host_emulator.replay import dataset as dsm
+    from host_emulator.replay import kfgins, rtklib_pos
+
+    rep = to_stimulus.convert(ds, options)
+    g = rep.gnss
+    ok = g.valid
+    t = rep.t_start_gpst + g.t_fix_s[ok]
+    sig = np.stack([g.sigma_h_m[ok], g.sigma_h_m[ok], g.sigma_v_m[ok]], axis=-1)
+    fixes = dsm.Positions(t, g.lat_e7[ok] * 1e-7, g.lon_e7[ok] * 1e-7, g.h_m[ok].astype(float), sig)
+    span = (ds.imu.t_s > rep.t_start_gpst) & (
+        ds.imu.t_s <= rep.t_start_gpst + rep.stimulus.duration_s
+    )
+    cut = dsm.Dataset(
+        name=ds.name,
+        imu=dsm.Imu(ds.imu.t_s[span], ds.imu.gyro_rad_s[span], ds.imu.accel_m_s2[span]),
+        truth=ds.truth,
+        truth_point=ds.truth_point,
+        gnss=fixes,
+        mount_rpy_deg=ds.mount_rpy_deg,
+        lever_frd_m=ds.lever_frd_m,
+        gravity_m_s2=ds.gravity_m_s2,
+        description=f"{ds.description}; replay input (seed {options.seed})",
+    )
+    out = pathlib.Path(out_dir)
+    yaml = kfgins.write(out, cut)
+    rtklib_pos.write(out / "gnss.pos", fixes, comment=f"GNSS input of the {ds.name} replay")
+    return [yaml, out / "gnss.pos"]
