@@ -114,6 +114,45 @@ def _clean(out_dir, keep_stimulus=False):
             p.unlink()
 
 
+def firmware_metrics(fw, decoded, tr, acc, duration_s):
+    """The metrics.json figures every evaluated run has (a simulation's or a replay's): run
+    time, accuracy (evaluate.accuracy's dict), GC blocks, output frames, firmware counters."""
+    fe = evaluate.frame_errors(decoded)
+    blocks = fw.blocks_per_tick
+    m = {
+        "ticks": int(fw.ticks),
+        "wall_s": float(fw.wall_s),
+        "realtime_factor": float(duration_s / fw.wall_s) if fw.wall_s > 0 else None,
+        "horiz_rms_m": acc["horiz_rms_m"],
+        "vert_rms_m": acc["vert_rms_m"],
+        "vel_rms_m_s": acc["vel_rms_m_s"],
+        "roll_rms_deg": acc["roll_rms_deg"],
+        "pitch_rms_deg": acc["pitch_rms_deg"],
+        "yaw_rms_deg": acc["yaw_rms_deg"],
+        "outages": acc["outages"],
+        "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
+        "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
+        "tick_float_ops_max": None,  # not counted separately: GC blocks are the proxy
+        "align_time_s": tr.align_time_s,
+        "frames": len(decoded.frames),
+        "frame_errors": fe["total"],
+        # more detail
+        "horiz_rms_gnss_m": acc["horiz_rms_gnss_m"],
+        "horiz_max_m": acc["horiz_max_m"],
+        "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
+        "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
+        "frame_error_detail": fe,
+        "ext_frames": len(decoded.ext),
+        "nmea_rejected": fw.stats.get("nmea_rejected"),
+        "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
+        "overruns": fw.stats.get("overruns"),
+    }
+    if blocks is not None:
+        m["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
+        m["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
+    return m
+
+
 def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
     """metrics dict (and the report's inputs) of a finished firmware run."""
     tick_s = stim.tick_us * 1e-6
@@ -127,45 +166,15 @@ def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
     g = sim.gnss
     align = tr.align_time_s
     ok = g.valid & (g.t_fix_s >= (align if align is not None else np.inf))
-    fe = evaluate.frame_errors(decoded)
-    blocks = fw.blocks_per_tick
     metrics = {
         "scenario": sim.name,
         "duration_s": float(stim.duration_s),
         "seed": int(sim.seed),
         "runtime": runtime,
-        "ticks": int(fw.ticks),
-        "wall_s": float(fw.wall_s),
-        "realtime_factor": float(stim.duration_s / fw.wall_s) if fw.wall_s > 0 else None,
-        "horiz_rms_m": acc["horiz_rms_m"],
-        "vert_rms_m": acc["vert_rms_m"],
-        "vel_rms_m_s": acc["vel_rms_m_s"],
-        "roll_rms_deg": acc["roll_rms_deg"],
-        "pitch_rms_deg": acc["pitch_rms_deg"],
-        "yaw_rms_deg": acc["yaw_rms_deg"],
+        **firmware_metrics(fw, decoded, tr, acc, stim.duration_s),
         "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[ok, :2].T)) if ok.any() else None,
-        "outages": acc["outages"],
-        "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
-        "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
-        "tick_float_ops_max": None,  # not counted separately: GC blocks are the proxy
-        "align_time_s": align,
-        "frames": len(decoded.frames),
-        "frame_errors": fe["total"],
-        # more detail
-        "horiz_rms_gnss_m": acc["horiz_rms_gnss_m"],
-        "horiz_max_m": acc["horiz_max_m"],
-        "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
-        "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
-        "frame_error_detail": fe,
-        "ext_frames": len(decoded.ext),
         "nmea_damaged_sentences": int(sim.damaged_sentences),
-        "nmea_rejected": fw.stats.get("nmea_rejected"),
-        "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
-        "overruns": fw.stats.get("overruns"),
     }
-    if blocks is not None:
-        metrics["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
-        metrics["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
     metrics.update(extra or {})
     return metrics, tr, err
 

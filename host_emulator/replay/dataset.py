@@ -21,6 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 GPS_EPOCH = datetime.datetime(1980, 1, 6)
+# Swaps the first two axes and flips the third: FRD <-> the firmware's RFU body axes, and
+# NED <-> ENU (its own inverse).
+SWAP_FRD_RFU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 WEEK_S = 604800.0
 
 

@@ -41,12 +41,12 @@ MOUNT_RPY_DEG = (180.0, -6.79, 185.35)
 LEVER_FRD_M = (0.0, 0.05, 0.0)
 LOGGER_DELAY_S = 0.125
 # This IMU is not a BMI055: parked with the engine running it shows 0.07-0.14 m/s^2 and up to
-# 2.4 deg/s (pitch axis) of vibration at 100 Hz, far above the BMI055 datasheet noise the
-# firmware defaults to. Its board settings, from that measurement and a sweep on this drive
-# (docs/accuracy.md): gyro ARW 0.1 deg/s/sqrt(Hz) (the default 0.028), accel VRW 1 mg/sqrt(Hz)
-# (0.3), standstill when the 0.5 s rms of rotation stays under 3 deg/s and of specific-force
-# changes under 0.3 m/s^2 (still: 95 % of windows below 2.8 deg/s and 0.22 m/s^2; moving:
-# 95 % above 2.7 deg/s and 0.44 m/s^2).
+# 2.4 deg/s (pitch axis) of vibration at 100 Hz (tests/replay/test_drive_0708.py), far above
+# the BMI055 datasheet noise the firmware defaults to. Its board settings, chosen from that
+# vibration and a sweep of the replay on this drive (docs/accuracy.md compares them with the
+# defaults): gyro ARW 0.1 deg/s/sqrt(Hz) (default 0.028), accel VRW 1 mg/sqrt(Hz) (default
+# 0.3), standstill when the rms of rotation stays under 3 deg/s and of specific-force changes
+# under 0.3 m/s^2 (above the parked vibration, below normal driving).
 BOARD_CONFIG = {
     "gyro_arw": 0.0017,  # rad/s/sqrt(Hz)
     "accel_vrw": 0.01,  # m/s^2/sqrt(Hz)

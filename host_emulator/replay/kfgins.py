@@ -49,7 +49,7 @@ import pymap3d
 
 from host_emulator.sim.trajectory import euler_to_dcm
 
-from .dataset import WEEK_S, Dataset, Imu, Positions, mount_matrix
+from .dataset import SWAP_FRD_RFU, WEEK_S, Dataset, Imu, Positions, mount_matrix
 from .formats import FormatError, check_increasing, gpst_of_utc, parse_table, read_lines
 
 __all__ = [
@@ -487,9 +487,8 @@ def write(path, dataset, gnss=None, truth=None):
 
 # --- from a simulation ---
 
-# The simulation's board axes are right-forward-up and its navigation frame ENU; this matrix
-# swaps the first two axes and flips the third: RFU <-> FRD and ENU <-> NED (its own inverse).
-_SWAP = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+# The simulation's board axes are right-forward-up and its navigation frame ENU.
+_SWAP = SWAP_FRD_RFU
 # Mounting of the simulated board as `Dataset.mount_rpy_deg`: mount_matrix of it is _SWAP.
 SIM_MOUNT_RPY_DEG = (180.0, 0.0, 90.0)
 

@@ -84,8 +84,6 @@ def evaluate_replay(rep, fw, runtime):
     acc = evaluate.accuracy(err, rep.outages, from_s=rep.window_s)
     g = rep.gnss
     sel = g.valid & (g.t_fix_s >= rep.window_s)
-    fe = evaluate.frame_errors(decoded)
-    blocks = fw.blocks_per_tick
     opt = rep.options
     metrics = {
         "scenario": rep.name,
@@ -93,45 +91,18 @@ def evaluate_replay(rep, fw, runtime):
         "duration_s": float(rep.stimulus.duration_s),
         "seed": int(opt.seed),
         "runtime": runtime,
-        "ticks": int(fw.ticks),
-        "wall_s": float(fw.wall_s),
-        "realtime_factor": float(rep.stimulus.duration_s / fw.wall_s) if fw.wall_s else None,
-        "horiz_rms_m": acc["horiz_rms_m"],
-        "vert_rms_m": acc["vert_rms_m"],
-        "vel_rms_m_s": acc["vel_rms_m_s"],
-        "roll_rms_deg": acc["roll_rms_deg"],
-        "pitch_rms_deg": acc["pitch_rms_deg"],
-        "yaw_rms_deg": acc["yaw_rms_deg"],
+        **scenario_run.firmware_metrics(fw, decoded, tr, acc, rep.stimulus.duration_s),
         "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[sel, :2].T)) if sel.any() else None,
         "gnss_vert_rms_m": evaluate.rms(g.err_n_m[sel, 2]) if sel.any() else None,
-        "outages": acc["outages"],
-        "gc_blocks_per_tick_mean": None if blocks is None else float(np.mean(blocks)),
-        "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
-        "tick_float_ops_max": None,
-        "align_time_s": tr.align_time_s,
-        "frames": len(decoded.frames),
-        "frame_errors": fe["total"],
-        # the protocol and more detail
+        # the protocol
         "t0_s": rep.t0_s,
         "metrics_from_s": rep.window_s,
         "t_start_gpst": rep.t_start_gpst,
         "gnss_rate_hz": opt.gnss_rate_hz,
         "gnss_noise_m": opt.gnss_noise_m,
         "gnss_velocity_sigma": opt.gnss_velocity_sigma,
-        "horiz_rms_gnss_m": acc["horiz_rms_gnss_m"],
-        "horiz_max_m": acc["horiz_max_m"],
-        "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
-        "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
         "imu_ranges": rep.ranges,
-        "frame_error_detail": fe,
-        "ext_frames": len(decoded.ext),
-        "nmea_rejected": fw.stats.get("nmea_rejected"),
-        "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
-        "overruns": fw.stats.get("overruns"),
     }
-    if blocks is not None:
-        metrics["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
-        metrics["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
     return metrics, tr, err
 
 

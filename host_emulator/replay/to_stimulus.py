@@ -48,8 +48,7 @@ LEAP_S = 18  # GPST - UTC since 2017
 G0 = 9.80665  # the unit g of the BMI055's sensitivity
 FULL_SCALE_USE = 0.9
 PROTOCOL_OUTAGES = ((60.0, 15.0), (200.0, 15.0), (400.0, 15.0))  # after t0, s
-# FRD body -> the firmware's right-forward-up body (and NED -> ENU: the same swap)
-P_FRD_RFU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+P_FRD_RFU = ds.SWAP_FRD_RFU  # FRD body -> the firmware's RFU body (and NED -> ENU)
 
 
 @dataclass(frozen=True)
@@ -183,7 +182,7 @@ def _truth_on_ticks(dataset, t_start, n_ticks):
     return RunTruth(t_run, p, v, ypr, origin, tr.rpy_deg is not None)
 
 
-def _gnss_epochs(dataset, opt, t_start, t_end, rng_seed):
+def _gnss_epochs(dataset, opt, t_start, t_end):
     """(Positions of the GNSS input epochs inside the run, noise NED (M, 3))."""
     src = dataset.gnss if dataset.gnss is not None else dataset.truth
     period = 1.0 / opt.gnss_rate_hz
@@ -195,7 +194,7 @@ def _gnss_epochs(dataset, opt, t_start, t_end, rng_seed):
         raise EmulatorError(
             f"only {len(pos)} GNSS epochs at {opt.gnss_rate_hz:g} Hz in the replayed span"
         )
-    rng = np.random.default_rng(rng_seed)
+    rng = np.random.default_rng(opt.seed)
     noise = np.zeros((len(pos), 3))
     if opt.gnss_noise_m:
         s = opt.gnss_noise_m
@@ -220,7 +219,7 @@ def _gnss_sigmas(dataset, pos, opt):
     return uere, hdop, 2.0  # the firmware's gate: fixes twice as bad as usual are dropped
 
 
-def convert(dataset, opt=None, data_seed=0):
+def convert(dataset, opt=None):
     """Replay of a Dataset under the options (EmulatorError when they cannot be met)."""
     opt = opt or ReplayOptions()
     if opt.gnss_rate_hz not in (1.0, 2.0, 4.0, 5.0, 10.0):
@@ -249,7 +248,7 @@ def convert(dataset, opt=None, data_seed=0):
     accel_counts = quantise(accel / G0, 1.0 / a_lsb)
 
     truth = _truth_on_ticks(dataset, t_start, n)
-    pos, noise = _gnss_epochs(dataset, opt, t_start, t_end, opt.seed)
+    pos, noise = _gnss_epochs(dataset, opt, t_start, t_end)
     t_fix = np.round((pos.t_s - t_start) * opt.gnss_rate_hz) / opt.gnss_rate_hz
     t0 = float(t_fix[0])
     outages = [(t0 + s, length) for s, length in opt.outages]
@@ -321,7 +320,7 @@ def convert(dataset, opt=None, data_seed=0):
         model=model,
     )
     try:
-        epochs, _damaged = nmea.stream(gnss, data_seed)
+        epochs, _damaged = nmea.stream(gnss)  # nothing damaged: corrupt_per_sentence 0
     except ValueError as e:
         raise EmulatorError(str(e)) from None
     offs, data = nmea.per_tick(epochs, model.baud, n, TICK_S)

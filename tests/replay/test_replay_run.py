@@ -1,13 +1,16 @@
-"""The replay command end to end: drive_0708's first 120 s through the firmware (bounds that
-a broken mounting or time alignment exceed: yaw off by 180 deg gives 83 m, the mounting pitch
-left out 3.7 m, the IMU 0.5 s late 2.8 m horizontal RMS), the outputs, the exchange
+"""The replay command end to end: drive_0708's first 120 s through the firmware (with bounds
+that a broken mounting or time alignment exceeds, shown here too), the outputs, the exchange
 formats, and the command line's errors."""
 
+import copy
+import dataclasses
 import json
+import pathlib
 
 import numpy as np
 import pytest
 
+from host_emulator import emulator
 from host_emulator.__main__ import main
 from host_emulator.replay import drive_0708, kfgins, replay_run, rtklib_pos
 from host_emulator.replay import to_stimulus as ts
@@ -28,16 +31,22 @@ def replay_120(tmp_path_factory):
     return m, out
 
 
+def _within_bounds(m):
+    """The 120 s replay's bounds (measured on the correct conversion: 1.66 m with GNSS, 0.63
+    m/s, outage 1 ends at 6.5 m)."""
+    return (
+        m["horiz_rms_gnss_m"] < 2.0
+        and m["vel_rms_m_s"] < 0.8
+        and m["outages"][0]["horiz_err_end_m"] < 8.0
+    )
+
+
 @needs_drive
 def test_first_120_s_of_drive_0708(replay_120):
     m, out = replay_120
-    # measured: navigating at 41.3 s, 1.66 m with GNSS (raw input 2.1 m), 0.63 m/s, outage 1
-    # ends at 6.5 m
-    assert 38.0 < m["align_time_s"] < 50.0
-    assert m["horiz_rms_gnss_m"] < 2.0
+    assert 38.0 < m["align_time_s"] < 50.0  # measured 41.3 s
+    assert _within_bounds(m)
     assert m["gnss_horiz_rms_m"] > 1.8  # the input really is the noisy one
-    assert m["vel_rms_m_s"] < 0.8
-    assert m["outages"][0]["horiz_err_end_m"] < 8.0
     assert m["frame_errors"] == 0 and m["yaw_rms_deg"] is None  # no attitude reference
     for name in replay_run.OUTPUTS:
         assert (out / name).stat().st_size > 0, name
@@ -46,6 +55,21 @@ def test_first_120_s_of_drive_0708(replay_120):
     assert len(sol.positions) > 700  # 10 Hz from 41 s
     assert set(np.unique(sol.q)) <= {rtklib_pos.Q_SINGLE, rtklib_pos.Q_DR}
     assert (sol.q == rtklib_pos.Q_DR).any()  # the outage
+
+
+@needs_drive
+@pytest.mark.parametrize("broken", ["mounting pitch left out", "IMU 0.5 s late"])
+def test_bounds_catch_a_broken_conversion(broken, tmp_path):
+    # measured: pitch left out 3.7 m / 1.7 m/s / 12 m; IMU 0.5 s late 2.8 m / 0.9 m/s / 8.4 m
+    ds = copy.copy(drive_0708.load())
+    if broken == "IMU 0.5 s late":
+        ds.imu = dataclasses.replace(ds.imu, t_s=ds.imu.t_s + 0.5)
+    else:
+        ds.mount_rpy_deg = (180.0, 0.0, 185.35)
+    rep = ts.convert(ds, ts.ReplayOptions(duration_s=120.0))
+    fw = emulator.run_cpython(rep.stimulus, pathlib.Path(tmp_path))
+    m, _tr, _err = replay_run.evaluate_replay(rep, fw, "cpython")
+    assert not _within_bounds(m)
 
 
 def test_export_a_scenario_and_replay_it_as_kf_gins(tmp_path, capsys):
