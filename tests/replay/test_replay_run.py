@@ -32,8 +32,8 @@ def replay_120(tmp_path_factory):
 
 
 def _within_bounds(m):
-    """The 120 s replay's bounds (measured on the correct conversion: 1.66 m with GNSS, 0.63
-    m/s, outage 1 ends at 6.5 m)."""
+    """The 120 s replay's bounds (measured on the correct conversion: 1.61 m with GNSS, 0.60
+    m/s, outage 1 ends at 6.0 m)."""
     return (
         m["horiz_rms_gnss_m"] < 2.0
         and m["vel_rms_m_s"] < 0.8
@@ -60,7 +60,7 @@ def test_first_120_s_of_drive_0708(replay_120):
 @needs_drive
 @pytest.mark.parametrize("broken", ["mounting pitch left out", "IMU 0.5 s late"])
 def test_bounds_catch_a_broken_conversion(broken, tmp_path):
-    # measured: pitch left out 3.7 m / 1.7 m/s / 12 m; IMU 0.5 s late 2.8 m / 0.9 m/s / 8.4 m
+    # measured: pitch left out 3.6 m / 1.7 m/s / 11 m; IMU 0.5 s late 2.6 m / 0.9 m/s / 8.2 m
     ds = copy.copy(drive_0708.load())
     if broken == "IMU 0.5 s late":
         ds.imu = dataclasses.replace(ds.imu, t_s=ds.imu.t_s + 0.5)
