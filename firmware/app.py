@@ -101,13 +101,25 @@ class App:
             self.console("IMU not ready: " + self.imu_error)
 
     def start(self):
-        """Timer, PPS interrupt, watchdog; automatic garbage collection off."""
+        """Timer, PPS interrupt, watchdog; automatic garbage collection off. The console line
+        starting "ins: running" is what deploy tools wait for."""
         b = self.board
         b.on_pps(self.gnss.pps_isr)
         b.start_tick(self.isr_tick)
         b.start_watchdog()
+        self.console(
+            "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
+        )
         gc.collect()
         gc.disable()
+
+    def stop(self):
+        """After Ctrl-C at the console: no more ticks or PPS interrupts, garbage collection
+        back on, and the watchdog (which cannot be stopped once started) fed by a timer so the
+        REPL stays usable, e.g. for a deploy. A soft reset (Ctrl-D) starts the firmware anew."""
+        self.board.stop()
+        gc.enable()
+        self.console("ins: stopped (Ctrl-D restarts it)")
 
     def isr_tick(self, _timer):
         self.due += 1  # the ISR's only job

@@ -60,6 +60,20 @@ class Board:
     def start_watchdog(self):
         self.wdt = machine.WDT(timeout=WDT_TIMEOUT_MS)
 
+    def stop(self):
+        """Tick timer and PPS interrupt off; a slow timer keeps feeding a started watchdog."""
+        if self.timer is not None:
+            self.timer.deinit()
+            self.timer = None
+        self.pps.irq(handler=None)
+        if self.wdt is not None:
+            self.timer = machine.Timer(
+                -1, mode=machine.Timer.PERIODIC, freq=4, callback=self._feed_isr
+            )
+
+    def _feed_isr(self, _timer):
+        self.wdt.feed()
+
     def wdt_feed(self):
         if self.wdt is not None:
             self.wdt.feed()

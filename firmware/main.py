@@ -1,8 +1,9 @@
 """Entry point on the board: build the board, run the 5 ms loop forever.
 
 The board's console (USB REPL) shows the start-up messages: the configuration used, and why
-the IMU is not ready if it is not. Ctrl-C at the console stops the loop (the watchdog then
-resets the board within a second unless the REPL disables it: deploy tools stop it first).
+the IMU is not ready if it is not, then "ins: running ..." once the loop starts. Ctrl-C at the
+console stops the loop and leaves the REPL usable: the watchdog, which cannot be stopped once
+started, is then fed by a timer (App.stop). Ctrl-D (soft reset) starts the firmware again.
 """
 
 import app
@@ -12,7 +13,10 @@ import board
 def main():
     a = app.App(board)
     a.start()
-    a.run()
+    try:
+        a.run()
+    except KeyboardInterrupt:  # Ctrl-C at the console, e.g. from tools.flash deploy
+        a.stop()
 
 
 main()

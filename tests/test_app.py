@@ -227,3 +227,26 @@ def test_the_navigator_is_told_whether_the_speed_is_known(tmp_path, fields, need
     # the fixes were usable; only a known speed is a measurement for the standstill detector
     tick = bench.app.nav._speed_tick
     assert tick == -1000000 if speed_mm_s is None else tick > 0
+
+
+def test_ctrl_c_stops_the_loop_and_keeps_the_repl_alive(tmp_path):
+    bench = Bench(tmp_path)
+    assert any(m.startswith("ins: running") and "460800 baud" in m for m in bench.console)
+    bench.run(10)
+    hw = bench.hw
+    pps = hw.pin(bench.board.PINS["pps"])
+    assert pps.irq_handler is not None and len(hw.timers) == 1
+    bench.app.stop()  # what main.py does on KeyboardInterrupt
+    assert bench.console[-1] == "ins: stopped (Ctrl-D restarts it)"
+    assert pps.irq_handler is None
+    # the tick timer is gone: nothing is due, no frame goes out
+    bench.app.due = 0
+    hw.fire_timers()
+    assert bench.app.due == 0
+    bench.app.service()
+    assert bench.out_uart.take_tx() == b""
+    # the timer left behind feeds the watchdog, which cannot be stopped once started
+    feeds = hw.wdt.feeds
+    for _ in range(3):
+        hw.fire_timers()
+    assert hw.wdt.feeds == feeds + 3
