@@ -8,6 +8,7 @@
     replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout
     export --scenario NAME | --dataset drive_0708 --out DIR   KF-GINS files + RTKLIB .pos
     session record|replay ...       record a board's output; replay it bit for bit
+    virtual-board --fs DIR          a board on pseudo-terminals (raw REPL, RS485 frames)
     demo                            urban_drive on CPython, with a short summary
     gnss-dump FILE                  what the firmware's NMEA parser makes of a receiver log
 
@@ -178,6 +179,11 @@ def main(argv=None):
         "session", help="record a board's output, or replay a recording bit for bit",
         add_help=False,
     )  # fmt: skip
+    sub.add_parser(
+        "virtual-board",
+        help="a board on pseudo-terminals for tools.flash and tools.monitor (--fs DIR ...)",
+        add_help=False,
+    )
     demo = sub.add_parser("demo", help="urban_drive on CPython with a short summary")
     demo.add_argument("--out", default="out/demo")
     sub.add_parser(
@@ -199,6 +205,10 @@ def main(argv=None):
             from host_emulator import session
 
             return session.main(rest)
+        if args.command == "virtual-board":
+            from host_emulator import virtual_board
+
+            return virtual_board.main(rest)
         if rest:
             parser.error("unrecognized arguments: " + " ".join(rest))
         if args.command == "scenarios":

@@ -28,10 +28,18 @@ blocks of the tick), state.bin (u8 per tick: the navigation state after it). Std
     E <k>           the firmware raised at tick k (-1: at start-up); the VM's traceback
                     follows (sys.print_exception), then a line "E-END"; exit status 3
     S <json>        statistics at the end (exit status 0)
+
+Streaming mode (host_emulator/virtual_board.py): with the environment variable
+INS_VM_STREAM=realtime (paced at the tick rate by the VM's own clock) or INS_VM_STREAM=fast
+(as fast as possible), OUT_DIR is ignored and nothing is counted: each tick's output UART bytes
+go to stdout as a line "O <hex>", console lines as "C <text>" as above, errors as "E"; the run
+ends with a line "X ended" (the stimulus is used up) or "X stopped" (SIGINT, i.e. Ctrl-C at the
+virtual board's console: the App is stopped as after a KeyboardInterrupt on the board).
 """
 
 import gc
 import json
+import os
 import struct
 import sys
 import time  # vm_board/time.py: this directory is sys.path[0]
@@ -91,24 +99,24 @@ def read_exact(f, buf, n, what):
         raise EOFError("stimulus file cut short in " + what)
 
 
-def main():
-    bpb = bytes_per_block()
+def open_stimulus():
+    """(the stimulus file at its first record, tick_us, number of ticks)."""
     f = open(STIM_PATH, "rb")
     if f.read(8) != MAGIC:
         raise ValueError("not a stimulus file: " + STIM_PATH)
     hlen = struct.unpack("<I", f.read(4))[0]
     header = json.loads(f.read(hlen))
-    tick_us = header.get("tick_us", 5000)
     size = f.seek(0, 2)
     f.seek(size - 8)
     n_ticks = struct.unpack("<I", f.read(4))[0]
     f.seek(12 + hlen)
-    rec = bytearray(REC_LEN)
-    ubuf = bytearray(2048)
+    return f, header.get("tick_us", 5000), n_ticks
 
-    imu = machine.Bmi055()
-    k = -1
-    try:  # the firmware's start-up: its modules, the App (configuration, BMI055 init), start()
+
+def start_firmware(imu):
+    """The firmware's start-up: its modules, the App (configuration, BMI055 init), start().
+    Returns (app, board pins); an exception is reported (firmware_error) and ends the VM."""
+    try:
         import board
 
         board.CONFIG_PATH = CONFIG_PATH
@@ -123,7 +131,45 @@ def main():
         a = app.App(board, console=console)
         a.start()
     except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
-        firmware_error(k, e)
+        firmware_error(-1, e)
+    return a, pins
+
+
+def next_input(f, rec, ubuf, imu, gnss):
+    """The next record into the BMI055 registers and the GNSS UART; returns the UART byte
+    buffer (grown when a record carries more)."""
+    read_exact(f, rec, REC_LEN, "a record")
+    imu.set_registers(rec, 0, 6)
+    t = rec[12]
+    imu.set_temperature_raw(t - 256 if t >= 128 else t)
+    n = rec[16] | (rec[17] << 8)
+    if n:
+        if n > len(ubuf):
+            ubuf = bytearray(n)
+        read_exact(f, ubuf, n, "UART bytes")
+        gnss.feed(ubuf, n)
+    return ubuf
+
+
+def fire_inputs(rec, t_k, pps):
+    """The record's PPS edge (never back in time: an edge during start-up), then the clock to
+    t_k and the tick timer: the firmware's interrupt handlers run."""
+    if rec[13] & FLAG_PPS:
+        edge = t_k - (rec[14] | (rec[15] << 8))
+        if edge > time.now_us():
+            time.set_us(edge)
+        pps.fire()
+    time.set_us(t_k)
+    machine.fire_timers()
+
+
+def main():
+    bpb = bytes_per_block()
+    f, tick_us, n_ticks = open_stimulus()
+    rec = bytearray(REC_LEN)
+    ubuf = bytearray(2048)
+    imu = machine.Bmi055()
+    a, pins = start_firmware(imu)
     gc.disable()
     gnss = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
@@ -146,28 +192,13 @@ def main():
     negative = 0  # ticks whose count went down (a collection inside the tick)
     j = 0
     for k in range(n_ticks):
-        read_exact(f, rec, REC_LEN, "a record")
-        imu.set_registers(rec, 0, 6)
-        t = rec[12]
-        imu.set_temperature_raw(t - 256 if t >= 128 else t)
-        n = rec[16] | (rec[17] << 8)
-        if n:
-            if n > len(ubuf):
-                ubuf = bytearray(n)
-            read_exact(f, ubuf, n, "UART bytes")
-            gnss.feed(ubuf, n)
+        ubuf = next_input(f, rec, ubuf, imu, gnss)
         t_k = t0 + k * tick_us
         if total - m1 < margin:  # free heap (m1: after the last tick; little since)
             gc.collect()
             collects += 1
         try:  # the firmware's code: its interrupt handlers and one pass of its loop
-            if rec[13] & FLAG_PPS:
-                edge = t_k - (rec[14] | (rec[15] << 8))
-                if edge > time.now_us():  # never back in time (an edge during start-up)
-                    time.set_us(edge)
-                pps.fire()
-            time.set_us(t_k)
-            machine.fire_timers()
+            fire_inputs(rec, t_k, pps)
             m0 = gc.mem_alloc()
             a.service()
             m1 = gc.mem_alloc()
@@ -235,4 +266,56 @@ def firmware_error(k, e):
     sys.exit(EXIT_FIRMWARE_ERROR)
 
 
-main()
+def stream_main(realtime):
+    """The streaming mode (see the module docstring): the same replay, output as it happens."""
+    import binascii
+
+    import utime  # the VM's real clock (`time` is the emulated one)
+
+    f, tick_us, n_ticks = open_stimulus()
+    rec = bytearray(REC_LEN)
+    ubuf = bytearray(2048)
+    imu = machine.Bmi055()
+    a = None
+    k = -1
+    try:
+        a, pins = start_firmware(imu)
+        gnss = machine.uart(pins["gnss_uart"])
+        out_uart = machine.uart(pins["out_uart"])
+        pps = machine.pin(pins["pps"])
+        now = time.now_us()
+        t0 = (now + tick_us - 1) // tick_us * tick_us
+        wall0 = utime.ticks_us()
+        for k in range(n_ticks):
+            ubuf = next_input(f, rec, ubuf, imu, gnss)
+            t_k = t0 + k * tick_us
+            try:
+                fire_inputs(rec, t_k, pps)
+                a.service()
+            except Exception as e:  # noqa: BLE001
+                firmware_error(k, e)
+            if out_uart.tx_n:
+                print("O", binascii.hexlify(memoryview(out_uart.tx)[: out_uart.tx_n]).decode())
+                out_uart.tx_clear()
+            if realtime:
+                ahead = (k + 1) * tick_us - utime.ticks_diff(utime.ticks_us(), wall0)
+                if ahead > 0:
+                    utime.sleep_us(ahead)
+        print("X ended")
+    except KeyboardInterrupt:
+        if a is not None and hasattr(a, "stop"):
+            try:
+                a.stop()
+            except Exception as e:  # noqa: BLE001
+                firmware_error(k, e)
+        else:
+            print("C ins: stopped (Ctrl-D restarts it)")
+        print("X stopped")
+    f.close()
+
+
+_stream = os.getenv("INS_VM_STREAM")
+if _stream:
+    stream_main(_stream == "realtime")
+else:
+    main()

@@ -1,0 +1,557 @@
+"""A virtual INS board on pseudo-terminals: MicroPython's REPL on one, the RS485 output on the
+other, so deploy and monitor tools can be tried without hardware (docs/virtual_board.md).
+
+    python -m host_emulator.virtual_board --fs DIR [--flash-kb N] [--scenario S] [--duration S]
+
+`port` (the USB REPL console) speaks MicroPython 1.29's REPL as the stm32 port does
+(shared/runtime/pyexec.c): the friendly REPL, the raw REPL (Ctrl-A), raw paste (Ctrl-E 'A'
+Ctrl-A, with flow control), soft resets (Ctrl-D). Code runs in the real MicroPython VM
+(the unix port, mpvm.micropython_exe()): one persistent VM per session between soft resets
+running vm_board/repl_server.py, with `fs_dir` mounted at /flash (capacity `flash_kb`).
+
+A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
+VM (vm_board/emulate.py in its streaming mode) fed from a simulated scenario generated when the
+board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
+stops it. Everything runs on one background thread around select().
+"""
+
+import argparse
+import os
+import pathlib
+import pty
+import secrets
+import select
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tty
+
+from host_emulator import mpvm
+from host_emulator.sim import board_input
+
+VM_BOARD_DIR = pathlib.Path(__file__).resolve().parent / "vm_board"
+REPL_SERVER = VM_BOARD_DIR / "repl_server.py"
+EMULATE = VM_BOARD_DIR / "emulate.py"
+
+BANNER = (
+    b"MicroPython v1.29.0 on 2026-11-22; virtual INS board (STM32F411, host emulator)\r\n"
+    b'Type "help()" for more information.\r\n'
+)
+PROMPT = b">>> "
+RAW_BANNER = b"raw REPL; CTRL-B to exit\r\n"
+SOFT_REBOOT = b"MPY: soft reboot\r\n"
+STOPPED = b"ins: stopped (Ctrl-D restarts it)"
+PASTE_WINDOW = 128  # raw paste flow-control window (MICROPY_REPL_STDIN_BUFFER_MAX 256 / 2)
+CTRL_A, CTRL_B, CTRL_C, CTRL_D, CTRL_E = 1, 2, 3, 4, 5
+REPL_HEAP = "2M"
+FW_HEAP = "512K"
+WRITE_TIMEOUT_S = 1.0  # a console nobody reads drops its output after this
+
+
+def _cook(data):
+    """The stm32 port's stdout: every \\n goes out as \\r\\n."""
+    return data.replace(b"\n", b"\r\n")
+
+
+class VirtualBoard:
+    """A virtual board; start() opens the ports and serves them until close()."""
+
+    def __init__(
+        self,
+        fs_dir,
+        flash_kb=2048,
+        corrupt_writes=0,
+        scenario="urban_drive",
+        seed=0,
+        duration_s=120.0,
+        realtime=True,
+        boot_main=False,
+    ):
+        self.fs_dir = pathlib.Path(fs_dir).resolve()
+        self._fs_bytes = os.fsencode(self.fs_dir)
+        self.flash_kb = int(flash_kb)
+        self.corrupt_writes = int(corrupt_writes)
+        self.corrupted = 0  # writes corrupted so far (over the whole session)
+        self.scenario = scenario
+        self.seed = int(seed)
+        self.duration_s = float(duration_s)
+        self.realtime = bool(realtime)
+        self.boot_main = bool(boot_main)  # run main.py at power-up (else: the friendly REPL)
+        self.port = None
+        self.rs485_port = None
+        self.firmware_runs = 0
+        self._thread = None
+        self._stop = False
+        self._tmp = None
+        self._fds = []
+        self._calls = []  # functions to run on the board's thread
+
+    # ---- life cycle ------------------------------------------------------------------------
+
+    def start(self):
+        self.fs_dir.mkdir(parents=True, exist_ok=True)
+        self._tmp = tempfile.TemporaryDirectory(prefix="vboard-")
+        self._stim_path = pathlib.Path(self._tmp.name) / "stimulus.bin"
+        sim = board_input.simulate(self.scenario, self.duration_s, self.seed)
+        sim.stimulus.write(self._stim_path)
+        self._exe = mpvm.micropython_exe()
+        self._master, self._slave = self._open_pty()
+        self.port = os.ttyname(self._slave)
+        self._rs_master, self._rs_slave = self._open_pty()
+        self.rs485_port = os.ttyname(self._rs_slave)
+        self._wake_r, self._wake_w = os.pipe()
+        self._fds += [self._wake_r, self._wake_w]
+        self._mode = "friendly"
+        self._line = bytearray()
+        self._pending = bytearray()  # input that came while code or the firmware ran
+        self._repl = None
+        self._fw = None
+        self._start_repl_vm()
+        self._thread = threading.Thread(target=self._serve, name="virtual-board", daemon=True)
+        self._thread.start()
+        if self.boot_main:
+            self._call(self._power_up)
+        return self
+
+    def close(self):
+        if self._thread is None:
+            return
+        self._stop = True
+        os.write(self._wake_w, b"x")
+        self._thread.join(5)
+        self._thread = None
+        for proc in (self._repl, self._fw):
+            self._kill(proc)
+        for fd in self._fds:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._fds = []
+        self._tmp.cleanup()
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _open_pty(self):
+        master, slave = pty.openpty()
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        self._fds += [master, slave]
+        return master, slave
+
+    def _call(self, fn):
+        """Run fn on the board's thread (before the next input byte)."""
+        self._calls.append(fn)
+        os.write(self._wake_w, b"x")
+
+    # ---- the VMs -------------------------------------------------------------------------
+
+    def _start_repl_vm(self):
+        self._kill(self._repl)
+        self._nonce = secrets.token_hex(4)
+        self._sentinel = b"\x00\x1bVB" + self._nonce.encode() + b":"
+        left = max(0, self.corrupt_writes - self.corrupted)
+        self._corrupt_base = self.corrupted
+        self._repl = subprocess.Popen(
+            [
+                self._exe,
+                "-X",
+                f"heapsize={REPL_HEAP}",
+                str(REPL_SERVER),
+                str(self.fs_dir),
+                str(self.flash_kb),
+                str(left),
+                self._nonce,
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            bufsize=0,
+        )
+        self._repl_buf = b""
+        self._busy = None  # what is running in the REPL VM: "raw" or "friendly"
+
+    def _start_fw_vm(self):
+        env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast")
+        self._fw = subprocess.Popen(
+            [
+                self._exe,
+                "-X",
+                f"heapsize={FW_HEAP}",
+                str(EMULATE),
+                str(self.fs_dir),
+                str(self._stim_path),
+                str(self.fs_dir / "ins.cfg"),
+                "-",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            bufsize=0,
+            env=env,
+        )
+        self.firmware_runs += 1
+        self._fw_buf = b""
+        self._fw_error = None  # traceback lines while inside an "E" block
+        self._fw_stopping = None  # time.monotonic() of the Ctrl-C
+        self._fw_saw_stopped = False
+        self._mode = "fw"
+
+    @staticmethod
+    def _kill(proc):
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        for f in (proc.stdin, proc.stdout):
+            if f is not None:
+                f.close()
+
+    # ---- output ----------------------------------------------------------------------------
+
+    def _send(self, data, fd=None):
+        """Bytes to a pty master; dropped after WRITE_TIMEOUT_S if nobody reads them."""
+        fd = self._master if fd is None else fd
+        view = memoryview(data)
+        deadline = time.monotonic() + WRITE_TIMEOUT_S
+        while view:
+            try:
+                n = os.write(fd, view)
+                view = view[n:]
+            except BlockingIOError:
+                if fd == self._rs_master or time.monotonic() > deadline:
+                    return  # a UART drops what nobody takes
+                time.sleep(0.002)
+
+    # ---- the serving thread ---------------------------------------------------------------
+
+    def _serve(self):
+        while not self._stop:
+            fds = [self._master, self._wake_r, self._repl.stdout]
+            if self._fw is not None:
+                fds.append(self._fw.stdout)
+            r, _, _ = select.select(fds, [], [], 0.1)
+            if self._stop:
+                return
+            if self._wake_r in r:
+                os.read(self._wake_r, 512)
+            while self._calls:
+                self._calls.pop(0)()
+            if self._repl.stdout in r:
+                data = os.read(self._repl.stdout.fileno(), 65536)
+                if data:
+                    self._on_repl_output(data)
+                else:
+                    self._on_repl_exit()
+            if self._fw is not None and self._fw.stdout in r:
+                data = os.read(self._fw.stdout.fileno(), 65536)
+                if data:
+                    self._on_fw_output(data)
+                else:
+                    self._on_fw_exit()
+            if self._fw is not None and self._fw_stopping is not None:
+                if time.monotonic() - self._fw_stopping > 3.0:
+                    self._fw.kill()  # did not stop: its EOF ends the run
+            if self._master in r:
+                try:
+                    data = os.read(self._master, 4096)
+                except OSError:
+                    data = b""
+                for c in data:
+                    self._input(c)
+
+    # ---- input -----------------------------------------------------------------------------
+
+    def _input(self, c):
+        mode = self._mode
+        if mode == "fw" or self._busy is not None:
+            if c == CTRL_C:
+                self._interrupt()
+            else:
+                self._pending.append(c)
+            return
+        if mode == "friendly":
+            self._friendly(c)
+        elif mode == "raw":
+            self._raw(c)
+        elif mode == "paste":
+            self._paste(c)
+
+    def _drain_pending(self):
+        while self._pending and self._mode != "fw" and self._busy is None:
+            c = self._pending.pop(0)
+            self._input(c)
+
+    def _interrupt(self):
+        if self._mode == "fw":
+            if self._fw_stopping is None:
+                self._fw_stopping = time.monotonic()
+                self._fw.send_signal(signal.SIGINT)
+        elif self._busy is not None:
+            self._repl.send_signal(signal.SIGINT)
+
+    def _friendly(self, c):
+        if c == CTRL_A:
+            self._line.clear()
+            self._mode = "raw"
+            self._send(b"\r\n" + RAW_BANNER + b">")
+        elif c == CTRL_B:
+            self._line.clear()
+            self._send(b"\r\n" + BANNER + PROMPT)
+        elif c == CTRL_C:
+            self._line.clear()
+            self._send(b"\r\n" + PROMPT)
+        elif c == CTRL_D:
+            if not self._line:
+                self._send(b"\r\n" + SOFT_REBOOT)
+                self._soft_reset()
+                self._power_up()
+        elif c == 13:
+            self._send(b"\r\n")
+            if self._line.strip():
+                self._exec(bytes(self._line), "friendly")
+            else:
+                self._send(PROMPT)
+            self._line.clear()
+        elif c in (8, 127):
+            if self._line:
+                self._line.pop()
+                self._send(b"\x08 \x08")
+        elif 32 <= c < 127 or c >= 128:
+            self._line.append(c)
+            self._send(bytes([c]))
+
+    def _raw(self, c):
+        if c == CTRL_A:
+            line = self._line
+            self._line = bytearray()
+            if len(line) == 2 and line[0] == CTRL_E:
+                if line[1] != ord("A"):
+                    self._send(b"R\x00>")
+                    return
+                self._send(b"R\x01" + struct.pack("<H", PASTE_WINDOW) + b"\x01")
+                self._mode = "paste"
+                self._paste_remain = PASTE_WINDOW
+                return
+            self._send(RAW_BANNER + b">")
+        elif c == CTRL_B:
+            self._line.clear()
+            self._mode = "friendly"
+            self._send(b"\r\n" + BANNER + PROMPT)
+        elif c == CTRL_C:
+            self._line.clear()
+        elif c == CTRL_D:
+            self._send(b"OK")
+            if not self._line:
+                self._send(b"\r\n" + SOFT_REBOOT)
+                self._soft_reset()
+                self._send(RAW_BANNER + b">")  # main.py does not run from the raw REPL
+                return
+            code = bytes(self._line)
+            self._line.clear()
+            self._exec(code, "raw")
+        else:
+            self._line.append(c)
+
+    def _paste(self, c):
+        if c == CTRL_D:
+            self._send(b"\x04")
+            code = bytes(self._line)
+            self._line.clear()
+            self._mode = "raw"
+            self._exec(code, "raw")
+        elif c == CTRL_C:
+            self._line.clear()
+            self._mode = "raw"
+            self._send(b"\x04\x04KeyboardInterrupt: \r\n\x04>")
+        else:
+            self._line.append(c)
+            self._paste_remain -= 1
+            if self._paste_remain == 0:
+                self._send(b"\x01")
+                self._paste_remain = PASTE_WINDOW
+
+    # ---- code in the REPL VM --------------------------------------------------------------
+
+    def _exec(self, code, kind):
+        self._busy = kind
+        mode = b"s" if kind == "friendly" else b"x"
+        try:
+            self._repl.stdin.write(mode + b" %d\n" % len(code) + code)
+        except OSError:
+            self._on_repl_exit()
+
+    def _on_repl_output(self, data):
+        buf = self._repl_buf + data
+        sent = self._sentinel
+        while True:
+            i = buf.find(sent)
+            if i < 0:
+                # forward all but a possible start of the sentinel
+                j = buf.rfind(b"\x00")
+                keep = j if j >= 0 and len(buf) - j < len(sent) else len(buf)
+                self._forward_stdout(buf[:keep])
+                buf = buf[keep:]
+                break
+            self._forward_stdout(buf[:i])
+            rest = buf[i + len(sent) :]
+            nl = rest.find(b"\n")
+            if nl < 0:
+                buf = buf[i:]
+                break
+            n_err, corrupted = (int(x) for x in rest[:nl].split())
+            if len(rest) < nl + 1 + n_err:
+                buf = buf[i:]
+                break
+            err = rest[nl + 1 : nl + 1 + n_err]
+            buf = rest[nl + 1 + n_err :]
+            self.corrupted = self._corrupt_base + corrupted
+            self._exec_done(err)
+        self._repl_buf = buf
+
+    def _forward_stdout(self, data):
+        if data:
+            self._send(_cook(data))
+
+    def _exec_done(self, err):
+        kind = self._busy
+        self._busy = None
+        if kind == "friendly":
+            self._send(_cook(err) + PROMPT)
+        else:
+            self._send(b"\x04" + _cook(err) + b"\x04>")
+        self._drain_pending()
+
+    def _on_repl_exit(self):
+        """The REPL VM died (e.g. os._exit or a crash): a hard fault; the board resets."""
+        rest = self._repl_buf
+        self._forward_stdout(rest)
+        kind = self._busy
+        self._start_repl_vm()
+        if kind == "raw":
+            self._send(b"\x04\x04>")
+        elif kind == "friendly":
+            self._send(PROMPT)
+
+    def _soft_reset(self):
+        self._start_repl_vm()
+
+    # ---- the firmware --------------------------------------------------------------------
+
+    def _power_up(self):
+        """After a reset in friendly mode: main.py if it exists, then the friendly REPL."""
+        if (self.fs_dir / "main.py").is_file():
+            self._start_fw_vm()
+        else:
+            self._send(BANNER + PROMPT)
+
+    def _on_fw_output(self, data):
+        buf = self._fw_buf + data
+        lines = buf.split(b"\n")
+        self._fw_buf = lines.pop()
+        for line in lines:
+            self._fw_line(line)
+
+    def _fw_line(self, line):
+        if self._fw_error is not None:
+            line = line.replace(self._fs_bytes, b"/flash")
+            if line == b"E-END":
+                self._send(b"\r\n".join(self._fw_error) + b"\r\n")
+                self._fw_error = None
+            else:
+                self._fw_error.append(line)
+            return
+        kind, _, rest = line.partition(b" ")
+        if kind == b"O":
+            try:
+                self._send(bytes.fromhex(rest.decode()), self._rs_master)
+            except ValueError:
+                pass
+        elif kind == b"C":
+            rest = rest.replace(self._fs_bytes, b"/flash")  # the board's own paths
+            if rest.startswith(STOPPED):
+                self._fw_saw_stopped = True
+            self._send(rest + b"\r\n")
+        elif kind == b"P":
+            pass
+        elif kind == b"E" and rest.strip().lstrip(b"-").isdigit():
+            self._fw_error = []
+        elif kind == b"X":
+            if rest == b"ended":
+                self._send(
+                    b"virtual board: the input ended (simulated %s, %g s, seed %d); "
+                    b"Ctrl-D runs it again\r\n"
+                    % (self.scenario.encode(), self.duration_s, self.seed)
+                )
+        else:
+            self._send(line + b"\r\n")
+
+    def _on_fw_exit(self):
+        if self._fw_buf:
+            self._fw_line(self._fw_buf)
+        if self._fw_error:
+            self._send(b"\r\n".join(self._fw_error) + b"\r\n")
+        stopping = self._fw_stopping is not None
+        if stopping and not self._fw_saw_stopped:
+            self._send(STOPPED + b"\r\n")
+        self._kill(self._fw)
+        self._fw = None
+        self._mode = "friendly"
+        self._send(BANNER + PROMPT)
+        self._drain_pending()
+
+
+def main(argv=None):
+    """`python -m host_emulator.virtual_board`: serve a virtual board until Ctrl-C."""
+    p = argparse.ArgumentParser(
+        prog="python -m host_emulator.virtual_board",
+        description="A virtual INS board on pseudo-terminals (docs/virtual_board.md).",
+    )
+    p.add_argument("--fs", required=True, help="host directory holding the board's /flash")
+    p.add_argument("--flash-kb", type=int, default=2048, help="filesystem capacity (KB)")
+    p.add_argument("--scenario", default="urban_drive", help="simulated scenario")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--duration", type=float, default=120.0, help="scenario length (s)")
+    p.add_argument("--corrupt-writes", type=int, default=0, help="corrupt the first N writes")
+    p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
+    p.add_argument("--run", action="store_true", help="run main.py at power-up")
+    args = p.parse_args(argv)
+    board = VirtualBoard(
+        args.fs,
+        flash_kb=args.flash_kb,
+        corrupt_writes=args.corrupt_writes,
+        scenario=args.scenario,
+        seed=args.seed,
+        duration_s=args.duration,
+        realtime=not args.fast,
+        boot_main=args.run,
+    )
+    try:
+        board.start()
+    except (KeyError, RuntimeError, OSError) as e:
+        print(f"virtual board: cannot start: {e}", file=sys.stderr)
+        return 1
+    print(f"REPL console (USB): {board.port}")
+    print(f"RS485 output:       {board.rs485_port}")
+    print(f"filesystem /flash:  {board.fs_dir} ({board.flash_kb} KB)")
+    print("Ctrl-C to stop", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        board.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
