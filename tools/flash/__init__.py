@@ -1,5 +1,9 @@
-"""Deploy the firmware and its configuration to a board over the serial REPL.
+"""Build the firmware and deploy it to a board over the serial REPL: `python -m tools.flash`.
 
-Planned (issue 7): build with mpy-cross, copy changed files with CRC-32 verification,
-config get/set. Nothing is implemented here yet.
+    build --out DIR [--flash-kb N]      mpy-cross the firmware, write DIR/manifest.json, check
+                                        the flash budget
+    deploy --port PORT [--config FILE]  copy what changed (CRC-32 verified), soft-reset, confirm
+    config get|set ...                  the board's (or a local file's) persisted configuration
+
+See docs/deploy.md.
 """

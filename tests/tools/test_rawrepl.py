@@ -1,0 +1,87 @@
+"""The raw-REPL client against a scripted board (tools.flash.fakeboard): banner, raw-paste with
+flow control, the plain raw-mode fallback, board exceptions, silence and garbage."""
+
+import pytest
+
+from tools.flash import errors
+from tools.flash.fakeboard import FakeSerial
+from tools.flash.rawrepl import RawRepl
+
+
+def _repl(ser, timeout=0.5):
+    repl = RawRepl(ser, timeout=timeout, port="/dev/fake")
+    repl.enter()
+    return repl
+
+
+def test_enter_stops_the_firmware_and_keeps_what_it_said():
+    ser = FakeSerial(on_ctrl_c=b"ins: stopped (Ctrl-D restarts it)")
+    repl = _repl(ser)
+    assert ser.mode == "raw"
+    assert b"ins: stopped" in repl.console
+
+
+@pytest.mark.parametrize("window", [1, 7, 64, 128])
+def test_raw_paste_sends_code_longer_than_the_window(window):
+    ser = FakeSerial(window=window)
+    repl = _repl(ser)
+    code = "x = " + repr("a" * 700) + "\nprint(len(x), 6 * 7)\n"
+    out, err = repl.exec_raw(code)
+    assert (out, err) == (b"700 42\r\n", b"")
+    assert ser.received[-1] == code.encode()
+    assert repl.use_raw_paste
+    assert repl.exec("print('again')") == b"again\r\n"  # the prompt is tracked between runs
+
+
+def test_plain_raw_mode_when_the_board_has_no_raw_paste():
+    ser = FakeSerial(raw_paste=False)
+    repl = _repl(ser)
+    code = "print(sum(range(" + "1" * 3 + ")))\n" + "# padding\n" * 60
+    assert repl.exec(code) == b"6105\r\n"
+    assert not repl.use_raw_paste
+
+
+def test_board_exception_is_a_board_error_quoting_the_traceback():
+    repl = _repl(FakeSerial())
+    with pytest.raises(errors.BoardError, match="ZeroDivisionError"):
+        repl.exec("1 / 0", what="dividing")
+    assert repl.exec("print(3)") == b"3\r\n"  # still usable
+
+
+def test_silent_port_is_not_responding():
+    repl = RawRepl(FakeSerial(silent=True), timeout=0.2, port="/dev/quiet")
+    with pytest.raises(errors.NotResponding, match="does not respond"):
+        repl.enter()
+
+
+def test_garbage_is_not_micropython():
+    repl = RawRepl(FakeSerial(garbage=b"\x00\xfe?"), timeout=0.2, port="/dev/noise")
+    with pytest.raises(errors.NotMicroPython, match="not in MicroPython"):
+        repl.enter()
+
+
+def test_syntax_error_mid_paste_is_reported():
+    repl = _repl(FakeSerial(window=16))
+    with pytest.raises(errors.BoardError, match="SyntaxError"):
+        repl.exec("def f(:\n    pass\n")
+
+
+def test_deploy_over_plain_raw_mode(tmp_path, monkeypatch):
+    """The virtual board always offers raw-paste: deploy through a board without it (and with
+    one corrupted write) on the scripted board."""
+    from tools.flash import build, deploy
+
+    out = tmp_path / "build"
+    manifest = build.build(out)
+    fs = tmp_path / "flash"
+    (fs / "lib").mkdir(parents=True)
+    (fs / "lib" / "stale.py").write_text("x = 1\n")
+    fake = FakeSerial(fs, raw_paste=False, corrupt_writes=1)
+    monkeypatch.setattr(deploy, "open_port", lambda port, baud: fake)
+    lines = []
+    result = deploy.deploy(out, "/dev/fake", log=lines.append, watch_s=2)
+    assert result["stale"] == ["lib/stale.py"] and not (fs / "lib" / "stale.py").exists()
+    assert len(result["written"]) == len(manifest["files"])
+    assert any("OK after 2 attempts" in line for line in lines)
+    for f in manifest["files"]:
+        assert build.crc32((fs / f["path"]).read_bytes()) == int(f["crc32"], 16)

@@ -1,0 +1,239 @@
+"""`python -m tools.flash build|deploy|config`: see docs/deploy.md.
+
+Usage errors exit with status 2, failures with status 1 and one paragraph saying what to do.
+"""
+
+import argparse
+import pathlib
+import sys
+import tempfile
+
+from tools.flash.errors import FlashError
+
+
+def _config_module():
+    from host_emulator import firmware_env
+
+    firmware_env.install()
+    import config
+
+    return config
+
+
+def _build(args):
+    from tools.flash import build
+
+    manifest = build.build(args.out, args.flash_kb, args.strip_lines)
+    print(f"built {args.out}: {build.summary(manifest)}")
+    build.check_budget(manifest)
+    print(f"fits the {args.flash_kb} KB budget: {args.out}/manifest.json")
+    return 0
+
+
+def _read_config_file(path):
+    config = _config_module()
+    try:
+        data = pathlib.Path(path).read_bytes()
+    except OSError as e:
+        raise FlashError(f"cannot read configuration file {path}: {e.strerror}.") from None
+    try:
+        cfg = config.decode(data)
+    except (ValueError, IndexError) as e:
+        raise FlashError(
+            f"{path} is not a valid configuration file ({e}). Create one with "
+            "`python -m tools.flash config set --file FILE NAME=VALUE ...`."
+        ) from None
+    problem = cfg.validate()
+    if problem:
+        raise FlashError(f"{path} holds an invalid configuration: {problem}.")
+    return data
+
+
+def _deploy(args):
+    from tools.flash import build, deploy
+
+    config_bytes = _read_config_file(args.config) if args.config else None
+    with tempfile.TemporaryDirectory(prefix="ins-build-") as tmp:
+        manifest = build.build(tmp, args.flash_kb or build.DEFAULT_FLASH_KB, args.strip_lines)
+        print(
+            f"built {len(manifest['files'])} files, {manifest['total_bytes']} bytes "
+            f"({manifest['mpy_cross']['version']})"
+        )
+        if args.flash_kb:
+            build.check_budget(manifest)
+        frames_baud = 460800
+        if config_bytes is not None:
+            frames_baud = _config_module().decode(config_bytes).output_baud
+        result = deploy.deploy(
+            tmp,
+            args.port,
+            args.baud,
+            config_bytes=config_bytes,
+            frames_port=args.frames_port,
+            frames_baud=frames_baud,
+            dry_run=args.dry_run,
+            watch_s=args.watch,
+        )
+    if result.get("dry_run"):
+        print("dry run: nothing written")
+    else:
+        print("deploy OK: the firmware is running")
+    return 0
+
+
+def _format_value(value):
+    if value is None:
+        return "identity"
+    if isinstance(value, list):
+        return ",".join(f"{x:.9g}" for x in value)
+    if isinstance(value, float):
+        return f"{value:.9g}"
+    return str(value)
+
+
+def _print_config(cfg, config):
+    for _rid, name, _kind, _n, _default in config._SCHEMA:
+        print(f"{name} = {_format_value(getattr(cfg, name))}")
+
+
+def _parse_setting(text, config):
+    if "=" not in text:
+        raise FlashError(f"expected NAME=VALUE, got {text!r}")
+    name, value = (s.strip() for s in text.split("=", 1))
+    schema = {row[1]: row for row in config._SCHEMA}
+    if name not in schema:
+        raise FlashError(f"unknown setting {name!r}; the settings are: {', '.join(schema)}.")
+    _rid, _name, kind, n, _default = schema[name]
+    try:
+        if kind == config._INT:
+            return name, int(value, 0)
+        if name.endswith("_matrix") and value.lower() in ("identity", "none", ""):
+            return name, None
+        values = [float(x) for x in value.split(",")]
+    except ValueError:
+        what = "an integer" if kind == config._INT else f"{n} comma-separated number(s)"
+        raise FlashError(f"{name} must be {what}, got {value!r}.") from None
+    if len(values) != n:
+        raise FlashError(f"{name} takes {n} comma-separated numbers, got {len(values)}.")
+    return name, values[0] if n == 1 else values
+
+
+def _config(args):
+    config = _config_module()
+    from tools.flash import deploy
+
+    if args.action == "get":
+        if args.file:
+            data = _read_config_file(args.file)
+            source = args.file
+        else:
+            data = deploy.read_config(args.port, args.baud)
+            source = f"{args.port}:/flash/ins.cfg"
+        if data is None:
+            print(f"# {source}: no configuration file; the firmware uses these defaults")
+            cfg = config.BoardConfig()
+        else:
+            try:
+                cfg = config.decode(data)
+            except (ValueError, IndexError) as e:
+                raise FlashError(
+                    f"the board's /flash/ins.cfg is corrupt ({e}); the firmware ignores it and "
+                    "uses the defaults. Write a new one with `config set` or deploy --config."
+                ) from None
+            print(f"# {source}")
+        if args.out and data is not None:
+            pathlib.Path(args.out).write_bytes(data)
+        _print_config(cfg, config)
+        return 0
+    # set
+    if not args.settings:
+        raise FlashError("config set needs at least one NAME=VALUE.")
+    changes = [_parse_setting(s, config) for s in args.settings]
+    if args.file:
+        path = pathlib.Path(args.file)
+        cfg = config.decode(_read_config_file(path)) if path.exists() else config.BoardConfig()
+    else:
+        data = deploy.read_config(args.port, args.baud)
+        try:
+            cfg = config.decode(data) if data is not None else config.BoardConfig()
+        except (ValueError, IndexError):
+            cfg = config.BoardConfig()  # a corrupt file is replaced by defaults + the changes
+    for name, value in changes:
+        setattr(cfg, name, value)
+    problem = cfg.validate()
+    if problem:
+        raise FlashError(f"invalid setting: {problem}. Nothing was written.")
+    data = config.encode(cfg)
+    if args.file:
+        pathlib.Path(args.file).write_bytes(data)
+        print(f"wrote {args.file} ({len(data)} bytes); deploy it with deploy --config")
+    else:
+        deploy.write_config(args.port, args.baud, data)
+        print("a soft reset applies it: the board was soft-reset and loads it now")
+    for name, value in changes:
+        print(f"{name} = {_format_value(getattr(cfg, name) if value is not None else None)}")
+    return 0
+
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="python -m tools.flash", description="Build the firmware and deploy it to a board."
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="compile firmware/ with mpy-cross and check the budget")
+    b.add_argument("--out", required=True, help="output directory")
+    b.add_argument("--flash-kb", type=_positive, default=48, help="filesystem size (48)")
+    b.add_argument("--strip-lines", action="store_true", help="mpy-cross -X no-source-lines")
+    b.set_defaults(func=_build)
+    d = sub.add_parser("deploy", help="copy the firmware to a board over its USB REPL")
+    d.add_argument("--port", required=True)
+    d.add_argument("--baud", type=_positive, default=115200)
+    d.add_argument("--config", help="configuration file to upload as /flash/ins.cfg")
+    d.add_argument("--flash-kb", type=_positive, help="check the build against this budget")
+    d.add_argument("--frames-port", help="RS485 port: confirm frames arrive after the reset")
+    d.add_argument("--dry-run", action="store_true", help="compare and report, write nothing")
+    d.add_argument("--strip-lines", action="store_true", help="mpy-cross -X no-source-lines")
+    d.add_argument("--watch", type=float, default=15.0, help="seconds to wait for the firmware")
+    d.set_defaults(func=_deploy)
+    c = sub.add_parser("config", help="read or change the persisted configuration")
+    csub = c.add_subparsers(dest="action", required=True)
+    for name in ("get", "set"):
+        a = csub.add_parser(name)
+        where = a.add_mutually_exclusive_group(required=True)
+        where.add_argument("--port", help="the board's USB port")
+        where.add_argument("--file", help="a local configuration file instead of a board")
+        a.add_argument("--baud", type=_positive, default=115200)
+        if name == "get":
+            a.add_argument("--out", help="also save the board's file here")
+        else:
+            a.add_argument("settings", nargs="*", metavar="NAME=VALUE")
+        a.set_defaults(func=_config)
+    return p
+
+
+def _positive(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except FlashError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(
+            "interrupted: run the command again (deploy only sends what differs)", file=sys.stderr
+        )
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

