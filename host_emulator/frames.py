@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import crcmod.predefined
 
-_crc32 = crcmod.predefined.mkCrcFun("crc-32")
+crc32 = crcmod.predefined.mkCrcFun("crc-32")
 FRAME_TYPE = 0x90
 EXT_TYPE = 0x91
 RAW_TYPE = 0x92
@@ -108,7 +108,7 @@ def decode(data):
             end = i + 3 + data[i + 2] + 4  # header, length byte, counter + payload, CRC
             if end <= n:
                 r = data[i:end]
-                if struct.unpack_from("<I", r, len(r) - 4)[0] == _crc32(bytes(r[:-4])):
+                if struct.unpack_from("<I", r, len(r) - 4)[0] == crc32(bytes(r[:-4])):
                     rec = ext_fields(r) if t == EXT_TYPE else raw_fields(r)
                     rec["frame_index"] = len(out.frames) - 1  # the 52-byte frame before it
                     (out.ext if t == EXT_TYPE else out.raw).append(rec)

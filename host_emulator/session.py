@@ -171,7 +171,7 @@ def _header_bytes(header):
     return json.dumps(header, sort_keys=True).encode()
 
 
-class _Writer:
+class SessionWriter:
     """Writes a session file as the bytes arrive: header first, trailer at `close`."""
 
     def __init__(self, path, header):
@@ -201,7 +201,7 @@ def write_session(path, data, config=None, **info):
     """A session file holding `data` (captured bytes), the configuration values `config` and
     header entries `info` (source, started_utc, ...)."""
     header = {"format": FORMAT, "config": config, **info}
-    w = _Writer(path, header)
+    w = SessionWriter(path, header)
     w.write(bytes(data))
     w.close()
 
@@ -328,7 +328,7 @@ def record(source, out_path, seconds=None, progress=None, config=None, baud=None
         "config_file": str(config) if isinstance(config, (str, os.PathLike)) else None,
     }
     try:
-        w = _Writer(out_path, header)
+        w = SessionWriter(out_path, header)
     except OSError as e:
         close()
         raise SessionError(f"cannot write session {out_path}: {e.strerror}") from None

@@ -1,0 +1,408 @@
+"""tools.monitor: the incremental decoder equals host_emulator.frames.decode on any chunking
+(garbage, a bad checksum, a bad CRC and a dropped frame counted exactly); the emulator's real
+output read from a file and from a pseudo-terminal at the configured baud into CSV, MDF4 and a
+replayable session file; Ctrl-C ends a live session cleanly; user mistakes give one clear
+message, no traceback."""
+
+import _thread
+import csv
+import io
+import os
+import random
+import termios
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+
+from host_emulator import emulator, frames, session
+from host_emulator.sim import board_input
+from tools.monitor import cli, export, view
+from tools.monitor.stream import EXT, FRAME, RAW, StreamDecoder, TickClock
+
+BAUD = 460800
+SECONDS = 4.0  # 800 ticks: frames, 40 extended frames, 800 raw-input records
+
+
+@pytest.fixture(scope="module")
+def board(tmp_path_factory):
+    """The emulator's output for 4 s of highway_outage (GNSS fixes from the start), with the
+    raw-input records on: what a board sends. Returns (bytes, path of frames.bin, config)."""
+    stim = board_input.simulate("highway_outage", SECONDS, seed=1).stimulus
+    d = tmp_path_factory.mktemp("board")
+    run = emulator.run_cpython(stim, d, {"raw_record": 1})
+    path = d / "frames.bin"
+    path.write_bytes(run.out)
+    return run.out, path, d / "flash" / "ins.cfg"
+
+
+def _records(data):
+    """[(offset, length, type)] of the records of a clean stream."""
+    out, i = [], 0
+    while i < len(data):
+        assert data[i] == 0xEB
+        n = 52 if data[i + 1] == frames.FRAME_TYPE else 3 + data[i + 2] + 4
+        out.append((i, n, data[i + 1]))
+        i += n
+    return out
+
+
+def _damaged(data, seed=7):
+    """The stream with garbage (no 0xEB) between some records, one 52-byte frame's checksum
+    broken, one frame left out, one extended frame's CRC broken; and what that must count."""
+    rng = random.Random(seed)
+    recs = _records(data)
+    frame_ix = [k for k, r in enumerate(recs) if r[2] == frames.FRAME_TYPE]
+    ext_ix = [k for k, r in enumerate(recs) if r[2] == frames.EXT_TYPE]
+    bad_sum, dropped = frame_ix[100], frame_ix[300]
+    bad_crc = ext_ix[5]
+    out = bytearray()
+    garbage = 0
+    for k, (i, n, _t) in enumerate(recs):
+        if k % 37 == 3:
+            g = bytes(
+                rng.choice([b for b in range(256) if b != 0xEB]) for _ in range(rng.randint(1, 40))
+            )
+            out += g
+            garbage += len(g)
+        rec = bytearray(data[i : i + n])
+        if k == dropped:
+            continue
+        if k == bad_sum:
+            rec[51] ^= 0x01
+        if k == bad_crc:
+            rec[-1] ^= 0x80
+        out += rec
+    expect = {
+        "bad_checksum": 1,
+        "bad_crc": 1,
+        "skipped_bytes": garbage + 52 + recs[bad_crc][1],
+        "counter_gaps": 2,  # the dropped frame and the one whose checksum failed
+        "frames": len(frame_ix) - 2,
+        "ext": len(ext_ix) - 1,
+    }
+    return bytes(out), expect
+
+
+def _feed_chunked(data, rng, max_chunk):
+    dec = StreamDecoder()
+    got = []
+    i = 0
+    while i < len(data):
+        n = rng.randint(0, max_chunk)
+        got += dec.feed(data[i : i + n])
+        i += n
+    got += dec.finish()
+    return dec, got
+
+
+def test_incremental_decoder_equals_frames_decode_on_any_chunking(board):
+    data, expect = _damaged(board[0])
+    ref = frames.decode(data)
+    assert len(ref.frames) == expect["frames"] and len(ref.ext) == expect["ext"]
+    assert (ref.bad_checksum, ref.bad_crc, ref.skipped_bytes) == (
+        expect["bad_checksum"],
+        expect["bad_crc"],
+        expect["skipped_bytes"],
+    )
+    rng = random.Random(1)
+    for max_chunk in (1, 7, 53, 300, 5000):
+        dec, got = _feed_chunked(data, rng, max_chunk)
+        assert [r for k, r in got if k == FRAME] == ref.frames
+        assert [r for k, r in got if k == EXT] == ref.ext  # frame_index included
+        assert [r for k, r in got if k == RAW] == ref.raw
+        c = dec.counts()
+        assert (c["bad_checksum"], c["bad_crc"], c["skipped_bytes"]) == (
+            ref.bad_checksum,
+            ref.bad_crc,
+            ref.skipped_bytes,
+        )
+        assert c["counter_gaps"] == expect["counter_gaps"]
+        if hasattr(ref, "counter_gaps"):
+            assert c["counter_gaps"] == ref.counter_gaps
+        assert c["bytes"] == len(data) and dec.pending == 0
+
+
+def test_a_record_cut_by_the_end_counts_as_skipped_like_frames_decode(board):
+    data = board[0]
+    for cut in (1, 2, 3, 51, 100):  # the stream ends inside a record
+        part = data[: len(data) - cut]
+        ref = frames.decode(part)
+        dec, got = _feed_chunked(part, random.Random(cut), 999)
+        assert sum(k == FRAME for k, _ in got) == len(ref.frames)
+        assert dec.skipped_bytes == ref.skipped_bytes > 0
+    # a stream of junk, a lone header, an unknown type
+    for junk in (b"", b"\xeb", b"\xeb\x90", b"\xeb\x91\x05", b"\x00\xeb\x33\xeb\xeb" * 9):
+        ref = frames.decode(junk)
+        dec, got = _feed_chunked(junk, random.Random(0), 3)
+        assert got == [] and dec.skipped_bytes == ref.skipped_bytes == len(junk)
+
+
+def test_tick_clock_follows_the_counter_and_the_extended_frames(board):
+    d = frames.decode(board[0])
+    clock = TickClock()
+    ticks = []
+    e = iter(d.ext)
+    nxt = next(e)
+    for k, f in enumerate(d.frames):
+        ticks.append(clock.tick(clock.frame(f["counter"])))
+        if nxt is not None and nxt["frame_index"] == k:
+            clock.ext(nxt)
+            assert clock.tick(clock.u) == nxt["tick"]
+            nxt = next(e, None)
+    assert ticks == list(range(1, len(d.frames) + 1))  # tick T sends counter T - 1
+    # joined late (counter 200 first) and output every 2 ticks: anchored on the tick field
+    clock = TickClock(every=2)
+    clock.frame(200)
+    clock.frame(201)
+    clock.ext({"counter": 202, "tick": 10 * 512 + 404})
+    assert clock.tick(clock.u) == 10 * 512 + 404
+    assert clock.tick(clock.frame(203)) == 10 * 512 + 408  # a dropped frame: 2 steps
+    assert clock.wrap_losses == 0
+
+
+def test_frames_lost_in_whole_counter_wraps_are_counted(board):
+    # 512 frames (and the extended frames among them) lost in a row: the counter cannot see
+    # it, the next extended frame's tick does (a listener that was not reading for 2.56 s)
+    recs = _records(board[0])
+    frame_ix = [k for k, r in enumerate(recs) if r[2] == frames.FRAME_TYPE]
+    a, b = recs[frame_ix[100]][0], recs[frame_ix[612]][0]
+    data = board[0][:a] + board[0][b:]
+    mon = cli.Monitor(view.Status("test"), every=1)
+    mon.feed(data)
+    mon.finish()
+    c = mon.counts()
+    assert c["counter_gaps"] == 0 and c["wrap_losses"] == 512
+    assert "512 lost in whole counter wraps" in view.error_line(c)
+
+
+def _read_csv(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[1:]
+
+
+def _check_exports(tmp_path, d, prefix):
+    head, rows = _read_csv(tmp_path / f"{prefix}.csv")
+    assert head == [c[0] for c in export.FRAME_COLUMNS] and len(rows) == len(d.frames)
+    a = np.array(rows, dtype=float)
+    col = {name: a[:, k] for k, name in enumerate(head)}
+    assert np.allclose(col["time_s"], 0.005 * np.arange(1, len(d.frames) + 1))
+    assert np.array_equal(col["counter"], [f["counter"] for f in d.frames])
+    np.testing.assert_allclose(col["lat_deg"], [f["lat_e7"] / 1e7 for f in d.frames], atol=1e-9)
+    np.testing.assert_allclose(col["lon_deg"], [f["lon_e7"] / 1e7 for f in d.frames], atol=1e-9)
+    np.testing.assert_allclose(col["yaw_deg"], [f["yaw_deg"] for f in d.frames], atol=1e-9)
+    np.testing.assert_allclose(col["accel_z_g"], [f["accel_g"][2] for f in d.frames], atol=1e-6)
+    fix = next(k for k, f in enumerate(d.frames) if f["gnss_valid"])
+    assert float(rows[fix][head.index("lat_deg")]) == d.frames[fix]["lat_e7"] / 1e7 != 0
+    ehead, erows = _read_csv(tmp_path / f"{prefix}_ext.csv")
+    assert ehead == [c[0] for c in export.EXT_COLUMNS] and len(erows) == len(d.ext)
+    assert [int(r[1]) for r in erows] == [e["tick"] for e in d.ext]
+
+    from asammdf import MDF
+
+    with MDF(tmp_path / f"{prefix}.mf4") as mdf:
+        assert len(mdf.groups) == 2
+        names = {n for n in mdf.channels_db if not n.startswith("time")}
+        assert len(names) == len(export.FRAME_COLUMNS) - 1 + len(export.EXT_COLUMNS) - 1
+        lat = mdf.get("lat_deg")
+        assert lat.unit == "deg" and len(lat.samples) == len(d.frames)
+        assert lat.samples[fix] == d.frames[fix]["lat_e7"] / 1e7
+        assert lat.timestamps[0] == pytest.approx(0.005) and lat.timestamps[-1] == pytest.approx(
+            0.005 * len(d.frames)
+        )
+        sp = mdf.get("sigma_pos_e_m")
+        assert sp.unit == "m" and len(sp.samples) == len(d.ext)
+        assert sp.timestamps[-1] == pytest.approx(d.ext[-1]["tick"] * 0.005)
+
+
+def test_a_capture_file_to_csv_mdf_and_session(board, tmp_path):
+    data, path, cfg = board
+    out = io.StringIO()
+    rc = cli.main(
+        [
+            "--file", str(path), "--csv", str(tmp_path / "f.csv"), "--mdf",
+            str(tmp_path / "f.mf4"), "--record", str(tmp_path / "f.ins"), "--config", str(cfg),
+        ],
+        out=out,
+    )  # fmt: skip
+    assert rc == 0
+    text = out.getvalue()
+    assert "800 frames, 40 extended frames, 800 raw records" in text
+    assert "checksum failures 0  CRC failures 0  skipped bytes 0" in text
+    assert "NAVIGATING" in text or "ALIGNING" in text
+    d = frames.decode(data)
+    _check_exports(tmp_path, d, "f")
+    header, rec = session.read_session(tmp_path / "f.ins")
+    assert rec == data and header["config"]["raw_record"] == 1
+    # the recorded session replays through the emulator to the same bytes
+    result = session.replay(tmp_path / "f.ins", tmp_path / "replay")
+    assert result.identical
+    # and the session file is read back as a capture (its header's config used)
+    out = io.StringIO()
+    assert cli.main(["--file", str(tmp_path / "f.ins"), "--quiet"], out=out) == 0
+    assert "800 frames" in out.getvalue()
+
+
+def _pty(baud):
+    master, slave = os.openpty()
+    for fd in (master, slave):
+        tty.setraw(fd)
+        attrs = termios.tcgetattr(fd)
+        speed = getattr(termios, f"B{baud}")
+        attrs[4] = attrs[5] = speed
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    return master, slave, os.ttyname(slave)
+
+
+@pytest.fixture
+def port_opened(monkeypatch):
+    """Set once the monitor has opened its port (pyserial flushes the input on opening: bytes
+    written before would be lost)."""
+    ev = threading.Event()
+
+    class Port(cli.PortSource):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            ev.set()
+
+    monkeypatch.setattr(cli, "PortSource", Port)
+    return ev
+
+
+def _stream(master, data, baud, done, opened, then_interrupt=True):
+    """Once the port is open, write `data` into the pty master at the pace of the baud (10 bits
+    a byte), then press Ctrl-C for the monitor (KeyboardInterrupt in the main thread)."""
+    assert opened.wait(10)
+    rate = baud / 10
+    t0 = time.monotonic()
+    sent = 0
+    step = int(rate / 100)  # 10 ms of bytes
+    while sent < len(data):
+        n = os.write(master, data[sent : sent + step])
+        sent += n
+        wait = t0 + sent / rate - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+    done["seconds"] = time.monotonic() - t0
+    time.sleep(0.4)
+    if then_interrupt:
+        _thread.interrupt_main()
+
+
+def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_opened):
+    data, _path, cfg = board
+    master, slave, name = _pty(BAUD)
+    done = {}
+    t = threading.Thread(target=_stream, args=(master, data, BAUD, done, port_opened), daemon=True)
+    out = io.StringIO()
+    try:
+        t.start()
+        rc = cli.main(
+            [
+                "--port", name, "--baud", str(BAUD), "--seconds", "30", "--config", str(cfg),
+                "--csv", str(tmp_path / "p.csv"), "--mdf", str(tmp_path / "p.mf4"),
+                "--record", str(tmp_path / "p.ins"),
+            ],
+            out=out,
+        )  # fmt: skip
+        t.join(5)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert rc == 0
+    assert done["seconds"] >= len(data) / (BAUD / 10) * 0.95  # paced at 46 kB/s
+    text = out.getvalue()
+    assert "interrupted (Ctrl-C)" in text
+    assert "summary: 800 frames, 40 extended frames, 800 raw records" in text
+    assert "checksum failures 0  CRC failures 0  skipped bytes 0  dropped frames " in text
+    assert "(counter gaps) 0" in text
+    assert "\x1b[" not in text and " Hz " in text  # not a terminal: a line a second
+    d = frames.decode(data)
+    _check_exports(tmp_path, d, "p")
+    header, rec = session.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
+    assert rec == data and header["baud"] == BAUD and header["source"] == name
+
+
+def test_the_live_view_on_a_terminal(board):
+    d = frames.decode(board[0])
+    st = view.Status("/dev/ttyX", BAUD)
+    dec = StreamDecoder()
+    dec.feed(board[0])
+    for k, f in enumerate(d.frames):
+        st.on_frame((k + 1) * 0.005, f)
+    st.on_ext(d.ext[-1])
+    st.sample(0.0, {**dec.counts(), "frames": 0, "ext": 0, "bytes": 0})
+    st.sample(1.0, dec.counts())
+    lines = view.render(st, dec.counts(), 1.0)
+    text = "\n".join(lines)
+    for word in ("state", "GNSS", "position", "velocity", "attitude", "sigma", "rates", "errors"):
+        assert word in text
+    assert "800.0 frames/s" in text and "health 0 normal" in text and "last fix" in text
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    scr = cli._Screen(Tty(), quiet=False)
+    scr.draw(st, dec.counts(), 1.0, 1.0)
+    scr.draw(st, dec.counts(), 1.3, 1.3)
+    assert f"\x1b[{len(lines)}F\x1b[J" in scr.out.getvalue()  # redrawn in place
+
+
+def _err(argv):
+    out, err = io.StringIO(), io.StringIO()
+    rc = cli.main(argv, out=out, err=err)
+    return rc, err.getvalue()
+
+
+def test_user_mistakes_give_one_clear_message(tmp_path):
+    rc, msg = _err(["--file", str(tmp_path / "nope.bin")])
+    assert rc == 1 and "no such file" in msg and "Traceback" not in msg
+    rc, msg = _err(["--port", "/dev/ttyNOPE_monitor"])
+    assert rc == 1 and "no such serial port: /dev/ttyNOPE_monitor" in msg
+    assert "serial ports found" in msg or "no serial ports found" in msg
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(bytes(random.Random(3).randrange(256) for _ in range(5000)))
+    rc, msg = _err(["--file", str(junk), "--quiet"])
+    assert rc == 1 and "5000 bytes but no frames" in msg and "not a capture" in msg
+    (tmp_path / "empty.bin").write_bytes(b"")
+    rc, msg = _err(["--file", str(tmp_path / "empty.bin")])
+    assert rc == 1 and "is empty" in msg
+    bad = tmp_path / "cut.ins"
+    session.write_session(bad, b"\xeb\x90" * 100)
+    bad.write_bytes(bad.read_bytes()[:-10])
+    rc, msg = _err(["--file", str(bad)])
+    assert rc == 1 and "truncated" in msg
+    rc, msg = _err(["--file", str(junk), "--csv", str(tmp_path / "no_dir" / "x.csv")])
+    assert rc == 1 and "cannot write" in msg
+    with pytest.raises(SystemExit) as e:  # argparse: usage and status 2
+        _err([])
+    assert e.value.code == 2
+
+
+def test_a_port_that_sends_only_garbage_or_nothing_or_is_busy(tmp_path, port_opened):
+    master, slave, name = _pty(BAUD)
+    try:
+        junk = bytes(random.Random(5).randrange(256) for _ in range(20000))
+        t = threading.Thread(
+            target=_stream, args=(master, junk, BAUD, {}, port_opened, False), daemon=True
+        )
+        t0 = time.monotonic()
+        t.start()
+        rc, msg = _err(["--port", name, "--timeout", "0.3", "--quiet"])
+        t.join(5)
+        assert rc == 1 and "bytes arrived" in msg and "but no frames: check the baud" in msg
+        assert "output_baud" in msg and time.monotonic() - t0 < 5
+        rc, msg = _err(["--port", name, "--timeout", "0.2", "--quiet"])
+        assert rc == 1 and "no bytes received" in msg
+        import serial
+
+        with serial.Serial(name, BAUD, exclusive=True):
+            rc, msg = _err(["--port", name, "--quiet"])
+        assert rc == 1 and "busy" in msg
+    finally:
+        os.close(master)
+        os.close(slave)

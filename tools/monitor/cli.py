@@ -1,0 +1,360 @@
+"""`python -m tools.monitor`: decode, watch, record and export what a board sends.
+
+    python -m tools.monitor --port /dev/ttyUSB0 [--baud 460800] [--record s.ins] [--csv s.csv]
+    python -m tools.monitor --file frames.bin --csv s.csv --mdf s.mf4 --quiet
+    python -m tools.monitor --list-ports
+
+See docs/monitor.md. Exit status: 0 done (end of file, --seconds reached, Ctrl-C), 1 a problem
+the message explains (no such port, nothing decodable, ...), 2 bad command line.
+"""
+
+import argparse
+import datetime
+import sys
+import time
+
+from host_emulator import session
+from tools.monitor import export, view
+from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports
+from tools.monitor.stream import EXT, FRAME, StreamDecoder, TickClock
+
+DEFAULT_BAUD = session.DEFAULT_BAUD
+DRAW_EVERY_S = 0.25  # live view redraws (terminal)
+LINE_EVERY_S = 1.0  # one line per second (not a terminal)
+PENDING_MAX = 400  # frames held for the first extended frame's tick (2 s at 200 Hz)
+
+
+class Monitor:
+    """The decoded stream to the view and the files: frames get their board time from
+    TickClock; frames before the first extended frame wait (up to PENDING_MAX) so that their
+    time is anchored on its tick too."""
+
+    def __init__(self, status, every=1, outputs=(), recorder=None):
+        self.decoder = StreamDecoder()
+        self.clock = TickClock(every)
+        self.status = status
+        self.outputs = list(outputs)  # objects with frame(t, f) and ext(e)
+        self.recorder = recorder
+        self._pending = []
+        self.board_limit_s = None  # a file with --seconds: ignore what comes after this
+        self.done = False
+
+    def counts(self):
+        return {**self.decoder.counts(), "wrap_losses": self.clock.wrap_losses}
+
+    def feed(self, chunk):
+        if self.recorder is not None and chunk:
+            self.recorder.write(chunk)
+        self._handle(self.decoder.feed(chunk))
+
+    def finish(self):
+        self._handle(self.decoder.finish())
+        self._flush()
+
+    def _handle(self, records):
+        for kind, rec in records:
+            if self.done:
+                return
+            if kind == FRAME:
+                u = self.clock.frame(rec["counter"])
+                st = self.status
+                if (
+                    self.board_limit_s is not None
+                    and st.first_t is not None
+                    and self.clock.time_s(u) - st.first_t >= self.board_limit_s
+                ):
+                    self.done = True
+                    return
+                self.status.on_frame(self.clock.time_s(u), rec)
+                if self.clock.anchored and not self._pending:
+                    self._out(u, rec)
+                else:
+                    self._pending.append((u, rec))
+                    if len(self._pending) >= PENDING_MAX:
+                        self._flush()
+            elif kind == EXT:
+                self.clock.ext(rec)
+                self._flush()
+                self.status.on_ext(rec)
+                for o in self.outputs:
+                    o.ext(rec)
+
+    def _out(self, u, f):
+        t = self.clock.time_s(u)
+        for o in self.outputs:
+            o.frame(t, f)
+
+    def _flush(self):
+        for u, f in self._pending:
+            self._out(u, f)
+        self._pending = []
+
+
+class _MdfOut:
+    def __init__(self, mdf):
+        self.mdf = mdf
+
+    def frame(self, t, f):
+        self.mdf.frame(t, f)
+
+    def ext(self, e):
+        self.mdf.ext_frame(e)
+
+
+class _Screen:
+    """Live redraw on a terminal (ANSI: cursor up, clear to end), a line a second otherwise."""
+
+    def __init__(self, out, quiet):
+        self.out = out
+        self.quiet = quiet
+        self.tty = bool(getattr(out, "isatty", lambda: False)())
+        self.every = DRAW_EVERY_S if self.tty else LINE_EVERY_S
+        self._drawn = 0
+        self._last = None
+
+    def due(self, now):
+        return not self.quiet and (self._last is None or now - self._last >= self.every)
+
+    def draw(self, st, counts, elapsed, now):
+        self._last = now
+        if self.tty:
+            lines = view.render(st, counts, elapsed)
+            up = f"\x1b[{self._drawn}F" if self._drawn else ""
+            self.out.write(up + "\x1b[J" + "\n".join(lines) + "\n")
+            self._drawn = len(lines)
+        else:
+            self.out.write(view.one_line(st, counts, elapsed) + "\n")
+        self.out.flush()
+
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="python -m tools.monitor",
+        description="Decode, watch, record and export what an INS board sends (52-byte frames, "
+        "extended frames, raw-input records). See docs/monitor.md.",
+    )
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--port", help="serial port (e.g. /dev/ttyUSB0, COM3, a pyserial URL)")
+    src.add_argument("--file", help="a raw capture or a session file (host_emulator session)")
+    src.add_argument("--list-ports", action="store_true", help="list serial ports and exit")
+    p.add_argument(
+        "--baud",
+        type=int,
+        help=f"serial baud rate, 8N1 (default: --config's output_baud, else {DEFAULT_BAUD})",
+    )
+    p.add_argument(
+        "--config",
+        help="the board's configuration file (or JSON settings): its output_every_ticks sets the "
+        "time base; kept in the --record session so it can be replayed",
+    )
+    p.add_argument("--record", metavar="FILE", help="write every byte received to a session file")
+    p.add_argument("--csv", metavar="FILE", help="frames as CSV (+ FILE_ext.csv: extended frames)")
+    p.add_argument("--mdf", metavar="FILE", help="frames and extended frames as MDF4 (.mf4)")
+    p.add_argument(
+        "--seconds", type=float, help="stop after N s (port: wall time; file: board time)"
+    )
+    p.add_argument("--quiet", action="store_true", help="no live view, only the summary")
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=5.0,
+        help="port: give up when nothing decodable arrived in this many s (default 5)",
+    )
+    return p
+
+
+def _every(values):
+    try:
+        return max(1, int((values or {}).get("output_every_ticks", 1)))
+    except (TypeError, ValueError):
+        return 1
+
+
+def _no_data_error(src, counts, waited):
+    n = counts["bytes"]
+    if n == 0:
+        return MonitorError(
+            f"no bytes received from {src.name} in {waited:.1f} s: is the board powered and "
+            "running, its RS485 output wired to this adapter (A/B swapped?), and the port right? "
+            f"(serial ports: {', '.join(list_ports()) or 'none found'})"
+        )
+    return MonitorError(
+        f"{n} bytes arrived from {src.name} in {waited:.1f} s but no frames: check the baud "
+        f"(the board's output_baud setting; this port is at {src.baud}, --baud changes it) and "
+        "that this is the board's output port"
+    )
+
+
+def _open_outputs(args, header_info):
+    """(outputs, recorder, closers, descriptions) for --csv, --mdf and --record."""
+    outputs, closers, files = [], [], []
+    recorder = None
+    try:
+        if args.csv:
+            c = export.CsvExport(args.csv)
+            closers.append(c.close)
+            outputs.append(c)
+            files.append(lambda c=c: f"{c.path} ({c.rows} rows), {c.ext_path} ({c.ext_rows} rows)")
+        if args.mdf:
+            m = export.MdfExport(args.mdf)
+            closers.append(m.close)
+            outputs.append(_MdfOut(m))
+            files.append(
+                lambda m=m: f"{m.path} (MDF4: {m.frames.samples} frames, {m.ext.samples} ext)"
+            )
+        if args.record:
+            try:
+                recorder = session.SessionWriter(args.record, header_info)
+            except OSError as e:
+                raise OSError(f"cannot write {args.record}: {e.strerror}") from None
+            closers.append(recorder.close)
+            files.append(lambda r=recorder: f"{r.path} (session file, {r.n} bytes)")
+    except OSError as e:
+        _close_all(closers)
+        raise MonitorError(str(e)) from None
+    return outputs, recorder, closers, files
+
+
+def _close_all(closers):
+    problems = []
+    for close in closers:
+        try:
+            close()
+        except Exception as e:  # noqa: BLE001 (report, keep closing the others)
+            problems.append(str(e))
+    return problems
+
+
+def run(args, out=None, err=None):
+    out = out or sys.stdout
+    err = err or sys.stderr
+    if args.list_ports:
+        ports = list_ports()
+        out.write("\n".join(ports) + "\n" if ports else "no serial ports found\n")
+        return 0
+    if not args.port and not args.file:
+        raise MonitorError("give --port PORT (a board) or --file FILE (a capture); --help")
+    if args.seconds is not None and args.seconds <= 0:
+        raise MonitorError("--seconds must be more than 0")
+    if args.baud is not None and args.baud <= 0:
+        raise MonitorError("--baud must be a positive baud rate")
+    values = None
+    if args.config:
+        try:
+            values = session.load_config(args.config)
+        except session.SessionError as e:
+            raise MonitorError(str(e)) from None
+    if args.file:
+        src = FileSource(args.file)
+        if values is None:
+            values = src.config_values()
+        baud = src.baud
+    else:
+        baud = args.baud or int((values or {}).get("output_baud", DEFAULT_BAUD))
+        src = PortSource(args.port, baud)
+    header = {
+        "format": session.FORMAT,
+        "source": src.name,
+        "baud": baud if src.kind == "serial" else None,
+        "started_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "config": values,
+        "config_file": str(args.config) if args.config else None,
+    }
+    try:
+        outputs, recorder, closers, files = _open_outputs(args, header)
+    except MonitorError:
+        src.close()
+        raise
+    status = view.Status(src.name, baud if src.kind == "serial" else None)
+    mon = Monitor(status, _every(values), outputs, recorder)
+    screen = _Screen(out, args.quiet or src.kind == "file")
+    t0 = time.monotonic()
+    stopped = "end of file"
+    failure = None
+    try:
+        if src.kind == "file":
+            stopped = _run_file(src, mon, args)
+        else:
+            stopped = _run_port(src, mon, args, screen, t0)
+    except KeyboardInterrupt:
+        stopped = "interrupted (Ctrl-C)"
+    except MonitorError as e:
+        failure = e
+    finally:
+        skipped_before = mon.decoder.skipped_bytes
+        try:
+            mon.finish()
+        except Exception as e:  # noqa: BLE001 (still close the files)
+            failure = failure or MonitorError(f"decoding the end of the stream failed: {e}")
+        src.close()
+        problems = _close_all(closers)
+    wall = time.monotonic() - t0
+    counts = mon.counts()
+    cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
+    if failure is None and counts["frames"] == 0 and counts["ext"] == 0:
+        if src.kind == "file":
+            if counts["bytes"] == 0:
+                failure = MonitorError(f"{src.name} is empty: nothing to decode")
+            else:
+                failure = MonitorError(
+                    f"{src.name} holds {counts['bytes']} bytes but no frames: it is not a "
+                    "capture of the board's output (or it was captured at the wrong baud)"
+                )
+        elif stopped != "interrupted (Ctrl-C)":
+            failure = _no_data_error(src, counts, wall)
+    if not args.quiet and src.kind == "file" and status.frame is not None:
+        out.write("\n".join(view.render(status, counts, status.board_seconds(), live=False)) + "\n")
+    if screen.tty and not screen.quiet:
+        screen.draw(status, counts, wall, time.monotonic())
+    summary = view.summary(status, counts, wall, stopped, [d() for d in files])
+    if cut:
+        summary.insert(3, f"  ({cut} of the skipped bytes: a record cut short by the end)")
+    out.write("\n".join(summary) + "\n")
+    out.flush()
+    for p in problems:
+        err.write(f"error: {p}\n")
+    if failure is not None:
+        raise failure
+    return 1 if problems else 0
+
+
+def _run_file(src, mon, args):
+    mon.board_limit_s = args.seconds
+    size = 1 << 16 if args.seconds is None else 512  # stop near the limit: counts stay close
+    while True:
+        chunk = src.read(size=size)
+        if not chunk:
+            return "end of file"
+        mon.feed(chunk)
+        if mon.done:
+            return f"{args.seconds:g} s of board time"
+
+
+def _run_port(src, mon, args, screen, t0):
+    while True:
+        now = time.monotonic()
+        elapsed = now - t0
+        if args.seconds is not None and elapsed >= args.seconds:
+            return f"after {args.seconds:g} s"
+        chunk = src.read(0.05)
+        if chunk:
+            mon.feed(chunk)
+        c = mon.counts()
+        if c["frames"] == 0 and c["ext"] == 0 and elapsed >= args.timeout:
+            raise _no_data_error(src, c, elapsed)
+        mon.status.sample(now, c)
+        if screen.due(now):
+            screen.draw(mon.status, c, elapsed, now)
+
+
+def main(argv=None, out=None, err=None):
+    err = err or sys.stderr
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not (args.port or args.file or args.list_ports):
+        parser.error("give --port PORT (a board) or --file FILE (a capture)")
+    try:
+        return run(args, out, err)
+    except MonitorError as e:
+        err.write(f"error: {e}\n")
+        return 1
