@@ -4,7 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint accuracy bench-nav accuracy-report replay clean
+.PHONY: demo test lint accuracy bench-nav accuracy-report replay build-flash deploy monitor \
+	virtual-board clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -38,6 +39,26 @@ accuracy-report: $(STAMP)
 # The real drive through the firmware with report and plots (out/replay/).
 replay: $(STAMP)
 	$(BIN)/python -m host_emulator replay --dataset drive_0708 --out out/replay
+
+# Board tools (docs/deploy.md, docs/monitor.md, docs/virtual_board.md). PORT: the board's USB
+# serial port (its REPL) for deploy; the RS485 adapter that carries the frames for monitor.
+build-flash: $(STAMP)
+	$(BIN)/python -m tools.flash build --out out/flash $(if $(FLASH_KB),--flash-kb $(FLASH_KB))
+
+deploy: $(STAMP)
+	@test -n "$(PORT)" || { echo "usage: make deploy PORT=/dev/ttyACM0 [CONFIG=ins.cfg]" \
+		"[FRAMES_PORT=/dev/ttyUSB0]" >&2; exit 2; }
+	$(BIN)/python -m tools.flash deploy --port $(PORT) $(if $(CONFIG),--config $(CONFIG)) \
+		$(if $(FRAMES_PORT),--frames-port $(FRAMES_PORT))
+
+monitor: $(STAMP)
+	@test -n "$(PORT)" || { echo "usage: make monitor PORT=/dev/ttyUSB0 [RECORD=run.ins]" \
+		"[CSV=run.csv]" >&2; exit 2; }
+	$(BIN)/python -m tools.monitor --port $(PORT) $(if $(RECORD),--record $(RECORD)) \
+		$(if $(CSV),--csv $(CSV))
+
+virtual-board: $(STAMP)
+	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache
