@@ -76,6 +76,22 @@ def board_config(cfg_values):
     return cfg
 
 
+def decode_config(data):
+    """The BoardConfig in a configuration file's bytes, checked as the board checks it on load
+    (config.load); EmulatorError "corrupt (why)" or "invalid: why" otherwise."""
+    firmware_env.install()
+    import config
+
+    try:
+        cfg = config.decode(data)
+    except (ValueError, IndexError) as e:
+        raise EmulatorError(f"corrupt ({e})") from None
+    problem = cfg.validate()
+    if problem:
+        raise EmulatorError(f"invalid: {problem}")
+    return cfg
+
+
 def config_bytes(cfg_values):
     """The configuration file the board would hold (firmware/lib/config.py's encoding)."""
     cfg = board_config(cfg_values)

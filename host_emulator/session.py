@@ -129,18 +129,11 @@ def load_config(path):
         data = Path(path).read_bytes()
     except OSError as e:
         raise SessionError(f"cannot read configuration {path}: {e.strerror}") from None
-    emulator.board_config({})  # puts the firmware's modules on the path
-    import config
-
     if data[:4] == b"INSC":
         try:
-            cfg = config.decode(data)
-        except (ValueError, IndexError) as e:
-            raise SessionError(f"configuration {path} is corrupt: {e}") from None
-        problem = cfg.validate()
-        if problem:
-            raise SessionError(f"configuration {path} is invalid: {problem}")
-        return config_values(cfg)
+            return config_values(emulator.decode_config(data))
+        except EmulatorError as e:
+            raise SessionError(f"configuration {path} is {e}") from None
     try:
         values = json.loads(data.decode())
         if not isinstance(values, dict):
@@ -265,20 +258,14 @@ def _open_source(source, baud):
     serial_like = (st is not None and stat.S_ISCHR(st.st_mode)) or _is_serial_name(source)
     if st is None and not serial_like and not source.startswith("/dev/"):
         raise SessionError(f"no such file or serial port: {source}")
+    import serial
+
+    from host_emulator import serial_port
+
     try:
-        import serial  # pyserial: only needed for serial ports
-    except ImportError:
-        raise SessionError(
-            "reading a serial port needs pyserial (pip install pyserial==3.5; it is in "
-            "requirements.txt)"
-        ) from None
-    try:
-        port = serial.serial_for_url(source, baudrate=baud, timeout=0.2, exclusive=True)
-    except (serial.SerialException, ValueError, OSError) as e:
-        raise SessionError(
-            f"cannot open serial port {source} at {baud} baud: {e} (is the adapter plugged "
-            "in, the name right, and the port not open in another program?)"
-        ) from None
+        port = serial_port.open_port(source, baud, 0.2)
+    except serial_port.PortError as e:
+        raise SessionError(str(e)) from None
 
     def read_serial(_timeout):
         try:

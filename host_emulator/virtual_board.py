@@ -524,6 +524,18 @@ def main(argv=None):
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
     args = p.parse_args(argv)
+    from host_emulator import scenario_run
+    from host_emulator.errors import EmulatorError
+
+    try:
+        scenario_run.check_scenario(args.scenario)
+        scenario_run.check_duration(args.duration)
+        scenario_run.check_seed(args.seed)
+        if args.flash_kb < 1 or args.corrupt_writes < 0:
+            raise EmulatorError("--flash-kb must be 1 or more and --corrupt-writes 0 or more")
+    except EmulatorError as e:
+        print(f"virtual board: {e}", file=sys.stderr)
+        return 2
     board = VirtualBoard(
         args.fs,
         flash_kb=args.flash_kb,
@@ -536,7 +548,7 @@ def main(argv=None):
     )
     try:
         board.start()
-    except (KeyError, RuntimeError, OSError) as e:
+    except (RuntimeError, OSError) as e:
         print(f"virtual board: cannot start: {e}", file=sys.stderr)
         return 1
     print(f"REPL console (USB): {board.port}")

@@ -203,16 +203,29 @@ def _frames(data):
 
 
 def test_firmware_runs_to_the_end_of_its_input(deployed):
+    import threading
+
     with VirtualBoard(deployed, realtime=False, duration_s=2.0) as vb:
-        rs = serial.Serial(vb.rs485_port, 115200, timeout=0.5)
+        rs = serial.Serial(vb.rs485_port, 115200, timeout=0.05)
         s = serial.Serial(vb.port, 115200, timeout=2)
+        # read the RS485 side while the firmware runs: like a UART, the board drops what
+        # nobody takes, and a pty holds only a few kB
+        got, done = bytearray(), threading.Event()
+
+        def reader():
+            while not done.is_set():
+                got.extend(rs.read(1 << 16))
+
+        t = threading.Thread(target=reader)
+        t.start()
         s.write(b"\x03\x04")
         out = read_until(s, b">>> ", timeout=15)
+        done.set()
+        t.join()
         assert b"MPY: soft reboot\r\n" in out
         assert b"configuration /flash/ins.cfg loaded\r\n" in out
         assert b"ins: running" in out and b"input ended" in out
-        data = rs.read(1 << 20)
-        assert len(_frames(data)) >= 100  # 2 s at 200 Hz, frames every tick or so
+        assert len(_frames(bytes(got))) >= 100  # 2 s at 200 Hz, frames every tick or so
         rs.close()
         s.close()
 
@@ -239,3 +252,12 @@ def test_firmware_realtime_ctrl_c_stops_it(deployed):
         )
         rs.close()
         s.close()
+
+
+def test_bad_command_line_values_are_one_clear_message(tmp_path, capsys):
+    from host_emulator import virtual_board
+
+    assert virtual_board.main(["--fs", str(tmp_path), "--scenario", "nope"]) == 2
+    assert "unknown scenario 'nope'; known scenarios:" in capsys.readouterr().err
+    assert virtual_board.main(["--fs", str(tmp_path), "--flash-kb", "0"]) == 2
+    assert "--flash-kb must be 1 or more" in capsys.readouterr().err

@@ -127,9 +127,9 @@ LIMITS = """## What limits accuracy (drive_0708)
   filter is overconfident and weights the 1.5 m fixes too little (second row). The board
   settings of the first row (gyro ARW 0.1 deg/s/sqrt(Hz), accel VRW 1 mg/sqrt(Hz), standstill
   below 3 deg/s and 0.3 m/s^2) come from the parked vibration and a sweep on this drive, so
-  the first row is tuned on the data it is scored on, as the KF-GINS figures are. Around
-  those settings the figure is flat: halving or doubling a noise or bias setting does not
-  bring the horizontal RMS under the first row's.
+  the first row is tuned on the data it is scored on, as the KF-GINS figures are. A sweep
+  around them (each noise and bias setting halved and doubled; a one-off study whose figures
+  are in the notes of the real-data issue, not a command here) found none better.
 - **Along-track velocity.** What remains is mostly along the track: the forward velocity
   error wanders by a few tenths of a m/s over tens of seconds (it grows while the car
   accelerates and with speed), and the 1 Hz fixes of 1.5 m pull the position back only

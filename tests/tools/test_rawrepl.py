@@ -1,10 +1,10 @@
-"""The raw-REPL client against a scripted board (tools.flash.fakeboard): banner, raw-paste with
+"""The raw-REPL client against a scripted board (tests/tools/fakeboard.py): banner, raw-paste with
 flow control, the plain raw-mode fallback, board exceptions, silence and garbage."""
 
 import pytest
+from fakeboard import FakeSerial
 
 from tools.flash import errors
-from tools.flash.fakeboard import FakeSerial
 from tools.flash.rawrepl import RawRepl
 
 

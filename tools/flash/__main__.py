@@ -30,29 +30,33 @@ def _build(args):
     return 0
 
 
+def _decode_config(data, what, advice):
+    """The BoardConfig in a configuration file's bytes; FlashError naming `what` otherwise."""
+    from host_emulator import emulator
+    from host_emulator.errors import EmulatorError
+
+    try:
+        return emulator.decode_config(data)
+    except EmulatorError as e:
+        raise FlashError(f"{what} is not a valid configuration file: {e}. {advice}") from None
+
+
 def _read_config_file(path):
-    config = _config_module()
+    """(bytes, BoardConfig) of a local configuration file."""
     try:
         data = pathlib.Path(path).read_bytes()
     except OSError as e:
         raise FlashError(f"cannot read configuration file {path}: {e.strerror}.") from None
-    try:
-        cfg = config.decode(data)
-    except (ValueError, IndexError) as e:
-        raise FlashError(
-            f"{path} is not a valid configuration file ({e}). Create one with "
-            "`python -m tools.flash config set --file FILE NAME=VALUE ...`."
-        ) from None
-    problem = cfg.validate()
-    if problem:
-        raise FlashError(f"{path} holds an invalid configuration: {problem}.")
-    return data
+    cfg = _decode_config(
+        data, path, "Create one with `python -m tools.flash config set --file FILE NAME=VALUE ...`."
+    )
+    return data, cfg
 
 
 def _deploy(args):
     from tools.flash import build, deploy
 
-    config_bytes = _read_config_file(args.config) if args.config else None
+    config_bytes, cfg = _read_config_file(args.config) if args.config else (None, None)
     with tempfile.TemporaryDirectory(prefix="ins-build-") as tmp:
         manifest = build.build(tmp, args.flash_kb or build.DEFAULT_FLASH_KB, args.strip_lines)
         print(
@@ -62,8 +66,8 @@ def _deploy(args):
         if args.flash_kb:
             build.check_budget(manifest)
         frames_baud = 460800
-        if config_bytes is not None:
-            frames_baud = _config_module().decode(config_bytes).output_baud
+        if cfg is not None:
+            frames_baud = cfg.output_baud
         result = deploy.deploy(
             tmp,
             args.port,
@@ -124,23 +128,20 @@ def _config(args):
 
     if args.action == "get":
         if args.file:
-            data = _read_config_file(args.file)
-            source = args.file
+            data, cfg = _read_config_file(args.file)
+            print(f"# {args.file}")
         else:
             data = deploy.read_config(args.port, args.baud)
             source = f"{args.port}:/flash/ins.cfg"
-        if data is None:
-            print(f"# {source}: no configuration file; the firmware uses these defaults")
-            cfg = config.BoardConfig()
-        else:
-            try:
-                cfg = config.decode(data)
-            except (ValueError, IndexError) as e:
-                raise FlashError(
-                    f"the board's /flash/ins.cfg is corrupt ({e}); the firmware ignores it and "
-                    "uses the defaults. Write a new one with `config set` or deploy --config."
-                ) from None
-            print(f"# {source}")
+            if data is None:
+                print(f"# {source}: no configuration file; the firmware uses these defaults")
+                cfg = config.BoardConfig()
+            else:
+                cfg = _decode_config(
+                    data, source, "The firmware ignores it and uses the defaults; write a new "
+                    "one with `config set` or deploy --config.",
+                )  # fmt: skip
+                print(f"# {source}")
         if args.out and data is not None:
             pathlib.Path(args.out).write_bytes(data)
         _print_config(cfg, config)
@@ -151,13 +152,17 @@ def _config(args):
     changes = [_parse_setting(s, config) for s in args.settings]
     if args.file:
         path = pathlib.Path(args.file)
-        cfg = config.decode(_read_config_file(path)) if path.exists() else config.BoardConfig()
+        cfg = _read_config_file(path)[1] if path.exists() else config.BoardConfig()
     else:
         data = deploy.read_config(args.port, args.baud)
-        try:
-            cfg = config.decode(data) if data is not None else config.BoardConfig()
-        except (ValueError, IndexError):
-            cfg = config.BoardConfig()  # a corrupt file is replaced by defaults + the changes
+        cfg = config.BoardConfig()
+        if data is not None:
+            try:
+                cfg = _decode_config(data, "the board's /flash/ins.cfg", "")
+            except FlashError as e:  # the firmware ignores it: replaced by defaults + changes
+                print(
+                    f"{e}The firmware ignored it; it is replaced by the defaults and the changes."
+                )
     for name, value in changes:
         setattr(cfg, name, value)
     problem = cfg.validate()

@@ -3,10 +3,10 @@ file verified by the board's own CRC-32), delete stale firmware files, upload th
 configuration, soft-reset and confirm the firmware started."""
 
 import binascii
-import errno
 import pathlib
 import time
 
+from host_emulator import frames, serial_port
 from tools.flash import build as build_mod
 from tools.flash.errors import (
     FirmwareNotRunning,
@@ -22,7 +22,6 @@ CONFIG_NAME = "ins.cfg"
 CHUNK = 512  # raw bytes per board-side write() call
 CHUNKS_PER_EXEC = 4  # 2 KB of file per raw-REPL exec: small enough for the board's heap
 ATTEMPTS = 3
-FRAME_LEN = 52
 
 # Helpers defined once per session in the board's raw-REPL globals.
 BOARD_HELPERS = """
@@ -61,41 +60,21 @@ def _w(s):
 
 
 def open_port(port, baud):
-    """A serial.Serial on port; PortError with the ports that exist, or who holds it."""
-    import serial
-    import serial.tools.list_ports
-
+    """The board's serial port; PortError with the ports that exist, or who holds it."""
     try:
-        return serial.Serial(port, baud, timeout=0.05, write_timeout=10, exclusive=True)
-    except (serial.SerialException, OSError, ValueError) as e:
-        code = getattr(e, "errno", None)
-        text = str(e)
-        if (
-            code == errno.ENOENT
-            or "No such file" in text
-            or "could not open port" in text
-            and ("FileNotFoundError" in text or "cannot find" in text)
-        ):
-            ports = [p.device for p in serial.tools.list_ports.comports()]
-            found = ", ".join(ports) if ports else "none"
+        return serial_port.open_port(port, baud, 0.05, write_timeout=10)
+    except serial_port.PortError as e:
+        if e.kind == serial_port.MISSING:
             raise PortError(
-                f"no serial port {port}. Ports on this machine: {found}. Plug the board in "
+                f"no serial port {port}. Ports on this machine: {_ports()}. Plug the board in "
                 "(its USB port, not the ST-Link) and pass its port with --port, e.g. "
                 "--port /dev/ttyACM0 on Linux or --port COM5 on Windows."
             ) from None
-        if code in (errno.EBUSY, errno.EAGAIN) or "busy" in text or "lock" in text.lower():
-            raise PortError(
-                f"serial port {port} is busy: another program holds it (a serial monitor, "
-                "screen, minicom, mpremote, or a session recorder). Close it and run the "
-                "command again."
-            ) from None
-        if code in (errno.EACCES, errno.EPERM) or "ermission" in text:
-            raise PortError(
-                f"permission denied on serial port {port}. On Linux add yourself to the "
-                "dialout group (sudo usermod -aG dialout $USER, then log in again); otherwise "
-                "another program may hold the port: close it and run the command again."
-            ) from None
-        raise PortError(f"cannot open serial port {port}: {text}. Check the port name.") from None
+        raise PortError(f"{e}.") from None
+
+
+def _ports():
+    return ", ".join(serial_port.list_ports()) or "none"
 
 
 class Board:
@@ -404,16 +383,8 @@ def count_frames(port, baud, seconds=3.0):
 
 
 def valid_frames(data):
-    n = 0
-    i = data.find(b"\xeb\x90")
-    while 0 <= i and i + FRAME_LEN <= len(data):
-        frame = data[i : i + FRAME_LEN]
-        if sum(frame[2:51]) & 0xFF == frame[51]:
-            n += 1
-            i = data.find(b"\xeb\x90", i + FRAME_LEN)
-        else:
-            i = data.find(b"\xeb\x90", i + 1)
-    return n
+    """52-byte frames with a good checksum in data (frames.decode resynchronises on garbage)."""
+    return len(frames.decode(data).frames)
 
 
 def read_config(port, baud):

@@ -2,11 +2,9 @@
 file of host_emulator/session.py). Every user mistake becomes a MonitorError with a message
 that says what to do."""
 
-import errno
-import os
 from pathlib import Path
 
-from host_emulator import session
+from host_emulator import serial_port, session
 
 
 class MonitorError(Exception):
@@ -15,22 +13,7 @@ class MonitorError(Exception):
 
 def list_ports():
     """The serial ports pyserial sees, as "device (description)" strings."""
-    try:
-        from serial.tools import list_ports as lp
-    except ImportError:
-        return []
-    out = []
-    for p in sorted(lp.comports(), key=lambda p: p.device):
-        desc = p.description if p.description and p.description != "n/a" else ""
-        out.append(f"{p.device} ({desc})" if desc else p.device)
-    return out
-
-
-def _ports_hint():
-    ports = list_ports()
-    if not ports:
-        return "no serial ports found (is the USB-RS485 adapter plugged in?)"
-    return "serial ports found: " + ", ".join(ports)
+    return serial_port.list_ports()
 
 
 class PortSource:
@@ -40,44 +23,19 @@ class PortSource:
     kind = "serial"
 
     def __init__(self, port, baud):
-        try:
-            import serial
-        except ImportError:
-            raise MonitorError(
-                "reading a serial port needs pyserial (pip install pyserial==3.5; it is in "
-                "requirements.txt)"
-            ) from None
+        import serial
+
         self._serial = serial
         self.name = port
         self.baud = baud
-        looks_like_path = "/" in port or port.startswith(".")
-        if looks_like_path and "://" not in port and not os.path.exists(port):
-            raise MonitorError(f"no such serial port: {port}; {_ports_hint()}")
         try:
-            self.port = serial.serial_for_url(
-                port, baudrate=baud, bytesize=8, parity="N", stopbits=1, timeout=0.05,
-                exclusive=True,
-            )  # fmt: skip
-        except ValueError as e:
-            raise MonitorError(f"cannot use serial port {port} at {baud} baud: {e}") from None
-        except (serial.SerialException, OSError) as e:
-            code = getattr(e, "errno", None)
-            if code == errno.ENOENT:
-                raise MonitorError(f"no such serial port: {port}; {_ports_hint()}") from None
-            if code in (errno.EACCES, errno.EPERM):
+            self.port = serial_port.open_port(port, baud, 0.05)
+        except serial_port.PortError as e:
+            if e.kind == serial_port.MISSING:
                 raise MonitorError(
-                    f"permission denied opening {port}: add yourself to the port's group "
-                    "(Linux: sudo usermod -aG dialout $USER, then log in again) or check the "
-                    "device's permissions"
+                    f"no such serial port: {port}; {serial_port.ports_hint()}"
                 ) from None
-            if code in (errno.EAGAIN, errno.EBUSY) or "exclusively lock" in str(e):
-                raise MonitorError(
-                    f"serial port {port} is busy: another program has it open (a terminal, a "
-                    "session recorder, another monitor); close it and try again"
-                ) from None
-            raise MonitorError(
-                f"cannot open serial port {port} at {baud} baud: {e}; {_ports_hint()}"
-            ) from None
+            raise MonitorError(str(e)) from None
 
     def read(self, timeout):
         try:

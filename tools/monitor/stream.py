@@ -37,7 +37,9 @@ class StreamDecoder:
         self.bad_checksum = 0  # 52-byte frames whose checksum failed
         self.bad_crc = 0  # extended frames / raw records whose CRC-32 failed
         self.skipped_bytes = 0  # bytes that belonged to nothing decodable
-        self.counter_gaps = 0  # frames missing by the counter (dropped)
+        self.dropped_frames = (
+            0  # frames missing by the counter (evaluate.frame_errors counts gap events)
+        )
         self._last_counter = None
 
     @property
@@ -54,7 +56,7 @@ class StreamDecoder:
             "bad_checksum": self.bad_checksum,
             "bad_crc": self.bad_crc,
             "skipped_bytes": self.skipped_bytes,
-            "counter_gaps": self.counter_gaps,
+            "dropped_frames": self.dropped_frames,
         }
 
     def feed(self, data):
@@ -73,7 +75,7 @@ class StreamDecoder:
         if kind == FRAME:
             c = fields["counter"]
             if self._last_counter is not None:
-                self.counter_gaps += (c - self._last_counter - 1) & 0xFF
+                self.dropped_frames += (c - self._last_counter - 1) & 0xFF
             self._last_counter = c
             self.n_frames += 1
         else:

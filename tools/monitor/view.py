@@ -100,7 +100,7 @@ def _ins_latlon(e, f):
 def error_line(c):
     return (
         f"checksum failures {c['bad_checksum']}  CRC failures {c['bad_crc']}  "
-        f"skipped bytes {c['skipped_bytes']}  dropped frames (counter gaps) {c['counter_gaps']}"
+        f"skipped bytes {c['skipped_bytes']}  dropped frames (counter gaps) {c['dropped_frames']}"
         + (
             f"  + {c['wrap_losses']} lost in whole counter wraps (extended-frame ticks)"
             if c.get("wrap_losses")
@@ -199,7 +199,7 @@ def one_line(st, counts, elapsed_s):
     c = counts
     errs = (
         f"checksum={c['bad_checksum']} crc={c['bad_crc']} skipped={c['skipped_bytes']} "
-        f"gaps={c['counter_gaps']}"
+        f"dropped={c['dropped_frames']}"
     )
     return f"{head}  {body}  {errs}"
 
