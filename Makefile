@@ -24,17 +24,17 @@ lint: $(STAMP)
 # Accuracy of the float32 math functions over their domains, and of the rotation and lat/lon
 # kernels (minutes; the figures of docs/float32.md).
 accuracy: $(STAMP)
-	$(BIN)/python -m host_emulator.reference.accuracy
-	$(BIN)/python -m host_emulator.reference.core_figures
+	$(BIN)/python -m host_emulator.bench.float32
+	$(BIN)/python -m host_emulator.bench.core_figures
 
 # Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
 bench-nav: $(STAMP)
-	$(BIN)/python -m host_emulator.bench_nav
+	$(BIN)/python -m host_emulator.bench.navigation
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
 # docs/accuracy.md and docs/benchmarks/accuracy.json).
 accuracy-report: $(STAMP)
-	$(BIN)/python -m host_emulator.replay.accuracy_report
+	$(BIN)/python -m host_emulator.bench.accuracy_report
 
 # The real drive through the firmware with report and plots (out/replay/).
 replay: $(STAMP)

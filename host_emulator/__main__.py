@@ -33,7 +33,7 @@ def _scenarios():
 
 
 def _run(args):
-    from host_emulator import scenario_run
+    from host_emulator.eval import scenario_run
 
     if args.stimulus:
         m = scenario_run.run_stimulus(args.stimulus, args.runtime, args.out, not args.quiet)
@@ -41,7 +41,7 @@ def _run(args):
         m = scenario_run.run(
             args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet
         )
-    from host_emulator import demo
+    from host_emulator.eval import demo
 
     print(demo.summary(m, args.out))
     return 0
@@ -107,7 +107,7 @@ def _load(args):
 
 
 def _replay(args):
-    from host_emulator import demo
+    from host_emulator.eval import demo
     from host_emulator.replay import replay_run
 
     ds = _load(args)
@@ -123,7 +123,7 @@ def _export(args):
     from host_emulator.replay import replay_run
 
     if args.scenario:
-        from host_emulator.scenario_run import check_duration, check_scenario, check_seed
+        from host_emulator.eval.scenario_run import check_duration, check_scenario, check_seed
 
         check_scenario(args.scenario)
         check_duration(args.duration)
@@ -194,11 +194,11 @@ def main(argv=None):
     args, rest = parser.parse_known_args(argv)
     try:
         if args.command == "gnss-dump":
-            from host_emulator import gnss_dump
+            from host_emulator.eval import gnss_dump
 
             return gnss_dump.main(rest)
         if args.command == "parity":
-            from host_emulator import parity
+            from host_emulator.eval import parity
 
             return parity.main(rest)
         if args.command == "session":
@@ -220,7 +220,7 @@ def main(argv=None):
         if args.command == "export":
             return _export(args)
         if args.command == "demo":
-            from host_emulator import demo
+            from host_emulator.eval import demo
 
             return demo.main(args.out)
     except EmulatorError as e:

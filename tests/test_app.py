@@ -9,8 +9,10 @@ import struct
 import numpy as np
 import pytest
 
-from host_emulator import fake_machine, firmware_env, frames
-from host_emulator.periph.bmi055_model import Bmi055Model
+from host_emulator import firmware_env
+from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython.bmi055 import Bmi055Model
+from host_emulator.proto import stream as frames
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
 LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z

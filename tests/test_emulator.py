@@ -7,9 +7,13 @@ import numpy as np
 import pytest
 
 from host_emulator import __main__ as cli
-from host_emulator import emulator, fake_machine, firmware_env, frames, stimulus
+from host_emulator import firmware_env
+from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython.bmi055 import Bmi055Model
 from host_emulator.errors import FirmwareError
-from host_emulator.periph.bmi055_model import Bmi055Model
+from host_emulator.proto import stimulus
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 from host_emulator.sim import board_input
 
 

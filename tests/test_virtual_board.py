@@ -14,8 +14,9 @@ import pytest
 
 serial = pytest.importorskip("serial")
 
-from host_emulator import emulator, mpvm  # noqa: E402
 from host_emulator.firmware_env import FIRMWARE_DIR  # noqa: E402
+from host_emulator.runtimes import cpython as emulator  # noqa: E402
+from host_emulator.runtimes.mpy_unix import vm as mpvm  # noqa: E402
 from host_emulator.sim import board_input  # noqa: E402
 from host_emulator.virtual_board import VirtualBoard  # noqa: E402
 

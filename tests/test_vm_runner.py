@@ -11,11 +11,15 @@ import struct
 import numpy as np
 import pytest
 
-from host_emulator import emulator, frames, mpvm, vm_runner
+from host_emulator.board import MPY_DIR
+from host_emulator.board.cpython.bmi055 import Bmi055Model
+from host_emulator.board.cpython.spi import FakePin, FakeSPI
 from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.firmware_env import FIRMWARE_DIR
-from host_emulator.periph.bmi055_model import Bmi055Model
-from host_emulator.periph.spi import FakePin, FakeSPI
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
+from host_emulator.runtimes import mpy_unix as vm_runner
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import board_input
 
 # urban_drive (seed 0) stands still for 60 s, then pulls away; at this duration the firmware
@@ -166,7 +170,7 @@ def test_a_vm_that_cannot_start_or_finish_is_a_clear_error(tmp_path, monkeypatch
 
 # ---- the VM's emulated peripherals --------------------------------------------------------
 
-_VM_BOARD = str(vm_runner.VM_BOARD_DIR)
+_VM_BOARD = str(MPY_DIR)
 
 
 def _transactions(seed=0, n=400):

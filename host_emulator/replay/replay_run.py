@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
-from host_emulator import evaluate, frames, report, scenario_run
 from host_emulator.errors import EmulatorError
+from host_emulator.eval import evaluate, report, scenario_run
+from host_emulator.proto import stream as frames
 from host_emulator.replay import to_stimulus
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")

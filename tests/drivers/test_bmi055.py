@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from drivers import bmi055
 
-from host_emulator import mpvm
-from host_emulator.periph.bmi055_model import Bmi055Model
-from host_emulator.periph.spi import FakePin, FakeSPI
+from host_emulator.board.cpython.bmi055 import Bmi055Model
+from host_emulator.board.cpython.spi import FakePin, FakeSPI
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import imu as sim_imu
 
 

@@ -21,8 +21,8 @@ import pynmea2
 import pytest
 from drivers import gnss
 
-from host_emulator import mpvm
 from host_emulator.firmware_env import REPO_DIR
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
 LOGS = sorted(p.name[:-4] for p in NMEA_DIR.glob("*.log"))

@@ -9,7 +9,7 @@ import sys
 import pytest
 from drivers import gnss
 
-from host_emulator import gnss_dump
+from host_emulator.eval import gnss_dump
 from host_emulator.firmware_env import REPO_DIR
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
@@ -105,7 +105,7 @@ def test_json_lines(capsys):
 def test_unreadable_file_is_a_clear_error(tmp_path):
     missing = tmp_path / "nope.log"
     proc = subprocess.run(
-        [sys.executable, "-m", "host_emulator.gnss_dump", str(missing)],
+        [sys.executable, "-m", "host_emulator", "gnss-dump", str(missing)],
         capture_output=True,
         text=True,
     )

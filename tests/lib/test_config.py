@@ -10,7 +10,7 @@ import config
 import numpy as np
 import pytest
 
-from host_emulator import mpvm
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 
 def custom():

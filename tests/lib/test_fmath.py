@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 import fmath
-from host_emulator import mpvm
-from host_emulator.reference import fmath as model
-from host_emulator.reference.accuracy import ulp32, ulp_error
+from host_emulator.bench.float32 import ulp32, ulp_error
+from host_emulator.model import fmath as model
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
 PI_50 = Fraction("3.14159265358979323846264338327950288419716939937510")

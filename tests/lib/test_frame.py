@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import f32
-from host_emulator import mpvm
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
 CDEG_PER_RAD = F32(18000.0 / np.pi)

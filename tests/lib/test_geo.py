@@ -10,8 +10,8 @@ import pytest
 
 import f32
 import geo
-from host_emulator import mpvm
-from host_emulator.reference import geo as model
+from host_emulator.model import geo as model
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
 R_EARTH_M = 6.371e6

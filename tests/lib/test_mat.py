@@ -20,8 +20,8 @@ import pytest
 
 import f32
 import mat
-from host_emulator import mpvm
-from host_emulator.reference import mat as model
+from host_emulator.model import mat as model
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
 U32 = 2.0**-24

@@ -8,7 +8,7 @@ import pytest
 from nav import ALIGNING, NAVIGATING, Navigator
 
 import f32
-from host_emulator import nav_runner
+from host_emulator.bench import navigator as nav_runner
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory

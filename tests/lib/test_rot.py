@@ -8,8 +8,8 @@ import pytest
 
 import f32
 import rot
-from host_emulator import mpvm
-from host_emulator.reference import rot as model
+from host_emulator.model import rot as model
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
 U32 = np.uint32

@@ -10,10 +10,10 @@ import pathlib
 import numpy as np
 import pytest
 
-from host_emulator import emulator
 from host_emulator.__main__ import main
 from host_emulator.replay import drive_0708, kfgins, replay_run, rtklib_pos
 from host_emulator.replay import to_stimulus as ts
+from host_emulator.runtimes import cpython as emulator
 
 needs_drive = pytest.mark.skipif(
     not drive_0708.DEFAULT_DIR.is_dir(), reason="../shared/data/drive_0708 is not present"

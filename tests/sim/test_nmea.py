@@ -118,7 +118,7 @@ def test_the_simulation_becomes_a_stimulus(drive):
     s = sim.stimulus
     assert len(s) == 4000 and s.header["scenario"] == "static" and s.header["seed"] == 2
     assert s.config["gnss_baud"] == 9600 and s.config["lever_b_m"] == [0.0, 0.5, 1.0]
-    from host_emulator import stimulus
+    from host_emulator.proto import stimulus
 
     assert np.array_equal(stimulus.gyro_counts(s.gyro_regs), sim.imu.gyro_counts[:4000])
     assert np.array_equal(stimulus.accel_counts(s.accel_regs), sim.imu.accel_counts[:4000])

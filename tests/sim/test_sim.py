@@ -7,7 +7,7 @@ import numpy as np
 import pymap3d
 import pytest
 
-from host_emulator.reference import rot as ref_rot
+from host_emulator.model import rot as ref_rot
 from host_emulator.sim import gnss, imu
 from host_emulator.sim import trajectory as tr
 from host_emulator.sim.noise import gauss_markov

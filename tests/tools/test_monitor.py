@@ -17,7 +17,9 @@ import tty
 import numpy as np
 import pytest
 
-from host_emulator import emulator, frames, session
+from host_emulator import session
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 from host_emulator.sim import board_input
 from tools.monitor import cli, export, view
 from tools.monitor.stream import EXT, FRAME, RAW, StreamDecoder, TickClock

@@ -32,8 +32,8 @@ def _build(args):
 
 def _decode_config(data, what, advice):
     """The BoardConfig in a configuration file's bytes; FlashError naming `what` otherwise."""
-    from host_emulator import emulator
     from host_emulator.errors import EmulatorError
+    from host_emulator.runtimes import cpython as emulator
 
     try:
         return emulator.decode_config(data)

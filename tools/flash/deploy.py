@@ -6,7 +6,8 @@ import binascii
 import pathlib
 import time
 
-from host_emulator import frames, serial_port
+from host_emulator.proto import serial_port
+from host_emulator.proto import stream as frames
 from tools.flash import build as build_mod
 from tools.flash.errors import (
     FirmwareNotRunning,

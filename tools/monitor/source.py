@@ -4,7 +4,8 @@ that says what to do."""
 
 from pathlib import Path
 
-from host_emulator import serial_port, session
+from host_emulator import session
+from host_emulator.proto import serial_port
 
 
 class MonitorError(Exception):

@@ -18,7 +18,7 @@ anchored on the tick field of the extended frames.
 
 import struct
 
-from host_emulator import frames
+from host_emulator.proto import stream as frames
 
 FRAME_LEN = 52
 TICK_S = 0.005  # the firmware's tick (stimulus.TICK_US)

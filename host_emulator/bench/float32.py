@@ -1,8 +1,8 @@
 """Measure the accuracy of the deterministic float32 math functions (`firmware/lib/fmath.py`).
 
-    python -m host_emulator.reference.accuracy          # exhaustive, a few minutes on 2 cores
-    python -m host_emulator.reference.accuracy --quick  # random samples, seconds
-    python -m host_emulator.reference.accuracy --fit    # re-derive the polynomial coefficients
+    python -m host_emulator.bench.float32          # exhaustive, a few minutes on 2 cores
+    python -m host_emulator.bench.float32 --quick  # random samples, seconds
+    python -m host_emulator.bench.float32 --fit    # re-derive the polynomial coefficients
 
 The functions measured are the NumPy model (`host_emulator.reference.fmath`), which the tests
 prove bit-identical to the firmware. For a float32 input x the exact value is the float64
@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from host_emulator.reference import fmath
+from host_emulator.model import fmath
 
 F32 = np.float32
 _CHUNK = 1 << 16  # small enough to stay in cache

@@ -20,9 +20,11 @@ import time
 
 import numpy as np
 
-from host_emulator import emulator, evaluate, frames, report
-from host_emulator import stimulus as stim_mod
 from host_emulator.errors import EmulatorError
+from host_emulator.eval import evaluate, report
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 from host_emulator.sim import board_input, trajectory
 
 RUNTIMES = ("cpython", "micropython")
@@ -95,7 +97,7 @@ def run_firmware(stim, runtime, stim_path, progress=None):
         if runtime == "cpython":
             fw = emulator.run_cpython(stim_mod.read(stim_path), work, progress=progress)
         elif runtime == "micropython":
-            from host_emulator import vm_runner
+            from host_emulator.runtimes import mpy_unix as vm_runner
 
             fw = vm_runner.run_micropython(stim_path, work, progress=progress)
         else:

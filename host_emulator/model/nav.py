@@ -29,9 +29,9 @@ same slices as the firmware, so the covariance matches between ticks, not only a
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.reference import fmath as ref_fmath
-from host_emulator.reference import geo as ref_geo
-from host_emulator.reference import rot as ref_rot
+from host_emulator.model import fmath as ref_fmath
+from host_emulator.model import geo as ref_geo
+from host_emulator.model import rot as ref_rot
 
 firmware_env.install()
 import eskf as fw_eskf  # noqa: E402  (constants and state indices, shared with the firmware)

@@ -4,7 +4,7 @@ origin, vectorised over points (one origin per call). Operation order mirrors th
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.reference import fmath
+from host_emulator.model import fmath
 
 firmware_env.install()
 import geo as fw  # noqa: E402  (constants shared with the firmware, not retyped)

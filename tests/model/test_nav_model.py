@@ -21,7 +21,7 @@ import pytest
 from nav import NAVIGATING, Navigator
 
 import f32
-from host_emulator.reference.nav import NavModel
+from host_emulator.model.nav import NavModel
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory

@@ -14,7 +14,7 @@ import tempfile
 
 import numpy as np
 
-from host_emulator import mpvm
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 _SCRIPT = """
 import array, gc, json

@@ -1,4 +1,4 @@
-"""`python -m host_emulator.reference.core_figures`: the accuracy figures of the rotation and
+"""`python -m host_emulator.bench.core_figures`: the accuracy figures of the rotation and
 lat/lon kernels quoted in docs/float32.md, measured on the firmware (float32, desktop) against
 independent float64 references: seed 001 eq. 5-6 and 5-11 written out, and pymap3d."""
 

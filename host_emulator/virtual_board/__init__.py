@@ -30,12 +30,11 @@ import threading
 import time
 import tty
 
-from host_emulator import mpvm
+from host_emulator.board import EMULATE
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import board_input
 
-VM_BOARD_DIR = pathlib.Path(__file__).resolve().parent / "vm_board"
-REPL_SERVER = VM_BOARD_DIR / "repl_server.py"
-EMULATE = VM_BOARD_DIR / "emulate.py"
+REPL_SERVER = pathlib.Path(__file__).resolve().parent / "repl_server.py"
 
 BANNER = (
     b"MicroPython v1.29.0 on 2026-11-22; virtual INS board (STM32F411, host emulator)\r\n"
@@ -524,8 +523,8 @@ def main(argv=None):
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
     args = p.parse_args(argv)
-    from host_emulator import scenario_run
     from host_emulator.errors import EmulatorError
+    from host_emulator.eval import scenario_run
 
     try:
         scenario_run.check_scenario(args.scenario)

@@ -8,7 +8,7 @@ bit-identical; conventions are those stated in the firmware module.
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.reference import fmath
+from host_emulator.model import fmath
 
 firmware_env.install()
 import rot as fw  # noqa: E402  (the firmware module: constants shared, not retyped)

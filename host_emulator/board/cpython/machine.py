@@ -14,7 +14,7 @@ MicroPython-only `time.ticks_us/ticks_ms/ticks_diff/sleep_ms` read it.
     firmware_env.install_machine(hw)    # before the firmware imports machine
 """
 
-from host_emulator.periph.spi import FakePin, FakeSPI
+from host_emulator.board.cpython.spi import FakePin, FakeSPI
 
 _hw = None
 

@@ -30,13 +30,14 @@ import time
 
 import numpy as np
 
-from host_emulator import emulator, mpvm, nav_vm
-from host_emulator import stimulus as stim_mod
+from host_emulator.board import EMULATE
 from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.firmware_env import FIRMWARE_DIR
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.runtimes import cpython as emulator
+from host_emulator.runtimes.mpy_unix import navigator as nav_vm
+from host_emulator.runtimes.mpy_unix import vm as mpvm
 
-VM_BOARD_DIR = pathlib.Path(__file__).resolve().parent / "vm_board"
-EMULATE = VM_BOARD_DIR / "emulate.py"
 HEAP_KB = 512
 EXIT_FIRMWARE_ERROR = 3  # emulate.py's exit status after an "E" report
 

@@ -14,10 +14,11 @@ import sys
 import tempfile
 import time
 
-from host_emulator import emulator, scenario_run
+from host_emulator.eval import scenario_run
+from host_emulator.eval.report import fmt
 from host_emulator.replay import drive_0708, replay_run
 from host_emulator.replay import to_stimulus as ts
-from host_emulator.report import fmt
+from host_emulator.runtimes import cpython as emulator
 from host_emulator.sim import board_input
 
 REPO = pathlib.Path(__file__).resolve().parents[2]

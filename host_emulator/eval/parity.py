@@ -23,8 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from host_emulator import emulator, frames, model_runner
 from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.model import app as model_runner
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 
 FRAME_LEN = 52
 # the 52-byte frame (DESIGN.md 6) as integers at the frame's scale
@@ -272,7 +274,7 @@ def _duration(text):
 
 def main(argv=None):
     """`parity --scenario NAME --duration S [--seed N]`: 0 identical, 1 different, 2 usage."""
-    from host_emulator import scenario_run
+    from host_emulator.eval import scenario_run
     from host_emulator.sim import board_input
 
     p = _Parser(

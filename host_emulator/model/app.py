@@ -44,10 +44,12 @@ import time
 
 import numpy as np
 
-from host_emulator import emulator, fake_machine, firmware_env
-from host_emulator import stimulus as stim_mod
-from host_emulator.reference import rot as ref_rot
-from host_emulator.reference.nav import NavModel
+from host_emulator import firmware_env
+from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.model import rot as ref_rot
+from host_emulator.model.nav import NavModel
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.runtimes import cpython as emulator
 
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)

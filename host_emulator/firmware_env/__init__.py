@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-REPO_DIR = pathlib.Path(__file__).resolve().parent.parent
+REPO_DIR = pathlib.Path(__file__).resolve().parents[2]
 FIRMWARE_DIR = REPO_DIR / "firmware"
 LIB_DIR = FIRMWARE_DIR / "lib"
 
@@ -18,7 +18,8 @@ LIB_DIR = FIRMWARE_DIR / "lib"
 def install():
     """Idempotent: seam backend, `micropython` stand-in, search path, and the board's float
     error behaviour."""
-    from host_emulator import f32_host, fake_micropython
+    from host_emulator.firmware_env import f32_host
+    from host_emulator.firmware_env import micropython as fake_micropython
 
     sys.modules.setdefault("f32_host", f32_host)
     sys.modules.setdefault("micropython", fake_micropython)
@@ -31,7 +32,7 @@ def install():
 
 def install_machine(hw):
     """Install the fake `machine` module backed by the emulated board hw (fake_machine)."""
-    from host_emulator import fake_machine
+    from host_emulator.board.cpython import machine as fake_machine
 
     install()
     fake_machine.use(hw)

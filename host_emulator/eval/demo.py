@@ -4,8 +4,8 @@ CPython, and a short table of how well it navigated, for someone new to the proj
 Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
-from host_emulator import scenario_run
-from host_emulator.report import fmt
+from host_emulator.eval import scenario_run
+from host_emulator.eval.report import fmt
 
 
 def summary(m, out_dir):

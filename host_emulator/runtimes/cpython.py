@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_emulator import fake_machine, firmware_env
+from host_emulator import firmware_env
+from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython.bmi055 import Bmi055Model
 from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.periph.bmi055_model import Bmi055Model
 
 
 @dataclass(eq=False)

@@ -66,9 +66,11 @@ from pathlib import Path
 
 import numpy as np
 
-from host_emulator import emulator, frames, parity
-from host_emulator import stimulus as stim_mod
 from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.eval import parity
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.proto import stream as frames
+from host_emulator.runtimes import cpython as emulator
 
 MAGIC = b"INSSESS1"
 TRAILER = b"END1"
@@ -260,7 +262,7 @@ def _open_source(source, baud):
         raise SessionError(f"no such file or serial port: {source}")
     import serial
 
-    from host_emulator import serial_port
+    from host_emulator.proto import serial_port
 
     try:
         port = serial_port.open_port(source, baud, 0.2)
@@ -996,7 +998,7 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     if runtime == "cpython":
         run = emulator.run_cpython(stim, workdir, progress=progress)
     else:
-        from host_emulator import vm_runner
+        from host_emulator.runtimes import mpy_unix as vm_runner
 
         run = vm_runner.run_micropython(stim, workdir, progress=progress)
     cfg = _board_cfg(values)

@@ -1,1 +1,0 @@
-"""Emulated peripherals: what the firmware's drivers talk to on the desktop."""
