@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint accuracy bench-nav accuracy-report replay build-flash deploy monitor \
-	virtual-board clean
+.PHONY: demo test lint accuracy bench-nav accuracy-report digests replay build-flash deploy \
+	monitor virtual-board clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -24,17 +24,22 @@ lint: $(STAMP)
 # Accuracy of the float32 math functions over their domains, and of the rotation and lat/lon
 # kernels (minutes; the figures of docs/float32.md).
 accuracy: $(STAMP)
-	$(BIN)/python -m host_emulator.bench.float32
-	$(BIN)/python -m host_emulator.bench.core_figures
+	$(BIN)/python -m host_emulator float32
 
 # Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
 bench-nav: $(STAMP)
-	$(BIN)/python -m host_emulator.bench.navigation
+	$(BIN)/python -m host_emulator bench-nav
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
 # docs/accuracy.md and docs/benchmarks/accuracy.json).
 accuracy-report: $(STAMP)
-	$(BIN)/python -m host_emulator.bench.accuracy_report
+	$(BIN)/python -m host_emulator accuracy-report
+
+# The change indicator: recompute the frame-stream digests of short runs on every runtime and
+# compare them with tests/change_indication/ (make test does too); UPDATE=1 rewrites them, on
+# purpose, so the diff shows a behaviour change in review.
+digests: $(STAMP)
+	$(BIN)/python -m host_emulator digests $(if $(UPDATE),--update)
 
 # The real drive through the firmware with report and plots (out/replay/).
 replay: $(STAMP)

@@ -29,6 +29,7 @@ PINS = {
 SPI_BAUD = 4_000_000
 TICK_HZ = 200
 WDT_TIMEOUT_MS = 1000
+GNSS_RXBUF = 1024  # bytes of the GNSS UART's receive ring: what arrives beyond it is lost
 CONFIG_PATH = "/flash/ins.cfg"
 
 
@@ -41,7 +42,9 @@ class Board:
         self.cs_gyro = machine.Pin(p["cs_gyro"], machine.Pin.OUT, value=1)
         self.spi = machine.SPI(p["spi_id"], baudrate=SPI_BAUD, polarity=0, phase=0)
         # timeout=0: readinto returns at once with what has arrived (the loop must not wait)
-        self.gnss_uart = machine.UART(p["gnss_uart"], baudrate=gnss_baud, rxbuf=1024, timeout=0)
+        self.gnss_uart = machine.UART(
+            p["gnss_uart"], baudrate=gnss_baud, rxbuf=GNSS_RXBUF, timeout=0
+        )
         self.out_uart = machine.UART(p["out_uart"], baudrate=out_baud, txbuf=512)
         self.rs485_de = machine.Pin(p["rs485_de"], machine.Pin.OUT, value=1)
         self.pps = machine.Pin(p["pps"], machine.Pin.IN)

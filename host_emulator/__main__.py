@@ -1,6 +1,7 @@
 """Command line of the host side: `python -m host_emulator COMMAND` (`--help` for each).
 
     scenarios                       the simulated scenarios
+    runtimes                        where the firmware can run (runtimes/)
     run --scenario NAME --out DIR   simulate, run the firmware on an emulated board, evaluate
     run --stimulus FILE --out DIR   replay a stimulus file through the firmware
     parity --scenario NAME --duration S   firmware on CPython vs the NumPy model, bit for bit
@@ -11,15 +12,42 @@
     virtual-board --fs DIR          a board on pseudo-terminals (raw REPL, RS485 frames)
     demo                            urban_drive on CPython, with a short summary
     gnss-dump FILE                  what the firmware's NMEA parser makes of a receiver log
+  measurements (they write docs/; minutes):
+    bench-nav                       navigation accuracy and cost per tick (make bench-nav)
+    accuracy-report                 drive_0708 and the scenarios (make accuracy-report)
+    float32                         accuracy of the float32 math and kernels (make accuracy)
+    digests [--update]              the change indicator: frame-stream digests per runtime
 
 Bad input (an unknown scenario, an unreadable stimulus, a firmware exception) prints one clear
 message and exits non-zero.
 """
 
 import argparse
+import importlib
 import sys
 
+from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
+
+# commands with a parser of their own: name -> ("module:function" taking argv, help)
+DELEGATED = {
+    "parity": ("host_emulator.eval.parity:main",
+               "firmware on CPython vs the NumPy float32 model, frame by frame"),
+    "session": ("host_emulator.session.cli:main",
+                "record a board's output, or replay a recording bit for bit"),
+    "virtual-board": ("host_emulator.virtual_board:main",
+                      "a board on pseudo-terminals for tools.flash and tools.monitor (--fs DIR)"),
+    "gnss-dump": ("host_emulator.eval.gnss_dump:main",
+                  "what the firmware's NMEA parser makes of a receiver log (FILE [--json])"),
+    "bench-nav": ("host_emulator.bench.navigation:main",
+                  "navigation benchmark: accuracy over seeds, cost per tick in the VM"),
+    "accuracy-report": ("host_emulator.bench.accuracy_report:main",
+                        "drive_0708 and the scenarios: writes docs/accuracy.md"),
+    "float32": ("host_emulator.bench.float32:main",
+                "accuracy of the float32 math functions and kernels (docs/float32.md)"),
+    "digests": ("host_emulator.bench.digests:main",
+                "the change indicator: frame-stream digests per scenario and runtime"),
+}  # fmt: skip
 
 
 def _scenarios():
@@ -29,6 +57,16 @@ def _scenarios():
         outages = ", ".join(f"{s:g}+{n:g} s" for s, n in fn.outages) or "none"
         print(f"{name:16} {fn.default_duration_s:5.0f} s  outages: {outages}")
         print(f"{'':16} {fn.description}")
+    return 0
+
+
+def _runtimes():
+    from host_emulator import runtimes
+
+    for r in runtimes.RUNTIMES.values():
+        print(f"{r.name:12} {r.summary}")
+    for alias, name in runtimes.ALIASES.items():
+        print(f"{alias:12} the old name of {name}")
     return 0
 
 
@@ -123,12 +161,12 @@ def _export(args):
     from host_emulator.replay import replay_run
 
     if args.scenario:
-        from host_emulator.eval.scenario_run import check_duration, check_scenario, check_seed
+        from host_emulator import args as cli_args
 
-        check_scenario(args.scenario)
-        check_duration(args.duration)
+        cli_args.check_scenario(args.scenario)
+        cli_args.check_duration(args.duration)
         seed = 0 if args.seed is None else args.seed
-        check_seed(seed)
+        cli_args.check_seed(seed)
         written = replay_run.export_scenario(args.scenario, args.duration, seed, args.out)
     else:
         ds = _load(args)
@@ -144,26 +182,25 @@ def main(argv=None):
         description="Host emulator of the INS/GNSS board firmware.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
+    runtime_names = runtimes.names()
+    runtime_help = "where the firmware runs (default cpython; `runtimes` lists them)"
     sub.add_parser("scenarios", help="list the simulated scenarios")
+    sub.add_parser("runtimes", help="list the runtimes")
     run = sub.add_parser("run", help="simulate a scenario, run the firmware, evaluate")
     src = run.add_mutually_exclusive_group(required=True)
     src.add_argument("--scenario", help="scenario name (see `scenarios`)")
     src.add_argument("--stimulus", help="replay this stimulus file instead of simulating")
     run.add_argument("--duration", type=float, default=None, help="seconds (default: full)")
     run.add_argument("--seed", type=int, default=0)
-    run.add_argument("--runtime", default="cpython", choices=("cpython", "micropython"))
+    run.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    sub.add_parser(
-        "parity", help="firmware on CPython vs the NumPy float32 model, frame by frame",
-        add_help=False,
-    )  # fmt: skip
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
     src = rp.add_mutually_exclusive_group(required=True)
     src.add_argument("--dataset", help="a built-in recording: drive_0708")
     src.add_argument("--kf-gins", help="a directory in the KF-GINS layout (docs/formats.md)")
     _add_replay_options(rp)
-    rp.add_argument("--runtime", default="cpython", choices=("cpython", "micropython"))
+    rp.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
     rp.add_argument("--quiet", action="store_true", help="no progress bar")
     ex = sub.add_parser(
@@ -175,44 +212,21 @@ def main(argv=None):
     src.add_argument("--kf-gins", help="a KF-GINS directory (re-export with the options)")
     _add_replay_options(ex)
     ex.add_argument("--out", required=True, help="output directory")
-    sub.add_parser(
-        "session", help="record a board's output, or replay a recording bit for bit",
-        add_help=False,
-    )  # fmt: skip
-    sub.add_parser(
-        "virtual-board",
-        help="a board on pseudo-terminals for tools.flash and tools.monitor (--fs DIR ...)",
-        add_help=False,
-    )
     demo = sub.add_parser("demo", help="urban_drive on CPython with a short summary")
     demo.add_argument("--out", default="out/demo")
-    sub.add_parser(
-        "gnss-dump",
-        help="what the firmware's NMEA parser makes of a receiver log (FILE [--json])",
-        add_help=False,
-    )
+    for name, (_, text) in DELEGATED.items():
+        sub.add_parser(name, help=text, add_help=False)
     args, rest = parser.parse_known_args(argv)
     try:
-        if args.command == "gnss-dump":
-            from host_emulator.eval import gnss_dump
-
-            return gnss_dump.main(rest)
-        if args.command == "parity":
-            from host_emulator.eval import parity
-
-            return parity.main(rest)
-        if args.command == "session":
-            from host_emulator import session
-
-            return session.main(rest)
-        if args.command == "virtual-board":
-            from host_emulator import virtual_board
-
-            return virtual_board.main(rest)
+        if args.command in DELEGATED:
+            module, func = DELEGATED[args.command][0].split(":")
+            return getattr(importlib.import_module(module), func)(rest)
         if rest:
             parser.error("unrecognized arguments: " + " ".join(rest))
         if args.command == "scenarios":
             return _scenarios()
+        if args.command == "runtimes":
+            return _runtimes()
         if args.command == "run":
             return _run(args)
         if args.command == "replay":

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython import machine
 from host_emulator.board.cpython.bmi055 import Bmi055Model
-from host_emulator.proto import stream as frames
+from host_emulator.proto import stream
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
 LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z
@@ -22,7 +22,7 @@ class Bench:
     """An emulated board with the firmware loaded on it."""
 
     def __init__(self, tmp_path, chip=True, chip_id=None, cfg_bytes=None):
-        self.hw = fake_machine.Hardware()
+        self.hw = machine.Hardware()
         firmware_env.install_machine(self.hw)
         import board
 
@@ -52,7 +52,7 @@ class Bench:
             self.hw.advance_us(5000)
             self.hw.fire_timers()
             self.app.service()
-        self.decoded = frames.decode(self.out_uart.take_tx())
+        self.decoded = stream.decode(self.out_uart.take_tx())
         d = self.decoded
         assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
         return [f["raw"] for f in d.frames]
@@ -173,7 +173,7 @@ def test_a_late_loop_counts_overruns(tmp_path):
         bench.hw.fire_timers()
     bench.app.service()
     assert bench.app.overruns == 2 and bench.app.ticks == 6
-    assert [f["counter"] for f in frames.decode(bench.out_uart.take_tx()).frames] == [5]
+    assert [f["counter"] for f in stream.decode(bench.out_uart.take_tx()).frames] == [5]
 
 
 def _sentence(body):

@@ -75,10 +75,6 @@ def accel_to_frame(counts, lsb_per_g):
     return _clamp16(round_div(counts * _ACCEL_FRAME, lsb_per_g))
 
 
-def put_u8(buf, off, x):
-    buf[off] = x & 0xFF
-
-
 def put_i16(buf, off, x):
     x = _clamp16(x)
     buf[off] = x & 0xFF

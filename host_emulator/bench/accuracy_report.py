@@ -18,7 +18,7 @@ from host_emulator.eval import scenario_run
 from host_emulator.eval.report import fmt
 from host_emulator.replay import drive_0708, replay_run
 from host_emulator.replay import to_stimulus as ts
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
@@ -40,7 +40,7 @@ CASES = (
 def _replay(ds, opt):
     rep = ts.convert(ds, opt)
     with tempfile.TemporaryDirectory() as tmp:
-        fw = emulator.run_cpython(rep.stimulus, pathlib.Path(tmp))
+        fw = cpython.run(rep.stimulus, pathlib.Path(tmp))
     m, _tr, _err = replay_run.evaluate_replay(rep, fw, "cpython")
     return m
 
@@ -48,7 +48,7 @@ def _replay(ds, opt):
 def _scenario(name):
     sim = board_input.simulate(name, None, 0)
     with tempfile.TemporaryDirectory() as tmp:
-        fw = emulator.run_cpython(sim.stimulus, pathlib.Path(tmp))
+        fw = cpython.run(sim.stimulus, pathlib.Path(tmp))
         m, _tr, _err = scenario_run.evaluate_run(
             sim, fw, sim.stimulus, pathlib.Path(tmp), "cpython"
         )
@@ -170,7 +170,3 @@ def main(argv=None):
     JSON.write_text(json.dumps(results, indent=1, default=float) + "\n")
     print(f"wrote {DOC} and {JSON} ({time.perf_counter() - t0:.0f} s)")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,6 +1,7 @@
-"""`python -m host_emulator.bench.core_figures`: the accuracy figures of the rotation and
+"""The accuracy figures of the rotation and
 lat/lon kernels quoted in docs/float32.md, measured on the firmware (float32, desktop) against
-independent float64 references: seed 001 eq. 5-6 and 5-11 written out, and pymap3d."""
+independent float64 references: seed 001 eq. 5-6 and 5-11 written out, and pymap3d (part of
+`python -m host_emulator float32`)."""
 
 import numpy as np
 import pymap3d
@@ -130,7 +131,3 @@ def main():
     print("|---|---|---|---|")
     for lat, row in geo_figures():
         print(f"| {lat:g} deg | " + " | ".join(f"{x * 1000:.1f} mm" for x in row) + " |")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,10 +1,11 @@
-"""Measure the accuracy of the deterministic float32 math functions (`firmware/lib/fmath.py`).
+"""Measure the accuracy of the deterministic float32 math functions (`firmware/lib/fmath.py`),
+then the rotation and lat/lon kernels (core_figures.py): the figures of docs/float32.md.
 
-    python -m host_emulator.bench.float32          # exhaustive, a few minutes on 2 cores
-    python -m host_emulator.bench.float32 --quick  # random samples, seconds
-    python -m host_emulator.bench.float32 --fit    # re-derive the polynomial coefficients
+    python -m host_emulator float32          # exhaustive, a few minutes on 2 cores (make accuracy)
+    python -m host_emulator float32 --quick  # random samples, seconds
+    python -m host_emulator float32 --fit    # re-derive the polynomial coefficients
 
-The functions measured are the NumPy model (`host_emulator.reference.fmath`), which the tests
+The functions measured are the NumPy model (`host_emulator/model/fmath.py`), which the tests
 prove bit-identical to the firmware. For a float32 input x the exact value is the float64
 function of x (its own error, ~1e-16 relative, is negligible here), and the error is
 
@@ -275,18 +276,20 @@ def print_fits():
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator float32", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--quick", action="store_true", help="random samples instead of sweeps")
     ap.add_argument("--fit", action="store_true", help="re-derive the polynomial coefficients")
     args = ap.parse_args(argv)
     if args.fit:
         print_fits()
         return 0
+    from host_emulator.bench import core_figures
+
     t0 = time.time()
     print(table(measure(quick=args.quick)))
+    print()
+    core_figures.main()
     print(f"\n({time.time() - t0:.0f} s)", file=sys.stderr)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,7 +2,7 @@
 
 Only the output is used, as for a board on a test drive: the 52-byte frames (position, velocity,
 attitude at their resolution: 1 cm, 1 cm/s, 0.01 deg; 10 cm vertically) and the extended frames
-(origin of the local frame, covariance diagonal, biases), decoded by `frames.decode`. The track
+(origin of the local frame, covariance diagonal, biases), decoded by proto/stream.py. The track
 is sampled where an extended frame follows its 52-byte frame (every `ext_every_ticks`, 10 Hz by
 default), because only there is the origin of the frame's local position known for certain
 (the navigator moves its origin when it has gone far).
@@ -89,7 +89,7 @@ def track(decoded, tick_s, origin):
 
 
 @dataclass(eq=False)
-class Errors:
+class TrackErrors:
     """Track minus truth over the navigation phase."""
 
     t_s: np.ndarray
@@ -109,7 +109,7 @@ def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=()):
     out = np.zeros(t.size, bool)
     for start, length in outages:
         out |= (t >= start) & (t < start + length)
-    return Errors(
+    return TrackErrors(
         t_s=t,
         dp=tr.p_n[nav] - truth_p_n[idx],
         dv=tr.v_n[nav] - truth_v_n[idx],

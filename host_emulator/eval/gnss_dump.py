@@ -149,7 +149,3 @@ def main(argv=None):
         sys.stdout = None
     print("gnss-dump: " + summary(p), file=sys.stderr)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,5 +1,5 @@
-"""Parity of the host emulator: the firmware run on CPython (`emulator.run_cpython`) against
-the NumPy float32 model (`model_runner.run`), byte for byte over the whole output stream.
+"""Parity: the firmware on the cpython runtime against the NumPy float32 model (the model
+runtime), byte for byte over the whole output stream.
 
     python -m host_emulator parity --scenario highway_outage --duration 45 [--seed 0]
 
@@ -7,86 +7,27 @@ Exit status 0 when both streams are identical, 1 when they differ (the summary n
 differing frame, its tick and its fields with both values) or the firmware raised, 2 for a
 bad command line (unknown scenario, bad duration).
 
-Records are compared per kind in order: the 52-byte frames (fields as integers at the frame's
-scale), the extended frames 0x91 and the raw-input records 0x92 (fields as
-`host_emulator.frames` decodes them; floats with their float32 bits). Tick k is stimulus
-record k, at t = k * tick_us after the first tick.
+Records are compared per kind in order (eval/compare.py): the 52-byte frames (fields as
+integers at the frame's scale), the extended frames 0x91 and the raw-input records 0x92
+(fields decoded; floats with their float32 bits). Tick k is stimulus record k, at
+t = k * tick_us after the first tick.
 """
 
-import argparse
-import struct
 import sys
 import tempfile
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from host_emulator import args as cli_args
+from host_emulator import runtimes
 from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.model import app as model_runner
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.eval.compare import EXT, FRAME, RAW, KindResult, compare_kind
+from host_emulator.proto import config as board_config
+from host_emulator.proto import stream
 
-FRAME_LEN = 52
-# the 52-byte frame (DESIGN.md 6) as integers at the frame's scale
-_FRAME_FMT = struct.Struct("<BBB3h3hBBBiihB3h3hiihB")
-_FRAME_NAMES = (
-    "header0",
-    "header1",
-    "counter",
-    "gyro_x",
-    "gyro_y",
-    "gyro_z",
-    "accel_x",
-    "accel_y",
-    "accel_z",
-    "pps",
-    "gga",
-    "gnss_valid",
-    "lat_e7",
-    "lon_e7",
-    "height_dm",
-    "nav_state",
-    "yaw_cdeg",
-    "pitch_cdeg",
-    "roll_cdeg",
-    "vel_e_cm_s",
-    "vel_n_cm_s",
-    "vel_u_cm_s",
-    "pos_e_cm",
-    "pos_n_cm",
-    "pos_u_dm",
-    "checksum",
-)
-assert _FRAME_FMT.size == FRAME_LEN and len(_FRAME_NAMES) == 26
-
-
-@dataclass
-class FieldDiff:
-    name: str
-    firmware: object
-    model: object
-
-    def __str__(self):
-        return f"{self.name} firmware {self.firmware} model {self.model}"
-
-
-@dataclass
-class KindResult:
-    """One kind of record: how many of each side, how many compared, the first difference."""
-
-    kind: str  # "frame", "extended frame", "raw record"
-    firmware: int = 0  # records in the firmware's stream
-    model: int = 0
-    compared: int = 0  # records present on both sides
-    first: int | None = None  # index of the first differing (or missing) record
-    tick: int | None = None  # its tick
-    fields: list = field(default_factory=list)  # FieldDiff of that record
-
-    @property
-    def identical(self):
-        return self.first is None and self.firmware == self.model
+LABELS = ("firmware", "model")
 
 
 @dataclass
@@ -102,7 +43,7 @@ class ParityResult:
     wall_firmware_s: float = 0.0
     wall_model_s: float = 0.0
     stream_error: str | None = None  # a stream that does not split into records
-    firmware_stats: dict = field(default_factory=dict)  # run_cpython's counters
+    firmware_stats: dict = field(default_factory=dict)  # the cpython runtime's counters
     out_firmware: bytes = field(default=b"", repr=False)  # the two streams compared
     out_model: bytes = field(default=b"", repr=False)
 
@@ -114,19 +55,8 @@ class ParityResult:
         if self.stream_error:
             lines.append("stream: " + self.stream_error)
         for k in (self.frame, self.ext, self.raw):
-            if k.firmware == 0 and k.model == 0:
-                continue
-            line = f"{k.kind}s: {k.compared} compared"
-            if k.firmware != k.model:
-                line += f" (firmware {k.firmware}, model {k.model})"
-            if k.first is None:
-                line += ", identical" if k.firmware == k.model else ""
-            else:
-                where = f"{k.kind} {k.first}"
-                if k.tick is not None:
-                    where += f" (tick {k.tick}, t = {k.tick * self.tick_us * 1e-6:.3f} s)"
-                line += f", first difference at {where}: " + "; ".join(map(str, k.fields))
-            lines.append(line)
+            if k.counts != (0, 0):
+                lines.append(k.line(self.tick_us))
         if self.identical:
             lines.append(f"PARITY: identical, {self.bytes_firmware} bytes")
         else:
@@ -137,83 +67,10 @@ class ParityResult:
         return "\n".join(lines)
 
 
-def split(data):
-    """(frames, ext, raw, error): the records of an output stream, each kind in order; error
-    names the offset where the stream stops splitting (None if it splits to the end)."""
-    out = {0x90: [], 0x91: [], 0x92: []}
-    i = 0
-    n = len(data)
-    while i < n:
-        if data[i] != 0xEB or i + 3 > n or data[i + 1] not in out:
-            return out[0x90], out[0x91], out[0x92], f"no record starts at byte {i}"
-        t = data[i + 1]
-        end = i + (FRAME_LEN if t == 0x90 else 3 + data[i + 2] + 4)
-        if end > n:
-            return out[0x90], out[0x91], out[0x92], f"record at byte {i} is cut short"
-        out[t].append(bytes(data[i:end]))
-        i = end
-    return out[0x90], out[0x91], out[0x92], None
-
-
-def _flat(d):
-    """A decoder's field dict with lists expanded to name[i]; floats shown with their bits."""
-    items = []
-    for name, v in d.items():
-        if isinstance(v, (bytes, bytearray)):
-            items.append((name, v.hex()))
-        elif isinstance(v, list):
-            items.extend((f"{name}[{i}]", _show(x)) for i, x in enumerate(v))
-        else:
-            items.append((name, _show(v)))
-    return items
-
-
-def _show(v):
-    if isinstance(v, float):
-        return f"{v!r} (0x{struct.unpack('<I', struct.pack('<f', v))[0]:08x})"
-    return v
-
-
-def _record_fields(kind, rec):
-    if kind == "frame":
-        return list(zip(_FRAME_NAMES, _FRAME_FMT.unpack(rec), strict=True))
-    try:
-        d = frames.ext_fields(rec) if kind == "extended frame" else frames.raw_fields(rec)
-    except struct.error:  # a length the decoder does not know
-        return [("bytes", rec.hex())]
-    return _flat(d) + [("crc32", rec[-4:].hex())]
-
-
-def _compare_kind(kind, fw, mo, every):
-    r = KindResult(kind, len(fw), len(mo), min(len(fw), len(mo)))
-    for i in range(r.compared):
-        if fw[i] != mo[i]:
-            r.first = i
-            a = _record_fields(kind, fw[i])
-            b = _record_fields(kind, mo[i])
-            if [n for n, _ in a] != [n for n, _ in b]:
-                r.fields = [FieldDiff("length", len(fw[i]), len(mo[i]))]
-            else:
-                r.fields = [
-                    FieldDiff(n, x, y) for (n, x), (_, y) in zip(a, b, strict=True) if x != y
-                ]
-                r.fields = r.fields or [FieldDiff("bytes", fw[i].hex(), mo[i].hex())]
-            break
-    else:
-        if len(fw) != len(mo):
-            r.first = r.compared
-            r.fields = [
-                FieldDiff("present", r.compared < len(fw), r.compared < len(mo)),
-            ]
-    if r.first is not None and every:
-        r.tick = (r.first + 1) * every - 1
-    return r
-
-
 def compare_streams(fw_out, model_out, output_every_ticks=1, ext_every_ticks=20, raw=False):
     """A ParityResult for two output streams of the same run (wall times left at 0)."""
-    fw_f, fw_e, fw_r, fw_err = split(fw_out)
-    mo_f, mo_e, mo_r, mo_err = split(model_out)
+    fw_f, fw_e, fw_r, fw_err = stream.split(fw_out)
+    mo_f, mo_e, mo_r, mo_err = stream.split(model_out)
     first_byte = None
     if fw_out != model_out:
         n = min(len(fw_out), len(model_out))
@@ -221,15 +78,15 @@ def compare_streams(fw_out, model_out, output_every_ticks=1, ext_every_ticks=20,
         b = np.frombuffer(model_out, np.uint8, n)
         d = np.flatnonzero(a != b)
         first_byte = int(d[0]) if len(d) else n
-    err = "; ".join(f"{s}: {e}" for s, e in (("firmware", fw_err), ("model", mo_err)) if e)
+    err = "; ".join(f"{s}: {e}" for s, e in zip(LABELS, (fw_err, mo_err), strict=True) if e)
     return ParityResult(
         identical=fw_out == model_out,
         bytes_firmware=len(fw_out),
         bytes_model=len(model_out),
         first_byte=first_byte,
-        frame=_compare_kind("frame", fw_f, mo_f, output_every_ticks),
-        ext=_compare_kind("extended frame", fw_e, mo_e, ext_every_ticks),
-        raw=_compare_kind("raw record", fw_r, mo_r, 1 if raw else 0),
+        frame=compare_kind(FRAME, fw_f, mo_f, LABELS, output_every_ticks),
+        ext=compare_kind(EXT, fw_e, mo_e, LABELS, ext_every_ticks),
+        raw=compare_kind(RAW, fw_r, mo_r, LABELS, 1 if raw else 0),
         stream_error=err or None,
         out_firmware=bytes(fw_out),
         out_model=bytes(model_out),
@@ -237,47 +94,28 @@ def compare_streams(fw_out, model_out, output_every_ticks=1, ext_every_ticks=20,
 
 
 def compare(stim, config_overrides=None, progress=None):
-    """Run the firmware (run_cpython, in a temporary flash directory) and the model over
+    """Run the firmware (cpython runtime, in a temporary flash directory) and the model over
     `stim` with the same board configuration; a ParityResult. progress(k, n) is passed to
     each side in turn (firmware first). FirmwareError if the firmware raises."""
     with tempfile.TemporaryDirectory(prefix="parity-") as d:
-        fw = emulator.run_cpython(stim, Path(d), config_overrides, progress)
-    t = time.perf_counter()
-    out = model_runner.run(stim, config_overrides, progress)
-    wall_model = time.perf_counter() - t
-    cfg = emulator.board_config(emulator.board_values(stim, config_overrides))
+        fw = runtimes.get("cpython").run(stim, Path(d), config_overrides, progress)
+        model = runtimes.get("model").run(stim, Path(d), config_overrides, progress)
+    cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
     r = compare_streams(
-        fw.out, out, cfg.output_every_ticks, cfg.ext_every_ticks, bool(cfg.raw_record)
+        fw.out, model.out, cfg.output_every_ticks, cfg.ext_every_ticks, bool(cfg.raw_record)
     )
     r.tick_us = stim.tick_us
     r.wall_firmware_s = fw.wall_s
-    r.wall_model_s = wall_model
+    r.wall_model_s = model.wall_s
     r.firmware_stats = dict(fw.stats)
     return r
 
 
-class _UsageError(Exception):
-    pass
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage dump, status 2 (main)
-        raise _UsageError(message)
-
-
-def _duration(text):
-    try:
-        return float(text)
-    except ValueError:
-        raise _UsageError(f"--duration must be a number of seconds, got {text!r}") from None
-
-
 def main(argv=None):
     """`parity --scenario NAME --duration S [--seed N]`: 0 identical, 1 different, 2 usage."""
-    from host_emulator.eval import scenario_run
     from host_emulator.sim import board_input
 
-    p = _Parser(
+    p = cli_args.Parser(
         prog="python -m host_emulator parity",
         description="firmware on the emulated board vs the NumPy float32 model, byte for byte",
     )
@@ -286,11 +124,11 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
     try:
         args = p.parse_args(argv)
-        duration = _duration(args.duration)
-        scenario_run.check_scenario(args.scenario)  # the same input checks as `run`
-        scenario_run.check_duration(duration)
-        scenario_run.check_seed(args.seed)
-    except (_UsageError, EmulatorError) as e:
+        duration = cli_args.number(args.duration, "--duration")
+        cli_args.check_scenario(args.scenario)  # the same input checks as `run`
+        cli_args.check_duration(duration)
+        cli_args.check_seed(args.seed)
+    except (cli_args.UsageError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     try:
@@ -307,7 +145,3 @@ def main(argv=None):
         return 2
     print(r.summary())
     return 0 if r.identical else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

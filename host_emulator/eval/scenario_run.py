@@ -1,6 +1,6 @@
 """`python -m host_emulator run`: simulate a scenario, run the firmware on it, evaluate.
 
-    simulate -> DIR/stimulus.bin -> firmware (CPython or the MicroPython VM) -> DIR/frames.bin
+    simulate -> DIR/stimulus.bin -> firmware (a runtime, see runtimes/) -> DIR/frames.bin
              -> decode -> errors against truth -> DIR/metrics.json, DIR/report.md, DIR/*.png
 
 The stimulus file is the seam: the firmware run reads it back from disk, so a run can be
@@ -20,16 +20,15 @@ import time
 
 import numpy as np
 
+from host_emulator import args as cli_args
+from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report
 from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.proto import stream
 from host_emulator.sim import board_input, trajectory
 
-RUNTIMES = ("cpython", "micropython")
 OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
-MAX_DURATION_S = 24 * 3600.0
 
 
 class Progress:
@@ -73,35 +72,13 @@ class Progress:
                 self.stream.flush()
 
 
-def check_scenario(name):
-    if name not in trajectory.SCENARIOS:
-        known = ", ".join(sorted(trajectory.SCENARIOS))
-        raise EmulatorError(f"unknown scenario {name!r}; known scenarios: {known}")
-
-
-def check_duration(duration_s):
-    if duration_s is not None and not (1.0 <= duration_s <= MAX_DURATION_S):
-        raise EmulatorError(f"--duration must be 1 to {MAX_DURATION_S:g} s")
-
-
-def check_seed(seed):
-    if seed < 0:
-        raise EmulatorError("--seed must be 0 or more")
-
-
-def run_firmware(stim, runtime, stim_path, progress=None):
-    """FirmwareRun of the stimulus (read back from stim_path) on the runtime; EmulatorError if
-    the firmware sent nothing at all (its console says why, e.g. the IMU did not start)."""
+def run_firmware(runtime, stim_path, progress=None):
+    """FirmwareRun of the stimulus file (read back from disk: the file is the seam) on the
+    runtime (a name of host_emulator.runtimes); EmulatorError if the firmware sent nothing at
+    all (its console says why, e.g. the IMU did not start)."""
+    rt = runtimes.get(runtime)
     with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
-        work = pathlib.Path(tmp)
-        if runtime == "cpython":
-            fw = emulator.run_cpython(stim_mod.read(stim_path), work, progress=progress)
-        elif runtime == "micropython":
-            from host_emulator.runtimes import mpy_unix as vm_runner
-
-            fw = vm_runner.run_micropython(stim_path, work, progress=progress)
-        else:
-            raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress)
     if not fw.out:
         said = "; ".join(fw.console) or "nothing"
         raise EmulatorError(f"the firmware sent no output in {fw.ticks} ticks; its console: {said}")
@@ -158,7 +135,7 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
 def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
     """metrics dict (and the report's inputs) of a finished firmware run."""
     tick_s = stim.tick_us * 1e-6
-    decoded = frames.decode(fw.out)
+    decoded = stream.decode(fw.out)
     o = sim.truth.origin
     tr = evaluate.track(decoded, tick_s, (o.lat_e7, o.lon_e7, o.h_m))
     outages = [tuple(x) for x in stim.header.get("outages", [])]
@@ -204,11 +181,10 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
 
 def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print):
     """The whole `run` command; returns the metrics. EmulatorError on bad input or failure."""
-    check_scenario(scenario)
-    check_duration(duration_s)
-    check_seed(seed)
-    if runtime not in RUNTIMES:
-        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    cli_args.check_scenario(scenario)
+    cli_args.check_duration(duration_s)
+    cli_args.check_seed(seed)
+    runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     out_dir = pathlib.Path(out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -224,7 +200,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
-    fw = run_firmware(sim.stimulus, runtime, stim_path, prog)
+    fw = run_firmware(runtime, stim_path, prog)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
@@ -237,8 +213,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
     """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
     is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
     only the output is checked (frames, frame errors, time to navigation)."""
-    if runtime not in RUNTIMES:
-        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     stim = stim_mod.read(path)  # StimulusError (an EmulatorError) if unusable
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -249,7 +224,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
     if src.resolve() != local.resolve():
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
-    fw = run_firmware(stim, runtime, local, prog)
+    fw = run_firmware(runtime, local, prog)
     (out_dir / "frames.bin").write_bytes(fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
@@ -260,7 +235,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
         metrics, tr, err = evaluate_run(sim, fw, stim, out_dir, runtime)
         write_outputs(out_dir, sim, metrics, tr, err, fw.console)
         return metrics
-    decoded = frames.decode(fw.out)
+    decoded = stream.decode(fw.out)
     tr = evaluate.track(decoded, stim.tick_us * 1e-6, (0, 0, 0.0))
     fe = evaluate.frame_errors(decoded)
     metrics = {

@@ -45,3 +45,20 @@ def install_machine(hw):
 
     if not hasattr(gc, "mem_free"):  # CPython's heap is not the board's: report plenty free
         gc.mem_free = lambda: 1 << 20
+
+
+def import_module(name):
+    """A firmware module by its board name ("app", "drivers.bmi055", ...), for reading its
+    constants on CPython. MicroPython's time functions are put in place first (on a fresh
+    emulated board if none is installed yet): the BMI055 driver binds time.sleep_ms when it is
+    first imported, and bound to anything else it would wait in real time on every emulated
+    board after (whose BMI055 then never leaves its reset: no frames at all)."""
+    import importlib
+    import time
+
+    if "drivers.bmi055" not in sys.modules and not hasattr(time, "sleep_ms"):
+        from host_emulator.board.cpython import machine
+
+        install_machine(machine.Hardware())
+    install()
+    return importlib.import_module(name)

@@ -1,14 +1,14 @@
-"""The board's output stream computed by the NumPy float32 model: the parity oracle of
-`emulator.run_cpython` (see `parity.py`).
+"""The board's output stream computed by the NumPy float32 model, mirroring firmware/app.py:
+the parity oracle of the cpython runtime (eval/parity.py).
 
     out = run(stim)        # bytes: what firmware/app.py would send for this stimulus
 
 Modelled independently here (NumPy float32, or plain integers):
-- the navigator: `reference/nav.py` NavModel (bit-exact with firmware/lib/nav.py, proven by
-  tests/reference/test_nav_model.py), fed every tick as app.py feeds the Navigator;
+- the navigator: model/nav.py's NavModel (bit-exact with firmware/lib/nav.py, proven by
+  tests/model/test_nav_model.py), fed every tick as app.py feeds the Navigator;
 - BMI055 decoding and the over-range flag, vectorised from the stimulus registers;
 - the GNSS UART: the receive ring (board.py's rxbuf, bytes beyond it lost) and the loop's
-  reads of at most 255 bytes per tick;
+  reads of at most app._RX_LEN bytes per tick;
 - the virtual clock: tick k at t_k = t0 + k tick_us, PPS edges at t_k - pps_before_us,
   MicroPython's 30-bit ticks_us/ticks_diff; t0 is derived from the BMI055 driver's start-up
   waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
@@ -17,18 +17,19 @@ Modelled independently here (NumPy float32, or plain integers):
   course x pi/18000 (rebuilt from its float32 bits), speed and course -1 when unknown, the
   fallback HDOP, the no-fix epoch and the measurement tick from the PPS edge (or -1: the
   configured latency);
-- the 52-byte frame, vectorised over all ticks: euler angles through `reference/rot.py`,
+- the 52-byte frame, vectorised over all ticks (proto/frame.py's table as a NumPy record
+  type): euler angles through model/rot.py,
   x * scale in float32 rounded half away from zero, clamped, NaN -> 0; the sensor fields'
   integer conversions; the checksum;
 - the extended frame 0x91 (P diagonal, biases, position and the origin's height as the
   model's float32 bits; the tick timing, overrun and GC fields are 0 as on the emulator,
   whose loop takes no virtual time and whose heap never runs low) and the raw-input record
-  0x92, with their CRC-32 (binascii.crc32, as on the board).
+  0x92, encoded by proto/records.py.
 Shared with the firmware (integer or bit-level code, validated on its own):
 - the NMEA parser `drivers/gnss.py` Nmea (checked against gpsd on real logs), including its
-  `pps_isr`, which stamps the edge from the emulator's virtual clock (fake_machine.ticks_us),
+  `pps_isr`, which stamps the edge from the emulator's virtual clock (board/cpython),
   and its flag/epoch "take" methods;
-- the configuration: the file run_cpython writes (emulator.config_bytes) is decoded by
+- the configuration: the file the runtimes write (proto/config.py) is decoded by
   firmware/lib/config.py and `BoardConfig.nav_config()` builds the navigator's configuration,
   as on the board (an explicit identity matrix becomes None there, for instance);
 - constants of firmware modules: the BMI055 driver's sensitivities, over-range thresholds
@@ -37,19 +38,17 @@ Not modelled: a missing IMU (the emulated BMI055 always answers), overruns, garb
 collection, tick timing (none of them happen on the emulator).
 """
 
-import binascii
-import struct
-import sys
-import time
-
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython import machine
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel
+from host_emulator.proto import config as board_config
+from host_emulator.proto import frame as frame_schema
+from host_emulator.proto import records
 from host_emulator.proto import stimulus as stim_mod
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
 
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
@@ -58,74 +57,23 @@ from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
 import geo as fw_geo  # noqa: E402  (the index of the origin height in the coefficients)
 
 F32 = np.float32
-
-# app.py
-_CDEG_PER_RAD = np.array(0x45B30CA0, np.uint32).view(F32)[()]  # 18000 / pi
-_RAD_PER_CDEG = np.array(0x393702D3, np.uint32).view(F32)[()]  # pi / 18000
-_APP_US_PER_TICK = 5000  # app._US_PER_TICK: the firmware's tick, for the fix's age
-_RX_LEN = 232  # app._RX_LEN: GNSS bytes read per tick at most
-_E7 = 10_000_000
+_FRAME = frame_schema.numpy_dtype()
 _PPS_MAX_AGE_US = 1_000_000  # an older PPS edge is not the fix's (app._deliver_fix)
-# board.py: the GNSS UART's receive ring (machine.UART(..., rxbuf=1024)); what does not fit
-# is lost (fake_machine.UARTPort.feed, as on the board)
-GNSS_RXBUF = 1024
-# MicroPython's ticks_us wraps at 2**30
-_TICKS_PERIOD = 1 << 30
-
-# frame layout (DESIGN.md 6): little-endian, 52 bytes
-_FRAME = np.dtype(
-    [
-        ("head", "u1", 2),
-        ("counter", "u1"),
-        ("gyro", "<i2", 3),
-        ("accel", "<i2", 3),
-        ("pps", "u1"),
-        ("gga", "u1"),
-        ("valid", "u1"),
-        ("lat", "<u4"),
-        ("lon", "<u4"),
-        ("height", "<i2"),
-        ("state", "u1"),
-        ("ypr", "<i2", 3),
-        ("vel", "<i2", 3),
-        ("pos_en", "<u4", 2),
-        ("pos_u", "<i2"),
-        ("checksum", "u1"),
-    ]
-)
-assert _FRAME.itemsize == 52
-_GYRO_FRAME_X100 = 13107  # 131.07 LSB per deg/s, x100
-_ACCEL_FRAME = 16383  # per g
 _I32_LIM = 1073741823  # frame.put_scaled32's clamp (small ints on the board)
 
-EXT_TYPE = 0x91
-RAW_TYPE = 0x92
-_EXT_PAYLOAD = 124
 
-
-def _bmi055():
-    """firmware/drivers/bmi055.py (sensitivities, over-range thresholds, reset waits). It binds
-    time.sleep_ms when first imported, so the virtual clock's time functions must be in place
-    by then: imported earlier, the driver would sleep in real time on a later emulated board,
-    whose BMI055 then never comes out of reset (run_cpython: no frames at all)."""
-    if "drivers.bmi055" not in sys.modules and not hasattr(time, "sleep_ms"):
-        firmware_env.install_machine(fake_machine.Hardware())
-    from drivers import bmi055
-
-    return bmi055
+def _firmware():
+    """The firmware's modules whose constants the model uses: app, board, frame and the BMI055
+    driver (sensitivities, over-range thresholds, reset waits)."""
+    return tuple(map(firmware_env.import_module, ("app", "board", "frame", "drivers.bmi055")))
 
 
 def first_tick_us(tick_us):
     """t0: the first timer moment after the firmware's start-up, whose only virtual time is
     the BMI055 driver's waits after the two soft resets (us since power-on)."""
-    bmi055 = _bmi055()
+    bmi055 = _firmware()[3]
     startup_us = 1000 * (bmi055.GYRO_RESET_MS + bmi055.ACCEL_RESET_MS)
     return -(-startup_us // tick_us) * tick_us
-
-
-def _ticks_diff(a, b):
-    d = (a - b) % _TICKS_PERIOD
-    return d - _TICKS_PERIOD if d >= _TICKS_PERIOD // 2 else d
 
 
 def _round_div(num, den):
@@ -152,65 +100,65 @@ def _round_clamp(y, lo, hi):
 
 def frame_bytes(t, cfg):
     """(F, 52) uint8: the frames of the ticks in t (dict of per-frame arrays, see `run`)."""
-    bmi055 = _bmi055()
+    fw_app, _, fw_frame, bmi055 = _firmware()
     f = len(t["counter"])
     fr = np.zeros(f, _FRAME)
-    fr["head"] = (0xEB, 0x90)
+    fr["header0"] = frame_schema.HEADER
+    fr["header1"] = frame_schema.FRAME_TYPE
     fr["counter"] = t["counter"]
     lsb_x10 = bmi055.GYRO_LSB_PER_DPS_X10[cfg.gyro_range_dps]
     lsb_g = bmi055.ACCEL_LSB_PER_G[cfg.accel_range_g]
-    fr["gyro"] = np.clip(_round_div(t["gyro"] * _GYRO_FRAME_X100, 10 * lsb_x10), -32768, 32767)
-    fr["accel"] = np.clip(_round_div(t["accel"] * _ACCEL_FRAME, lsb_g), -32768, 32767)
+    gyro = np.clip(_round_div(t["gyro"] * fw_frame._GYRO_FRAME_X100, 10 * lsb_x10), -32768, 32767)
+    accel = np.clip(_round_div(t["accel"] * fw_frame._ACCEL_FRAME, lsb_g), -32768, 32767)
+    ypr = ref_rot.dcm_to_euler(t["c_bn"])  # (F, 3) yaw, pitch, roll, rad
+    ypr = _round_clamp(ypr * fw_app._CDEG_PER_RAD, -32768, 32767)
+    vel = _round_clamp(t["v_n"] * F32(100), -32768, 32767)
+    for i, (xyz, enu) in enumerate(zip("xyz", "enu", strict=True)):
+        fr[f"gyro_{xyz}"] = gyro[:, i]
+        fr[f"accel_{xyz}"] = accel[:, i]
+        fr[f"vel_{enu}_cm_s"] = vel[:, i]
+    for i, name in enumerate(("yaw_cdeg", "pitch_cdeg", "roll_cdeg")):
+        fr[name] = ypr[:, i]
     fr["pps"] = t["pps"]
     fr["gga"] = t["gga"]
-    fr["valid"] = t["valid"]
-    fr["lat"] = t["lat_e7"] & 0xFFFFFFFF
-    fr["lon"] = t["lon_e7"] & 0xFFFFFFFF
-    fr["height"] = np.clip(t["height_dm"], -32768, 32767)
-    fr["state"] = t["state"] & 0xFF
-    ypr = ref_rot.dcm_to_euler(t["c_bn"])  # (F, 3) yaw, pitch, roll, rad
-    fr["ypr"] = _round_clamp(ypr * _CDEG_PER_RAD, -32768, 32767)
-    fr["vel"] = _round_clamp(t["v_n"] * F32(100), -32768, 32767)
-    fr["pos_en"] = _round_clamp(t["p_n"][:, 0:2] * F32(100), -_I32_LIM, _I32_LIM) & 0xFFFFFFFF
-    fr["pos_u"] = _round_clamp(t["p_n"][:, 2] * F32(10), -32768, 32767)
-    b = fr.view(np.uint8).reshape(f, 52)
-    b[:, 51] = b[:, 2:51].sum(axis=1, dtype=np.int64) & 0xFF
+    fr["gnss_valid"] = t["valid"]
+    fr["lat_e7"] = t["lat_e7"]
+    fr["lon_e7"] = t["lon_e7"]
+    fr["height_dm"] = np.clip(t["height_dm"], -32768, 32767)
+    fr["nav_state"] = t["state"] & 0xFF
+    fr["pos_e_cm"] = _round_clamp(t["p_n"][:, 0] * F32(100), -_I32_LIM, _I32_LIM)
+    fr["pos_n_cm"] = _round_clamp(t["p_n"][:, 1] * F32(100), -_I32_LIM, _I32_LIM)
+    fr["pos_u_dm"] = _round_clamp(t["p_n"][:, 2] * F32(10), -32768, 32767)
+    b = fr.view(np.uint8).reshape(f, frame_schema.FRAME_LEN)
+    b[:, -1] = b[:, 2:-1].sum(axis=1, dtype=np.int64) & 0xFF
     return b
 
 
-def _seal(body):
-    return body + struct.pack("<I", binascii.crc32(body) & 0xFFFFFFFF)
-
-
 def ext_frame(counter, health, state, cfg_status, flags, model):
-    """The extended frame (records.py) of the model's state after this tick."""
+    """The extended frame (proto/records.py) of the model's state after this tick."""
     kf, ins = model.kf, model.ins
-    timing = (0, 0, 0, 0)  # worst and mean tick us, overruns, GC runs: 0 on the emulator
-    body = (
-        struct.pack("<4B", 0xEB, EXT_TYPE, _EXT_PAYLOAD + 1, counter & 0xFF)
-        + struct.pack("<4B4H", health, state, cfg_status, flags, *timing)
-        + np.diagonal(kf.P).astype("<f4").tobytes()
-        + np.asarray(ins.bg, "<f4").tobytes()
-        + np.asarray(ins.ba, "<f4").tobytes()
-        + np.asarray(ins.p_n, "<f4").tobytes()
-        + struct.pack(
-            "<III",
-            model.origin_lat_e7 & 0xFFFFFFFF,
-            model.origin_lon_e7 & 0xFFFFFFFF,
-            model.tick & 0x3FFFFFFF,
-        )
-        + np.asarray(model.coef[fw_geo.H0], "<f4").tobytes()  # origin height, m
+    return records.encode_ext(
+        counter,
+        {
+            "health": health,
+            "nav_state": state,
+            "config_status": cfg_status,
+            "flags": flags,
+            # the board's run time: 0 on the emulator, whose loop takes no virtual time
+            "worst_tick_us": 0,
+            "mean_tick_us": 0,
+            "overruns": 0,
+            "gc_runs": 0,
+            "p_diag": np.diagonal(kf.P),
+            "gyro_bias_rad_s": ins.bg,
+            "accel_bias_m_s2": ins.ba,
+            "pos_enu_m": ins.p_n,
+            "origin_lat_e7": model.origin_lat_e7,
+            "origin_lon_e7": model.origin_lon_e7,
+            "tick": model.tick & 0x3FFFFFFF,
+            "origin_h_m": model.coef[fw_geo.H0],
+        },
     )
-    return _seal(body)
-
-
-def raw_record(counter, t_us, pps_us, gyro6, accel6, saturated, rx):
-    """The raw-input record (records.py) of one tick: rx are the GNSS bytes it read."""
-    n = len(rx)
-    head = struct.pack("<4B", 0xEB, RAW_TYPE, 23 + n, counter & 0xFF)
-    body = head + struct.pack("<II", t_us & 0xFFFFFFFF, pps_us & 0xFFFFFFFF)
-    body += gyro6 + accel6 + bytes((1 if saturated else 0, n))
-    return _seal(body + bytes(rx))
 
 
 class _Fix:
@@ -226,13 +174,14 @@ class _Fix:
 def deliver_fix(g, model, fix, hdop_max, now_us):
     """app._deliver_fix on the model: g is the parser with a completed epoch; now_us the
     tick's ticks_us value."""
+    fw_app = _firmware()[0]
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
     fix.valid = 1 if ok else 0
     if not ok:
         model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)  # a no-fix epoch
         return
     lat = g.epoch_lat_e7
-    lon = g.epoch_lon_deg * _E7 + g.epoch_lon_frac_e7
+    lon = g.epoch_lon_deg * fw_app._E7 + g.epoch_lon_frac_e7
     fix.lat_e7 = lat
     fix.lon_e7 = lon
     msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
@@ -246,29 +195,29 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     if g.epoch_speed_mm_s >= 0:
         speed = F32(g.epoch_speed_mm_s) / F32(1000)
         if g.epoch_course_cdeg >= 0:
-            course = F32(g.epoch_course_cdeg) * _RAD_PER_CDEG
+            course = F32(g.epoch_course_cdeg) * fw_app._RAD_PER_CDEG
     fix_tick = -1
-    age_us = _ticks_diff(now_us, g.epoch_pps_us)
+    age_us = ticks_diff(now_us, g.epoch_pps_us)
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
-        fix_tick = model.tick - age_us // _APP_US_PER_TICK
+        fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
 
 
 def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     """The output byte stream (frames, extended frames, raw records as configured) that the
-    firmware produces for `stim` under run_cpython's board configuration plus the overrides.
+    firmware produces for `stim` under the runtimes' board configuration plus the overrides.
 
     progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
     before the navigator's step (tests use it to perturb the model)."""
-    values = emulator.board_values(stim, config_overrides)
-    cfg = config.decode(emulator.config_bytes(values))  # what the board reads from flash
+    values = board_config.run_values(stim, config_overrides)
+    cfg = config.decode(board_config.to_bytes(values))  # what the board reads from flash
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
     g = Nmea(need_speed=cfg.gnss_need_speed != 0)  # as app.App builds its parser
-    hw = fake_machine.Hardware()  # the virtual clock pps_isr stamps from
+    hw = machine.Hardware()  # the virtual clock pps_isr stamps from
     firmware_env.install_machine(hw)
-    bmi055 = _bmi055()
+    fw_app, fw_board, _, bmi055 = _firmware()
 
     n = len(stim)
     tick_us = stim.tick_us
@@ -315,18 +264,18 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
         # the interval before tick k: bytes arrive in the ring, the PPS edge fires
         a, b = offs[k], offs[k + 1]
         if b > a:
-            chunk = ub[a:b][: max(GNSS_RXBUF - len(ring), 0)]
+            chunk = ub[a:b][: max(fw_board.GNSS_RXBUF - len(ring), 0)]
             ring += chunk
         t_k = t0 + k * tick_us
         if pps_before[k] >= 0:
             hw.now_us = t_k - pps_before[k]
             g.pps_isr(None)
         hw.now_us = t_k
-        now = t_k % _TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
+        now = t_k % TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
         # tick k: IMU read, GNSS poll, fix, navigator
         rx = b""
         if ring:
-            m = min(len(ring), _RX_LEN)
+            m = min(len(ring), fw_app._RX_LEN)
             rx = bytes(ring[:m])
             del ring[:m]
             g.feed(rx, m)
@@ -358,7 +307,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             parts.append(ext_frame(counter, health, model.state, cfg_status, flags, model))
         if cfg.raw_record:
             parts.append(
-                raw_record(
+                records.encode_raw(
                     counter,
                     now,
                     g.pps_us,

@@ -18,7 +18,7 @@ File layout (little-endian):
     b"INSSTIM1", header length u32, header (UTF-8 JSON object, see `Stimulus.header`)
     per tick: gyro registers 6 B, accel registers 6 B, temperature i8, flags u8 (bit 0: PPS
               edge in this interval), pps_before_us u16, n u16, then the n UART bytes
-    b"END1", ticks u32, CRC-32 (u32, crcmod "crc-32" = binascii.crc32) of everything before it
+    b"END1", ticks u32, CRC-32 (u32, proto/crc.py) of everything before it
 The trailer makes a truncated or damaged file an error, never a shorter run.
 
 Header keys: "tick_us" (5000), "ticks", "source" ("simulation", ...), "config" (board
@@ -31,10 +31,10 @@ import json
 import struct
 from dataclasses import dataclass, field
 
-import crcmod.predefined
 import numpy as np
 
 from host_emulator.errors import EmulatorError
+from host_emulator.proto.crc import crc32
 
 MAGIC = b"INSSTIM1"
 TRAILER = b"END1"
@@ -42,7 +42,6 @@ TICK_US = 5000
 _REC = struct.Struct("<6s6sbBHH")
 REC_LEN = _REC.size  # 18
 FLAG_PPS = 0x01
-_crc32 = crcmod.predefined.mkCrcFun("crc-32")
 
 
 class StimulusError(EmulatorError):
@@ -165,7 +164,7 @@ class Stimulus:
             if n:
                 parts.append(ub[o[k] : o[k + 1]])
         body = b"".join(parts) + TRAILER + struct.pack("<I", len(self))
-        return body + struct.pack("<I", _crc32(body))
+        return body + struct.pack("<I", crc32(body))
 
     def write(self, path):
         with open(path, "wb") as f:
@@ -188,7 +187,7 @@ def from_bytes(data, name="stimulus"):
     if len(data) < pos + 12 or data[-12:-8] != TRAILER:
         raise StimulusError(f"{name}: the file is truncated (no end marker): incomplete copy?")
     (crc,) = struct.unpack_from("<I", data, len(data) - 4)
-    if _crc32(data[:-4]) != crc:
+    if crc32(data[:-4]) != crc:
         raise StimulusError(f"{name}: CRC mismatch, the file is damaged")
     (ticks,) = struct.unpack_from("<I", data, len(data) - 8)
     end = len(data) - 12

@@ -1,120 +1,180 @@
-"""Decode what a board sends: 52-byte frames (DESIGN.md 6), extended frames and raw-input
-records (firmware/lib/records.py), from a byte stream that may hold garbage.
+"""The board's output stream: 52-byte frames (proto/frame.py), extended frames and raw-input
+records (proto/records.py) back to back, with whatever garbage a line adds between them.
 
-The decoder resynchronises after anything it cannot read: at each 0xEB it tries the record
-its type byte announces and accepts it only if its checksum (frames) or CRC-32 (records, via
-crcmod, the same CRC as the board's binascii.crc32) is right; otherwise it skips one byte.
+One decoder, incremental: `StreamDecoder.feed(chunk)` returns the records that chunk completes,
+`finish()` what is left at the end of the stream; `decode(data)` is the same over a whole byte
+string. The rule: at each 0xEB try the record its type byte announces and take it only if its
+checksum (frame) or CRC-32 and length (records) are right; otherwise count the failure and skip
+one byte; bytes that start nothing are skipped. A record cut by the end of a chunk waits for the
+next one, so any chunking of a stream decodes to exactly what `decode` gives for all of it.
+
+`split(data)` is the other reading, for comparing two streams record by record: it cuts a
+stream at the lengths the headers announce without checking anything, and stops where no
+record starts.
 """
 
-import struct
 from dataclasses import dataclass, field
 
-import crcmod.predefined
+from host_emulator.proto import frame, records
+from host_emulator.proto.frame import FRAME_LEN, FRAME_TYPE, HEADER
+from host_emulator.proto.records import EXT_TYPE, RAW_TYPE
 
-crc32 = crcmod.predefined.mkCrcFun("crc-32")
-FRAME_TYPE = 0x90
-EXT_TYPE = 0x91
-RAW_TYPE = 0x92
+FRAME, EXT, RAW = "frame", "ext", "raw"
+KIND = {FRAME_TYPE: FRAME, EXT_TYPE: EXT, RAW_TYPE: RAW}
 
 
 @dataclass
 class Decoded:
-    frames: list = field(default_factory=list)  # dicts of the 52-byte frame's fields
-    ext: list = field(default_factory=list)  # dicts of extended frames
-    raw: list = field(default_factory=list)  # dicts of raw-input records
+    frames: list = field(default_factory=list)  # frame.decode dicts
+    ext: list = field(default_factory=list)  # records.decode_ext dicts (+ "frame_index")
+    raw: list = field(default_factory=list)  # records.decode_raw dicts (+ "frame_index")
     bad_checksum: int = 0  # frames whose checksum failed
-    bad_crc: int = 0  # records whose CRC failed
+    bad_crc: int = 0  # records whose CRC-32 (or length) failed
     skipped_bytes: int = 0  # bytes that belonged to nothing decodable
 
 
-def frame_fields(f):
-    """The 52-byte frame's fields in physical units (DESIGN.md section 6)."""
-    v = struct.unpack("<2BB3h3h3Bii h B3h3hiih B", f)
-    return {
-        "counter": v[2],
-        "gyro_dps": [x / 131.07 for x in v[3:6]],
-        "accel_g": [x / 16383 for x in v[6:9]],
-        "pps": v[9],
-        "gga": v[10],
-        "gnss_valid": v[11],
-        "lat_e7": v[12],
-        "lon_e7": v[13],
-        "height_m": v[14] / 10,
-        "nav_state": v[15],
-        "yaw_deg": v[16] / 100,
-        "pitch_deg": v[17] / 100,
-        "roll_deg": v[18] / 100,
-        "vel_enu_m_s": [x / 100 for x in v[19:22]],
-        "pos_enu_m": [v[22] / 100, v[23] / 100, v[24] / 10],
-        "raw": bytes(f),
-    }
+class StreamDecoder:
+    """Feed bytes as they arrive; get the decoded records and the error counts.
 
+    Dropped frames: the frame counter (u8) goes up by one per frame sent, so every missing step
+    between two decoded frames counts one ((counter - previous - 1) mod 256)."""
 
-def ext_fields(r):
-    f = struct.unpack_from("<4B4H15f3f3f3fiiIf", r, 4)
-    return {
-        "counter": r[3],
-        "health": f[0],
-        "nav_state": f[1],
-        "config_status": f[2],
-        "flags": f[3],
-        "worst_tick_us": f[4],
-        "mean_tick_us": f[5],
-        "overruns": f[6],
-        "gc_runs": f[7],
-        "p_diag": list(f[8:23]),
-        "gyro_bias_rad_s": list(f[23:26]),
-        "accel_bias_m_s2": list(f[26:29]),
-        "pos_enu_m": list(f[29:32]),
-        "origin_lat_e7": f[32],
-        "origin_lon_e7": f[33],
-        "tick": f[34],
-        "origin_h_m": f[35],
-    }
+    def __init__(self):
+        self._buf = bytearray()
+        self._offset = 0  # stream offset of _buf[0]
+        self.bytes_in = 0
+        self.n_frames = 0
+        self.n_ext = 0
+        self.n_raw = 0
+        self.bad_checksum = 0
+        self.bad_crc = 0
+        self.skipped_bytes = 0
+        self.dropped_frames = 0
+        self._last_counter = None
 
+    @property
+    def pending(self):
+        """Bytes held back (the start of a record not complete yet)."""
+        return len(self._buf)
 
-def raw_fields(r):
-    n = r[25]
-    return {
-        "counter": r[3],
-        "t0_us": struct.unpack_from("<I", r, 4)[0],
-        "pps_us": struct.unpack_from("<I", r, 8)[0],
-        "gyro_regs": bytes(r[12:18]),
-        "accel_regs": bytes(r[18:24]),
-        "saturated": r[24] & 1,
-        "gnss_bytes": bytes(r[26 : 26 + n]),
-    }
+    def counts(self):
+        return {
+            "bytes": self.bytes_in,
+            "frames": self.n_frames,
+            "ext": self.n_ext,
+            "raw": self.n_raw,
+            "bad_checksum": self.bad_checksum,
+            "bad_crc": self.bad_crc,
+            "skipped_bytes": self.skipped_bytes,
+            "dropped_frames": self.dropped_frames,
+        }
+
+    def feed(self, data):
+        """[(kind, fields)] of the records completed by `data` (kind FRAME, EXT or RAW)."""
+        return [self._fields(kind, r) for kind, _, r in self.records(data)]
+
+    def finish(self):
+        """End of the stream: the tail decodes as `decode` would (an incomplete record's bytes
+        count as skipped)."""
+        return [self._fields(kind, r) for kind, _, r in self.records(b"", final=True)]
+
+    def records(self, data, final=False):
+        """[(kind, stream offset, record bytes)] of the valid records `data` completes (the
+        counters as `feed`; no field decoding)."""
+        if data:
+            self.bytes_in += len(data)
+            self._buf += data
+        buf = self._buf
+        n = len(buf)
+        out = []
+        i = 0
+        while i < n:
+            if buf[i] != HEADER:
+                j = buf.find(HEADER, i + 1)
+                j = n if j < 0 else j
+                self.skipped_bytes += j - i
+                i = j
+                continue
+            if i + 1 >= n:
+                if not final:
+                    break
+            else:
+                t = buf[i + 1]
+                if t == FRAME_TYPE:
+                    end = i + FRAME_LEN
+                else:  # header, length byte, counter + payload, CRC (unknown: length unread)
+                    end = i + 3 + buf[i + 2] + records.CRC_LEN if i + 3 <= n else n + 1
+                if t in KIND:
+                    if end > n:
+                        if not final:
+                            break
+                    else:
+                        r = bytes(buf[i:end])
+                        if t == FRAME_TYPE:
+                            ok = r[-1] == frame.checksum(r)
+                        else:
+                            ok = records.length_ok(r) and records.crc_ok(r)
+                        if ok:
+                            out.append((KIND[t], self._offset + i, r))
+                            i = end
+                            continue
+                        if t == FRAME_TYPE:
+                            self.bad_checksum += 1
+                        else:
+                            self.bad_crc += 1
+            self.skipped_bytes += 1
+            i += 1
+        del buf[:i]
+        self._offset += i
+        return out
+
+    def _fields(self, kind, r):
+        if kind == FRAME:
+            fields = frame.decode(r)
+            c = fields["counter"]
+            if self._last_counter is not None:
+                self.dropped_frames += (c - self._last_counter - 1) & 0xFF
+            self._last_counter = c
+            self.n_frames += 1
+            return kind, fields
+        if kind == EXT:
+            fields = records.decode_ext(r)
+            self.n_ext += 1
+        else:
+            fields = records.decode_raw(r)
+            self.n_raw += 1
+        fields["frame_index"] = self.n_frames - 1  # the 52-byte frame before it
+        return kind, fields
 
 
 def decode(data):
-    """All decodable frames and records in `data`, in order of appearance per kind."""
+    """All decodable records in `data`, each kind in order of appearance (a Decoded)."""
+    d = StreamDecoder()
     out = Decoded()
+    lists = {FRAME: out.frames, EXT: out.ext, RAW: out.raw}
+    for kind, fields in d.feed(data) + d.finish():
+        lists[kind].append(fields)
+    out.bad_checksum, out.bad_crc, out.skipped_bytes = d.bad_checksum, d.bad_crc, d.skipped_bytes
+    return out
+
+
+def split(data):
+    """(frames, ext, raw, error): the records of a stream cut at the lengths their headers
+    announce (nothing checked), each kind in order; error names the offset where no record
+    starts or one is cut short (None if the stream splits to its end)."""
+    out = {FRAME_TYPE: [], EXT_TYPE: [], RAW_TYPE: []}
     i = 0
     n = len(data)
+    err = None
     while i < n:
-        if data[i] != 0xEB or i + 1 >= n:
-            out.skipped_bytes += 1
-            i += 1
-            continue
+        if data[i] != HEADER or i + 3 > n or data[i + 1] not in out:
+            err = f"no record starts at byte {i}"
+            break
         t = data[i + 1]
-        if t == FRAME_TYPE and i + 52 <= n:
-            f = data[i : i + 52]
-            if f[51] == sum(f[2:51]) & 0xFF:
-                out.frames.append(frame_fields(f))
-                i += 52
-                continue
-            out.bad_checksum += 1
-        elif t in (EXT_TYPE, RAW_TYPE) and i + 3 <= n:
-            end = i + 3 + data[i + 2] + 4  # header, length byte, counter + payload, CRC
-            if end <= n:
-                r = data[i:end]
-                if struct.unpack_from("<I", r, len(r) - 4)[0] == crc32(bytes(r[:-4])):
-                    rec = ext_fields(r) if t == EXT_TYPE else raw_fields(r)
-                    rec["frame_index"] = len(out.frames) - 1  # the 52-byte frame before it
-                    (out.ext if t == EXT_TYPE else out.raw).append(rec)
-                    i = end
-                    continue
-                out.bad_crc += 1
-        out.skipped_bytes += 1
-        i += 1
-    return out
+        end = i + (FRAME_LEN if t == FRAME_TYPE else 3 + data[i + 2] + 4)
+        if end > n:
+            err = f"record at byte {i} is cut short"
+            break
+        out[t].append(bytes(data[i:end]))
+        i = end
+    return out[FRAME_TYPE], out[EXT_TYPE], out[RAW_TYPE], err

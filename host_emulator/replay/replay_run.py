@@ -1,7 +1,7 @@
 """`python -m host_emulator replay`: a recorded drive through the unmodified firmware.
 
     dataset (drive_0708, or a KF-GINS directory) -> to_stimulus.convert -> DIR/stimulus.bin
-        -> firmware (CPython or the MicroPython VM) -> DIR/frames.bin -> errors against the
+        -> firmware (a runtime, see runtimes/) -> DIR/frames.bin -> errors against the
         recording's reference -> DIR/metrics.json, report.md, *.png, solution.pos
 
 The outputs are those of `run` (scenario_run.py); solution.pos is the firmware's track as an
@@ -14,9 +14,11 @@ import time
 
 import numpy as np
 
+from host_emulator import args as cli_args
+from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
-from host_emulator.proto import stream as frames
+from host_emulator.proto import stream
 from host_emulator.replay import to_stimulus
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
@@ -77,7 +79,7 @@ def load_dataset(dataset=None, kf_gins=None, data_dir=None, gnss_pos=None, truth
 
 def evaluate_replay(rep, fw, runtime):
     """(metrics, track, errors) of a finished firmware run on a Replay."""
-    decoded = frames.decode(fw.out)
+    decoded = stream.decode(fw.out)
     o = rep.truth.origin
     tr = evaluate.track(decoded, rep.stimulus.tick_us * 1e-6, (o.lat_e7, o.lon_e7, o.h_m))
     truth = rep.truth
@@ -210,11 +212,10 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
            log=print):  # fmt: skip
     """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
     input or when the firmware never navigates."""
-    if runtime not in scenario_run.RUNTIMES:
-        raise EmulatorError(f"unknown runtime {runtime!r}: choose cpython or micropython")
+    runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     options = options or to_stimulus.ReplayOptions()
     if options.duration_s is not None:
-        scenario_run.check_duration(options.duration_s)
+        cli_args.check_duration(options.duration_s)
     out_dir = pathlib.Path(out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -232,7 +233,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
-    fw = scenario_run.run_firmware(rep.stimulus, runtime, stim_path, prog)
+    fw = scenario_run.run_firmware(runtime, stim_path, prog)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:

@@ -1,1 +1,84 @@
-"""(docstring follows in phase B)"""
+"""Where the unmodified firmware runs on a PC: the runtimes, side by side.
+
+Each one takes the same input, a stimulus (proto/stimulus.py: what the board's peripherals see,
+tick by tick) and the board's configuration, and returns a `FirmwareRun`: everything the board
+sent on its output UART, its console lines and its counters.
+
+    fw = runtimes.get("cpython").run(stim, workdir, config_overrides=None, progress=None)
+
+    cpython   the firmware on CPython, over the emulated board of board/cpython (cpython.py);
+              float32 bit for bit through the seam's NumPy backend; the fastest, and the
+              firmware's own tracebacks
+    mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over board/mpy
+              (mpy_unix/); its floats are doubles, so float output agrees to a tolerance;
+              proves the firmware runs on MicroPython and counts the GC blocks of every tick
+    model     no firmware: the NumPy float32 model of it (model/app.py through model.py);
+              float32 bit for bit; the parity oracle
+
+`micropython`, the old name of mpy_unix, still works; mpy_unix is named for what it is, a
+double-precision build of the unix port, not the board's single-precision MicroPython.
+A runtime is imported only when it is used.
+"""
+
+import importlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host_emulator.errors import EmulatorError
+
+
+@dataclass(eq=False)
+class FirmwareRun:
+    """What a firmware run produced, whatever the runtime."""
+
+    runtime: str  # the runtime's name
+    out: bytes  # everything written to the output UART
+    console: list  # lines the firmware printed on its console
+    ticks: int
+    wall_s: float
+    blocks_per_tick: np.ndarray | None = None  # GC blocks allocated by each tick (mpy_unix)
+    stats: dict = field(default_factory=dict)  # runtime-specific counters
+
+
+@dataclass(frozen=True)
+class Runtime:
+    name: str
+    summary: str
+    bit_exact: bool  # float32 results equal to the board's, bit for bit
+    counts_allocations: bool  # FirmwareRun.blocks_per_tick
+    counts_instructions: bool
+    module: str  # the module whose run(stim, workdir, config_overrides, progress) it is
+
+    def run(self, stim, workdir, config_overrides=None, progress=None):
+        """A FirmwareRun of the stimulus; FirmwareError if the firmware raises, EmulatorError
+        if the runtime cannot run it."""
+        mod = importlib.import_module(self.module)
+        return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress)
+
+
+RUNTIMES = {
+    r.name: r
+    for r in (
+        Runtime("cpython", "the firmware on CPython, float32 bit for bit", True, False, False,
+                "host_emulator.runtimes.cpython"),
+        Runtime("mpy_unix", "the firmware in the MicroPython unix VM (double precision); counts "
+                "GC blocks per tick", False, True, False, "host_emulator.runtimes.mpy_unix"),
+        Runtime("model", "the NumPy float32 model of the firmware (the parity oracle)", True,
+                False, False, "host_emulator.runtimes.model"),
+    )
+}  # fmt: skip
+ALIASES = {"micropython": "mpy_unix"}
+
+
+def names(aliases=True):
+    """The names `get` accepts (for a command line's choices)."""
+    return (*RUNTIMES, *ALIASES) if aliases else tuple(RUNTIMES)
+
+
+def get(name):
+    """The Runtime called `name` (or an alias of it); EmulatorError naming the choices."""
+    r = RUNTIMES.get(ALIASES.get(name, name))
+    if r is None:
+        raise EmulatorError(f"unknown runtime {name!r}: choose one of {', '.join(RUNTIMES)}")
+    return r

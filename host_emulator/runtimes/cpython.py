@@ -1,11 +1,12 @@
-"""Run the unmodified firmware loop on CPython, fed from a stimulus, on an emulated board.
+"""The cpython runtime: the unmodified firmware loop on CPython, fed from a stimulus, on an
+emulated board.
 
-The firmware's own `board.py`, drivers and `app.py` run against the fake `machine`
-(`fake_machine`: pins, SPI with the BMI055 register model, UARTs with their receive rings,
-the PPS interrupt, the timer, the watchdog) and a virtual clock. Floats are the float32 seam's
+The firmware's own `board.py`, drivers and `app.py` run against the emulated `machine` of
+board/cpython (pins, SPI with the BMI055 register model, UARTs with their receive rings, the
+PPS interrupt, the timer, the watchdog) and a virtual clock. Floats are the float32 seam's
 NumPy backend, so what comes out is what the board computes, bit for bit.
 
-Per stimulus record k (see `stimulus.py`): the BMI055 data and temperature registers take the
+Per stimulus record k (proto/stimulus.py): the BMI055 data and temperature registers take the
 record's values, the GNSS UART receives the record's bytes, the clock advances to the PPS
 edge (its interrupt fires) and to the tick's moment, the timer fires, and the loop makes one
 pass (`App.service()`). Time starts at power-on: the firmware's start-up (configuration, the
@@ -18,87 +19,17 @@ header's "config" (plus any overrides) before the firmware starts.
 """
 
 import gc
+import os
 import time
 import traceback
-from dataclasses import dataclass, field
-
-import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython import machine
 from host_emulator.board.cpython.bmi055 import Bmi055Model
-from host_emulator.errors import EmulatorError, FirmwareError
-
-
-@dataclass(eq=False)
-class FirmwareRun:
-    """What a firmware run produced, whatever the runtime."""
-
-    runtime: str  # "cpython" or "micropython"
-    out: bytes  # everything written to the output UART
-    console: list  # lines the firmware printed on its console
-    ticks: int
-    wall_s: float
-    blocks_per_tick: np.ndarray | None = None  # GC blocks allocated by each tick (micropython)
-    stats: dict = field(default_factory=dict)  # runtime-specific counters
-
-
-def board_values(stim, config_overrides=None):
-    """The board configuration values of a run: the stimulus header's "config", then the
-    overrides (everything else keeps firmware/lib/config.py's defaults)."""
-    values = stim.config
-    values.update(config_overrides or {})
-    return values
-
-
-def write_flash_config(workdir, values):
-    """The emulated board's flash: workdir/flash/ins.cfg holding `values`; returns its path."""
-    flash = workdir / "flash"
-    flash.mkdir(parents=True, exist_ok=True)
-    path = flash / "ins.cfg"
-    path.write_bytes(config_bytes(values))
-    return path
-
-
-def board_config(cfg_values):
-    """A firmware BoardConfig with the given values (dict of BoardConfig attribute names);
-    EmulatorError for a name or value the firmware does not accept."""
-    firmware_env.install()
-    import config
-
-    cfg = config.BoardConfig()
-    for name, value in cfg_values.items():
-        if not hasattr(cfg, name):
-            raise EmulatorError(f"unknown board configuration setting {name!r}")
-        setattr(cfg, name, list(value) if isinstance(value, (list, tuple)) else value)
-    problem = cfg.validate()
-    if problem:
-        raise EmulatorError(f"board configuration rejected by the firmware: {problem}")
-    return cfg
-
-
-def decode_config(data):
-    """The BoardConfig in a configuration file's bytes, checked as the board checks it on load
-    (config.load); EmulatorError "corrupt (why)" or "invalid: why" otherwise."""
-    firmware_env.install()
-    import config
-
-    try:
-        cfg = config.decode(data)
-    except (ValueError, IndexError) as e:
-        raise EmulatorError(f"corrupt ({e})") from None
-    problem = cfg.validate()
-    if problem:
-        raise EmulatorError(f"invalid: {problem}")
-    return cfg
-
-
-def config_bytes(cfg_values):
-    """The configuration file the board would hold (firmware/lib/config.py's encoding)."""
-    cfg = board_config(cfg_values)
-    import config
-
-    return config.encode(cfg)
+from host_emulator.errors import FirmwareError
+from host_emulator.proto import config as board_config
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.runtimes import FirmwareRun
 
 
 def _firmware_traceback(exc):
@@ -113,14 +44,16 @@ def _firmware_failed(exc, where):
     return FirmwareError(f"the firmware raised {where}:\n{_firmware_traceback(exc)}")
 
 
-def run_cpython(stim, workdir, config_overrides=None, progress=None):
-    """Run the firmware on CPython over a whole Stimulus; returns a FirmwareRun.
+def run(stim, workdir, config_overrides=None, progress=None):
+    """Run the firmware on CPython over a whole Stimulus (or stimulus file); a FirmwareRun.
 
     workdir: the emulated board's flash (a directory; the configuration file goes there).
     progress(k, n): called every 2000 ticks. A firmware exception -> FirmwareError."""
-    cfg_path = write_flash_config(workdir, board_values(stim, config_overrides))
+    if isinstance(stim, (str, os.PathLike)):
+        stim = stim_mod.read(stim)
+    cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
 
-    hw = fake_machine.Hardware()
+    hw = machine.Hardware()
     firmware_env.install_machine(hw)
     import app
     import board

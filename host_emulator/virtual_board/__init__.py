@@ -1,12 +1,12 @@
 """A virtual INS board on pseudo-terminals: MicroPython's REPL on one, the RS485 output on the
 other, so deploy and monitor tools can be tried without hardware (docs/virtual_board.md).
 
-    python -m host_emulator.virtual_board --fs DIR [--flash-kb N] [--scenario S] [--duration S]
+    python -m host_emulator virtual-board --fs DIR [--flash-kb N] [--scenario S] [--duration S]
 
 `port` (the USB REPL console) speaks MicroPython 1.29's REPL as the stm32 port does
 (shared/runtime/pyexec.c): the friendly REPL, the raw REPL (Ctrl-A), raw paste (Ctrl-E 'A'
 Ctrl-A, with flow control), soft resets (Ctrl-D). Code runs in the real MicroPython VM
-(the unix port, mpvm.micropython_exe()): one persistent VM per session between soft resets
+(the unix port, vm.micropython_exe()): one persistent VM per session between soft resets
 running vm_board/repl_server.py, with `fs_dir` mounted at /flash (capacity `flash_kb`).
 
 A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
@@ -31,7 +31,7 @@ import time
 import tty
 
 from host_emulator.board import EMULATE
-from host_emulator.runtimes.mpy_unix import vm as mpvm
+from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
 
 REPL_SERVER = pathlib.Path(__file__).resolve().parent / "repl_server.py"
@@ -97,7 +97,7 @@ class VirtualBoard:
         self._stim_path = pathlib.Path(self._tmp.name) / "stimulus.bin"
         sim = board_input.simulate(self.scenario, self.duration_s, self.seed)
         sim.stimulus.write(self._stim_path)
-        self._exe = mpvm.micropython_exe()
+        self._exe = vm.micropython_exe()
         self._master, self._slave = self._open_pty()
         self.port = os.ttyname(self._slave)
         self._rs_master, self._rs_slave = self._open_pty()
@@ -509,9 +509,9 @@ class VirtualBoard:
 
 
 def main(argv=None):
-    """`python -m host_emulator.virtual_board`: serve a virtual board until Ctrl-C."""
+    """`python -m host_emulator virtual-board`: serve a virtual board until Ctrl-C."""
     p = argparse.ArgumentParser(
-        prog="python -m host_emulator.virtual_board",
+        prog="python -m host_emulator virtual-board",
         description="A virtual INS board on pseudo-terminals (docs/virtual_board.md).",
     )
     p.add_argument("--fs", required=True, help="host directory holding the board's /flash")
@@ -523,13 +523,13 @@ def main(argv=None):
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
     args = p.parse_args(argv)
+    from host_emulator import args as cli_args
     from host_emulator.errors import EmulatorError
-    from host_emulator.eval import scenario_run
 
     try:
-        scenario_run.check_scenario(args.scenario)
-        scenario_run.check_duration(args.duration)
-        scenario_run.check_seed(args.seed)
+        cli_args.check_scenario(args.scenario)
+        cli_args.check_duration(args.duration)
+        cli_args.check_seed(args.seed)
         if args.flash_kb < 1 or args.corrupt_writes < 0:
             raise EmulatorError("--flash-kb must be 1 or more and --corrupt-writes 0 or more")
     except EmulatorError as e:
@@ -562,7 +562,3 @@ def main(argv=None):
     finally:
         board.close()
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,6 +1,6 @@
 """firmware/lib/frame.py: the 52-byte frame byte for byte against hand-built examples (the
-expected bytes come from struct.pack of values worked out by hand), the integer conversions,
-and allocation-freedom of the integer paths in the MicroPython VM."""
+expected bytes are the field table's encoding of values worked out by hand), the integer
+conversions, and allocation-freedom of the integer paths in the MicroPython VM."""
 
 import json
 import struct
@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import f32
+from host_emulator.proto import frame as frame_schema
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
@@ -23,23 +24,14 @@ def buf(values):
 
 
 def expected_frame(counter, gyro, accel, flags, lat_e7, lon_e7, h_dm, state, ypr, vel, pos):
-    """The frame of DESIGN.md section 6 built field by field with struct (little-endian)."""
-    body = struct.pack(
-        "<B3h3h3BiihB3h3hiih",
-        counter,
-        *gyro,
-        *accel,
-        *flags,
-        lat_e7,
-        lon_e7,
-        h_dm,
-        state,
-        *ypr,
-        *vel,
-        *pos,
-    )
-    head = bytes([0xEB, 0x90]) + body
-    return head + bytes([sum(head[2:]) & 0xFF])
+    """The frame of DESIGN.md section 6 with these integer field values, built from the one
+    field table (host_emulator/proto/frame.py, itself checked against DESIGN.md)."""
+    names = (
+        *frame_schema.SENSOR_FIELDS, "pps", "gga", "gnss_valid", "lat_e7", "lon_e7",
+        "height_dm", "nav_state", *frame_schema.NAV_FLOAT_FIELDS,
+    )  # fmt: skip
+    values = (*gyro, *accel, *flags, lat_e7, lon_e7, h_dm, state, *ypr, *vel, *pos)
+    return frame_schema.encode(counter, **dict(zip(names, values, strict=True)))
 
 
 def packed(

@@ -13,7 +13,7 @@ import pytest
 from host_emulator.__main__ import main
 from host_emulator.replay import drive_0708, kfgins, replay_run, rtklib_pos
 from host_emulator.replay import to_stimulus as ts
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.runtimes import cpython
 
 needs_drive = pytest.mark.skipif(
     not drive_0708.DEFAULT_DIR.is_dir(), reason="../shared/data/drive_0708 is not present"
@@ -67,7 +67,7 @@ def test_bounds_catch_a_broken_conversion(broken, tmp_path):
     else:
         ds.mount_rpy_deg = (180.0, 0.0, 185.35)
     rep = ts.convert(ds, ts.ReplayOptions(duration_s=120.0))
-    fw = emulator.run_cpython(rep.stimulus, pathlib.Path(tmp_path))
+    fw = cpython.run(rep.stimulus, pathlib.Path(tmp_path))
     m, _tr, _err = replay_run.evaluate_replay(rep, fw, "cpython")
     assert not _within_bounds(m)
 

@@ -17,12 +17,14 @@ import tty
 import numpy as np
 import pytest
 
-from host_emulator import session
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.proto import frame as frame_schema
+from host_emulator.proto import session_file, stream
+from host_emulator.proto.stream import StreamDecoder
+from host_emulator.runtimes import cpython
+from host_emulator.session import replay
 from host_emulator.sim import board_input
 from tools.monitor import cli, export, view
-from tools.monitor.stream import EXT, FRAME, RAW, StreamDecoder, TickClock
+from tools.monitor.clock import TickClock
 
 BAUD = 460800
 SECONDS = 4.0  # 800 ticks: frames, 40 extended frames, 800 raw-input records
@@ -34,7 +36,7 @@ def board(tmp_path_factory):
     raw-input records on: what a board sends. Returns (bytes, path of frames.bin, config)."""
     stim = board_input.simulate("highway_outage", SECONDS, seed=1).stimulus
     d = tmp_path_factory.mktemp("board")
-    run = emulator.run_cpython(stim, d, {"raw_record": 1})
+    run = cpython.run(stim, d, {"raw_record": 1})
     path = d / "frames.bin"
     path.write_bytes(run.out)
     return run.out, path, d / "flash" / "ins.cfg"
@@ -45,103 +47,14 @@ def _records(data):
     out, i = [], 0
     while i < len(data):
         assert data[i] == 0xEB
-        n = 52 if data[i + 1] == frames.FRAME_TYPE else 3 + data[i + 2] + 4
+        n = 52 if data[i + 1] == frame_schema.FRAME_TYPE else 3 + data[i + 2] + 4
         out.append((i, n, data[i + 1]))
         i += n
     return out
 
 
-def _damaged(data, seed=7):
-    """The stream with garbage (no 0xEB) between some records, one 52-byte frame's checksum
-    broken, one frame left out, one extended frame's CRC broken; and what that must count."""
-    rng = random.Random(seed)
-    recs = _records(data)
-    frame_ix = [k for k, r in enumerate(recs) if r[2] == frames.FRAME_TYPE]
-    ext_ix = [k for k, r in enumerate(recs) if r[2] == frames.EXT_TYPE]
-    bad_sum, dropped = frame_ix[100], frame_ix[300]
-    bad_crc = ext_ix[5]
-    out = bytearray()
-    garbage = 0
-    for k, (i, n, _t) in enumerate(recs):
-        if k % 37 == 3:
-            g = bytes(
-                rng.choice([b for b in range(256) if b != 0xEB]) for _ in range(rng.randint(1, 40))
-            )
-            out += g
-            garbage += len(g)
-        rec = bytearray(data[i : i + n])
-        if k == dropped:
-            continue
-        if k == bad_sum:
-            rec[51] ^= 0x01
-        if k == bad_crc:
-            rec[-1] ^= 0x80
-        out += rec
-    expect = {
-        "bad_checksum": 1,
-        "bad_crc": 1,
-        "skipped_bytes": garbage + 52 + recs[bad_crc][1],
-        "dropped_frames": 2,  # the dropped frame and the one whose checksum failed
-        "frames": len(frame_ix) - 2,
-        "ext": len(ext_ix) - 1,
-    }
-    return bytes(out), expect
-
-
-def _feed_chunked(data, rng, max_chunk):
-    dec = StreamDecoder()
-    got = []
-    i = 0
-    while i < len(data):
-        n = rng.randint(0, max_chunk)
-        got += dec.feed(data[i : i + n])
-        i += n
-    got += dec.finish()
-    return dec, got
-
-
-def test_incremental_decoder_equals_frames_decode_on_any_chunking(board):
-    data, expect = _damaged(board[0])
-    ref = frames.decode(data)
-    assert len(ref.frames) == expect["frames"] and len(ref.ext) == expect["ext"]
-    assert (ref.bad_checksum, ref.bad_crc, ref.skipped_bytes) == (
-        expect["bad_checksum"],
-        expect["bad_crc"],
-        expect["skipped_bytes"],
-    )
-    rng = random.Random(1)
-    for max_chunk in (1, 7, 53, 300, 5000):
-        dec, got = _feed_chunked(data, rng, max_chunk)
-        assert [r for k, r in got if k == FRAME] == ref.frames
-        assert [r for k, r in got if k == EXT] == ref.ext  # frame_index included
-        assert [r for k, r in got if k == RAW] == ref.raw
-        c = dec.counts()
-        assert (c["bad_checksum"], c["bad_crc"], c["skipped_bytes"]) == (
-            ref.bad_checksum,
-            ref.bad_crc,
-            ref.skipped_bytes,
-        )
-        assert c["dropped_frames"] == expect["dropped_frames"]
-        assert c["bytes"] == len(data) and dec.pending == 0
-
-
-def test_a_record_cut_by_the_end_counts_as_skipped_like_frames_decode(board):
-    data = board[0]
-    for cut in (1, 2, 3, 51, 100):  # the stream ends inside a record
-        part = data[: len(data) - cut]
-        ref = frames.decode(part)
-        dec, got = _feed_chunked(part, random.Random(cut), 999)
-        assert sum(k == FRAME for k, _ in got) == len(ref.frames)
-        assert dec.skipped_bytes == ref.skipped_bytes > 0
-    # a stream of junk, a lone header, an unknown type
-    for junk in (b"", b"\xeb", b"\xeb\x90", b"\xeb\x91\x05", b"\x00\xeb\x33\xeb\xeb" * 9):
-        ref = frames.decode(junk)
-        dec, got = _feed_chunked(junk, random.Random(0), 3)
-        assert got == [] and dec.skipped_bytes == ref.skipped_bytes == len(junk)
-
-
 def test_tick_clock_follows_the_counter_and_the_extended_frames(board):
-    d = frames.decode(board[0])
+    d = stream.decode(board[0])
     clock = TickClock()
     ticks = []
     e = iter(d.ext)
@@ -167,7 +80,7 @@ def test_frames_lost_in_whole_counter_wraps_are_counted(board):
     # 512 frames (and the extended frames among them) lost in a row: the counter cannot see
     # it, the next extended frame's tick does (a listener that was not reading for 2.56 s)
     recs = _records(board[0])
-    frame_ix = [k for k, r in enumerate(recs) if r[2] == frames.FRAME_TYPE]
+    frame_ix = [k for k, r in enumerate(recs) if r[2] == frame_schema.FRAME_TYPE]
     a, b = recs[frame_ix[100]][0], recs[frame_ix[612]][0]
     data = board[0][:a] + board[0][b:]
     mon = cli.Monitor(view.Status("test"), every=1)
@@ -233,12 +146,12 @@ def test_a_capture_file_to_csv_mdf_and_session(board, tmp_path):
     assert "800 frames, 40 extended frames, 800 raw records" in text
     assert "checksum failures 0  CRC failures 0  skipped bytes 0" in text
     assert "NAVIGATING" in text or "ALIGNING" in text
-    d = frames.decode(data)
+    d = stream.decode(data)
     _check_exports(tmp_path, d, "f")
-    header, rec = session.read_session(tmp_path / "f.ins")
+    header, rec = session_file.read_session(tmp_path / "f.ins")
     assert rec == data and header["config"]["raw_record"] == 1
     # the recorded session replays through the emulator to the same bytes
-    result = session.replay(tmp_path / "f.ins", tmp_path / "replay")
+    result = replay.replay(tmp_path / "f.ins", tmp_path / "replay")
     assert result.identical
     # and the session file is read back as a capture (its header's config used)
     out = io.StringIO()
@@ -320,14 +233,14 @@ def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_
     assert "checksum failures 0  CRC failures 0  skipped bytes 0  dropped frames " in text
     assert "(counter gaps) 0" in text
     assert "\x1b[" not in text and " Hz " in text  # not a terminal: a line a second
-    d = frames.decode(data)
+    d = stream.decode(data)
     _check_exports(tmp_path, d, "p")
-    header, rec = session.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
+    header, rec = session_file.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
     assert rec == data and header["baud"] == BAUD and header["source"] == name
 
 
 def test_the_live_view_on_a_terminal(board):
-    d = frames.decode(board[0])
+    d = stream.decode(board[0])
     st = view.Status("/dev/ttyX", BAUD)
     dec = StreamDecoder()
     dec.feed(board[0])
@@ -372,7 +285,7 @@ def test_user_mistakes_give_one_clear_message(tmp_path):
     rc, msg = _err(["--file", str(tmp_path / "empty.bin")])
     assert rc == 1 and "is empty" in msg
     bad = tmp_path / "cut.ins"
-    session.write_session(bad, b"\xeb\x90" * 100)
+    session_file.write_session(bad, b"\xeb\x90" * 100)
     bad.write_bytes(bad.read_bytes()[:-10])
     rc, msg = _err(["--file", str(bad)])
     assert rc == 1 and "truncated" in msg

@@ -32,12 +32,11 @@ def _build(args):
 
 def _decode_config(data, what, advice):
     """The BoardConfig in a configuration file's bytes; FlashError naming `what` otherwise."""
-    from host_emulator.errors import EmulatorError
-    from host_emulator.runtimes import cpython as emulator
+    from host_emulator.proto import config as board_config
 
     try:
-        return emulator.decode_config(data)
-    except EmulatorError as e:
+        return board_config.decode(data)
+    except board_config.ConfigError as e:
         raise FlashError(f"{what} is not a valid configuration file: {e}. {advice}") from None
 
 

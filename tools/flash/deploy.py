@@ -6,14 +6,13 @@ import binascii
 import pathlib
 import time
 
-from host_emulator.proto import serial_port
-from host_emulator.proto import stream as frames
+from host_emulator.proto import serial_port, stream
+from host_emulator.proto.crc import crc32
 from tools.flash import build as build_mod
 from tools.flash.errors import (
     FirmwareNotRunning,
     FlashError,
     FlashFull,
-    PortError,
     TransferCorrupted,
 )
 from tools.flash.rawrepl import RawRepl
@@ -61,17 +60,17 @@ def _w(s):
 
 
 def open_port(port, baud):
-    """The board's serial port; PortError with the ports that exist, or who holds it."""
+    """The board's serial port; FlashError with the ports that exist, or who holds it."""
     try:
         return serial_port.open_port(port, baud, 0.05, write_timeout=10)
     except serial_port.PortError as e:
         if e.kind == serial_port.MISSING:
-            raise PortError(
+            raise FlashError(
                 f"no serial port {port}. Ports on this machine: {_ports()}. Plug the board in "
                 "(its USB port, not the ST-Link) and pass its port with --port, e.g. "
                 "--port /dev/ttyACM0 on Linux or --port COM5 on Windows."
             ) from None
-        raise PortError(f"{e}.") from None
+        raise FlashError(f"{e}.") from None
 
 
 def _ports():
@@ -161,7 +160,7 @@ class Board:
         return self.crc(rel)
 
     def write_verified(self, rel, data, log):
-        want = build_mod.crc32(data)
+        want = crc32(data)
         for attempt in range(1, ATTEMPTS + 1):
             got = self.write(rel, data)
             if got == want:
@@ -260,7 +259,7 @@ def deploy(
         extra = []
         if config_bytes is not None:
             cur = board_files.get(CONFIG_NAME, (None, None))[1]
-            if cur != build_mod.crc32(config_bytes):
+            if cur != crc32(config_bytes):
                 extra.append((CONFIG_NAME, len(config_bytes)))
         need = space_needed(writes, stale, new_dirs, board_files, fs["cluster"], extra)
         total_fw = sum(build_mod.clusters(f["size"], fs["cluster"]) for f in manifest["files"])
@@ -384,8 +383,8 @@ def count_frames(port, baud, seconds=3.0):
 
 
 def valid_frames(data):
-    """52-byte frames with a good checksum in data (frames.decode resynchronises on garbage)."""
-    return len(frames.decode(data).frames)
+    """52-byte frames with a good checksum in data (stream.decode resynchronises on garbage)."""
+    return len(stream.decode(data).frames)
 
 
 def read_config(port, baud):
@@ -407,7 +406,7 @@ def write_config(port, baud, data, log=print):
     try:
         board = Board(repl)
         board.write_verified(CONFIG_NAME, data, log)
-        log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {build_mod.crc32(data):08x} OK")
+        log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {crc32(data):08x} OK")
         repl.exit()
         repl.drain(quiet=0.1, overall=0.5)
         repl.ser.write(b"\x04")

@@ -5,10 +5,6 @@ class FlashError(Exception):
     """A failure the user can act on: the message says what happened and what to do."""
 
 
-class PortError(FlashError):
-    """The serial port does not exist, is busy, or cannot be opened."""
-
-
 class NotResponding(FlashError):
     """Nothing came back from the port within the timeout."""
 

@@ -1,3 +1,4 @@
 """Decode, watch, record and export what an INS board sends: `python -m tools.monitor`
-(docs/monitor.md). stream: incremental decoder on host_emulator/frames.py; source: serial port
-or capture file; view: live view and summary; export: CSV and MDF4; cli: the command line."""
+(docs/monitor.md). source: serial port or capture file; clock: the board time of each frame;
+view: live view and summary; export: CSV and MDF4; cli: the command line. The stream decoder
+and the record layouts are host_emulator/proto's, shared with the emulator."""

@@ -13,12 +13,13 @@ import datetime
 import sys
 import time
 
-from host_emulator import session
+from host_emulator.proto import config as board_config
+from host_emulator.proto import session_file
+from host_emulator.proto.stream import EXT, FRAME, StreamDecoder
 from tools.monitor import export, view
+from tools.monitor.clock import TickClock
 from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports
-from tools.monitor.stream import EXT, FRAME, StreamDecoder, TickClock
 
-DEFAULT_BAUD = session.DEFAULT_BAUD
 DRAW_EVERY_S = 0.25  # live view redraws (terminal)
 LINE_EVERY_S = 1.0  # one line per second (not a terminal)
 PENDING_MAX = 400  # frames held for the first extended frame's tick (2 s at 200 Hz)
@@ -140,7 +141,7 @@ def _parser():
     p.add_argument(
         "--baud",
         type=int,
-        help=f"serial baud rate, 8N1 (default: --config's output_baud, else {DEFAULT_BAUD})",
+        help="serial baud rate, 8N1 (default: --config's output_baud, else the board's default)",
     )
     p.add_argument(
         "--config",
@@ -204,7 +205,7 @@ def _open_outputs(args, header_info):
             )
         if args.record:
             try:
-                recorder = session.SessionWriter(args.record, header_info)
+                recorder = session_file.SessionWriter(args.record, header_info)
             except OSError as e:
                 raise OSError(f"cannot write {args.record}: {e.strerror}") from None
             closers.append(recorder.close)
@@ -241,8 +242,8 @@ def run(args, out=None, err=None):
     values = None
     if args.config:
         try:
-            values = session.load_config(args.config)
-        except session.SessionError as e:
+            values = board_config.load(args.config)
+        except board_config.ConfigError as e:
             raise MonitorError(str(e)) from None
     if args.file:
         src = FileSource(args.file)
@@ -250,10 +251,11 @@ def run(args, out=None, err=None):
             values = src.config_values()
         baud = src.baud
     else:
-        baud = args.baud or int((values or {}).get("output_baud", DEFAULT_BAUD))
+        baud = args.baud or int((values or {}).get("output_baud", 0))
+        baud = baud or board_config.default_output_baud()
         src = PortSource(args.port, baud)
     header = {
-        "format": session.FORMAT,
+        "format": session_file.FORMAT,
         "source": src.name,
         "baud": baud if src.kind == "serial" else None,
         "started_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),

@@ -1,11 +1,10 @@
 """Where the bytes come from: a serial port (pyserial) or a file (a raw capture or a session
-file of host_emulator/session.py). Every user mistake becomes a MonitorError with a message
+file, host_emulator/proto/session_file.py). Every user mistake becomes a MonitorError with a message
 that says what to do."""
 
 from pathlib import Path
 
-from host_emulator import session
-from host_emulator.proto import serial_port
+from host_emulator.proto import serial_port, session_file
 
 
 class MonitorError(Exception):
@@ -68,8 +67,8 @@ class FileSource:
         if p.is_dir():
             raise MonitorError(f"{path} is a directory, not a capture file")
         try:
-            self.header, self.data = session.read_session(p)
-        except session.SessionError as e:
+            self.header, self.data = session_file.read_session(p)
+        except session_file.SessionError as e:
             raise MonitorError(str(e)) from None
         self.is_session = bool(self.header)
         self.baud = self.header.get("baud") if self.header else None
@@ -83,10 +82,6 @@ class FileSource:
         chunk = self.data[self._pos : self._pos + size]
         self._pos += len(chunk)
         return chunk
-
-    @property
-    def at_end(self):
-        return self._pos >= len(self.data)
 
     def close(self):
         pass

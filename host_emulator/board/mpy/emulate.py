@@ -1,5 +1,5 @@
 """Run the unmodified firmware loop inside the MicroPython VM, fed from a stimulus file, and
-count the GC blocks every tick allocates. Started by host_emulator/vm_runner.py:
+count the GC blocks every tick allocates. Started by host_emulator/runtimes/mpy_unix:
 
     micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR
 
@@ -8,7 +8,7 @@ sys.path: this directory first (the VM puts the script's directory there), so `m
 board's layout. board.CONFIG_PATH = CONFIG, then `app.App(board, console=...)`, `start()`.
 
 Per stimulus record k (host_emulator/stimulus.py; the host has checked the CRC), exactly as
-emulator.run_cpython: the BMI055 data and temperature registers take the record's bytes, the
+the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
 GNSS UART receives its bytes, the clock moves to t_k - pps_before_us and the PPS pin fires
 (if the record has an edge), the clock moves to t_k, the timer fires, `app.service()` runs.
 t_k = t0 + k * tick_us (virtual us since power-on), t0 = the first multiple of tick_us at or
@@ -16,10 +16,10 @@ after the clock when start-up ended.
 
 Counting: the collector is off (the app turns it off in start()); gc.mem_alloc() is read just
 before and after service(), and the difference in GC blocks (bytes / bytes per block,
-measured like mpvm's `_bytes_per_block`: one boxed float) is the tick's count. Garbage is
-collected between ticks, outside that window, whenever the free heap gets below a margin of
-several worst ticks, so the app's own low-water collection (12 KB) never runs during a tick
-(its gc_runs counter is reported to prove it).
+measured like the `_bytes_per_block` of runtimes/mpy_unix/vm.py: one boxed float) is the
+tick's count. Garbage is collected between ticks, outside that window, whenever the free
+heap gets below a margin of several worst ticks, so the app's own low-water collection
+(12 KB) never runs during a tick (its gc_runs counter is reported to prove it).
 
 Output (OUT_DIR): out.bin (the output UART's bytes), blocks.bin (int32 LE per tick: GC
 blocks of the tick), state.bin (u8 per tick: the navigation state after it). Stdout lines:
@@ -29,7 +29,7 @@ blocks of the tick), state.bin (u8 per tick: the navigation state after it). Std
                     follows (sys.print_exception), then a line "E-END"; exit status 3
     S <json>        statistics at the end (exit status 0)
 
-Streaming mode (host_emulator/virtual_board.py): with the environment variable
+Streaming mode (host_emulator/virtual_board): with the environment variable
 INS_VM_STREAM=realtime (paced at the tick rate by the VM's own clock) or INS_VM_STREAM=fast
 (as fast as possible), OUT_DIR is ignored and nothing is counted: each tick's output UART bytes
 go to stdout as a line "O <hex>", console lines as "C <text>" as above, errors as "E"; the run
@@ -72,7 +72,7 @@ EXIT_FIRMWARE_ERROR = 3
 
 
 def bytes_per_block():
-    """Bytes of one GC block: what boxing one float allocates (as mpvm's prelude)."""
+    """Bytes of one GC block: what boxing one float allocates (as in runtimes/mpy_unix/vm.py)."""
     a = array("f", bytes(4))
     gc.collect()
     gc.disable()

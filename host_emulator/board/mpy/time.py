@@ -25,7 +25,7 @@ def now_us():
 
 def set_us(t):
     """Set the clock to t us since power-on. The emulator only moves it forward, except (as
-    emulator.run_cpython does) for a PPS edge in tick 0 that came before start-up ended."""
+    the cpython runtime does) for a PPS edge in tick 0 that came before start-up ended."""
     global _now
     _now = t
 

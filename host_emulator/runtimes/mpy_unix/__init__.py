@@ -1,12 +1,13 @@
-"""Run the unmodified firmware loop in the real MicroPython VM, fed from a stimulus, and count
-the GC blocks every tick allocates (the MicroPython runtime of the host emulator).
+"""The mpy_unix runtime: the unmodified firmware loop in the real MicroPython VM (the unix port
+from PyPI, a double-precision build), fed from a stimulus, counting the GC blocks every tick
+allocates.
 
-The VM (`micropython`, MicroPython 1.29's unix port, see mpvm.py) runs
-`vm_board/emulate.py`, which imports the firmware's own `board.py`, drivers and `app.py` on
-top of the emulated `machine` and `time` beside it (`vm_board/machine.py`, `vm_board/time.py`:
-pins, SPI with the BMI055 register model, UARTs, the timer, the watchdog, a virtual clock in
-us since power-on). Each stimulus record is replayed exactly as `emulator.run_cpython`
-replays it, so both runtimes see the same input at the same virtual times.
+The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs board/mpy/emulate.py,
+which imports the firmware's own `board.py`, drivers and `app.py` on top of the emulated
+`machine` and `time` beside it (board/mpy/machine.py, board/mpy/time.py: pins, SPI with the
+BMI055 register model, UARTs, the timer, the watchdog, a virtual clock in us since power-on).
+Each stimulus record is replayed exactly as the cpython runtime replays it, so both runtimes
+see the same input at the same virtual times.
 
 What differs from the CPython runtime: the VM's floats are doubles (the board's are float32,
 which the CPython runtime reproduces bit for bit), so integer output (counters, raw sensor
@@ -33,10 +34,10 @@ import numpy as np
 from host_emulator.board import EMULATE
 from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.firmware_env import FIRMWARE_DIR
+from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
-from host_emulator.runtimes import cpython as emulator
-from host_emulator.runtimes.mpy_unix import navigator as nav_vm
-from host_emulator.runtimes.mpy_unix import vm as mpvm
+from host_emulator.runtimes import FirmwareRun
+from host_emulator.runtimes.mpy_unix import navigator, vm
 
 HEAP_KB = 512
 EXIT_FIRMWARE_ERROR = 3  # emulate.py's exit status after an "E" report
@@ -58,7 +59,7 @@ def _block_stats(blocks):
 
 
 class _Output:
-    """The VM's stdout lines, sorted by their prefix (see vm_board/emulate.py)."""
+    """The VM's stdout lines, sorted by their prefix (see board/mpy/emulate.py)."""
 
     def __init__(self, progress):
         self.progress = progress
@@ -116,16 +117,14 @@ def _firmware_error(out, stim, heap_kb):
     return err
 
 
-def run_micropython(
-    stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None
-):
+def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None):
     """Run the firmware in the MicroPython VM over a whole stimulus; returns a FirmwareRun.
 
     stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin for the VM) or the path of a
         stimulus file (read here, which checks its CRC, and given to the VM as it is).
     workdir: the emulated board's flash (workdir/flash/ins.cfg: the configuration, the
-        stimulus header's "config" plus `config_overrides`: emulator.board_values, as
-        run_cpython) and the VM's output files (workdir/vm/).
+        stimulus header's "config" plus `config_overrides`, as the cpython runtime) and the
+        VM's output files (workdir/vm/).
     progress(k, n): called as the VM reports ticks done (every 1000 ticks and at the end).
     heap_kb: the VM's heap; timeout_s: wall-time limit (default 60 s + the stimulus duration).
 
@@ -143,13 +142,13 @@ def run_micropython(
     else:
         stim_path = workdir / "stimulus.bin"
         stim.write(stim_path)
-    cfg_path = emulator.write_flash_config(workdir, emulator.board_values(stim, config_overrides))
+    cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "vm"
     out_dir.mkdir(exist_ok=True)
     for name in ("out.bin", "blocks.bin", "state.bin"):
         (out_dir / name).unlink(missing_ok=True)
     try:
-        exe = mpvm.micropython_exe()
+        exe = vm.micropython_exe()
     except RuntimeError as e:
         raise EmulatorError(f"cannot run the MicroPython VM: {e}") from None
     cmd = [
@@ -207,24 +206,24 @@ def run_micropython(
         raise EmulatorError(
             f"the MicroPython VM reported {len(blocks)} ticks of {n}: its output is incomplete"
         )
-    vm = out.stats
+    reported = out.stats
     stats = {
-        "overruns": vm["overruns"],
-        "gnss_rx_overflow": vm["gnss_rx_overflow"],
-        "nmea_rejected": vm["nmea_rejected"],
-        "wdt_feeds": vm["wdt_feeds"],
-        "imu_error": vm["imu_error"],
-        "config_status": vm["config_status"],
+        "overruns": reported["overruns"],
+        "gnss_rx_overflow": reported["gnss_rx_overflow"],
+        "nmea_rejected": reported["nmea_rejected"],
+        "wdt_feeds": reported["wdt_feeds"],
+        "imu_error": reported["imu_error"],
+        "config_status": reported["config_status"],
         **_block_stats(blocks),
-        "blocks_by_state": nav_vm.block_stats(blocks, state),
+        "blocks_by_state": navigator.block_stats(blocks, state),
         "ticks_navigating": int(np.sum(state == 2)),
-        "app_gc_runs": vm["app_gc_runs"],  # collections inside a tick: 0, else counts are off
-        "negative_ticks": vm["negative_ticks"],
-        "vm_gc_collects": vm["gc_collects"],
-        "bytes_per_block": vm["bytes_per_block"],
-        "heap_bytes": vm["heap_bytes"],
-        "live_bytes_at_start": vm["live_bytes_at_start"],
-        "tx_overflow": vm["tx_overflow"],
+        "app_gc_runs": reported["app_gc_runs"],  # collections inside a tick: 0, else counts are off
+        "negative_ticks": reported["negative_ticks"],
+        "vm_gc_collects": reported["gc_collects"],
+        "bytes_per_block": reported["bytes_per_block"],
+        "heap_bytes": reported["heap_bytes"],
+        "live_bytes_at_start": reported["live_bytes_at_start"],
+        "tx_overflow": reported["tx_overflow"],
         "realtime_factor": stim.duration_s / wall if wall > 0 else None,
     }
     if stats["tx_overflow"]:
@@ -232,8 +231,8 @@ def run_micropython(
             f"the emulated output UART dropped {stats['tx_overflow']} bytes (its buffer is "
             "emptied between ticks): a tick wrote more than it holds"
         )
-    result = emulator.FirmwareRun(
-        "micropython",
+    result = FirmwareRun(
+        "mpy_unix",
         (out_dir / "out.bin").read_bytes(),
         out.console,
         n,

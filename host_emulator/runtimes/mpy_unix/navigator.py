@@ -14,7 +14,7 @@ import tempfile
 
 import numpy as np
 
-from host_emulator.runtimes.mpy_unix import vm as mpvm
+from host_emulator.runtimes.mpy_unix import vm
 
 _SCRIPT = """
 import array, gc, json
@@ -103,7 +103,7 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
         imu_path.write_bytes(counts.astype("<i2").tobytes())
         fix_path.write_text(json.dumps(fixes))
         lever = [float(x) for x in gnss.model.lever_b_m]
-        text = mpvm.run(
+        text = vm.run(
             _SCRIPT.format(
                 profile=profile,
                 lever=lever,

@@ -1,4 +1,4 @@
-"""The firmware loop in the real MicroPython VM (host_emulator/vm_runner.py, vm_board/): the same
+"""The firmware loop in the real MicroPython VM (host_emulator/mpy_unix.py, vm_board/): the same
 frames as the CPython runtime, GC blocks per tick, firmware exceptions with their tick, and
 the VM's emulated peripherals (BMI055 register model, UART, pins) against the CPython ones.
 
@@ -16,9 +16,8 @@ from host_emulator.board.cpython.bmi055 import Bmi055Model
 from host_emulator.board.cpython.spi import FakePin, FakeSPI
 from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.firmware_env import FIRMWARE_DIR
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
-from host_emulator.runtimes import mpy_unix as vm_runner
+from host_emulator.proto import stream
+from host_emulator.runtimes import cpython, mpy_unix
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import board_input
 
@@ -34,13 +33,13 @@ def urban():
 
 @pytest.fixture(scope="module")
 def runs(urban, tmp_path_factory):
-    vm = vm_runner.run_micropython(urban, tmp_path_factory.mktemp("vm"))
-    cpy = emulator.run_cpython(urban, tmp_path_factory.mktemp("cpy"))
+    vm = mpy_unix.run(urban, tmp_path_factory.mktemp("vm"))
+    cpy = cpython.run(urban, tmp_path_factory.mktemp("cpy"))
     return vm, cpy
 
 
 def _clean(out):
-    d = frames.decode(out)
+    d = stream.decode(out)
     assert (d.bad_checksum, d.bad_crc, d.skipped_bytes) == (0, 0, 0)
     return d
 
@@ -49,7 +48,7 @@ def test_one_clean_frame_per_tick(urban, runs):
     vm, _ = runs
     d = _clean(vm.out)
     n = len(urban)
-    assert vm.runtime == "micropython" and vm.ticks == n
+    assert vm.runtime == "mpy_unix" and vm.ticks == n
     assert len(d.frames) == n
     assert [f["counter"] for f in d.frames] == [k & 0xFF for k in range(n)]
     assert len(d.ext) == n // 20  # ext_every_ticks defaults to 20, as run_cpython
@@ -125,16 +124,16 @@ def _faulty_firmware(tmp_path, old, new):
 
 def test_a_firmware_exception_gives_the_tick_and_the_vm_traceback(tmp_path, monkeypatch):
     """Injected fault: a copy of the firmware whose app.py divides by zero on its 137th tick
-    (tick index 136); the VM runs that copy (vm_runner.FIRMWARE_DIR patched)."""
+    (tick index 136); the VM runs that copy (mpy_unix.FIRMWARE_DIR patched)."""
     fw = _faulty_firmware(
         tmp_path,
         "        self._gnss_poll()\n",
         "        self._gnss_poll()\n        self.ticks // (self.ticks - 137)\n",
     )
-    monkeypatch.setattr(vm_runner, "FIRMWARE_DIR", fw)
+    monkeypatch.setattr(mpy_unix, "FIRMWARE_DIR", fw)
     stim = board_input.simulate("static", 1.0, seed=0).stimulus
     with pytest.raises(FirmwareError) as e:
-        vm_runner.run_micropython(stim, tmp_path / "work")
+        mpy_unix.run(stim, tmp_path / "work")
     assert e.value.tick == 136 and e.value.t_s == pytest.approx(0.68)
     msg = str(e.value)
     assert "at tick 136 (t = 0.680 s)" in msg and "MicroPython VM" in msg
@@ -148,10 +147,10 @@ def test_a_firmware_exception_at_start_up_says_so(tmp_path, monkeypatch):
         "        b.start_watchdog()\n",
         "        b.start_watchdog()\n        raise OSError(19)\n",
     )
-    monkeypatch.setattr(vm_runner, "FIRMWARE_DIR", fw)
+    monkeypatch.setattr(mpy_unix, "FIRMWARE_DIR", fw)
     stim = board_input.simulate("static", 0.5, seed=0).stimulus
     with pytest.raises(FirmwareError, match="at start-up in the MicroPython VM") as e:
-        vm_runner.run_micropython(stim, tmp_path / "work")
+        mpy_unix.run(stim, tmp_path / "work")
     assert e.value.tick == -1 and e.value.t_s is None
     assert "OSError: [Errno 19] ENODEV" in str(e.value) and "in start" in str(e.value)
 
@@ -161,10 +160,10 @@ def test_a_vm_that_cannot_start_or_finish_is_a_clear_error(tmp_path, monkeypatch
     with pytest.raises(
         EmulatorError, match=r"did not finish within 0.2 s \(at tick \d+ of 12000\)"
     ):
-        vm_runner.run_micropython(stim, tmp_path / "a", timeout_s=0.2)
+        mpy_unix.run(stim, tmp_path / "a", timeout_s=0.2)
     monkeypatch.setattr(mpvm, "micropython_exe", lambda: str(tmp_path / "no-such-vm"))
     with pytest.raises(EmulatorError, match="cannot start the MicroPython VM") as e:
-        vm_runner.run_micropython(stim, tmp_path / "b")
+        mpy_unix.run(stim, tmp_path / "b")
     assert not isinstance(e.value, FirmwareError)
 
 

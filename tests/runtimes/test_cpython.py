@@ -8,12 +8,11 @@ import pytest
 
 from host_emulator import __main__ as cli
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine as fake_machine
+from host_emulator.board.cpython import machine as board_machine
 from host_emulator.board.cpython.bmi055 import Bmi055Model
 from host_emulator.errors import FirmwareError
-from host_emulator.proto import stimulus
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.proto import stimulus, stream
+from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input
 
 
@@ -25,13 +24,13 @@ def highway():
 
 @pytest.fixture(scope="module")
 def highway_run(highway, tmp_path_factory):
-    return emulator.run_cpython(highway.stimulus, tmp_path_factory.mktemp("board"))
+    return cpython.run(highway.stimulus, tmp_path_factory.mktemp("board"))
 
 
 def test_the_firmware_driver_reads_the_stimulus_registers():
     """Registers set from a stimulus record reach the firmware's BMI055 driver unchanged
     (gyro int16, accel 12-bit left-justified with new_data), after its own start-up."""
-    hw = fake_machine.Hardware()
+    hw = board_machine.Hardware()
     firmware_env.install_machine(hw)
     import machine
     from drivers.bmi055 import BMI055
@@ -54,7 +53,7 @@ def test_the_firmware_driver_reads_the_stimulus_registers():
 
 
 def test_the_uart_receive_ring_drops_what_does_not_fit():
-    port = fake_machine.UARTPort(2)
+    port = board_machine.UARTPort(2)
     port.init(9600, rxbuf=16)
     port.feed(b"0123456789")
     port.feed(b"abcdefghij")
@@ -66,7 +65,7 @@ def test_the_uart_receive_ring_drops_what_does_not_fit():
 
 def test_a_short_run_sends_one_clean_frame_per_tick(highway, highway_run):
     run = highway_run
-    d = frames.decode(run.out)
+    d = stream.decode(run.out)
     assert run.ticks == 9000 and len(d.frames) == 9000 and len(d.ext) == 450
     assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
     assert [f["counter"] for f in d.frames[:3]] == [0, 1, 2]
@@ -97,7 +96,7 @@ def test_a_firmware_exception_names_the_tick(highway, tmp_path, monkeypatch):
 
     monkeypatch.setattr(nav.Navigator, "imu_raw", failing)
     with pytest.raises(FirmwareError, match=r"at tick 1234 \(t = 6\.170 s\)") as e:
-        emulator.run_cpython(highway.stimulus.head(2000), tmp_path)
+        cpython.run(highway.stimulus.head(2000), tmp_path)
     assert "ZeroDivisionError: float divide by zero" in str(e.value)
     assert "app.py" in str(e.value)  # the firmware's own traceback
 

@@ -15,7 +15,7 @@ import pytest
 serial = pytest.importorskip("serial")
 
 from host_emulator.firmware_env import FIRMWARE_DIR  # noqa: E402
-from host_emulator.runtimes import cpython as emulator  # noqa: E402
+from host_emulator.proto import config as board_config  # noqa: E402
 from host_emulator.runtimes.mpy_unix import vm as mpvm  # noqa: E402
 from host_emulator.sim import board_input  # noqa: E402
 from host_emulator.virtual_board import VirtualBoard  # noqa: E402
@@ -186,7 +186,7 @@ def deployed(tmp_path_factory):
         )
     shutil.copy(FIRMWARE_DIR / "main.py", fs / "main.py")
     stim = board_input.simulate("urban_drive", 1.0, seed=0).stimulus
-    (fs / "ins.cfg").write_bytes(emulator.config_bytes(emulator.board_values(stim)))
+    (fs / "ins.cfg").write_bytes(board_config.to_bytes(board_config.run_values(stim)))
     return fs
 
 

@@ -1,4 +1,4 @@
-"""Board sessions (host_emulator/session.py): a recording of the firmware's output with the
+"""Board sessions (host_emulator/session/): a recording of the firmware's output with the
 raw-input records on, made here by the emulator, replays through the emulator to the same
 bytes; damaged, truncated or gapped recordings are refused with a message that says where;
 PPS edges are rebuilt from the records, across the 2**30 us wrap of ticks_us."""
@@ -11,11 +11,12 @@ import time
 import numpy as np
 import pytest
 
-from host_emulator import session
-from host_emulator.board.cpython import machine as fake_machine
-from host_emulator.eval import parity
-from host_emulator.proto import stream as frames
-from host_emulator.runtimes import cpython as emulator
+from host_emulator.board.cpython import machine
+from host_emulator.proto import config as board_config
+from host_emulator.proto import session_file, stream
+from host_emulator.proto.ticks import ticks_diff
+from host_emulator.runtimes import cpython
+from host_emulator.session import cli, compare, rebuild, record, replay, walk
 from host_emulator.sim import board_input
 
 DURATION_S = 100.0  # urban_drive stands for 60 s, then drives: the run navigates from ~64 s
@@ -29,32 +30,32 @@ def sim():
 
 @pytest.fixture(scope="module")
 def values(sim):
-    return emulator.board_values(sim, {"raw_record": 1})
+    return board_config.run_values(sim, {"raw_record": 1})
 
 
 @pytest.fixture(scope="module")
 def capture(sim, tmp_path_factory):
     """What a logger on the board's output port receives: the emulator's output bytes."""
-    return emulator.run_cpython(sim, tmp_path_factory.mktemp("board"), {"raw_record": 1}).out
+    return cpython.run(sim, tmp_path_factory.mktemp("board"), {"raw_record": 1}).out
 
 
 @pytest.fixture(scope="module")
-def session_file(capture, values, tmp_path_factory):
+def session_path(capture, values, tmp_path_factory):
     d = tmp_path_factory.mktemp("session")
     (d / "capture.bin").write_bytes(capture)
-    res = session.record(d / "capture.bin", d / "drive.ins", config=values)
+    res = record.record(d / "capture.bin", d / "drive.ins", config=values)
     assert res["bytes"] == len(capture)
     return d / "drive.ins"
 
 
 @pytest.fixture(scope="module")
-def replayed(session_file, tmp_path_factory):
-    return session.replay(session_file, tmp_path_factory.mktemp("replay"))
+def replayed(session_path, tmp_path_factory):
+    return replay.replay(session_path, tmp_path_factory.mktemp("replay"))
 
 
 def _records(capture):
     """[(offset, type, bytes)] of a clean stream."""
-    f, e, r, err = parity.split(capture)
+    f, e, r, err = stream.split(capture)
     assert err is None
     out = []
     pos = 0
@@ -95,7 +96,7 @@ def test_a_recorded_session_replays_byte_for_byte(replayed, sim, capture):
     assert np.array_equal(st.uart_offsets, sim.uart_offsets)
     assert st.header["notes"] == []  # nothing skipped, no timing the emulator cannot follow
     # not vacuous: fixes every second, and navigation after the stand
-    d = frames.decode(capture)
+    d = stream.decode(capture)
     assert sum(f["gga"] for f in d.frames) >= DURATION_S - 2
     assert sum(f["nav_state"] == 2 for f in d.frames) > 1000
 
@@ -103,12 +104,12 @@ def test_a_recorded_session_replays_byte_for_byte(replayed, sim, capture):
 def test_the_pps_timing_shapes_the_output(replayed, capture, values, tmp_path):
     """Each PPS edge one tick late: the frame's PPS flag moves, and the fix times with it
     change the navigation (the rebuilt edge times are not decoration)."""
-    st = session.to_stimulus(replayed.recording, values)
+    st = rebuild.to_stimulus(replayed.recording, values)
     k = np.flatnonzero(st.pps_before_us >= 0)
     st.pps_before_us[:] = -1
     st.pps_before_us[k + 1] = 0
-    run = emulator.run_cpython(st, tmp_path)
-    c = session.compare(replayed.recording.stream, run.out)
+    run = cpython.run(st, tmp_path)
+    c = compare.compare(replayed.recording.stream, run.out)
     assert not c.identical
     assert c.frame.first == 0 and {f.name for f in c.frame.fields} == {"pps", "checksum"}
     assert c.ext.first is not None and any("pos_enu_m" in f.name for f in c.ext.fields)
@@ -124,26 +125,26 @@ def test_pps_edges_across_the_ticks_us_wrap(capture, monkeypatch, tmp_path):
     wrap there) is identical."""
     stim = board_input.simulate("urban_drive", 12.0, seed=1).stimulus
     stim.pps_before_us[stim.pps_before_us >= 0] = 4000
-    first_tick_us = frames.decode(capture[:400]).raw[0]["t0_us"]
+    first_tick_us = stream.decode(capture[:400]).raw[0]["t0_us"]
     assert first_tick_us % TICK == 0  # the first timer moment after start-up (clock from 0)
     start = (1 << 30) + 3176 - 2_000_000 - first_tick_us  # tick 400: 3176 us after the wrap
 
-    class LateClock(fake_machine.Hardware):
+    class LateClock(machine.Hardware):
         def __init__(self):
             super().__init__()
             self.now_us = start
 
-    monkeypatch.setattr(fake_machine, "Hardware", LateClock)
-    out = emulator.run_cpython(stim, tmp_path / "board", {"raw_record": 1}).out
+    monkeypatch.setattr(machine, "Hardware", LateClock)
+    out = cpython.run(stim, tmp_path / "board", {"raw_record": 1}).out
     monkeypatch.undo()
-    values = emulator.board_values(stim, {"raw_record": 1})
-    rec = session.parse(out, values)
+    values = board_config.run_values(stim, {"raw_record": 1})
+    rec = walk.parse(out, values)
     assert (rec.t0_us[399], rec.t0_us[400]) == ((1 << 30) - 1824, 3176)
     assert rec.pps_us[400] == (1 << 30) - 824  # the edge before the wrap
-    st = session.to_stimulus(rec, values)
+    st = rebuild.to_stimulus(rec, values)
     assert np.array_equal(st.pps_before_us[1:], stim.pps_before_us[1:])
-    run = emulator.run_cpython(st, tmp_path / "replay")
-    c = session.compare(rec.stream, run.out)
+    run = cpython.run(st, tmp_path / "replay")
+    c = compare.compare(rec.stream, run.out)
     assert c.identical, c.summary()
 
 
@@ -156,7 +157,7 @@ def _recording(t0, pps, frame_pps=None):
         f[0:3] = bytes((0xEB, 0x90, k & 0xFF))
         f[15] = frame_pps[k]
         recs.append(bytes(f))
-    return session.Recording(
+    return walk.Recording(
         {"raw_record": 1},
         0,
         0,
@@ -173,7 +174,7 @@ def _recording(t0, pps, frame_pps=None):
 
 def test_pps_edge_rules_on_board_like_timing():
     w = 1 << 30
-    assert session.ticks_diff(100, w - 200) == 300 and session.ticks_diff(w - 200, 100) == -300
+    assert ticks_diff(100, w - 200) == 300 and ticks_diff(w - 200, 100) == -300
     # ticks with jitter (5000 +- 250 us, two overruns), ticks_us wrapping after tick 2
     t0 = [w - 10200, w - 5000, w - 100, 5150, 10000, 20000, 25000, 30000, 45000, 50000]
     pps = [
@@ -189,11 +190,11 @@ def test_pps_edge_rules_on_board_like_timing():
         36000,
     ]
     frame_pps = [0, 0, 1, 0, 0, 1, 1, 0, 1, 0]
-    before, notes = session.pps_edges(_recording(t0, pps, frame_pps))
+    before, notes = rebuild.pps_edges(_recording(t0, pps, frame_pps))
     assert before.tolist() == [-1, -1, 1000, -1, -1, 8000, 0, -1, 9000, -1]
     assert "2 PPS edges came while a tick ran" in notes[0]
     assert "1 PPS edges came more than a tick interval" in notes[1]
-    (timing,) = session.timing_notes(_recording(t0, pps))
+    (timing,) = rebuild.timing_notes(_recording(t0, pps))
     assert "6 tick starts not 5000 us after" in timing and "2 look like overruns" in timing
 
 
@@ -201,8 +202,8 @@ def test_pps_edge_rules_on_board_like_timing():
 
 
 def _parse_error(data, values, **kw):
-    with pytest.raises(session.SessionError) as e:
-        session.parse(data, values, **kw)
+    with pytest.raises(session_file.SessionError) as e:
+        walk.parse(data, values, **kw)
     return str(e.value)
 
 
@@ -223,26 +224,28 @@ def test_a_dropped_record_is_a_gap_and_until_gap_replays_the_ticks_before_it(
     msg = _parse_error(dropped, values)
     assert f"gap at byte {off}, tick 1000" in msg
     assert "expected the raw-input record with counter 233, found a frame with counter 233" in msg
-    session.write_session(tmp_path / "gap.ins", dropped, config=values)
-    with pytest.raises(session.SessionError, match="tick 1000"):
-        session.replay(tmp_path / "gap.ins", tmp_path / "w1")
-    r = session.replay(tmp_path / "gap.ins", tmp_path / "w2", until_gap=True)
+    session_file.write_session(tmp_path / "gap.ins", dropped, config=values)
+    with pytest.raises(session_file.SessionError, match="tick 1000"):
+        replay.replay(tmp_path / "gap.ins", tmp_path / "w1")
+    r = replay.replay(tmp_path / "gap.ins", tmp_path / "w2", until_gap=True)
     assert r.identical and len(r.recording) == 1000 and "tick 1000" in r.recording.gap
     assert "replayed up to the first gap" in r.summary()
 
 
-def test_a_truncated_or_damaged_session_file_is_refused(session_file, tmp_path):
-    data = session_file.read_bytes()
+def test_a_truncated_or_damaged_session_file_is_refused(session_path, tmp_path):
+    data = session_path.read_bytes()
     (tmp_path / "cut.ins").write_bytes(data[: len(data) // 2])
-    with pytest.raises(session.SessionError, match="truncated .no end marker.: the recording"):
-        session.read_session(tmp_path / "cut.ins")
+    with pytest.raises(session_file.SessionError, match="truncated .no end marker.: the recording"):
+        session_file.read_session(tmp_path / "cut.ins")
     bad = bytearray(data)
     bad[len(bad) // 2] ^= 1
     (tmp_path / "bad.ins").write_bytes(bytes(bad))
-    with pytest.raises(session.SessionError, match="CRC mismatch, the session file is damaged"):
-        session.read_session(tmp_path / "bad.ins")
-    with pytest.raises(session.SessionError, match="cannot read session"):
-        session.read_session(tmp_path / "missing.ins")
+    with pytest.raises(
+        session_file.SessionError, match="CRC mismatch, the session file is damaged"
+    ):
+        session_file.read_session(tmp_path / "bad.ins")
+    with pytest.raises(session_file.SessionError, match="cannot read session"):
+        session_file.read_session(tmp_path / "missing.ins")
 
 
 def test_the_replay_starts_at_the_boards_first_tick(capture, values):
@@ -255,7 +258,7 @@ def test_the_replay_starts_at_the_boards_first_tick(capture, values):
     recs = _records(head)
     noisy[recs[500][0] : recs[500][0]] = b"\x00\xeb\x90\x17"  # between two records
     data = earlier + b"\xff" * 5 + bytes(noisy) + capture[len(head) : len(head) + 40]
-    rec = session.parse(data, values)
+    rec = walk.parse(data, values)
     assert rec.start_offset == len(earlier) + 5 and len(rec) == 3000
     assert rec.stream == head
     assert rec.notes == [
@@ -275,29 +278,29 @@ def test_a_board_restart_inside_the_recording_is_named(capture, values):
 
 def test_configuration_and_stream_problems_are_clear(capture, values, tmp_path):
     head = _head(capture, 400)
-    session.write_session(tmp_path / "nocfg.ins", head)
-    with pytest.raises(session.SessionError, match="holds no board configuration.*--config"):
-        session.replay(tmp_path / "nocfg.ins", tmp_path / "w")
-    with pytest.raises(session.SessionError, match="raw_record = 0"):
-        session.parse(head, {**values, "raw_record": 0})
+    session_file.write_session(tmp_path / "nocfg.ins", head)
+    with pytest.raises(session_file.SessionError, match="holds no board configuration.*--config"):
+        replay.replay(tmp_path / "nocfg.ins", tmp_path / "w")
+    with pytest.raises(session_file.SessionError, match="raw_record = 0"):
+        walk.parse(head, {**values, "raw_record": 0})
     only_frames = b"".join(r for _, t, r in _records(head) if t != 0x92)
-    with pytest.raises(session.SessionError, match="only frames: the board ran with raw_rec"):
-        session.parse(only_frames, values)
-    with pytest.raises(session.SessionError, match="nothing in the recording decodes"):
-        session.parse(bytes(range(256)) * 4, values)
+    with pytest.raises(session_file.SessionError, match="only frames: the board ran with raw_rec"):
+        walk.parse(only_frames, values)
+    with pytest.raises(session_file.SessionError, match="nothing in the recording decodes"):
+        walk.parse(bytes(range(256)) * 4, values)
     # the board's own configuration file (binary) and a JSON file of settings both load
-    (tmp_path / "ins.cfg").write_bytes(emulator.config_bytes(values))
-    loaded = session.load_config(tmp_path / "ins.cfg")
-    assert emulator.config_bytes(loaded) == emulator.config_bytes(values)
+    (tmp_path / "ins.cfg").write_bytes(board_config.to_bytes(values))
+    loaded = board_config.load(tmp_path / "ins.cfg")
+    assert board_config.to_bytes(loaded) == board_config.to_bytes(values)
     (tmp_path / "cfg.json").write_text('{"raw_record": 1, "gyro_range_dps": 500}')
-    assert session.load_config(tmp_path / "cfg.json")["gyro_range_dps"] == 500
+    assert board_config.load(tmp_path / "cfg.json")["gyro_range_dps"] == 500
     (tmp_path / "bad.json").write_text('{"raw_record": 1, "gyro_range": 500}')
-    with pytest.raises(session.SessionError, match="unknown board configuration setting"):
-        session.load_config(tmp_path / "bad.json")
+    with pytest.raises(board_config.ConfigError, match="unknown board configuration setting"):
+        board_config.load(tmp_path / "bad.json")
 
 
 def test_a_decoded_stream_gives_the_same_input(replayed, capture, values):
-    a = session.to_stimulus(frames.decode(capture), values)
+    a = rebuild.to_stimulus(stream.decode(capture), values)
     b = replayed.stimulus
     assert np.array_equal(a.gyro_regs, b.gyro_regs) and np.array_equal(a.accel_regs, b.accel_regs)
     assert np.array_equal(a.pps_before_us, b.pps_before_us) and a.uart_bytes == b.uart_bytes
@@ -311,12 +314,12 @@ def test_compare_leaves_out_the_timing_fields_only(capture):
     struct.pack_into("<HHHH", board, ext_off[3] + 8, 4100, 3900, 2, 1)  # a board's timing
     raw_off = [o for o, t, _ in recs if t == 0x92]
     struct.pack_into("<II", board, raw_off[7] + 4, 123, 456)  # its own clock
-    c = session.compare(bytes(board), head)
+    c = compare.compare(bytes(board), head)
     assert c.identical and c.timing_differs == 1
     assert "timing fields differ in 1" in c.summary()
     frame_off = [o for o, t, _ in recs if t == 0x90]
     board[frame_off[250] + 30] ^= 1  # yaw
-    c = session.compare(bytes(board), head)
+    c = compare.compare(bytes(board), head)
     assert not c.identical and (c.frame.first, c.frame.tick) == (250, 250)
     assert [f.name for f in c.frame.fields] == ["yaw_cdeg"]
 
@@ -338,10 +341,10 @@ def test_record_from_a_pipe_and_a_serial_port(capture, tmp_path):
 
     t = threading.Thread(target=writer)
     t.start()
-    res = session.record(fifo, tmp_path / "pipe.ins")
+    res = record.record(fifo, tmp_path / "pipe.ins")
     t.join()
     assert res["stopped"] == "end of input"
-    header, got = session.read_session(tmp_path / "pipe.ins")
+    header, got = session_file.read_session(tmp_path / "pipe.ins")
     assert got == data and header["config"] is None and header["baud"] is None
 
     serial = pytest.importorskip("serial")
@@ -356,43 +359,45 @@ def test_record_from_a_pipe_and_a_serial_port(capture, tmp_path):
 
     t = threading.Thread(target=board)
     t.start()
-    res = session.record(port, tmp_path / "tty.ins", seconds=0.8, baud=115200)
+    res = record.record(port, tmp_path / "tty.ins", seconds=0.8, baud=115200)
     t.join()
-    header, got = session.read_session(tmp_path / "tty.ins")
+    header, got = session_file.read_session(tmp_path / "tty.ins")
     assert got == data[:6000] and header["baud"] == 115200 and res["stopped"] == "time"
     with serial.Serial(port, exclusive=True):  # another program holds the port
-        with pytest.raises(session.SessionError, match="cannot open serial port .* another pr"):
-            session.record(port, tmp_path / "busy.ins", seconds=0.2)
+        with pytest.raises(
+            session_file.SessionError, match="cannot open serial port .* another pr"
+        ):
+            record.record(port, tmp_path / "busy.ins", seconds=0.2)
     os.close(master)
     os.close(slave)
-    with pytest.raises(session.SessionError, match="cannot open serial port /dev/ttyNOPE0"):
-        session.record("/dev/ttyNOPE0", tmp_path / "x.ins", seconds=0.2)
-    with pytest.raises(session.SessionError, match="no such file or serial port: nope.bin"):
-        session.record("nope.bin", tmp_path / "x.ins")
+    with pytest.raises(session_file.SessionError, match="cannot open serial port /dev/ttyNOPE0"):
+        record.record("/dev/ttyNOPE0", tmp_path / "x.ins", seconds=0.2)
+    with pytest.raises(session_file.SessionError, match="no such file or serial port: nope.bin"):
+        record.record("nope.bin", tmp_path / "x.ins")
 
 
 def test_command_line(capture, values, tmp_path, capsys):
     (tmp_path / "cap.bin").write_bytes(_head(capture, 2000))
-    (tmp_path / "ins.cfg").write_bytes(emulator.config_bytes(values))
+    (tmp_path / "ins.cfg").write_bytes(board_config.to_bytes(values))
     cfg = str(tmp_path / "ins.cfg")
     ins = str(tmp_path / "s.ins")
-    assert session.main(["record", str(tmp_path / "cap.bin"), "--out", ins, "--config", cfg]) == 0
+    assert cli.main(["record", str(tmp_path / "cap.bin"), "--out", ins, "--config", cfg]) == 0
     assert "recorded" in capsys.readouterr().out
-    assert session.main(["replay", ins, "--out", str(tmp_path / "out")]) == 0
+    assert cli.main(["replay", ins, "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
     assert "REPLAY: identical, 2000 ticks" in out and "configuration from the session file" in out
     assert (tmp_path / "out" / "replayed.bin").read_bytes() == _head(capture, 2000)
     # the MicroPython VM: double-precision floats, compared to its tolerance
-    assert session.main(["replay", ins, "--runtime", "micropython"]) == 0
+    assert cli.main(["replay", ins, "--runtime", "micropython"]) == 0
     out = capsys.readouterr().out
     assert "frames: 2000 compared, equal [not compared: checksum; attitude, velocity" in out
     assert "REPLAY: equal within the VM's tolerance, 2000 ticks" in out
     # a plain capture with the configuration given at replay time
-    assert session.main(["replay", str(tmp_path / "cap.bin"), "--config", cfg]) == 0
+    assert cli.main(["replay", str(tmp_path / "cap.bin"), "--config", cfg]) == 0
     capsys.readouterr()
     # the wrong configuration: a mismatch, exit 1, with a hint
     (tmp_path / "wrong.json").write_text('{"raw_record": 1, "gyro_range_dps": 500}')
-    assert session.main(["replay", ins, "--config", str(tmp_path / "wrong.json")]) == 1
+    assert cli.main(["replay", ins, "--config", str(tmp_path / "wrong.json")]) == 1
     out = capsys.readouterr().out
     assert "first difference at frame 0 (tick 0, t = 0.000 s): gyro_" in out
     assert "sensor ranges are not the board's?" in out and "REPLAY: DIFFERENT" in out
@@ -405,6 +410,6 @@ def test_command_line(capture, values, tmp_path, capsys):
         (["replay"], "required: session"),
         (["play", ins], "invalid choice"),
     ):
-        assert session.main(argv) == 2, argv
+        assert cli.main(argv) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith("error: ") and text in err and err.count("\n") == 1, (argv, err)

@@ -1,0 +1,52 @@
+"""Command-line plumbing the host's commands share: a parser that reports a mistake in one line
+(`UsageError`, exit status 2, no usage dump) and the input checks every command applies alike,
+so a bad scenario or duration reads the same in `run`, `parity`, `export` and the virtual board.
+"""
+
+import argparse
+
+from host_emulator.errors import EmulatorError
+
+MAX_DURATION_S = 24 * 3600.0
+
+
+class UsageError(Exception):
+    """A command line that cannot be run as given."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def number(text, name):
+    """float(text), or a UsageError naming the option."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise UsageError(f"{name} must be a number, got {text!r}") from None
+
+
+def positive(text, name):
+    v = number(text, name)
+    if not v > 0:
+        raise UsageError(f"{name} must be positive, got {text!r}")
+    return v
+
+
+def check_scenario(name):
+    from host_emulator.sim import trajectory
+
+    if name not in trajectory.SCENARIOS:
+        known = ", ".join(sorted(trajectory.SCENARIOS))
+        raise EmulatorError(f"unknown scenario {name!r}; known scenarios: {known}")
+
+
+def check_duration(duration_s):
+    if duration_s is not None and not (1.0 <= duration_s <= MAX_DURATION_S):
+        raise EmulatorError(f"--duration must be 1 to {MAX_DURATION_S:g} s")
+
+
+def check_seed(seed):
+    if seed < 0:
+        raise EmulatorError("--seed must be 0 or more")

@@ -1,0 +1,126 @@
+"""The board's configuration file (`/flash/ins.cfg`) on the host: firmware/lib/config.py's
+binary encoding is the one codec, imported from the firmware itself, so the host reads and
+writes exactly what the board does.
+
+Values travel as a dict of `BoardConfig` attribute names (JSON-able: floats are the exact
+values of the board's float32s, so re-encoding gives the same bits). `values_of` and
+`from_values` convert between that dict and the firmware's object; `to_bytes` / `decode` are
+the file; `load` reads a file given by a user (the binary file, or a JSON object of settings).
+A stimulus carries its run's values in its header (`run_values` adds a run's overrides).
+Imported as `board_config` (the firmware's own module is `config`).
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from host_emulator import firmware_env
+from host_emulator.errors import EmulatorError
+
+
+class ConfigError(EmulatorError):
+    """A configuration that cannot be read or that the firmware would not accept."""
+
+
+def _firmware_config():
+    firmware_env.install()
+    import config
+
+    return config
+
+
+def default_output_baud():
+    """The RS485 baud rate of a board without a configuration file."""
+    return _firmware_config().BoardConfig().output_baud
+
+
+def from_values(values):
+    """A firmware BoardConfig with these values (the rest at their defaults); ConfigError for a
+    name or value the firmware does not accept."""
+    config = _firmware_config()
+    cfg = config.BoardConfig()
+    for name, value in values.items():
+        if not hasattr(cfg, name):
+            raise ConfigError(f"unknown board configuration setting {name!r}")
+        setattr(cfg, name, list(value) if isinstance(value, (list, tuple)) else value)
+    problem = cfg.validate()
+    if problem:
+        raise ConfigError(f"board configuration rejected by the firmware: {problem}")
+    return cfg
+
+
+def _plain(v):
+    if v is None or isinstance(v, (bool, int, str)):
+        return v
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    return [_plain(x) for x in v]
+
+
+def values_of(cfg):
+    """A firmware BoardConfig -> dict of its settings (JSON-able)."""
+    return {name: _plain(value) for name, value in vars(cfg).items()}
+
+
+def to_bytes(values):
+    """The configuration file the board would hold for these values."""
+    return _firmware_config().encode(from_values(values))
+
+
+def decode(data):
+    """The BoardConfig in a configuration file's bytes, checked as the board checks it on load
+    (config.load); ConfigError "corrupt (why)" or "invalid: why" otherwise."""
+    config = _firmware_config()
+    try:
+        cfg = config.decode(data)
+    except (ValueError, IndexError) as e:
+        raise ConfigError(f"corrupt ({e})") from None
+    problem = cfg.validate()
+    if problem:
+        raise ConfigError(f"invalid: {problem}")
+    return cfg
+
+
+def load(path):
+    """The configuration values in a user's file: a JSON object of settings (missing ones keep
+    their defaults), or else the board's own file (binary, as on its flash)."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise ConfigError(f"cannot read configuration {path}: {e.strerror}") from None
+    if data.lstrip()[:1] != b"{":
+        try:
+            return values_of(decode(data))
+        except ConfigError as e:
+            raise ConfigError(
+                f"configuration {path} is {e}: give the board's configuration file or a JSON "
+                "object of settings"
+            ) from None
+    try:
+        values = json.loads(data.decode())
+        if not isinstance(values, dict):
+            raise ValueError("not a JSON object")
+    except (UnicodeDecodeError, ValueError) as e:
+        raise ConfigError(f"configuration {path} is not a JSON object of settings ({e})") from None
+    try:
+        return values_of(from_values(values))
+    except ConfigError as e:
+        raise ConfigError(f"configuration {path}: {e}") from None
+
+
+def run_values(stim, overrides=None):
+    """The configuration values of a run: the stimulus header's "config", then the overrides
+    (everything else keeps firmware/lib/config.py's defaults)."""
+    values = stim.config
+    values.update(overrides or {})
+    return values
+
+
+def write_flash(workdir, values):
+    """An emulated board's flash: workdir/flash/ins.cfg holding `values`; returns its path."""
+    flash = Path(workdir) / "flash"
+    flash.mkdir(parents=True, exist_ok=True)
+    path = flash / "ins.cfg"
+    path.write_bytes(to_bytes(values))
+    return path

@@ -1,0 +1,21 @@
+"""The NumPy float32 model as a runtime: the output stream model/app.py computes for a
+stimulus, as the board would send it, in a FirmwareRun (no console, no counters: the model has
+no board around it). Bit for bit the cpython runtime's output (tests/eval/test_parity.py)."""
+
+import os
+import time
+
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.runtimes import FirmwareRun
+
+
+def run(stim, workdir=None, config_overrides=None, progress=None):
+    """FirmwareRun of the model over `stim`, a Stimulus or a stimulus file (workdir is not
+    used: the model has no flash)."""
+    from host_emulator.model import app
+
+    if isinstance(stim, (str, os.PathLike)):
+        stim = stim_mod.read(stim)
+    t = time.perf_counter()
+    out = app.run(stim, config_overrides, progress)
+    return FirmwareRun("model", out, [], len(stim), time.perf_counter() - t)

@@ -1,0 +1,101 @@
+"""`python -m host_emulator session record|replay`: exit status 0 (done, identical), 1 (the
+replay differs, or the firmware raised), 2 (bad input)."""
+
+import sys
+import tempfile
+from pathlib import Path
+
+from host_emulator import args as cli_args
+from host_emulator import runtimes
+from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.session.record import record
+from host_emulator.session.replay import replay
+
+
+def _progress_printer():
+    if not sys.stderr.isatty():
+        return None
+    return lambda a, b: print(f"\r{a} / {b}", end="", file=sys.stderr, flush=True)
+
+
+def main(argv=None):
+    """`session record SOURCE --out FILE ...` / `session replay FILE ...`: exit status 0 (done,
+    identical), 1 (replay differs, or the firmware raised), 2 (bad input)."""
+    p = cli_args.Parser(
+        prog="python -m host_emulator session",
+        description="record a board's output; replay it through the emulator, byte for byte",
+    )
+    sub = p.add_subparsers(dest="command", required=True, parser_class=cli_args.Parser)
+    r = sub.add_parser("record", help="capture a board's output into a session file")
+    r.add_argument("source", help="serial port (/dev/ttyUSB0, COM3), named pipe, '-' or file")
+    r.add_argument("--out", required=True, help="session file to write")
+    r.add_argument("--seconds", help="stop after this long (default: Ctrl-C or end of input)")
+    r.add_argument("--baud", help="serial baud rate (default: the configuration's, else 460800)")
+    r.add_argument("--config", help="the board's configuration file (or JSON), kept in the file")
+    s = sub.add_parser("replay", help="replay a session through the emulator and compare")
+    s.add_argument("session", help="session file (or a plain capture, with --config)")
+    s.add_argument("--config", help="the board's configuration (overrides the session's)")
+    s.add_argument(
+        "--runtime", default="cpython", choices=runtimes.names(),
+        help="where to replay (default cpython, bit-exact; mpy_unix compares to a tolerance)",
+    )  # fmt: skip
+    s.add_argument("--until-gap", action="store_true", help="replay up to the first gap")
+    s.add_argument("--out", help="directory for stimulus.bin and replayed.bin (kept)")
+    try:
+        args = p.parse_args(argv)
+        if args.command == "record":
+            seconds = None if args.seconds is None else cli_args.positive(args.seconds, "--seconds")
+            baud = None if args.baud is None else int(cli_args.positive(args.baud, "--baud"))
+    except cli_args.UsageError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    try:
+        if args.command == "record":
+            return _main_record(args, seconds, baud)
+        return _main_replay(args)
+    except FirmwareError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except EmulatorError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def _main_record(args, seconds, baud):
+    tty = sys.stderr.isatty()
+
+    def progress(nbytes, elapsed):
+        if tty:
+            print(f"\r{nbytes} bytes, {elapsed:.0f} s", end="", file=sys.stderr, flush=True)
+
+    if tty and seconds is None:
+        print("recording; Ctrl-C stops", file=sys.stderr)
+    res = record(args.source, args.out, seconds, progress, args.config, baud)
+    if tty:
+        print(file=sys.stderr)
+    print(
+        f"recorded {res['bytes']} bytes in {res['seconds']:.1f} s ({res['stopped']}) into "
+        f"{res['path']}"
+    )
+    if res["bytes"] == 0:
+        print("warning: nothing was received (baud rate? wiring? is the board on?)")
+    return 0
+
+
+def _main_replay(args):
+    progress = _progress_printer()
+    if args.out:
+        work = Path(args.out)
+        res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress)
+        res.stimulus.write(work / "stimulus.bin")
+        (work / "replayed.bin").write_bytes(res.run.out)
+    else:
+        with tempfile.TemporaryDirectory(prefix="session-") as d:
+            res = replay(args.session, d, args.runtime, args.config, args.until_gap, progress)
+    if progress:
+        print(file=sys.stderr)
+    print(res.summary())
+    return 0 if res.identical else 1

@@ -1,0 +1,82 @@
+"""Replaying a session: read the file, walk the stream, rebuild the input, run it on a runtime,
+compare the outputs (a ReplayResult)."""
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from host_emulator import runtimes
+from host_emulator.proto import config as board_config
+from host_emulator.proto.session_file import SessionError, read_session
+from host_emulator.session.compare import Comparison, compare
+from host_emulator.session.rebuild import to_stimulus
+from host_emulator.session.walk import TICK_US, Recording, board_cfg, parse
+
+
+@dataclass(eq=False)
+class ReplayResult:
+    recording: Recording
+    stimulus: object  # proto/stimulus.Stimulus
+    run: object  # runtimes.FirmwareRun
+    comparison: Comparison
+    config_source: str
+
+    @property
+    def identical(self):
+        return self.comparison.identical
+
+    def summary(self):
+        rec = self.recording
+        n = len(rec)
+        lines = [
+            f"session: {n} ticks ({n * TICK_US * 1e-6:.3f} s) from byte {rec.start_offset}, "
+            f"configuration from {self.config_source}",
+        ]
+        if rec.gap:
+            lines.append(f"replayed up to the first gap: {rec.gap}")
+        for note in self.stimulus.header.get("notes", []):
+            lines.append("note: " + note)
+        lines.append(f"replayed on {self.run.runtime} in {self.run.wall_s:.1f} s")
+        lines.append(self.comparison.summary())
+        if self.identical:
+            what = "identical" if self.comparison.exact else "equal within the VM's tolerance"
+            lines.append(f"REPLAY: {what}, {n} ticks")
+        else:
+            lines.append("REPLAY: DIFFERENT")
+        return "\n".join(lines)
+
+
+def _session_config(header, config, path):
+    if config is not None:
+        if isinstance(config, (str, os.PathLike)):
+            try:
+                return board_config.load(config), str(config)
+            except board_config.ConfigError as e:
+                raise SessionError(str(e)) from None
+        return dict(config), "the given values"
+    if header.get("config"):
+        return dict(header["config"]), "the session file"
+    raise SessionError(
+        f"{path}: the session holds no board configuration: give the board's configuration "
+        "file with --config (its ranges, lever arm, output rates, ... shape the output)"
+    )
+
+
+def replay(session_path, workdir, runtime="cpython", config=None, until_gap=False, progress=None):
+    """Replay a session file through the emulator and compare; a ReplayResult.
+
+    config: the board configuration (a path, see proto/config.load, or a dict of values) when
+    the session holds none or holds the wrong one. until_gap: replay the ticks before the
+    first gap instead of failing. runtime: a name of host_emulator.runtimes; one that is not
+    bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the firmware raises."""
+    rt = runtimes.get(runtime)
+    header, data = read_session(session_path)
+    values, source = _session_config(header, config, session_path)
+    rec = parse(data, values, until_gap)
+    stim = to_stimulus(rec, values)
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    run = rt.run(stim, workdir, progress=progress)
+    cfg = board_cfg(values)
+    c = compare(rec.stream, run.out, cfg.output_every_ticks, cfg.ext_every_ticks, rt.bit_exact)
+    return ReplayResult(rec, stim, run, c, source)

@@ -1,0 +1,49 @@
+"""The board time of each decoded frame: `TickClock` numbers the frames by their counter
+(gaps included) and anchors that numbering on the tick field of the extended frames."""
+
+TICK_S = 0.005  # the firmware's tick (proto/stimulus.TICK_US)
+
+
+class TickClock:
+    """Board time of each frame. Tick T (app.ticks, 5 ms) sends the frame with counter
+    (T // every - 1) mod 256 and, when it is due, the extended frame with counter
+    (T // every) mod 256 and tick field T (host_emulator/session/walk.py). The counter is unwrapped
+    (gaps included) into a frame number u, whose tick is (u + 1) * every + offset; each extended
+    frame sets offset so that its frame's tick matches its tick field (0 until the first one:
+    the board's start). `every` is the configuration's output_every_ticks."""
+
+    def __init__(self, every=1):
+        self.every = max(1, int(every))
+        self.u = None
+        self._last = None
+        self.offset = 0
+        self.anchored = False
+        # frames lost in whole counter wraps (256 or a multiple in a row): invisible to the
+        # counter, seen when the next extended frame's tick is ahead of the frames counted
+        self.wrap_losses = 0
+
+    def frame(self, counter):
+        """The unwrapped frame number of the next frame, whose counter is `counter`."""
+        if self.u is None:
+            self.u = counter
+        else:
+            self.u += ((counter - self._last - 1) & 0xFF) + 1
+        self._last = counter
+        return self.u
+
+    def ext(self, rec):
+        """Anchor on an extended frame (after the frames before it were given to `frame`)."""
+        if self.u is None:
+            return
+        u_anchor = self.u - ((self._last - rec["counter"] + 1) & 0xFF)
+        offset = (rec["tick"] // self.every) * self.every - (u_anchor + 1) * self.every
+        if self.anchored and offset > self.offset:
+            self.wrap_losses += (offset - self.offset) // self.every
+        self.offset = offset
+        self.anchored = True
+
+    def tick(self, u):
+        return (u + 1) * self.every + self.offset
+
+    def time_s(self, u):
+        return self.tick(u) * TICK_S
