@@ -3,7 +3,7 @@
 The board's libm (newlib/musl, compiled with fused multiply-add) and the desktop's differ in
 the last bit, so the navigation core never calls `math`. These functions use only float32
 `+ - * /` and the correctly rounded `sqrt` of the seam, in a fixed order, so the board, the
-desktop's NumPy float32 backend and the vectorised model `host_emulator/reference/fmath.py`
+desktop's NumPy float32 backend and the vectorised model `host_emulator/model/fmath.py`
 (which repeats every operation below) agree bit for bit.
 
 Method
@@ -19,11 +19,11 @@ Method
   and the sign of y place the angle. The constant added last is split hi + lo.
 - asin: |x| <= 9/16 is an odd polynomial; above, asin|x| = pi/2 - 2 asin(sqrt((1 - |x|) / 2)).
 - Polynomials: minimax fits of the relative error on the interval used (Lawson's algorithm;
-  `python -m host_emulator.reference.accuracy --fit` re-derives them), rounded to float32.
+  `python -m host_emulator.bench.float32 --fit` re-derives them), rounded to float32.
 
 Accuracy: the largest error seen, in float32 ulps of the exact value (ulp = float32 spacing
 at the exact result, 2**-149 at the least, so near zero the error is still relative),
-measured on the model by `python -m host_emulator.reference.accuracy`. sin, cos and asin:
+measured on the model by `python -m host_emulator.bench.float32`. sin, cos and asin:
 every float32 input in the domain. atan2: every float32 t in [2**-8, 2**8] as (t, +-1), and
 40 million random (y, x) with magnitudes from 2**-149 to 2**128 in all four quadrants (the
 largest seen, 1.853, is stated with a small margin since atan2 was sampled). sin and cos are
@@ -61,58 +61,58 @@ TWO_PI = from_bits(0x40C90FDB)  # 6.28318548
 QUARTER_PI = from_bits(0x3F490FDB)  # 0.785398185
 
 # Negative bounds are constants too: a unary minus would allocate a float at every call.
-_MINUS_QUARTER_PI = from_bits(0xBF490FDB)  # -0.785398185
-_MINUS_HALF_PI = from_bits(0xBFC90FDB)  # -1.57079637
+MINUS_QUARTER_PI = from_bits(0xBF490FDB)  # -0.785398185
+MINUS_HALF_PI = from_bits(0xBFC90FDB)  # -1.57079637
 
 # Low parts: value = hi + lo to ~2**-48 relative.
-_PI_LO = from_bits(0xB3BBBD2E)  # -8.74227766e-08
-_HALF_PI_LO = from_bits(0xB33BBD2E)  # -4.37113883e-08
-_QUARTER_PI_LO = from_bits(0xB2BBBD2E)  # -2.18556941e-08
-_3PI_4 = from_bits(0x4016CBE4)  # 2.3561945
-_3PI_4_LO = from_bits(0xB1CCDE2E)  # -5.96244032e-09
+PI_LO = from_bits(0xB3BBBD2E)  # -8.74227766e-08
+HALF_PI_LO = from_bits(0xB33BBD2E)  # -4.37113883e-08
+QUARTER_PI_LO = from_bits(0xB2BBBD2E)  # -2.18556941e-08
+THREE_QUARTER_PI = from_bits(0x4016CBE4)  # 2.3561945
+THREE_QUARTER_PI_LO = from_bits(0xB1CCDE2E)  # -5.96244032e-09
 
-_NAN = from_bits(0x7FC00000)  # quiet NaN
-_FLT_MAX = from_bits(0x7F7FFFFF)  # 3.40282347e+38
-_HUGE = from_bits(0x7E800000)  # 2**126 = 8.50705917e+37
+NAN = from_bits(0x7FC00000)  # quiet NaN
+FLT_MAX = from_bits(0x7F7FFFFF)  # 3.40282347e+38
+HUGE = from_bits(0x7E800000)  # 2**126 = 8.50705917e+37
 
-# sin/cos range reduction: pi/2 = _PIO2_1 + _PIO2_2 + _PIO2_3, and more finely
-# pi/2 = _PIO2_1 + _PIO2_2 + _PIO2_3A + _PIO2_3B + _PIO2_4. Parts 1 (8 significant bits),
+# sin/cos range reduction: pi/2 = PIO2_1 + PIO2_2 + PIO2_3, and more finely
+# pi/2 = PIO2_1 + PIO2_2 + PIO2_3A + PIO2_3B + PIO2_4. Parts 1 (8 significant bits),
 # 2, 3A and 3B (11 bits each) times any integer |k| < 2**13 are exact float32 products.
-_SINCOS_MAX = from_bits(0x46000000)  # 8192.0: |k| <= 5215
-_MINUS_SINCOS_MAX = from_bits(0xC6000000)  # -8192.0
-_TWO_OVER_PI = from_bits(0x3F22F983)  # 0.636619747
-_PIO2_1 = from_bits(0x3FC90000)  # 1.5703125
-_PIO2_2 = from_bits(0x39FDA000)  # 0.000483751297
-_PIO2_3 = from_bits(0x33A22169)  # 7.54979013e-08 (rounded tail)
-_PIO2_3A = from_bits(0x33A22000)  # 7.54953362e-08
-_PIO2_3B = from_bits(0x2C346000)  # 2.56328292e-12
-_PIO2_4 = from_bits(0x248D3132)  # 6.12323426e-17 (rounded tail)
-_FINE = from_bits(0x3A000000)  # 2**-11 = 0.00048828125: below, redo the tail finely
-_MINUS_FINE = from_bits(0xBA000000)  # -0.00048828125
+SINCOS_MAX = from_bits(0x46000000)  # 8192.0: |k| <= 5215
+MINUS_SINCOS_MAX = from_bits(0xC6000000)  # -8192.0
+TWO_OVER_PI = from_bits(0x3F22F983)  # 0.636619747
+PIO2_1 = from_bits(0x3FC90000)  # 1.5703125
+PIO2_2 = from_bits(0x39FDA000)  # 0.000483751297
+PIO2_3 = from_bits(0x33A22169)  # 7.54979013e-08 (rounded tail)
+PIO2_3A = from_bits(0x33A22000)  # 7.54953362e-08
+PIO2_3B = from_bits(0x2C346000)  # 2.56328292e-12
+PIO2_4 = from_bits(0x248D3132)  # 6.12323426e-17 (rounded tail)
+FINE = from_bits(0x3A000000)  # 2**-11 = 0.00048828125: below, redo the tail finely
+MINUS_FINE = from_bits(0xBA000000)  # -0.00048828125
 
-# sin r = r + r z (_S1 + z (_S2 + z _S3)), z = r*r, |r| <= 0.7875
-_S1 = from_bits(0xBE2AAAA2)  # -0.166666538
-_S2 = from_bits(0x3C088390)  # 0.00833214819
-_S3 = from_bits(0xB94C9D40)  # -0.000195135362
-# cos r = 1 - z/2 + z z (_C1 + z (_C2 + z _C3)), |r| <= 0.7875
-_C1 = from_bits(0x3D2AAAA5)  # 0.0416666456
-_C2 = from_bits(0xBAB6060B)  # -0.0013887299
-_C3 = from_bits(0x37CCF185)  # 2.44311614e-05
-# atan v = v + v z (_A1 + z (_A2 + ... + z _A5)), |v| <= 1/2
-_A1 = from_bits(0xBEAAAA89)  # -0.33333233
-_A2 = from_bits(0x3E4CBDAA)  # 0.199942261
-_A3 = from_bits(0xBE1126F0)  # -0.141750097
-_A4 = from_bits(0x3DD013B8)  # 0.101600111
-_A5 = from_bits(0xBD523B1B)  # -0.0513258986
-# asin v = v + v z (_B1 + z (_B2 + ... + z _B6)), |v| <= 9/16
-_B1 = from_bits(0x3E2AAA93)  # 0.166666314
-_B2 = from_bits(0x3D99A4AE)  # 0.0750211328
-_B3 = from_bits(0x3D352AD1)  # 0.044230286
-_B4 = from_bits(0x3D0B5A0F)  # 0.0340214334
-_B5 = from_bits(0x3BDC06A5)  # 0.00671465928
-_B6 = from_bits(0x3D429B89)  # 0.0475116111
-_ASIN_SPLIT = ratio(9, 16)  # 0.5625
-_MINUS_ASIN_SPLIT = ratio(-9, 16)  # -0.5625
+# sin r = r + r z (S1 + z (S2 + z S3)), z = r*r, |r| <= 0.7875
+S1 = from_bits(0xBE2AAAA2)  # -0.166666538
+S2 = from_bits(0x3C088390)  # 0.00833214819
+S3 = from_bits(0xB94C9D40)  # -0.000195135362
+# cos r = 1 - z/2 + z z (C1 + z (C2 + z C3)), |r| <= 0.7875
+C1 = from_bits(0x3D2AAAA5)  # 0.0416666456
+C2 = from_bits(0xBAB6060B)  # -0.0013887299
+C3 = from_bits(0x37CCF185)  # 2.44311614e-05
+# atan v = v + v z (A1 + z (A2 + ... + z A5)), |v| <= 1/2
+A1 = from_bits(0xBEAAAA89)  # -0.33333233
+A2 = from_bits(0x3E4CBDAA)  # 0.199942261
+A3 = from_bits(0xBE1126F0)  # -0.141750097
+A4 = from_bits(0x3DD013B8)  # 0.101600111
+A5 = from_bits(0xBD523B1B)  # -0.0513258986
+# asin v = v + v z (B1 + z (B2 + ... + z B6)), |v| <= 9/16
+B1 = from_bits(0x3E2AAA93)  # 0.166666314
+B2 = from_bits(0x3D99A4AE)  # 0.0750211328
+B3 = from_bits(0x3D352AD1)  # 0.044230286
+B4 = from_bits(0x3D0B5A0F)  # 0.0340214334
+B5 = from_bits(0x3BDC06A5)  # 0.00671465928
+B6 = from_bits(0x3D429B89)  # 0.0475116111
+ASIN_SPLIT = ratio(9, 16)  # 0.5625
+MINUS_ASIN_SPLIT = ratio(-9, 16)  # -0.5625
 
 
 def isfinite(x):
@@ -122,41 +122,41 @@ def isfinite(x):
 
 def sin(x):
     """sin x for |x| <= 8192 (NaN beyond and for non-finite x)."""
-    if _MINUS_QUARTER_PI <= x <= QUARTER_PI:
+    if MINUS_QUARTER_PI <= x <= QUARTER_PI:
         if x == 0.0:
             return x  # the polynomial would turn -0 into +0
         z = x * x
-        return ((_S3 * z + _S2) * z + _S1) * z * x + x
+        return ((S3 * z + S2) * z + S1) * z * x + x
     return _reduced(x, 0)
 
 
 def cos(x):
     """cos x for |x| <= 8192 (NaN beyond and for non-finite x)."""
-    if _MINUS_QUARTER_PI <= x <= QUARTER_PI:
+    if MINUS_QUARTER_PI <= x <= QUARTER_PI:
         z = x * x
         h = 0.5 * z
         w = 1.0 - h
         # w + ((1 - w) - h) is 1 - z/2 with w's rounding error put back
-        return w + (((1.0 - w) - h) + ((_C3 * z + _C2) * z + _C1) * z * z)
+        return w + (((1.0 - w) - h) + ((C3 * z + C2) * z + C1) * z * z)
     return _reduced(x, 1)
 
 
 def _reduced(x, shift):
     """sin x (shift 0) or cos x = sin(x + pi/2) (shift 1) through x = k pi/2 + r + rl."""
-    if not _MINUS_SINCOS_MAX <= x <= _SINCOS_MAX:
-        return _NAN
-    t = x * _TWO_OVER_PI
+    if not MINUS_SINCOS_MAX <= x <= SINCOS_MAX:
+        return NAN
+    t = x * TWO_OVER_PI
     if x > 0.0:
         k = int(t + 0.5)
     else:
         k = int(t - 0.5)
     fk = f32(k)
-    r2 = (x - fk * _PIO2_1) - fk * _PIO2_2  # exact
-    tail = fk * _PIO2_3
+    r2 = (x - fk * PIO2_1) - fk * PIO2_2  # exact
+    tail = fk * PIO2_3
     r = r2 - tail
-    if _MINUS_FINE < r < _FINE:
+    if MINUS_FINE < r < FINE:
         # r has lost its leading bits: continue with exact parts, round once at the end
-        r = ((r2 - fk * _PIO2_3A) - fk * _PIO2_3B) - fk * _PIO2_4
+        r = ((r2 - fk * PIO2_3A) - fk * PIO2_3B) - fk * PIO2_4
         rl = 0.0
     else:
         rl = (r2 - r) - tail  # what the rounding of r2 - tail lost
@@ -166,10 +166,10 @@ def _reduced(x, shift):
         # cos(r + rl) = cos r - r rl
         h = 0.5 * z
         w = 1.0 - h
-        y = w + ((((1.0 - w) - h) + ((_C3 * z + _C2) * z + _C1) * z * z) - r * rl)
+        y = w + ((((1.0 - w) - h) + ((C3 * z + C2) * z + C1) * z * z) - r * rl)
     else:
         # sin(r + rl) = sin r + rl
-        y = r + (((_S3 * z + _S2) * z + _S1) * z * r + rl)
+        y = r + (((S3 * z + S2) * z + S1) * z * r + rl)
     if q & 2:
         return -y
     return y
@@ -183,9 +183,9 @@ def atan2(y, x):
     ay = y
     if y < 0.0:
         ay = -y
-    if not (ax <= _FLT_MAX and ay <= _FLT_MAX):
-        return _NAN
-    if ax > _HUGE or ay > _HUGE:
+    if not (ax <= FLT_MAX and ay <= FLT_MAX):
+        return NAN
+    if ax > HUGE or ay > HUGE:
         # keeps ay + ax <= FLT_MAX. Halving is exact unless the smaller one is denormal,
         # and then the quotient is below 2**-250: its angle rounds to 0 (or pi) anyway.
         ax = ax * 0.5
@@ -213,21 +213,21 @@ def atan2(y, x):
             zone = 1
             v = (ay - ax) / (ay + ax)
     z = v * v
-    p = ((((_A5 * z + _A4) * z + _A3) * z + _A2) * z + _A1) * z * v + v
+    p = ((((A5 * z + A4) * z + A3) * z + A2) * z + A1) * z * v + v
     if x < 0.0:
         # second quadrant: pi - angle
         if zone == 0:
-            a = (_PI_LO - p) + PI
+            a = (PI_LO - p) + PI
         elif zone == 1:
-            a = (_3PI_4_LO - p) + _3PI_4
+            a = (THREE_QUARTER_PI_LO - p) + THREE_QUARTER_PI
         else:
-            a = (_HALF_PI_LO + p) + HALF_PI
+            a = (HALF_PI_LO + p) + HALF_PI
     elif zone == 0:
         a = p
     elif zone == 1:
-        a = (_QUARTER_PI_LO + p) + QUARTER_PI
+        a = (QUARTER_PI_LO + p) + QUARTER_PI
     else:
-        a = (_HALF_PI_LO - p) + HALF_PI
+        a = (HALF_PI_LO - p) + HALF_PI
     if y < 0.0:
         return -a
     return a
@@ -235,22 +235,22 @@ def atan2(y, x):
 
 def asin(x):
     """asin x for |x| <= 1; finite |x| > 1 is clamped to +-pi/2, NaN and +-inf give NaN."""
-    if _MINUS_ASIN_SPLIT <= x <= _ASIN_SPLIT:
+    if MINUS_ASIN_SPLIT <= x <= ASIN_SPLIT:
         z = x * x
-        return (((((_B6 * z + _B5) * z + _B4) * z + _B3) * z + _B2) * z + _B1) * z * x + x
+        return (((((B6 * z + B5) * z + B4) * z + B3) * z + B2) * z + B1) * z * x + x
     a = x
     if x < 0.0:
         a = -x
     if not a <= 1.0:
-        if a <= _FLT_MAX:
+        if a <= FLT_MAX:
             if x < 0.0:
-                return _MINUS_HALF_PI
+                return MINUS_HALF_PI
             return HALF_PI
-        return _NAN
+        return NAN
     z = 0.5 * (1.0 - a)  # exact
     s = sqrt(z)
-    p = (((((_B6 * z + _B5) * z + _B4) * z + _B3) * z + _B2) * z + _B1) * z * s + s
-    r = (_HALF_PI_LO - (p + p)) + HALF_PI
+    p = (((((B6 * z + B5) * z + B4) * z + B3) * z + B2) * z + B1) * z * s + s
+    r = (HALF_PI_LO - (p + p)) + HALF_PI
     if x < 0.0:
         return -r
     return r

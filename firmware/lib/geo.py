@@ -28,32 +28,26 @@ from fmath import cos, sin, sqrt
 # WGS-84: a = 6378137 m (exact in float32), e^2 = f (2 - f) with 1/f = 298.257223563.
 A_M = f32.f32(6378137)
 E2 = f32.from_bits(0x3BDB5C88)  # 0.0066943799901413165
-_RAD_PER_E7 = f32.from_bits(0x30EFE050)  # pi / 1.8e9 = 1.7453292519943295e-09 rad per 1e-7 deg
-_MAX_LAT_E7 = 890000000
-_HALF_TURN_E7 = 1800000000
-_FULL_TURN_E7 = 3600000000
+RAD_PER_E7 = f32.from_bits(0x30EFE050)  # pi / 1.8e9 = 1.7453292519943295e-09 rad per 1e-7 deg
+MAX_LAT_E7 = 890000000
+HALF_TURN_E7 = 1800000000
+FULL_TURN_E7 = 3600000000
 
-# Float32 coefficient buffer layout (set by set_origin).
-_H0 = 0  # origin height, m
-_KE = 1  # east metres per 1e-7 deg of longitude
-_KN = 2  # north metres per 1e-7 deg of latitude
-_GE_N = 3  # M0 tan(phi0) / ((M0+h0)(N0+h0)), 1/m
-_GE_H = 4  # 1/(N0+h0)
-_GN_N = 5  # M0' / (2 (M0+h0)^2)
-_GN_H = 6  # 1/(M0+h0)
-_GN_E = 7  # tan(phi0) / (2 (N0+h0))
-_GU_N = 8  # 1 / (2 (M0+h0))
-_GU_E = 9  # 1 / (2 (N0+h0))
-_SIN_LAT = 10  # sin(phi0)
-_COS_LAT = 11  # cos(phi0)
-_NCOEF = 12
-
-# Public views of the coefficient buffer `LocalFrame.coef`, for the navigator's Earth model.
-INV_RN = _GE_H  # 1/(N0+h0), 1/m
-INV_RM = _GN_H  # 1/(M0+h0), 1/m
-SIN_LAT = _SIN_LAT
-COS_LAT = _COS_LAT
-H0 = _H0
+# Float32 coefficient buffer layout (`LocalFrame.coef`, set by set_origin); H0, INV_RN,
+# INV_RM, SIN_LAT and COS_LAT also give the navigator its Earth model.
+H0 = 0  # origin height, m
+KE = 1  # east metres per 1e-7 deg of longitude
+KN = 2  # north metres per 1e-7 deg of latitude
+GE_N = 3  # M0 tan(phi0) / ((M0+h0)(N0+h0)), 1/m
+INV_RN = 4  # 1/(N0+h0), 1/m
+GN_N = 5  # M0' / (2 (M0+h0)^2)
+INV_RM = 6  # 1/(M0+h0), 1/m
+GN_E = 7  # tan(phi0) / (2 (N0+h0))
+GU_N = 8  # 1 / (2 (M0+h0))
+GU_E = 9  # 1 / (2 (N0+h0))
+SIN_LAT = 10  # sin(phi0)
+COS_LAT = 11  # cos(phi0)
+NCOEF = 12
 
 
 def _round_half_away(x):
@@ -72,14 +66,14 @@ class LocalFrame:
         self.lon0_deg = 0
         self.lon0_frac = 0
         self.valid = False
-        self.coef = f32.zeros(_NCOEF)
+        self.coef = f32.zeros(NCOEF)
 
     def set_origin(self, lat0_e7, lon0_e7, h0_m):
         """(Re-)anchor the frame; False (and the frame left unchanged) beyond +-89 deg."""
-        if lat0_e7 > _MAX_LAT_E7 or lat0_e7 < -_MAX_LAT_E7:
+        if lat0_e7 > MAX_LAT_E7 or lat0_e7 < -MAX_LAT_E7:
             return False
         c = self.coef
-        phi0 = f32.f32(lat0_e7) * _RAD_PER_E7
+        phi0 = f32.f32(lat0_e7) * RAD_PER_E7
         s = sin(phi0)
         co = cos(phi0)
         w2 = 1.0 - E2 * s * s
@@ -90,18 +84,18 @@ class LocalFrame:
         rn_h = rn + h0
         rm_h = rm + h0
         tan = s / co
-        c[_H0] = h0
-        c[_KE] = _RAD_PER_E7 * rn_h * co
-        c[_KN] = _RAD_PER_E7 * rm_h
-        c[_GE_N] = rm * tan / (rm_h * rn_h)
-        c[_GE_H] = 1.0 / rn_h
-        c[_GN_N] = 0.5 * drm / (rm_h * rm_h)
-        c[_GN_H] = 1.0 / rm_h
-        c[_GN_E] = 0.5 * tan / rn_h
-        c[_GU_N] = 0.5 / rm_h
-        c[_GU_E] = 0.5 / rn_h
-        c[_SIN_LAT] = s
-        c[_COS_LAT] = co
+        c[H0] = h0
+        c[KE] = RAD_PER_E7 * rn_h * co
+        c[KN] = RAD_PER_E7 * rm_h
+        c[GE_N] = rm * tan / (rm_h * rn_h)
+        c[INV_RN] = 1.0 / rn_h
+        c[GN_N] = 0.5 * drm / (rm_h * rm_h)
+        c[INV_RM] = 1.0 / rm_h
+        c[GN_E] = 0.5 * tan / rn_h
+        c[GU_N] = 0.5 / rm_h
+        c[GU_E] = 0.5 / rn_h
+        c[SIN_LAT] = s
+        c[COS_LAT] = co
         self.lat0_e7 = lat0_e7
         self.lon0_e7 = lon0_e7
         # the longitude as (degrees, 1e-7 deg fraction): small ints for allocation-free packing
@@ -115,22 +109,22 @@ class LocalFrame:
         """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin, at
         height h_m above the ellipsoid."""
         c = self.coef
-        dh = h_m - c[_H0]
-        n1 = f32.f32(dlat_e7) * c[_KN]
-        e1 = f32.f32(dlon_e7) * c[_KE]
+        dh = h_m - c[H0]
+        n1 = f32.f32(dlat_e7) * c[KN]
+        e1 = f32.f32(dlon_e7) * c[KE]
         ee = e1 * e1
         nn = n1 * n1
-        enu[0] = e1 + e1 * (dh * c[_GE_H] - n1 * c[_GE_N])
-        enu[1] = n1 + (n1 * (n1 * c[_GN_N] + dh * c[_GN_H]) + ee * c[_GN_E])
-        enu[2] = dh - (nn * c[_GU_N] + ee * c[_GU_E])
+        enu[0] = e1 + e1 * (dh * c[INV_RN] - n1 * c[GE_N])
+        enu[1] = n1 + (n1 * (n1 * c[GN_N] + dh * c[INV_RM]) + ee * c[GN_E])
+        enu[2] = dh - (nn * c[GU_N] + ee * c[GU_E])
 
     def to_enu(self, enu, lat_e7, lon_e7, h_m):
         """enu[0:3] (m) of an absolute integer position; longitude wraps across +-180 deg."""
         dlon = lon_e7 - self.lon0_e7
-        if dlon > _HALF_TURN_E7:
-            dlon -= _FULL_TURN_E7
-        elif dlon < -_HALF_TURN_E7:
-            dlon += _FULL_TURN_E7
+        if dlon > HALF_TURN_E7:
+            dlon -= FULL_TURN_E7
+        elif dlon < -HALF_TURN_E7:
+            dlon += FULL_TURN_E7
         self.offset_to_enu(enu, lat_e7 - self.lat0_e7, dlon, h_m)
 
     def to_e7(self, out_e7, enu):
@@ -146,14 +140,14 @@ class LocalFrame:
         dh = u
         for _ in range(3):
             ee = e1 * e1
-            dh = u + (n1 * n1 * c[_GU_N] + ee * c[_GU_E])
-            e1 = e / (1.0 + (dh * c[_GE_H] - n1 * c[_GE_N]))
-            n1 = (n - ee * c[_GN_E]) / (1.0 + (n1 * c[_GN_N] + dh * c[_GN_H]))
-        out_e7[0] = self.lat0_e7 + _round_half_away(n1 / c[_KN])
-        lon = self.lon0_e7 + _round_half_away(e1 / c[_KE])
-        if lon >= _HALF_TURN_E7:
-            lon -= _FULL_TURN_E7
-        elif lon < -_HALF_TURN_E7:
-            lon += _FULL_TURN_E7
+            dh = u + (n1 * n1 * c[GU_N] + ee * c[GU_E])
+            e1 = e / (1.0 + (dh * c[INV_RN] - n1 * c[GE_N]))
+            n1 = (n - ee * c[GN_E]) / (1.0 + (n1 * c[GN_N] + dh * c[INV_RM]))
+        out_e7[0] = self.lat0_e7 + _round_half_away(n1 / c[KN])
+        lon = self.lon0_e7 + _round_half_away(e1 / c[KE])
+        if lon >= HALF_TURN_E7:
+            lon -= FULL_TURN_E7
+        elif lon < -HALF_TURN_E7:
+            lon += FULL_TURN_E7
         out_e7[1] = lon
-        return c[_H0] + dh
+        return c[H0] + dh

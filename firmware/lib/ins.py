@@ -30,10 +30,10 @@ import rot
 from fmath import sqrt
 
 OMEGA_E = f32.from_bits(0x3898ED3F)  # 7.292115e-5 rad/s, WGS-84 Earth rate
-_GAMMA_E = f32.from_bits(0x411C7C36)  # 9.7803253359 m/s^2, normal gravity at the equator
-_SOMIGLIANA_K = f32.from_bits(0x3AFD3638)  # 0.00193185265241
-_FREE_AIR = f32.from_bits(0x364F1914)  # 3.086e-6 (m/s^2)/m
-_TWELFTH = f32.ratio(1, 12)
+GAMMA_E = f32.from_bits(0x411C7C36)  # 9.7803253359 m/s^2, normal gravity at the equator
+SOMIGLIANA_K = f32.from_bits(0x3AFD3638)  # 0.00193185265241
+FREE_AIR = f32.from_bits(0x364F1914)  # 3.086e-6 (m/s^2)/m
+TWELFTH = f32.ratio(1, 12)
 
 
 class Ins:
@@ -72,7 +72,7 @@ class Ins:
         s = c[geo.SIN_LAT]
         co = c[geo.COS_LAT]
         s2 = s * s
-        self._g0 = _GAMMA_E * (1.0 + _SOMIGLIANA_K * s2) / sqrt(1.0 - geo.E2 * s2)
+        self._g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) / sqrt(1.0 - geo.E2 * s2)
         self._inv_rn = c[geo.INV_RN]
         self._inv_rm = c[geo.INV_RM]
         self._h0 = c[geo.H0]
@@ -123,12 +123,12 @@ class Ins:
             dp[1] = dy
             dp[2] = dz
             # sculling with the uncorrected increments, then coning
-            sx = ((py * dz - pz * dy) + (qy * tz - qz * ty)) * _TWELFTH
-            sy = ((pz * dx - px * dz) + (qz * tx - qx * tz)) * _TWELFTH
-            sz = ((px * dy - py * dx) + (qx * ty - qy * tx)) * _TWELFTH
-            cx = (py * tz - pz * ty) * _TWELFTH
-            cy = (pz * tx - px * tz) * _TWELFTH
-            cz = (px * ty - py * tx) * _TWELFTH
+            sx = ((py * dz - pz * dy) + (qy * tz - qz * ty)) * TWELFTH
+            sy = ((pz * dx - px * dz) + (qz * tx - qx * tz)) * TWELFTH
+            sz = ((px * dy - py * dx) + (qx * ty - qy * tx)) * TWELFTH
+            cx = (py * tz - pz * ty) * TWELFTH
+            cy = (pz * tx - px * tz) * TWELFTH
+            cz = (px * ty - py * tx) * TWELFTH
             tx = tx + cx
             ty = ty + cy
             tz = tz + cz
@@ -182,7 +182,7 @@ class Ins:
         """Earth rate on the attitude over the last t_s seconds; then a_n = g_n - 2 w x v anew."""
         v = self.v_n
         p = self.p_n
-        g = self._g0 - _FREE_AIR * (self._h0 + p[2])
+        g = self._g0 - FREE_AIR * (self._h0 + p[2])
         a = self.a_n
         if not self.earth_terms:
             a[0] = 0.0

@@ -4,16 +4,26 @@ The loop calls `imu(w_b, f_b)` (SI, or `imu_raw` with BMI055 counts) every tick 
 when a fix completes. Between calls everything lives in buffers made at start-up; a tick
 allocates only float results.
 
+One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits its Ekf class):
+- nav.py (here): inputs, calibration, the standstill detector, the per-tick flow, fix
+  screening and re-anchoring, the GNSS delay ring, filter-job scheduling, injection of the
+  correction, resets, health and outputs; it owns every buffer and counter;
+- nav_align.py (mixin `Alignment`): levelling, the heading, the start of navigation;
+- nav_aid.py (mixin `Aiding`): the measurement rows (GNSS position and velocity with the lever
+  arm, zero-velocity update, non-holonomic constraint) and the reset to GNSS.
+Frames and units: ENU navigation frame at the integer origin (geo.py), body x right, y forward,
+z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
+
 States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
 vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
 heading from the GNSS course over ground once the speed exceeds `heading_speed_m_s`: this
 board has no magnetometer, so a static board cannot know its heading. A receiver that reports
 no course (GGA only, or position-only data) gives the heading from its track instead: the
 chord between two fixes `track_s` apart, whose direction is the course at the window's middle,
-turned by half the yaw change the gyros saw over the window (see `_track`). Then NAVIGATING (2):
-INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS position and velocity
-updates with the antenna lever arm, zero-velocity updates at standstill and the non-holonomic
-constraint for cars.
+turned by half the yaw change the gyros saw over the window (see `nav_align._track`). Then
+NAVIGATING (2): INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS
+position and velocity updates with the antenna lever arm, zero-velocity updates at standstill
+and the non-holonomic constraint for cars.
 
 GNSS delay (seed 001 5.5.4): a ring keeps the last RING ticks of position and velocity; a fix
 is compared with the state at its measurement time (the PPS tick when the caller knows it,
@@ -31,57 +41,49 @@ from array import array
 import eskf
 from ins import Ins
 from micropython import const
+from nav_aid import Aiding
+from nav_align import Alignment
 
 import f32
 import geo
 import rot
-from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
 
 ALIGNING = const(1)
 NAVIGATING = const(2)
 RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz): the fix
 # latency plus the wait for the filter (a propagation is 31 ticks at one slice per tick)
 
+# Filter jobs (self._job). Private consts are inlined and cost no global on the board; the
+# NumPy model reads these names through CPython, where they are plain module attributes.
 _JOB_NONE = const(0)
 _JOB_GNSS = const(1)
 _JOB_AID = const(2)  # zero-velocity update or non-holonomic constraint
 
+# Buffer layouts. nav_align.py and nav_aid.py repeat the indices they use (an underscore const
+# exists only in its own module); tests/lib/test_nav.py checks that the copies agree.
 # self._fx: floats of the pending GNSS fix
-_FX_H = const(0)
+_FX_H = const(0)  # height above the ellipsoid, m
 _FX_HDOP = const(1)
-_FX_SPEED = const(2)
-_FX_COURSE = const(3)
-_FX_SIG_H = const(4)
-_FX_SIG_V = const(5)
-
-# self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes)
-_US_P = const(0)  # antenna position in the frame (3)
-_US_SPEED = const(3)
-_US_COURSE = const(4)
-_US_SIG_H = const(5)
-_US_SIG_V = const(6)
-
+_FX_SPEED = const(2)  # m/s, < 0 if unknown
+_FX_COURSE = const(3)  # rad clockwise from north, < 0 if unknown
+_FX_SIG_H = const(4)  # 1-sigma horizontal error, m (0: from HDOP)
+_FX_SIG_V = const(5)  # 1-sigma vertical error, m (0: from the horizontal one)
 # self._st: standstill detector
 _ST_FX = const(0)  # low-passed specific force (3)
 _ST_VAR = const(3)  # low-passed |f - f_lp|^2
 _ST_GYRO = const(4)  # low-passed |w - b_g|^2
 _ST_SPEED = const(5)  # speed of the last usable fix, m/s
+# self._used (the fix of the running GNSS update): nav_aid.py; self._trk (the track
+# anchor): nav_align.py
 
-# self._trk: the track anchor (heading from GNSS positions, see _track)
-_TR_E = const(0)  # antenna position of the anchor fix in the frame, m
-_TR_N = const(1)
-_TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
-
-
-_MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
-_STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
+STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
 
 
 def _ticks(seconds, dt):
     return int(seconds / dt + 0.5)
 
 
-class Navigator:
+class Navigator(Alignment, Aiding):
     def __init__(self, cfg):
         self.cfg = cfg
         dt = cfg.dt_s
@@ -104,7 +106,6 @@ class Navigator:
         self._ring_v = f32.zeros(3 * RING)
         self._corr = f32.zeros(6)  # cumulative injected corrections of p and v
         self._gp = f32.zeros(3)  # GNSS antenna position in the frame, m
-        self._gv = f32.zeros(2)  # GNSS horizontal velocity, m/s
         self._fx = f32.zeros(6)
         self._used = f32.zeros(7)
         self._st = f32.zeros(6)
@@ -273,7 +274,7 @@ class Navigator:
         f = self._f
         w = self._w
         bg = self.ins.bg
-        alpha = _STILL_ALPHA
+        alpha = STILL_ALPHA
         if self.tick == 4:
             for i in range(3):
                 st[_ST_FX + i] = f[i]  # start the low-pass at the first sample, not at zero
@@ -309,62 +310,6 @@ class Navigator:
             self._n_still = 0
         self.still = self._n_still >= self._ticks_still
 
-    def _align(self):
-        cfg = self.cfg
-        ins = self.ins
-        w = self._w
-        f = self._f
-        lv = self._lvl
-        if self.still or not self.leveled:
-            for i in range(3):
-                lv[i] = lv[i] + f[i]
-                lv[3 + i] = lv[3 + i] + w[i]
-            self._n_level += 1
-            if self._n_level >= self._ticks_level:
-                self._level()
-        if self.leveled and not self.still:
-            # keep roll and pitch current while waiting for a heading
-            th = self._tmp3
-            dt = cfg.dt_s
-            bg = ins.bg
-            for i in range(3):
-                th[i] = (w[i] - bg[i]) * dt
-            rot.q_update(ins.q_bn, th)
-            rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self._fix_pending:
-            self._fix_pending = False
-            self._align_fix()
-
-    def _level(self):
-        """Roll and pitch from the mean specific force (it points up at rest), gyro bias from
-        the mean rate when static; the heading is kept (zero until the GNSS course gives it)."""
-        ins = self.ins
-        lv = self._lvl
-        n = f32.f32(self._n_level)
-        fx = lv[0] / n
-        fy = lv[1] / n
-        fz = lv[2] / n
-        g = sqrt(fx * fx + fy * fy + fz * fz)
-        if not g > _MIN_LEVEL_F:  # a dead accelerometer or free fall: nothing to level on
-            for i in range(6):
-                lv[i] = 0.0
-            self._n_level = 0
-            return
-        ypr = self.ypr
-        rot.dcm_to_euler(ypr, ins.c_bn)
-        s = fy / g
-        ypr[rot.PITCH] = asin(s)
-        ypr[rot.ROLL] = atan2(-fx, fz)
-        rot.euler_to_q(ins.q_bn, ypr)
-        rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self.still:
-            for i in range(3):
-                ins.bg[i] = lv[3 + i] / n
-        for i in range(6):
-            lv[i] = 0.0
-        self._n_level = 0
-        self.leveled = True
-
     def _fix_usable(self):
         """Quality and HDOP acceptable; a usable fix's speed, if it has one, also feeds
         standstill detection (an unknown speed, < 0 or NaN, is no speed measurement)."""
@@ -377,156 +322,6 @@ class Navigator:
                 self._speed_tick = self.tick
             return True
         return False
-
-    def _align_fix(self):
-        cfg = self.cfg
-        self._last_fix_tick = self.tick
-        if not self._fix_usable():
-            self._n_stable = 0
-            self._trk_set = False
-            return
-        self._n_stable += 1
-        if self._n_stable < cfg.gnss_stable_fixes:
-            return
-        fx = self._fx
-        if not self.frame.valid:
-            if not self.frame.set_origin(self._fix_lat, self._fix_lon, fx[_FX_H]):
-                return
-            self.ins.set_frame(self.frame)
-        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
-        ins = self.ins
-        for i in range(3):
-            ins.p_n[i] = self._gp[i]
-        if not self.leveled:
-            self._trk_set = False
-            return
-        course = fx[_FX_COURSE]
-        if course >= 0.0:
-            self._trk_set = False
-            sp = fx[_FX_SPEED]
-            if sp >= cfg.heading_speed_m_s:
-                self._start_navigation(course, sp, cfg.init_vel_sigma)
-        else:
-            self._track()
-
-    def _track(self):
-        """Heading and velocity from the track of a receiver that reports no course.
-
-        The anchor is an earlier usable fix (antenna position, measurement tick) and the yaw
-        of the attitude when it was processed (the gyros keep the attitude current while
-        levelled, `_align`). At a fix `track_s` or more after it (at most twice that), the
-        chord d from the anchor gives the mean speed |d| / T; from `heading_speed_m_s` on, d's
-        direction is the course at the window's middle, and the heading has turned since by
-        half the yaw change dyaw over the window (a steady turn): course = atan2(d_E, d_N) -
-        dyaw / 2 (course is clockwise, yaw counter-clockwise). Too slow, a turn beyond
-        `track_turn_max` or a window too long: this fix becomes the anchor. The chord speed is
-        a mean, behind a car accelerating at a by a T / 2, so the filter starts with the
-        horizontal velocity sigma `track_vel_sigma`. Cost, at fix ticks while aligning only:
-        ~25 boxed floats (one atan2), ~60 when a window is evaluated (two atan2, one sqrt)."""
-        cfg = self.cfg
-        trk = self._trk
-        gp = self._gp
-        c = self.ins.c_bn
-        yaw = atan2(-c[1], c[4])  # rot.dcm_to_euler's yaw
-        if self._trk_set:
-            n = self._fix_tick - self._trk_tick
-            if n < self._ticks_track:
-                return  # window not long enough yet: keep the anchor
-            if n <= 2 * self._ticks_track:
-                de = gp[0] - trk[_TR_E]
-                dn = gp[1] - trk[_TR_N]
-                sp = sqrt(de * de + dn * dn) / (f32.f32(n) * cfg.dt_s)
-                dyaw = yaw - trk[_TR_YAW]
-                if dyaw > PI:
-                    dyaw = dyaw - TWO_PI
-                elif dyaw < -PI:
-                    dyaw = dyaw + TWO_PI
-                lim = cfg.track_turn_max
-                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
-                    self._trk_set = False
-                    self._start_navigation(atan2(de, dn) - dyaw * 0.5, sp, cfg.track_vel_sigma)
-                    return
-        trk[_TR_E] = gp[0]
-        trk[_TR_N] = gp[1]
-        trk[_TR_YAW] = yaw
-        self._trk_tick = self._fix_tick
-        self._trk_set = True
-
-    def _start_navigation(self, course, sp, sigma_vel):
-        """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
-        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity."""
-        ins = self.ins
-        ypr = self.ypr
-        rot.dcm_to_euler(ypr, ins.c_bn)
-        ypr[rot.YAW] = -course
-        rot.euler_to_q(ins.q_bn, ypr)
-        rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        v = self._tmp3
-        v[0] = sp * sin(course)
-        v[1] = sp * cos(course)
-        v[2] = 0.0
-        sh = self._sigma_h()
-        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
-        ins.take_dvn(self._tmp3)
-        ins.slow_update(f32.f32(0))
-        self._since_prop = 0
-        self._last_accept_tick = self.tick
-        self.state = NAVIGATING
-
-    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
-        """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
-        covariance from the initial diagonal, the fix's sigmas and the horizontal velocity's
-        sigma_vel."""
-        ins = self.ins
-        p = self._tmp4
-        self._lever_n(p)
-        if age < 0:
-            age = 0
-        t = f32.f32(age) * self.cfg.dt_s
-        for i in range(3):
-            # IMU = antenna - C_bn lever, carried forward over the fix's age
-            p[i] = (gp[i] - p[i]) + v[i] * t
-        ins.reset_kinematics(p, v)
-        ini = self._init
-        ini[0] = sigma_h * sigma_h
-        ini[1] = sigma_h * sigma_h
-        ini[2] = sigma_v * sigma_v
-        vv = sigma_vel * sigma_vel
-        ini[eskf.IX_VEL] = vv
-        ini[eskf.IX_VEL + 1] = vv
-        self.kf.reset_p(ini)
-        for i in range(6):
-            self._corr[i] = 0.0
-
-    def _lever_n(self, out):
-        """out[0:3] = C_bn lever_b (antenna offset in the navigation frame)."""
-        c = self.ins.c_bn
-        lv = self.cfg.lever_b_m
-        lx = lv[0]
-        ly = lv[1]
-        lz = lv[2]
-        out[0] = c[0] * lx + c[1] * ly + c[2] * lz
-        out[1] = c[3] * lx + c[4] * ly + c[5] * lz
-        out[2] = c[6] * lx + c[7] * ly + c[8] * lz
-
-    def _sigma_h(self):
-        cfg = self.cfg
-        fx = self._fx
-        s = fx[_FX_SIG_H]
-        if not s > 0.0:
-            s = fx[_FX_HDOP] * cfg.gnss_uere_m
-        if s < cfg.gnss_sigma_floor_m:
-            s = cfg.gnss_sigma_floor_m
-        return s
-
-    def _sigma_v(self, sigma_h):
-        cfg = self.cfg
-        s = self._fx[_FX_SIG_V]
-        if not s > 0.0:
-            s = sigma_h * cfg.gnss_vert_factor
-        if s < cfg.gnss_sigma_floor_m:
-            s = cfg.gnss_sigma_floor_m
-        return s
 
     def _navigate(self):
         ins = self.ins
@@ -599,14 +394,26 @@ class Navigator:
         ins.set_frame(fr)
         self.reanchors += 1
 
+    # ---- filter jobs, injection, resets ----------------------------------------------------
+
     def _schedule(self):
-        """Start the next filter job (the filter is idle)."""
+        """Start the next filter job (the filter is idle): a queued fix (unless propagation is
+        overdue), else propagation, else a zero-velocity update at standstill, else the
+        non-holonomic constraint (the measurement rows: nav_aid.py)."""
         cfg = self.cfg
         kf = self.kf
         overdue = self._since_prop >= 2 * self._ticks_prop
         if self._fix_queued and not overdue:
             self._fix_queued = False
-            self._start_gnss_update()
+            # the state at the fix's measurement time: the ring holds the last RING ticks
+            age = self.tick - self._fix_tick
+            if age < 0:
+                age = 0
+            elif age > RING - 1:
+                age = RING - 1
+            self._start_gnss_update(((self.tick - age) % RING) * 3)
+            self._job = _JOB_GNSS
+            self.updates += 1
         elif self._since_prop >= self._ticks_prop:
             ins = self.ins
             t = f32.f32(self._since_prop) * cfg.dt_s
@@ -616,109 +423,12 @@ class Navigator:
             self._since_prop = 0
         elif cfg.zupt and self.still and self._since_zupt >= self._ticks_zupt:
             self._since_zupt = 0
-            r = cfg.zupt_sigma * cfg.zupt_sigma
-            v = self.ins.v_n
-            for i in range(3):
-                kf.add_scalar(v[i], r, 1, eskf.IX_VEL + i, 1.0)
-            kf.start_update()
+            self._start_zupt()
             self._job = _JOB_AID
         elif cfg.nhc and not self.still and self._since_nhc >= self._ticks_nhc:
             self._since_nhc = 0
             self._start_nhc()
-
-    def _start_gnss_update(self):
-        cfg = self.cfg
-        kf = self.kf
-        ins = self.ins
-        age = self.tick - self._fix_tick
-        if age < 0:
-            age = 0
-        elif age > RING - 1:
-            age = RING - 1
-        b = ((self.tick - age) % RING) * 3
-        rp = self._ring_p
-        rv = self._ring_v
-        corr = self._corr
-        ln = self._tmp4
-        self._lever_n(ln)
-        sh = self._sigma_h()
-        sv = self._sigma_v(sh)
-        rh = sh * sh
-        rv_ = sv * sv
-        gp = self._gp
-        fx = self._fx
-        used = self._used
-        for i in range(3):
-            used[_US_P + i] = gp[i]
-        used[_US_SPEED] = fx[_FX_SPEED]
-        used[_US_COURSE] = fx[_FX_COURSE]
-        used[_US_SIG_H] = sh
-        used[_US_SIG_V] = sv
-        self._used_tick = self._fix_tick
-        lx = ln[0]
-        ly = ln[1]
-        lz = ln[2]
-        # z = (p + C l) - p_gnss = dp + [(C l) x] phi
-        z = (rp[b] + corr[0] + lx) - gp[0]
-        kf.add_scalar(z, rh, 3, 0, 1.0, eskf.IX_ATT + 1, -lz, eskf.IX_ATT + 2, ly)
-        z = (rp[b + 1] + corr[1] + ly) - gp[1]
-        kf.add_scalar(z, rh, 3, 1, 1.0, eskf.IX_ATT, lz, eskf.IX_ATT + 2, -lx)
-        z = (rp[b + 2] + corr[2] + lz) - gp[2]
-        kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
-        course = fx[_FX_COURSE]
-        sp = fx[_FX_SPEED]
-        if course >= 0.0:
-            # (no course, no velocity: standing still is the zero-velocity update's business)
-            ve = sp * sin(course)
-            vn = sp * cos(course)
-            # antenna velocity = v + C (w x l); its attitude sensitivity is neglected
-            w = self._w
-            bg = ins.bg
-            lv = cfg.lever_b_m
-            wx = w[0] - bg[0]
-            wy = w[1] - bg[1]
-            wz = w[2] - bg[2]
-            ax = wy * lv[2] - wz * lv[1]
-            ay = wz * lv[0] - wx * lv[2]
-            az = wx * lv[1] - wy * lv[0]
-            c = ins.c_bn
-            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
-            z = (rv[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve
-            kf.add_scalar(z, rvel, 1, eskf.IX_VEL, 1.0)
-            z = (rv[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn
-            kf.add_scalar(z, rvel, 1, eskf.IX_VEL + 1, 1.0)
-        kf.start_update()
-        self._job = _JOB_GNSS
-        self.updates += 1
-
-    def _start_nhc(self):
-        """Body lateral (x) and vertical (z) velocity are zero for a car: z = (C_bn^T v)_k,
-        h = [0, c_k^T, (v x c_k)^T, 0, 0] with c_k the k-th column of C_bn."""
-        kf = self.kf
-        ins = self.ins
-        c = ins.c_bn
-        v = ins.v_n
-        v0 = v[0]
-        v1 = v[1]
-        v2 = v[2]
-        r = self.cfg.nhc_sigma * self.cfg.nhc_sigma
-        for k in range(0, 3, 2):
-            c0 = c[k]
-            c1 = c[3 + k]
-            c2 = c[6 + k]
-            z = c0 * v0 + c1 * v1 + c2 * v2
-            m = kf.add_scalar(z, r, 3, eskf.IX_VEL, c0, eskf.IX_VEL + 1, c1, eskf.IX_VEL + 2, c2)
-            kf.add_scalar_terms(
-                m,
-                eskf.IX_ATT,
-                v1 * c2 - v2 * c1,
-                eskf.IX_ATT + 1,
-                v2 * c0 - v0 * c2,
-                eskf.IX_ATT + 2,
-                v0 * c1 - v1 * c0,
-            )
-        kf.start_update()
-        self._job = _JOB_AID
+            self._job = _JOB_AID
 
     def _inject(self):
         """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
@@ -764,31 +474,30 @@ class Navigator:
                     self._gated_until = self.tick + self._ticks_second
         self._job = _JOB_NONE
 
-    def _reset_to_gnss(self):
-        """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
-        and horizontal velocity from the fix it last rejected (the navigator's own velocity,
-        with the track start's wider sigma, when the fix has no course), a fresh covariance;
-        attitude and biases are kept."""
+    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
+        """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
+        covariance from the initial diagonal, the fix's sigmas and the horizontal velocity's
+        sigma_vel."""
         ins = self.ins
-        used = self._used
-        v = self._tmp3
-        course = used[_US_COURSE]
-        sp = used[_US_SPEED]
-        v[2] = ins.v_n[2]
-        if course >= 0.0:
-            v[0] = sp * sin(course)
-            v[1] = sp * cos(course)
-        else:
-            v[0] = ins.v_n[0]
-            v[1] = ins.v_n[1]
-        sh = used[_US_SIG_H]
-        sv = used[_US_SIG_V]
-        sigma_vel = self.cfg.init_vel_sigma
-        if course < 0.0:  # the velocity is the navigator's own, and it has drifted
-            sigma_vel = self.cfg.track_vel_sigma
-        self._restart(used, v, self.tick - self._used_tick, sh, sv, sigma_vel)
-        self._rejects = 0
-        self.resets += 1
+        p = self._tmp4
+        self._lever_n(p)
+        if age < 0:
+            age = 0
+        t = f32.f32(age) * self.cfg.dt_s
+        for i in range(3):
+            # IMU = antenna - C_bn lever, carried forward over the fix's age
+            p[i] = (gp[i] - p[i]) + v[i] * t
+        ins.reset_kinematics(p, v)
+        ini = self._init
+        ini[0] = sigma_h * sigma_h
+        ini[1] = sigma_h * sigma_h
+        ini[2] = sigma_v * sigma_v
+        vv = sigma_vel * sigma_vel
+        ini[eskf.IX_VEL] = vv
+        ini[eskf.IX_VEL + 1] = vv
+        self.kf.reset_p(ini)
+        for i in range(6):
+            self._corr[i] = 0.0
 
     def _fault_reset(self):
         """Non-finite state or covariance: back to a safe state and re-align."""

@@ -19,7 +19,7 @@ Conventions (stated once for the whole firmware; seed 001 sections 5.1-5.4):
   sin(|theta|/2)], a right-multiplication by the body increment.
 
 Every function writes into caller buffers and allocates nothing but float results.
-The NumPy model `host_emulator/reference/rot.py` mirrors each operation in order.
+The NumPy model `host_emulator/model/rot.py` mirrors each operation in order.
 """
 
 import f32
@@ -35,11 +35,11 @@ ROLL = 2
 #   sin(|theta|/2)/|theta| = 1/2 - n2/48 + n2^2/3840 - ...
 # Below |theta| = 1/8 rad (1432 deg/s at 200 Hz) the next terms are < 1e-10, far below a
 # float32 ulp of the result, so the series is exact to float32 and needs no division.
-_SERIES_MAX_N2 = f32.ratio(1, 64)
-_C8 = f32.ratio(1, 8)
-_C384 = f32.ratio(1, 384)
-_C48 = f32.ratio(1, 48)
-_C3840 = f32.ratio(1, 3840)
+SERIES_MAX_N2 = f32.ratio(1, 64)
+C8 = f32.ratio(1, 8)
+C384 = f32.ratio(1, 384)
+C48 = f32.ratio(1, 48)
+C3840 = f32.ratio(1, 3840)
 
 
 def _store_canonical(q, w, x, y, z):
@@ -78,14 +78,6 @@ def q_mul(out, p, q):
     out[3] = pw * qz + px * qy - py * qx + pz * qw
 
 
-def q_conj(out, q):
-    """out = q* (the inverse rotation for a unit quaternion); out may alias q."""
-    out[0] = q[0]
-    out[1] = -q[1]
-    out[2] = -q[2]
-    out[3] = -q[3]
-
-
 def q_normalize(q):
     """Scale q to unit norm in place; a zero or non-finite q becomes identity (returns False)."""
     w = q[0]
@@ -106,9 +98,9 @@ def q_normalize(q):
 
 def _half_angle(cs, n2):
     """cs = [cos(|theta|/2), sin(|theta|/2)/|theta|] for n2 = |theta|^2 (series when small)."""
-    if n2 < _SERIES_MAX_N2:
-        cs[0] = 1.0 - n2 * (_C8 - n2 * _C384)
-        cs[1] = 0.5 - n2 * (_C48 - n2 * _C3840)
+    if n2 < SERIES_MAX_N2:
+        cs[0] = 1.0 - n2 * (C8 - n2 * C384)
+        cs[1] = 0.5 - n2 * (C48 - n2 * C3840)
     else:
         n = sqrt(n2)
         h = 0.5 * n

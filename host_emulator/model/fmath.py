@@ -38,23 +38,23 @@ def _f32(a):
 
 
 def _sin_poly(z):
-    return (fw._S3 * z + fw._S2) * z + fw._S1
+    return (fw.S3 * z + fw.S2) * z + fw.S1
 
 
 def _cos_poly(z):
-    return (fw._C3 * z + fw._C2) * z + fw._C1
+    return (fw.C3 * z + fw.C2) * z + fw.C1
 
 
 def _atan_poly(z):
-    return (((fw._A5 * z + fw._A4) * z + fw._A3) * z + fw._A2) * z + fw._A1
+    return (((fw.A5 * z + fw.A4) * z + fw.A3) * z + fw.A2) * z + fw.A1
 
 
 def _asin_poly(z):
-    return ((((fw._B6 * z + fw._B5) * z + fw._B4) * z + fw._B3) * z + fw._B2) * z + fw._B1
+    return ((((fw.B6 * z + fw.B5) * z + fw.B4) * z + fw.B3) * z + fw.B2) * z + fw.B1
 
 
 def _near_zero(x):
-    return (fw._MINUS_QUARTER_PI <= x) & (x <= fw.QUARTER_PI)
+    return (fw.MINUS_QUARTER_PI <= x) & (x <= fw.QUARTER_PI)
 
 
 @_all_branches
@@ -78,16 +78,16 @@ def cos(x):
 
 def _reduced(x, shift):
     """sin (shift 0) or cos (shift 1) through x = k pi/2 + r + rl; NaN outside |x| <= 8192."""
-    inside = (fw._MINUS_SINCOS_MAX <= x) & (x <= fw._SINCOS_MAX)
+    inside = (fw.MINUS_SINCOS_MAX <= x) & (x <= fw.SINCOS_MAX)
     x = np.where(inside, x, F32(0.0))  # keep NaN and inf away from the integer conversion
-    t = x * fw._TWO_OVER_PI
+    t = x * fw.TWO_OVER_PI
     k = np.where(x > 0, np.trunc(t + _HALF), np.trunc(t - _HALF)).astype(np.int64)
     fk = k.astype(F32)
-    r2 = (x - fk * fw._PIO2_1) - fk * fw._PIO2_2
-    tail = fk * fw._PIO2_3
+    r2 = (x - fk * fw.PIO2_1) - fk * fw.PIO2_2
+    tail = fk * fw.PIO2_3
     r_coarse = r2 - tail
-    fine = (fw._MINUS_FINE < r_coarse) & (r_coarse < fw._FINE)
-    r_fine = ((r2 - fk * fw._PIO2_3A) - fk * fw._PIO2_3B) - fk * fw._PIO2_4
+    fine = (fw.MINUS_FINE < r_coarse) & (r_coarse < fw.FINE)
+    r_fine = ((r2 - fk * fw.PIO2_3A) - fk * fw.PIO2_3B) - fk * fw.PIO2_4
     r = np.where(fine, r_fine, r_coarse)
     rl = np.where(fine, F32(0.0), (r2 - r_coarse) - tail)
     z = r * r
@@ -98,7 +98,7 @@ def _reduced(x, shift):
     sin_r = r + (_sin_poly(z) * z * r + rl)
     y = np.where(q & 1, cos_r, sin_r)
     y = np.where(q & 2, -y, y)
-    return np.where(inside, y, fw._NAN)
+    return np.where(inside, y, fw.NAN)
 
 
 @_all_branches
@@ -106,8 +106,8 @@ def atan2(y, x):
     y, x = np.broadcast_arrays(_f32(y), _f32(x))
     ax = np.where(x < 0, -x, x)  # not np.abs: a -0.0 stays -0.0 as in the firmware
     ay = np.where(y < 0, -y, y)
-    finite = (ax <= fw._FLT_MAX) & (ay <= fw._FLT_MAX)
-    huge = (ax > fw._HUGE) | (ay > fw._HUGE)
+    finite = (ax <= fw.FLT_MAX) & (ay <= fw.FLT_MAX)
+    huge = (ax > fw.HUGE) | (ay > fw.HUGE)
     ax = np.where(huge, ax * _HALF, ax)
     ay = np.where(huge, ay * _HALF, ay)
     below = ay <= ax  # angle within pi/4 of the x axis
@@ -122,17 +122,17 @@ def atan2(y, x):
     a = np.select(
         [left & zone0, left & middle, left & zone2, zone0, middle],
         [
-            (fw._PI_LO - p) + fw.PI,
-            (fw._3PI_4_LO - p) + fw._3PI_4,
-            (fw._HALF_PI_LO + p) + fw.HALF_PI,
+            (fw.PI_LO - p) + fw.PI,
+            (fw.THREE_QUARTER_PI_LO - p) + fw.THREE_QUARTER_PI,
+            (fw.HALF_PI_LO + p) + fw.HALF_PI,
             p,
-            (fw._QUARTER_PI_LO + p) + fw.QUARTER_PI,
+            (fw.QUARTER_PI_LO + p) + fw.QUARTER_PI,
         ],
-        (fw._HALF_PI_LO - p) + fw.HALF_PI,
+        (fw.HALF_PI_LO - p) + fw.HALF_PI,
     )
     a = np.where(y < 0, -a, a)
     a = np.where(below & (y == 0), np.where(x < 0, fw.PI, y), a)
-    return np.where(finite, a, fw._NAN)
+    return np.where(finite, a, fw.NAN)
 
 
 @_all_branches
@@ -145,10 +145,10 @@ def asin(x):
     zf = _HALF * (_ONE - a)
     s = np.sqrt(np.where(inside, zf, F32(0.0)))  # the firmware never takes sqrt(negative)
     p = _asin_poly(zf) * zf * s + s
-    r = (fw._HALF_PI_LO - (p + p)) + fw.HALF_PI
+    r = (fw.HALF_PI_LO - (p + p)) + fw.HALF_PI
     r = np.where(x < 0, -r, r)
-    clamped = np.where(x < 0, fw._MINUS_HALF_PI, fw.HALF_PI)
-    outside = np.where(a <= fw._FLT_MAX, clamped, fw._NAN)
+    clamped = np.where(x < 0, fw.MINUS_HALF_PI, fw.HALF_PI)
+    outside = np.where(a <= fw.FLT_MAX, clamped, fw.NAN)
     y_far = np.where(inside, r, outside)
-    split = (fw._MINUS_ASIN_SPLIT <= x) & (x <= fw._ASIN_SPLIT)
+    split = (fw.MINUS_ASIN_SPLIT <= x) & (x <= fw.ASIN_SPLIT)
     return np.where(split, y_near, y_far)

@@ -14,8 +14,8 @@ F32 = np.float32
 
 def coefficients(lat0_e7, h0_m):
     """The firmware's coefficient buffer for an origin (float32, indexed like `LocalFrame.coef`)."""
-    c = np.zeros(fw._NCOEF, dtype=F32)
-    phi0 = F32(lat0_e7) * fw._RAD_PER_E7
+    c = np.zeros(fw.NCOEF, dtype=F32)
+    phi0 = F32(lat0_e7) * fw.RAD_PER_E7
     s = fmath.sin(np.array([phi0]))[0]
     co = fmath.cos(np.array([phi0]))[0]
     one, half = F32(1.0), F32(0.5)
@@ -26,30 +26,30 @@ def coefficients(lat0_e7, h0_m):
     h0 = F32(h0_m)
     rn_h, rm_h = rn + h0, rm + h0
     tan = s / co
-    c[fw._H0] = h0
-    c[fw._KE] = fw._RAD_PER_E7 * rn_h * co
-    c[fw._KN] = fw._RAD_PER_E7 * rm_h
-    c[fw._GE_N] = rm * tan / (rm_h * rn_h)
-    c[fw._GE_H] = one / rn_h
-    c[fw._GN_N] = half * drm / (rm_h * rm_h)
-    c[fw._GN_H] = one / rm_h
-    c[fw._GN_E] = half * tan / rn_h
-    c[fw._GU_N] = half / rm_h
-    c[fw._GU_E] = half / rn_h
-    c[fw._SIN_LAT] = s
-    c[fw._COS_LAT] = co
+    c[fw.H0] = h0
+    c[fw.KE] = fw.RAD_PER_E7 * rn_h * co
+    c[fw.KN] = fw.RAD_PER_E7 * rm_h
+    c[fw.GE_N] = rm * tan / (rm_h * rn_h)
+    c[fw.INV_RN] = one / rn_h
+    c[fw.GN_N] = half * drm / (rm_h * rm_h)
+    c[fw.INV_RM] = one / rm_h
+    c[fw.GN_E] = half * tan / rn_h
+    c[fw.GU_N] = half / rm_h
+    c[fw.GU_E] = half / rn_h
+    c[fw.SIN_LAT] = s
+    c[fw.COS_LAT] = co
     return c
 
 
 def offset_to_enu(c, dlat_e7, dlon_e7, h_m):
     """ENU (..., 3) of integer offsets (|d| < 2**24) at heights h_m, given `coefficients`."""
-    dh = np.asarray(h_m, dtype=F32) - c[fw._H0]
-    n1 = np.asarray(dlat_e7).astype(F32) * c[fw._KN]
-    e1 = np.asarray(dlon_e7).astype(F32) * c[fw._KE]
+    dh = np.asarray(h_m, dtype=F32) - c[fw.H0]
+    n1 = np.asarray(dlat_e7).astype(F32) * c[fw.KN]
+    e1 = np.asarray(dlon_e7).astype(F32) * c[fw.KE]
     ee, nn = e1 * e1, n1 * n1
-    e = e1 + e1 * (dh * c[fw._GE_H] - n1 * c[fw._GE_N])
-    n = n1 + (n1 * (n1 * c[fw._GN_N] + dh * c[fw._GN_H]) + ee * c[fw._GN_E])
-    u = dh - (nn * c[fw._GU_N] + ee * c[fw._GU_E])
+    e = e1 + e1 * (dh * c[fw.INV_RN] - n1 * c[fw.GE_N])
+    n = n1 + (n1 * (n1 * c[fw.GN_N] + dh * c[fw.INV_RM]) + ee * c[fw.GN_E])
+    u = dh - (nn * c[fw.GU_N] + ee * c[fw.GU_E])
     return np.stack(np.broadcast_arrays(e, n, u), axis=-1)
 
 
@@ -65,11 +65,11 @@ def to_e7(c, lat0_e7, lon0_e7, enu):
     one = F32(1.0)
     for _ in range(3):
         ee = e1 * e1
-        dh = u + (n1 * n1 * c[fw._GU_N] + ee * c[fw._GU_E])
-        e1 = e / (one + (dh * c[fw._GE_H] - n1 * c[fw._GE_N]))
-        n1 = (n - ee * c[fw._GN_E]) / (one + (n1 * c[fw._GN_N] + dh * c[fw._GN_H]))
-    lat = lat0_e7 + _round_half_away(n1 / c[fw._KN])
-    lon = lon0_e7 + _round_half_away(e1 / c[fw._KE])
-    lon = np.where(lon >= fw._HALF_TURN_E7, lon - fw._FULL_TURN_E7, lon)
-    lon = np.where(lon < -fw._HALF_TURN_E7, lon + fw._FULL_TURN_E7, lon)
-    return lat, lon, c[fw._H0] + dh
+        dh = u + (n1 * n1 * c[fw.GU_N] + ee * c[fw.GU_E])
+        e1 = e / (one + (dh * c[fw.INV_RN] - n1 * c[fw.GE_N]))
+        n1 = (n - ee * c[fw.GN_E]) / (one + (n1 * c[fw.GN_N] + dh * c[fw.INV_RM]))
+    lat = lat0_e7 + _round_half_away(n1 / c[fw.KN])
+    lon = lon0_e7 + _round_half_away(e1 / c[fw.KE])
+    lon = np.where(lon >= fw.HALF_TURN_E7, lon - fw.FULL_TURN_E7, lon)
+    lon = np.where(lon < -fw.HALF_TURN_E7, lon + fw.FULL_TURN_E7, lon)
+    return lat, lon, c[fw.H0] + dh

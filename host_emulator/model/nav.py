@@ -1,474 +1,61 @@
-"""NumPy float32 model of the navigator: `firmware/lib/ins.py`, `eskf.py` and `nav.py`.
+"""NumPy float32 model of `firmware/lib/nav.py`: the navigator, tick by tick, bit for bit.
 
-An independent implementation of the same equations, written at matrix level where the
+An independent implementation of the same equations, written at vector level where the
 firmware loops, that repeats every float32 operation of the firmware in the same order and
-grouping. Fed the same inputs, its state equals the firmware's bit for bit after every tick
-(`tests/reference/test_nav_model.py`): position, velocity, attitude, biases, the 15x15
-covariance *between* the slices of the time-distributed filter, the state-history ring, the
-standstill detector and every counter. Frames, units and sign conventions are the firmware's
-(ENU navigation frame at an integer origin, body x right / y forward / z up, error state
-dp dv phi dbg dba with nominal-minus-true errors); see the firmware modules.
+grouping (f32ops.py says how). Fed the same inputs, its state equals the firmware's bit for bit
+after every tick (`tests/model/test_nav_model.py`): position, velocity, attitude, biases, the
+15x15 covariance *between* the slices of the time-distributed filter, the state-history ring,
+the standstill detector and every counter. Frames, units and sign conventions are the
+firmware's (ENU navigation frame at an integer origin, body x right / y forward / z up, error
+state dp dv phi dbg dba with nominal-minus-true errors); see the firmware modules.
 
-How it stays bit-exact:
-- every value is a `numpy.float32` scalar or array; Python floats only meet float32 operands
-  (NumPy 2 turns `0.5 * x` into one float32 operation, like the board);
-- elementwise array operations round each element exactly as the firmware's scalar statement,
-  so a statement repeated over i = 0, 1, 2 becomes one vector expression; sums keep the
-  firmware's left-to-right grouping, written out term by term (`_mat_vec`, `_cross`), never `@`;
-- sums that start from `0.0` in the firmware start from a float32 zero here (0.0 + -0.0 = +0.0);
-- where the firmware branches per element (diagonal clamping, the gate) the model branches too;
-- sin, cos, atan2, asin, quaternion updates and the geodetic series come from the bit-exact
-  models `reference/fmath.py`, `reference/rot.py` and `reference/geo.py`;
-- constants are the firmware modules' own objects; the few the firmware builds inline (P floors
-  and ceilings) are rebuilt from the same integer ratios.
-
-Time distribution (eskf.py) is mirrored slice for slice: `work(n)` runs n slices per tick, the
-same slices as the firmware, so the covariance matches between ticks, not only at job ends.
+The files mirror the firmware's, one model beside each firmware module:
+- ins.py `InsModel` (firmware/lib/ins.py), eskf.py `EskfModel` (eskf.py);
+- here `NavModel` (nav.py): inputs, calibration, standstill, the per-tick flow, fix screening
+  and re-anchoring (with geo.LocalFrame's origin), the delay ring, scheduling, injection,
+  resets, health, and `snapshot` for the comparisons;
+- nav_align.py `AlignmentModel` (nav_align.py) and nav_aid.py `AidingModel` (nav_aid.py),
+  mixins of NavModel as the firmware's are of Navigator;
+- sin, cos, atan2, asin, quaternions and the geodetic series from the bit-exact models
+  fmath.py, rot.py and geo.py; constants are the firmware modules' own objects (the few the
+  firmware builds inline, P floors and ceilings, are rebuilt from the same integer ratios).
 """
 
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.model import fmath as ref_fmath
 from host_emulator.model import geo as ref_geo
 from host_emulator.model import rot as ref_rot
+from host_emulator.model.eskf import IDLE, IX_ATT, IX_BA, IX_BG, IX_POS, IX_VEL, EskfModel, N
+from host_emulator.model.f32ops import F32, HALF, ONE, TWO, ZERO, mat_vec, ratio, sum_left, vec
+from host_emulator.model.ins import InsModel
+from host_emulator.model.nav_aid import AidingModel
+from host_emulator.model.nav_align import AlignmentModel
 
 firmware_env.install()
-import eskf as fw_eskf  # noqa: E402  (constants and state indices, shared with the firmware)
-import ins as fw_ins  # noqa: E402
-import nav as fw_nav  # noqa: E402
+import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
 
-import fmath as fw_fmath  # noqa: E402
 import geo as fw_geo  # noqa: E402
-import rot as fw_rot  # noqa: E402
-
-F32 = np.float32
-_ZERO = F32(0.0)
-_HALF = F32(0.5)
-_ONE = F32(1.0)
-_TWO = F32(2.0)
-
-N = fw_eskf.N
-IX_POS = fw_eskf.IX_POS
-IX_VEL = fw_eskf.IX_VEL
-IX_ATT = fw_eskf.IX_ATT
-IX_BG = fw_eskf.IX_BG
-IX_BA = fw_eskf.IX_BA
-IDLE = fw_eskf.IDLE
-PROPAGATING = fw_eskf.PROPAGATING
-UPDATING = fw_eskf.UPDATING
 
 ALIGNING = fw_nav.ALIGNING
 NAVIGATING = fw_nav.NAVIGATING
 RING = fw_nav.RING
+# The job codes are private consts in the firmware (inlined on the board, no global there);
+# on CPython they are plain module attributes, so the model reads them rather than retyping.
 JOB_NONE = fw_nav._JOB_NONE
 JOB_GNSS = fw_nav._JOB_GNSS
 JOB_AID = fw_nav._JOB_AID
 
 
-# ---- small float32 helpers ------------------------------------------------------------------
-
-
-def _ratio(num, den):
-    """num / den as one float32 division (the firmware's f32.ratio)."""
-    return F32(num) / F32(den)
-
-
-def _vec(*xs):
-    return np.array(xs, dtype=F32)
-
-
-def _cross(a, b):
-    """a x b, component k = a_i b_j - a_j b_i as the firmware writes each cross product."""
-    return _vec(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _mat_vec(c, x):
-    """C x for a 3x3 C, every row summed left to right: (c_i0 x0 + c_i1 x1) + c_i2 x2."""
-    return (c[:, 0] * x[0] + c[:, 1] * x[1]) + c[:, 2] * x[2]
-
-
-def _sum_left(xs):
-    """x0 + x1 + ... evaluated left to right."""
-    s = xs[0]
-    for x in xs[1:]:
-        s = s + x
-    return s
-
-
 def _ticks(seconds, dt):
     """Whole ticks in `seconds`: int(seconds / dt + 0.5), rounded in float32, truncated."""
-    return int(F32(seconds) / dt + _HALF)
+    return int(F32(seconds) / dt + HALF)
 
 
-def _q_from_rotvec(theta):
-    """[cos(|t|/2), sin(|t|/2) t/|t|] with rot.py's series below |t|^2 = 1/64 (no normalising)."""
-    n2 = (theta[0] * theta[0] + theta[1] * theta[1]) + theta[2] * theta[2]
-    if n2 < fw_rot._SERIES_MAX_N2:
-        c = _ONE - n2 * (fw_rot._C8 - n2 * fw_rot._C384)
-        s = _HALF - n2 * (fw_rot._C48 - n2 * fw_rot._C3840)
-    else:
-        n = np.sqrt(n2)
-        h = _HALF * n
-        c = ref_fmath.cos(h)
-        s = ref_fmath.sin(h) / n
-    return _vec(c, s * theta[0], s * theta[1], s * theta[2])
-
-
-def _q_normalized(q):
-    return ref_rot.q_normalize(q)[0]
-
-
-# ---- strapdown mechanization (ins.py) -------------------------------------------------------
-
-
-class InsModel:
-    """Nominal state in the Earth-fixed ENU frame of the origin.
-
-        q_bn' = 1/2 q_bn (x) w_ib_b - 1/2 w_ie_n (x) q_bn
-        v_n'  = C_bn f_b - 2 w_ie_n x v_n + g_n(p_n)
-        p_n'  = v_n
-    per tick: theta = (w - b_g) dt, dv = (f - b_a) dt, optional two-sample coning/sculling,
-    dv += theta x dv / 2, v += C_bn(k-1) dv + a_n dt, q <- q (x) q(theta), and the trapezoidal
-    position step with Kahan compensation. a_n = g_n - 2 w_ie x v and the Earth rotation of
-    the attitude are refreshed by `slow_update`.
-    """
-
-    def __init__(self, dt_s, earth_terms=True, coning=True):
-        self.dt = F32(dt_s)
-        self.half_dt = self.dt * _HALF
-        self.earth_terms = earth_terms
-        self.coning = coning
-        self.p_n = np.zeros(3, F32)  # m
-        self.v_n = np.zeros(3, F32)  # m/s
-        self.q_bn = _vec(1, 0, 0, 0)
-        self.c_bn = ref_rot.q_to_dcm(self.q_bn)  # (3, 3)
-        self.bg = np.zeros(3, F32)  # rad/s
-        self.ba = np.zeros(3, F32)  # m/s^2
-        self.dvn_sum = np.zeros(3, F32)  # sum of C_bn dv since take_dvn, m/s
-        self.a_n = np.zeros(3, F32)  # gravity + Coriolis, m/s^2
-        self.w_ie_n = np.zeros(3, F32)  # Earth rate, rad/s
-        self.p_comp = np.zeros(3, F32)  # Kahan compensation of p_n
-        self.theta_prev = np.zeros(3, F32)
-        self.dv_prev = np.zeros(3, F32)
-        self.g0 = _ZERO  # normal gravity at the origin
-        self.inv_rn = _ZERO
-        self.inv_rm = _ZERO
-        self.h0 = _ZERO
-
-    def set_frame(self, coef):
-        """Earth model of the origin: g0 = gamma_e (1 + k sin^2 L) / sqrt(1 - e^2 sin^2 L)."""
-        s = coef[fw_geo.SIN_LAT]
-        co = coef[fw_geo.COS_LAT]
-        s2 = s * s
-        self.g0 = (
-            fw_ins._GAMMA_E * (_ONE + fw_ins._SOMIGLIANA_K * s2) / np.sqrt(_ONE - fw_geo.E2 * s2)
-        )
-        self.inv_rn = coef[fw_geo.INV_RN]
-        self.inv_rm = coef[fw_geo.INV_RM]
-        self.h0 = coef[fw_geo.H0]
-        if self.earth_terms:
-            self.w_ie_n = _vec(0, fw_ins.OMEGA_E * co, fw_ins.OMEGA_E * s)
-        else:
-            self.w_ie_n = _vec(0, 0, 0)
-        self.slow_update(_ZERO)
-
-    def reset_kinematics(self, p_n, v_n):
-        self.p_n = np.array(p_n, F32)
-        self.v_n = np.array(v_n, F32)
-        self.p_comp = np.zeros(3, F32)
-        self.theta_prev = np.zeros(3, F32)
-        self.dv_prev = np.zeros(3, F32)
-
-    def step(self, w_b, f_b):
-        """One tick with body rate w_b (rad/s) and specific force f_b (m/s^2)."""
-        theta = (w_b - self.bg) * self.dt
-        dv = (f_b - self.ba) * self.dt
-        if self.coning:
-            th_prev, dv_prev = self.theta_prev, self.dv_prev
-            self.theta_prev, self.dv_prev = theta, dv
-            # sculling (th_prev x dv + dv_prev x theta) / 12 and coning th_prev x theta / 12,
-            # both from the uncorrected increments
-            scull = (_cross(th_prev, dv) + _cross(dv_prev, theta)) * fw_ins._TWELFTH
-            cone = _cross(th_prev, theta) * fw_ins._TWELFTH
-            theta = theta + cone
-            dv = dv + scull
-        u = dv + _cross(theta, dv) * _HALF  # rotation of dv within the tick
-        dv_n = _mat_vec(self.c_bn, u)  # with C_bn of the previous tick
-        self.dvn_sum = self.dvn_sum + dv_n
-        self.q_bn = ref_rot.q_update(self.q_bn, theta)[0]
-        self.c_bn = ref_rot.q_to_dcm(self.q_bn)
-        # v1 = v0 + dv_n + a_n dt; p += (v0 + v1) dt/2, Kahan-compensated
-        v0 = self.v_n
-        v1 = (v0 + dv_n) + self.a_n * self.dt
-        self.v_n = v1
-        y = (v0 + v1) * self.half_dt - self.p_comp
-        t = self.p_n + y
-        self.p_comp = (t - self.p_n) - y
-        self.p_n = t
-
-    def take_dvn(self):
-        out = self.dvn_sum
-        self.dvn_sum = np.zeros(3, F32)
-        return out
-
-    def slow_update(self, t_s):
-        """Earth rate on the attitude over t_s (q <- q(-w_ie t) (x) q), then
-        a_n = -g [E/(R_N+h), N/(R_M+h), 1] - 2 w_ie x v with w_ie = (0, wy, wz)."""
-        p, v = self.p_n, self.v_n
-        g = self.g0 - fw_ins._FREE_AIR * (self.h0 + p[2])
-        if not self.earth_terms:
-            self.a_n = _vec(0, 0, -g)
-            return
-        w = self.w_ie_n
-        if t_s > 0.0:
-            r = _vec(1, 0, -(w[1] * t_s) * _HALF, -(w[2] * t_s) * _HALF)
-            self.q_bn = _q_normalized(ref_rot.q_mul(r, self.q_bn))
-            self.c_bn = ref_rot.q_to_dcm(self.q_bn)
-        wy2 = w[1] + w[1]
-        wz2 = w[2] + w[2]
-        self.a_n = _vec(
-            -(g * p[0] * self.inv_rn) - (wy2 * v[2] - wz2 * v[1]),
-            -(g * p[1] * self.inv_rm) - wz2 * v[0],
-            wy2 * v[0] - g,
-        )
-
-    def shift_origin(self, dp_n, rho_n):
-        """Re-express the state in the frame whose origin is the old frame's dp_n, rotated by
-        the small rho_n: x_new = x_old - rho x x_old, q_new = q(-rho) (x) q_old."""
-        p = self.p_n - dp_n
-        self.p_n = p - _cross(rho_n, p)
-        self.v_n = self.v_n - _cross(rho_n, self.v_n)
-        r = _vec(1, -rho_n[0] * _HALF, -rho_n[1] * _HALF, -rho_n[2] * _HALF)
-        self.q_bn = _q_normalized(ref_rot.q_mul(r, self.q_bn))
-        self.c_bn = ref_rot.q_to_dcm(self.q_bn)
-        self.p_comp = np.zeros(3, F32)
-
-
-# ---- 15-state error-state Kalman filter (eskf.py) -------------------------------------------
-
-
-class EskfModel:
-    """Error state x = [dp, dv, phi, dbg, dba] (15), covariance P (15x15), time-distributed.
-
-    Propagation P <- Phi P Phi^T + Q T with Phi = I + F T (F of seed 001 eq. 5-28 plus the
-    Earth-rate terms), as 15 column slices A[:, j] = Phi P[j, :] (P symmetric), 15 row slices
-    P[i, i:] = P[i:, i] = (Phi A[i, :])[i:], and one slice adding Q T and clamping the diagonal.
-    Update: per scalar z = h x + noise(r), 3 slices of v = P h^T (5 rows each), one slice for
-    S = h v + r, the gate y^2 <= gate^2 S and K = v / S, x += K y, then 15 Joseph rows
-    P[i, i:] = P[i, i:] - K_i v[i:] - v_i K[i:] + S K_i K[i:]; a last slice clamps the
-    diagonal and raises `ready`.
-    """
-
-    def __init__(self, earth_terms=True):
-        self.earth_terms = earth_terms
-        self.P = np.zeros((N, N), F32)
-        self.dx = np.zeros(N, F32)
-        self.q_psd = np.zeros(N, F32)
-        self.p_floor = np.zeros(N, F32)
-        self.p_ceiling = np.zeros(N, F32)
-        self.A = np.zeros((N, N), F32)  # Phi P, built column by column
-        self.v = np.zeros(N, F32)  # P h^T of the current scalar
-        self.K = np.zeros(N, F32)  # gain of the last accepted scalar
-        self.f_n = np.zeros(3, F32)  # mean specific force over T
-        self.c_bn = np.zeros((3, 3), F32)
-        self.w_ie_n = np.zeros(3, F32)
-        self.T = _ZERO
-        self.decay_g = _ZERO  # 1 - T / tau_g
-        self.decay_a = _ZERO
-        self.S = _ZERO
-        self.Y = _ZERO
-        self.gate2 = _ZERO
-        self.inv_tau_g = _ZERO
-        self.inv_tau_a = _ZERO
-        self.scalars = []  # queued (z, r, [(k, h_k), ...]) in the firmware's non-zero order
-        self.job = IDLE
-        self.step = 0
-        self.m = 0
-        self.ready = False
-        self.accepted = 0
-        self.rejected = 0
-        self.gate_mask = 0
-
-    def set_gate(self, gate_sigma, inv_tau_g, inv_tau_a):
-        self.gate2 = gate_sigma * gate_sigma
-        self.inv_tau_g = inv_tau_g
-        self.inv_tau_a = inv_tau_a
-
-    def reset_p(self, diag):
-        self.P = np.zeros((N, N), F32)
-        self.P[np.arange(N), np.arange(N)] = diag
-        self.dx = np.zeros(N, F32)
-        self.job = IDLE
-        self.ready = False
-        self.scalars = []
-
-    # propagation
-
-    def start_propagation(self, dvn_sum, t_s, c_bn, w_ie_n):
-        self.T = t_s
-        self.decay_g = _ONE - t_s * self.inv_tau_g
-        self.decay_a = _ONE - t_s * self.inv_tau_a
-        self.f_n = dvn_sum / t_s
-        self.w_ie_n = np.array(w_ie_n, F32)
-        self.c_bn = np.array(c_bn, F32)
-        self.job = PROPAGATING
-        self.step = 0
-
-    def phi_apply(self, x):
-        """Phi x for a 15-vector x: F's non-zero blocks
-            dp'  = dv
-            dv'  = f_n x phi + C_bn dba - 2 w_ie x dv
-            phi' = -C_bn dbg - w_ie x phi
-            db'  = -db / tau
-        with w_ie = (0, w1, w2), so the Earth-rate products keep only their non-zero terms."""
-        t = self.T
-        dpos, dvel, att = x[0:3], x[3:6], x[6:9]
-        dbg, dba = x[9:12], x[12:15]
-        c = self.c_bn
-        dv_rate = _cross(self.f_n, att) + _mat_vec(c, dba)
-        att_rate = _mat_vec(c, dbg)  # negated below
-        if self.earth_terms:
-            w1, w2 = self.w_ie_n[1], self.w_ie_n[2]
-            dv_rate = _vec(
-                dv_rate[0] - _TWO * (w1 * dvel[2] - w2 * dvel[1]),
-                dv_rate[1] - _TWO * (w2 * dvel[0]),
-                dv_rate[2] + _TWO * (w1 * dvel[0]),
-            )
-            att_rate = _vec(
-                att_rate[0] + (w1 * att[2] - w2 * att[1]),
-                att_rate[1] + w2 * att[0],
-                att_rate[2] - w1 * att[0],
-            )
-        return np.concatenate(
-            [
-                dpos + t * dvel,
-                dvel + t * dv_rate,
-                att - t * att_rate,
-                self.decay_g * dbg,
-                self.decay_a * dba,
-            ]
-        )
-
-    def _propagation_slice(self):
-        st = self.step
-        if st < N:
-            self.A[:, st] = self.phi_apply(self.P[st, :])  # column st of Phi P
-        elif st < 2 * N:
-            i = st - N
-            row = self.phi_apply(self.A[i, :])[i:]  # row i of (Phi P) Phi^T, upper part
-            self.P[i, i:] = row
-            self.P[i:, i] = row
-        else:
-            d = np.arange(N)
-            self.P[d, d] = self.P[d, d] + self.q_psd * self.T
-            self._clamp_diagonal()
-            self.job = IDLE
-        self.step = st + 1
-
-    # measurement update
-
-    def add_scalar(self, z, r, terms):
-        """Queue z = h x + noise of variance r; terms = [(k, h_k), ...] in the firmware's order
-        (a repeated k would read the last h_k stored, as the firmware's h row does)."""
-        h = dict(terms)
-        self.scalars.append((z, r, [(k, h[k]) for k, _ in terms]))
-
-    def start_update(self):
-        self.job = UPDATING
-        self.step = 0
-        self.m = 0
-        self.accepted = 0
-        self.rejected = 0
-        self.gate_mask = 0
-
-    def _update_slice(self):
-        m = self.m
-        if m >= len(self.scalars):
-            self._clamp_diagonal()
-            self.scalars = []
-            self.job = IDLE
-            self.ready = True
-            return
-        z, r, terms = self.scalars[m]
-        st = self.step
-        if st < 3:
-            rows = slice(5 * st, 5 * st + 5)
-            acc = np.zeros(5, F32)
-            for k, hk in terms:
-                acc = acc + self.P[rows, k] * hk
-            self.v[rows] = acc
-            self.step = st + 1
-            return
-        if st == 3:
-            hv = _ZERO
-            hx = _ZERO
-            for k, hk in terms:
-                hv = hv + hk * self.v[k]
-                hx = hx + hk * self.dx[k]
-            s = hv + r
-            y = z - hx
-            if not (s > 0.0) or y * y > self.gate2 * s:
-                self.rejected += 1
-                self.gate_mask |= 1 << m
-                self.m = m + 1
-                self.step = 0
-                return
-            self.S = s
-            self.Y = y
-            self.K = self.v / s
-            self.dx = self.dx + self.K * y
-            self.accepted += 1
-            self.step = 4
-            return
-        # Joseph form P - K v^T - v K^T + S K K^T, row i, upper triangle mirrored
-        i = st - 4
-        k, v = self.K, self.v
-        ki = k[i]
-        row = ((self.P[i, i:] - ki * v[i:]) - v[i] * k[i:]) + (self.S * ki) * k[i:]
-        self.P[i, i:] = row
-        self.P[i:, i] = row
-        if i == N - 1:
-            self.m = m + 1
-            self.step = 0
-        else:
-            self.step = st + 1
-
-    # common
-
-    def work(self, n):
-        while n > 0 and self.job != IDLE:
-            if self.job == PROPAGATING:
-                self._propagation_slice()
-            else:
-                self._update_slice()
-            n -= 1
-
-    def _clamp_diagonal(self):
-        """Floor each variance; a variance d above its ceiling scales row and column i by
-        sqrt(ceiling / d) (the diagonal element twice), in index order."""
-        P = self.P
-        for i in range(N):
-            d = P[i, i]
-            if d < self.p_floor[i]:
-                P[i, i] = self.p_floor[i]
-            elif d > self.p_ceiling[i]:
-                g = np.sqrt(self.p_ceiling[i] / d)
-                P[i, :] = P[i, :] * g
-                P[:, i] = P[:, i] * g
-
-    def diagonal_ok(self):
-        d = np.diagonal(self.P)
-        return bool(np.all(d > 0.0) and np.all(d - d == 0.0))
-
-
-# ---- the navigator (nav.py) -----------------------------------------------------------------
-
-
-class NavModel:
-    """Alignment, mechanization, filter scheduling, GNSS/ZUPT/NHC updates, injection, health
-    and re-anchoring, tick by tick like `nav.Navigator` (same inputs: `imu_raw`/`imu`, `gnss`).
-    """
+class NavModel(AlignmentModel, AidingModel):
+    """The navigator tick by tick like `nav.Navigator` (same inputs: `imu_raw`/`imu`, `gnss`):
+    mechanization, scheduling, injection, resets, health and re-anchoring here, alignment in
+    AlignmentModel (nav_align.py), the measurement rows in AidingModel (nav_aid.py)."""
 
     def __init__(self, cfg):
         self.cfg = cfg
@@ -479,7 +66,7 @@ class NavModel:
         self.origin_lat_e7 = 0
         self.origin_lon_e7 = 0
         self.frame_valid = False
-        self.coef = np.zeros(fw_geo._NCOEF, F32)
+        self.coef = np.zeros(fw_geo.NCOEF, F32)
         self.state = ALIGNING
         self.health = 0
         self.tick = 0
@@ -522,21 +109,21 @@ class NavModel:
         kf = self.kf
         vrw2 = cfg.accel_vrw * cfg.accel_vrw
         arw2 = cfg.gyro_arw * cfg.gyro_arw
-        qbg = _TWO * cfg.gyro_bias_sigma * cfg.gyro_bias_sigma / cfg.gyro_bias_tau_s
-        qba = _TWO * cfg.accel_bias_sigma * cfg.accel_bias_sigma / cfg.accel_bias_tau_s
+        qbg = TWO * cfg.gyro_bias_sigma * cfg.gyro_bias_sigma / cfg.gyro_bias_tau_s
+        qba = TWO * cfg.accel_bias_sigma * cfg.accel_bias_sigma / cfg.accel_bias_tau_s
         # per block of three: position, velocity, attitude, gyro bias, accelerometer bias
-        kf.q_psd = np.repeat(_vec(0, vrw2, arw2, qbg, qba), 3)
+        kf.q_psd = np.repeat(vec(0, vrw2, arw2, qbg, qba), 3)
         kf.p_floor = np.repeat(
-            _vec(
-                _ratio(1, 10000),  # (1 cm)^2
-                _ratio(1, 1000000),  # (1 mm/s)^2
-                _ratio(1, 100000000),  # (0.1 mrad)^2
-                _ratio(1, 1000000) * _ratio(1, 1000000),  # (1e-6 rad/s)^2
-                _ratio(1, 100000000),  # (1e-4 m/s^2)^2
+            vec(
+                ratio(1, 10000),  # (1 cm)^2
+                ratio(1, 1000000),  # (1 mm/s)^2
+                ratio(1, 100000000),  # (0.1 mrad)^2
+                ratio(1, 1000000) * ratio(1, 1000000),  # (1e-6 rad/s)^2
+                ratio(1, 100000000),  # (1e-4 m/s^2)^2
             ),
             3,
         )
-        kf.p_ceiling = np.repeat(_vec(100000000, 10000, 10, _ratio(1, 100), 1), 3)
+        kf.p_ceiling = np.repeat(vec(100000000, 10000, 10, ratio(1, 100), 1), 3)
         ini = self.init_diag
         ini[IX_VEL : IX_VEL + 3] = cfg.init_vel_sigma * cfg.init_vel_sigma
         ini[IX_BG : IX_BG + 3] = cfg.init_gyro_bias_sigma * cfg.init_gyro_bias_sigma
@@ -545,7 +132,7 @@ class NavModel:
         ini[IX_ATT] = tilt2
         ini[IX_ATT + 1] = tilt2
         ini[IX_ATT + 2] = cfg.init_yaw_sigma * cfg.init_yaw_sigma
-        kf.set_gate(cfg.gate_sigma, _ONE / cfg.gyro_bias_tau_s, _ONE / cfg.accel_bias_tau_s)
+        kf.set_gate(cfg.gate_sigma, ONE / cfg.gyro_bias_tau_s, ONE / cfg.accel_bias_tau_s)
 
     def _reset_counters(self):
         self.leveled = False
@@ -580,7 +167,7 @@ class NavModel:
     # ---- frame (geo.LocalFrame) ----
 
     def _set_origin(self, lat_e7, lon_e7, h_m):
-        if lat_e7 > fw_geo._MAX_LAT_E7 or lat_e7 < -fw_geo._MAX_LAT_E7:
+        if lat_e7 > fw_geo.MAX_LAT_E7 or lat_e7 < -fw_geo.MAX_LAT_E7:
             return False
         self.coef = ref_geo.coefficients(lat_e7, h_m)
         self.origin_lat_e7 = lat_e7
@@ -590,10 +177,10 @@ class NavModel:
 
     def _to_enu(self, lat_e7, lon_e7, h_m):
         dlon = lon_e7 - self.origin_lon_e7
-        if dlon > fw_geo._HALF_TURN_E7:
-            dlon -= fw_geo._FULL_TURN_E7
-        elif dlon < -fw_geo._HALF_TURN_E7:
-            dlon += fw_geo._FULL_TURN_E7
+        if dlon > fw_geo.HALF_TURN_E7:
+            dlon -= fw_geo.FULL_TURN_E7
+        elif dlon < -fw_geo.HALF_TURN_E7:
+            dlon += fw_geo.FULL_TURN_E7
         return ref_geo.offset_to_enu(self.coef, lat_e7 - self.origin_lat_e7, dlon, h_m)
 
     # ---- inputs ----
@@ -648,7 +235,7 @@ class NavModel:
         cfg = self.cfg
         self.w_b = _apply_cal(w_in, cfg.gyro_bias0, cfg.gyro_matrix)
         self.f_b = _apply_cal(f_in, cfg.accel_bias0, cfg.accel_matrix)
-        s = _sum_left([*self.w_b, *self.f_b])
+        s = sum_left([*self.w_b, *self.f_b])
         return s - s == 0.0
 
     def _still_update(self):
@@ -658,12 +245,12 @@ class NavModel:
         still after `still_s` of quiet."""
         cfg = self.cfg
         lp = self.still_lp
-        alpha = fw_nav._STILL_ALPHA
+        alpha = fw_nav.STILL_ALPHA
         if self.tick == 4:
             lp[0:3] = self.f_b
         d = self.f_b - lp[0:3]
         lp[0:3] = lp[0:3] + alpha * d
-        var = _sum_left([_ZERO, d[0] * d[0], d[1] * d[1], d[2] * d[2]])
+        var = sum_left([ZERO, d[0] * d[0], d[1] * d[1], d[2] * d[2]])
         lp[3] = lp[3] + alpha * (var - lp[3])
         w = self.w_b - self.ins.bg
         lp[4] = lp[4] + alpha * (((w[0] * w[0] + w[1] * w[1]) + w[2] * w[2]) - lp[4])
@@ -681,47 +268,6 @@ class NavModel:
         self.n_still = self.n_still + 4 if quiet else 0
         self.still = self.n_still >= self.ticks_still
 
-    def _align(self):
-        ins = self.ins
-        if self.still or not self.leveled:
-            self.level_sums[0:3] = self.level_sums[0:3] + self.f_b
-            self.level_sums[3:6] = self.level_sums[3:6] + self.w_b
-            self.n_level += 1
-            if self.n_level >= self.ticks_level:
-                self._level()
-        if self.leveled and not self.still:
-            # keep roll and pitch current while waiting for a heading
-            theta = (self.w_b - ins.bg) * self.cfg.dt_s
-            ins.q_bn = ref_rot.q_update(ins.q_bn, theta)[0]
-            ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
-        if self.fix_pending:
-            self.fix_pending = False
-            self._align_fix()
-
-    def _level(self):
-        """pitch = asin(f_y / |f|), roll = atan2(-f_x, f_z) from the mean specific force, yaw
-        kept; b_g = mean rate if still."""
-        ins = self.ins
-        n = F32(self.n_level)
-        f_mean = self.level_sums[0:3] / n
-        fx, fy, fz = f_mean
-        g = np.sqrt((fx * fx + fy * fy) + fz * fz)
-        if not g > fw_nav._MIN_LEVEL_F:  # no gravity to level on: start over
-            self.level_sums = np.zeros(6, F32)
-            self.n_level = 0
-            return
-        ypr = ref_rot.dcm_to_euler(ins.c_bn)
-        ypr[fw_rot.PITCH] = ref_fmath.asin(fy / g)
-        ypr[fw_rot.ROLL] = ref_fmath.atan2(-fx, fz)
-        self.ypr = ypr
-        ins.q_bn = ref_rot.euler_to_q(ypr)
-        ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
-        if self.still:
-            ins.bg = self.level_sums[3:6] / n
-        self.level_sums = np.zeros(6, F32)
-        self.n_level = 0
-        self.leveled = True
-
     def _fix_usable(self):
         """Quality and HDOP acceptable; remembers a usable fix's speed for standstill, unless
         the speed is unknown (< 0 or NaN)."""
@@ -732,85 +278,6 @@ class NavModel:
                 self.speed_tick = self.tick
             return True
         return False
-
-    def _align_fix(self):
-        cfg = self.cfg
-        self.last_fix_tick = self.tick
-        if not self._fix_usable():
-            self.n_stable = 0
-            self.trk_set = False
-            return
-        self.n_stable += 1
-        if self.n_stable < cfg.gnss_stable_fixes:
-            return
-        h = self.fix[0]
-        if not self.frame_valid:
-            if not self._set_origin(self.fix_lat_e7, self.fix_lon_e7, h):
-                return
-            self.ins.set_frame(self.coef)
-        self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, h)
-        self.ins.p_n = self.gnss_p.copy()
-        if not self.leveled:
-            self.trk_set = False
-            return
-        course = self.fix[3]
-        if course >= 0.0:  # the receiver's course over ground
-            self.trk_set = False
-            if self.fix[2] >= cfg.heading_speed_m_s:
-                self._start_navigation(course, self.fix[2], cfg.init_vel_sigma)
-        else:
-            self._track()
-
-    def _track(self):
-        """No course: the chord d = p - p_anchor over T = n dt (track_s <= T <= 2 track_s)
-        gives the mean speed |d| / T and, from heading_speed_m_s on and for a yaw change
-        |dyaw| <= track_turn_max (wrapped to +-pi), the course atan2(d_E, d_N) - dyaw / 2 now;
-        otherwise this fix becomes the anchor."""
-        cfg = self.cfg
-        gp = self.gnss_p
-        c = self.ins.c_bn
-        yaw = ref_fmath.atan2(-c[0, 1], c[1, 1])  # dcm_to_euler's yaw
-        if self.trk_set:
-            n = self.fix_tick - self.trk_tick
-            if n < self.ticks_track:
-                return
-            if n <= 2 * self.ticks_track:
-                de = gp[0] - self.track[0]
-                dn = gp[1] - self.track[1]
-                sp = np.sqrt(de * de + dn * dn) / (F32(n) * cfg.dt_s)
-                dyaw = yaw - self.track[2]
-                if dyaw > fw_fmath.PI:
-                    dyaw = dyaw - fw_fmath.TWO_PI
-                elif dyaw < -fw_fmath.PI:
-                    dyaw = dyaw + fw_fmath.TWO_PI
-                lim = cfg.track_turn_max
-                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
-                    self.trk_set = False
-                    course = ref_fmath.atan2(de, dn) - dyaw * _HALF
-                    self._start_navigation(course, sp, cfg.track_vel_sigma)
-                    return
-        self.track = _vec(gp[0], gp[1], yaw)
-        self.trk_tick = self.fix_tick
-        self.trk_set = True
-
-    def _start_navigation(self, course, sp, sigma_vel):
-        """Heading = course (yaw = -course), v = sp (sin, cos course, 0), p = antenna
-        - C_bn lever, P = diag(init) with the fix's sigmas and sigma_vel horizontally."""
-        ins = self.ins
-        ypr = ref_rot.dcm_to_euler(ins.c_bn)
-        ypr[fw_rot.YAW] = -course
-        self.ypr = ypr
-        ins.q_bn = ref_rot.euler_to_q(ypr)
-        ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
-        v = _vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
-        sh = self._sigma_h()
-        age = self.tick - self.fix_tick
-        self._restart(self.gnss_p, v, age, sh, self._sigma_v(sh), sigma_vel)
-        ins.take_dvn()
-        ins.slow_update(_ZERO)
-        self.since_prop = 0
-        self.last_accept_tick = self.tick
-        self.state = NAVIGATING
 
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """p = (antenna - C_bn lever) + v age dt, the fix carried forward over its age; P from
@@ -824,28 +291,6 @@ class NavModel:
         self.init_diag[IX_VEL : IX_VEL + 2] = sigma_vel * sigma_vel
         self.kf.reset_p(self.init_diag)
         self.corr = np.zeros(6, F32)
-
-    def _lever_n(self):
-        """C_bn lever_b: the antenna offset in the navigation frame."""
-        return _mat_vec(self.ins.c_bn, self.cfg.lever_b_m)
-
-    def _sigma_h(self):
-        cfg = self.cfg
-        s = self.fix[4]
-        if not s > 0.0:
-            s = self.fix[1] * cfg.gnss_uere_m
-        if s < cfg.gnss_sigma_floor_m:
-            s = cfg.gnss_sigma_floor_m
-        return s
-
-    def _sigma_v(self, sigma_h):
-        cfg = self.cfg
-        s = self.fix[5]
-        if not s > 0.0:
-            s = sigma_h * cfg.gnss_vert_factor
-        if s < cfg.gnss_sigma_floor_m:
-            s = cfg.gnss_sigma_floor_m
-        return s
 
     def _navigate(self):
         ins = self.ins
@@ -870,7 +315,7 @@ class NavModel:
             self._fault_reset()
             return
         p, v = ins.p_n, ins.v_n
-        s = _sum_left([p[0], p[1], p[2], v[0], v[1], v[2], ins.q_bn[0]])
+        s = sum_left([p[0], p[1], p[2], v[0], v[1], v[2], ins.q_bn[0]])
         if s - s != 0.0:
             self._fault_reset()
 
@@ -895,7 +340,7 @@ class NavModel:
         lat, lon, h = ref_geo.to_e7(c, self.origin_lat_e7, self.origin_lon_e7, ins.p_n)
         lat, lon, h = int(lat), int(lon), F32(h)
         dp = self._to_enu(lat, lon, h)  # the new origin in the old frame
-        rho = _vec(
+        rho = vec(
             -dp[1] * c[fw_geo.INV_RM],
             dp[0] * c[fw_geo.INV_RN],
             dp[0] * c[fw_geo.INV_RN] * (c[fw_geo.SIN_LAT] / c[fw_geo.COS_LAT]),
@@ -908,14 +353,19 @@ class NavModel:
 
     def _schedule(self):
         """The filter is idle: a pending fix (unless propagation is overdue), else propagation,
-        else a zero-velocity update at standstill, else the non-holonomic constraint."""
+        else a zero-velocity update at standstill, else the non-holonomic constraint (the
+        measurement rows: nav_aid.py)."""
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
         overdue = self.since_prop >= 2 * self.ticks_prop
         if self.fix_queued and not overdue:
             self.fix_queued = False
-            self._start_gnss_update()
+            # the state at the fix's measurement time: the ring holds the last RING ticks
+            age = min(max(self.tick - self.fix_tick, 0), RING - 1)
+            self._start_gnss_update((self.tick - age) % RING)
+            self.job = JOB_GNSS
+            self.updates += 1
         elif self.since_prop >= self.ticks_prop:
             t = F32(self.since_prop) * cfg.dt_s
             dvn = ins.take_dvn()
@@ -924,73 +374,12 @@ class NavModel:
             self.since_prop = 0
         elif cfg.zupt and self.still and self.since_zupt >= self.ticks_zupt:
             self.since_zupt = 0
-            r = cfg.zupt_sigma * cfg.zupt_sigma
-            for i in range(3):  # z = v_n[i] = dv_i + noise
-                kf.add_scalar(ins.v_n[i], r, [(IX_VEL + i, _ONE)])
-            kf.start_update()
+            self._start_zupt()
             self.job = JOB_AID
         elif cfg.nhc and not self.still and self.since_nhc >= self.ticks_nhc:
             self.since_nhc = 0
             self._start_nhc()
-
-    def _start_gnss_update(self):
-        """Antenna position p + C_bn l against the fix at its measurement time (from the ring,
-        plus the corrections injected since): z = dp + [(C l) x] phi; and, with a course, the
-        horizontal velocity v + C_bn (w x l) against speed (sin, cos course)."""
-        cfg = self.cfg
-        kf = self.kf
-        ins = self.ins
-        age = min(max(self.tick - self.fix_tick, 0), RING - 1)
-        slot = (self.tick - age) % RING
-        p_then = self.ring_p[slot]
-        v_then = self.ring_v[slot]
-        corr = self.corr
-        lx, ly, lz = self._lever_n()
-        sh = self._sigma_h()
-        sv = self._sigma_v(sh)
-        rh = sh * sh
-        rv = sv * sv
-        gp = self.gnss_p
-        self.used = np.array([gp[0], gp[1], gp[2], self.fix[2], self.fix[3], sh, sv], F32)
-        self.used_tick = self.fix_tick
-        att = IX_ATT
-        z = (p_then[0] + corr[0] + lx) - gp[0]
-        kf.add_scalar(z, rh, [(0, _ONE), (att + 1, -lz), (att + 2, ly)])
-        z = (p_then[1] + corr[1] + ly) - gp[1]
-        kf.add_scalar(z, rh, [(1, _ONE), (att, lz), (att + 2, -lx)])
-        z = (p_then[2] + corr[2] + lz) - gp[2]
-        kf.add_scalar(z, rv, [(2, _ONE), (att, -ly), (att + 1, lx)])
-        course = self.fix[3]
-        sp = self.fix[2]
-        if course >= 0.0:
-            ve = sp * ref_fmath.sin(course)
-            vn = sp * ref_fmath.cos(course)
-            lever_vel_n = _mat_vec(ins.c_bn, _cross(self.w_b - ins.bg, cfg.lever_b_m))
-            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
-            z = (v_then[0] + corr[3] + lever_vel_n[0]) - ve
-            kf.add_scalar(z, rvel, [(IX_VEL, _ONE)])
-            z = (v_then[1] + corr[4] + lever_vel_n[1]) - vn
-            kf.add_scalar(z, rvel, [(IX_VEL + 1, _ONE)])
-        kf.start_update()
-        self.job = JOB_GNSS
-        self.updates += 1
-
-    def _start_nhc(self):
-        """Body x (lateral) and z (vertical) velocity are zero: z = c_k . v_n with c_k the k-th
-        column of C_bn, h = [0, c_k, v_n x c_k, 0, 0]."""
-        kf = self.kf
-        ins = self.ins
-        v = ins.v_n
-        r = self.cfg.nhc_sigma * self.cfg.nhc_sigma
-        body_v = _mat_vec(ins.c_bn.T, v)  # C_bn^T v: (c_k . v) summed in the firmware's order
-        for k in (0, 2):
-            c_k = ins.c_bn[:, k]
-            h_att = _cross(v, c_k)
-            terms = [(IX_VEL + j, c_k[j]) for j in range(3)]
-            terms += [(IX_ATT + j, h_att[j]) for j in range(3)]
-            kf.add_scalar(body_v[k], r, terms)
-        kf.start_update()
-        self.job = JOB_AID
+            self.job = JOB_AID
 
     def _inject(self):
         """Closed loop: p -= dp, v -= dv (also into the corrections), b += db,
@@ -1006,8 +395,8 @@ class NavModel:
         self.corr[3:6] = self.corr[3:6] - dv
         ins.bg = ins.bg + dx[IX_BG : IX_BG + 3]
         ins.ba = ins.ba + dx[IX_BA : IX_BA + 3]
-        dq = _q_from_rotvec(dx[IX_ATT : IX_ATT + 3])
-        ins.q_bn = _q_normalized(ref_rot.q_mul(dq, ins.q_bn))
+        dq = ref_rot.q_from_rotvec(dx[IX_ATT : IX_ATT + 3])
+        ins.q_bn = ref_rot.q_normalize(ref_rot.q_mul(dq, ins.q_bn))[0]
         ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
         kf.dx = np.zeros(N, F32)
         kf.ready = False
@@ -1024,25 +413,10 @@ class NavModel:
                     self.gated_until = self.tick + self.ticks_second
         self.job = JOB_NONE
 
-    def _reset_to_gnss(self):
-        """From the fix the last update rejected: p, horizontal v (from its course, else the
-        INS's), a fresh P; attitude and biases kept."""
-        ins = self.ins
-        u = self.used
-        course, sp = u[4], u[3]
-        if course >= 0.0:
-            v = _vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), ins.v_n[2])
-        else:
-            v = _vec(ins.v_n[0], ins.v_n[1], ins.v_n[2])
-        sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
-        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
-        self.rejects = 0
-        self.resets += 1
-
     def _fault_reset(self):
         ins = self.ins
         self.state = ALIGNING
-        ins.q_bn = _vec(1, 0, 0, 0)
+        ins.q_bn = vec(1, 0, 0, 0)
         ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
         ins.bg = np.zeros(3, F32)
         ins.ba = np.zeros(3, F32)
@@ -1087,7 +461,7 @@ class NavModel:
             "p_comp": ins.p_comp,
             "theta_prev": ins.theta_prev,
             "dv_prev": ins.dv_prev,
-            "earth_model": _vec(ins.g0, ins.inv_rn, ins.inv_rm, ins.h0),
+            "earth_model": vec(ins.g0, ins.inv_rn, ins.inv_rm, ins.h0),
             "P": kf.P,
             "dx": kf.dx,
             "kf_A": kf.A,
@@ -1096,7 +470,7 @@ class NavModel:
             "kf_f_n": kf.f_n,
             "kf_c_bn": kf.c_bn,
             "kf_w_ie_n": kf.w_ie_n,
-            "kf_scalars": _vec(
+            "kf_scalars": vec(
                 kf.T,
                 kf.decay_g,
                 kf.decay_a,
@@ -1176,4 +550,4 @@ def _apply_cal(x, b0, m):
     d = np.asarray(x, F32) - b0
     if m is None:
         return d
-    return _mat_vec(np.asarray(m, F32).reshape(3, 3), d)
+    return mat_vec(np.asarray(m, F32).reshape(3, 3), d)

@@ -49,21 +49,24 @@ def q_normalize(q):
     return np.where(valid[..., None], out, identity), valid
 
 
-def q_update(q, theta):
-    """Seed eq. 5-17 then normalisation; returns (q, valid)."""
-    q, theta = _f32(q), _f32(theta)
-    tx, ty, tz = np.moveaxis(theta, -1, 0)
-    n2 = tx * tx + ty * ty + tz * tz
-    series = n2 < fw._SERIES_MAX_N2
-    c_series = F32(1.0) - n2 * (fw._C8 - n2 * fw._C384)
-    s_series = F32(0.5) - n2 * (fw._C48 - n2 * fw._C3840)
+def _half_angle(n2):
+    """(cos(|theta|/2), sin(|theta|/2)/|theta|) for n2 = |theta|^2, the series when small."""
+    series = n2 < fw.SERIES_MAX_N2
+    c_series = F32(1.0) - n2 * (fw.C8 - n2 * fw.C384)
+    s_series = F32(0.5) - n2 * (fw.C48 - n2 * fw.C3840)
     with np.errstate(all="ignore"):
         n = np.sqrt(n2)
         h = F32(0.5) * n
         c_trig = fmath.cos(h)
         s_trig = fmath.sin(h) / n
-    c = np.where(series, c_series, c_trig)
-    s = np.where(series, s_series, s_trig)
+    return np.where(series, c_series, c_trig), np.where(series, s_series, s_trig)
+
+
+def q_update(q, theta):
+    """Seed eq. 5-17 then normalisation; returns (q, valid)."""
+    q, theta = _f32(q), _f32(theta)
+    tx, ty, tz = np.moveaxis(theta, -1, 0)
+    c, s = _half_angle(tx * tx + ty * ty + tz * tz)
     w, x, y, z = np.moveaxis(q, -1, 0)
     out = _stack(
         c * w - s * (tx * x + ty * y + tz * z),
@@ -72,6 +75,13 @@ def q_update(q, theta):
         c * z + s * (tz * w + ty * x - tx * y),
     )
     return q_normalize(out)
+
+
+def q_from_rotvec(theta):
+    """Unit quaternion of the rotation vector theta: [cos(|t|/2), sin(|t|/2) t/|t|]."""
+    tx, ty, tz = np.moveaxis(_f32(theta), -1, 0)
+    c, s = _half_angle(tx * tx + ty * ty + tz * tz)
+    return _stack(c, s * tx, s * ty, s * tz)
 
 
 def q_to_dcm(q):

@@ -1,5 +1,5 @@
 """The ESKF's error-state model checked in float64 against matrices written independently of
-the firmware: F (eskf.py) and the measurement rows the navigator queues (nav.py).
+the firmware: F (eskf.py) and the measurement rows the navigator queues (nav_aid.py).
 
 Bit-for-bit parity with the NumPy model cannot catch a sign or a term that the firmware and
 its mirror share, so every expectation here comes from the error definitions alone (eskf.py's
@@ -444,8 +444,8 @@ def test_gnss_rows_are_the_derivative_of_the_antenna_prediction():
     nav._fx[nav_mod._FX_SPEED] = np.hypot(v_fix[0], v_fix[1])
     nav._fx[nav_mod._FX_COURSE] = np.arctan2(v_fix[0], v_fix[1]) % (2 * np.pi)  # from north
 
-    # when
-    nav._start_gnss_update()
+    # when (b: the ring slot of the fix's measurement tick, as nav._schedule picks it)
+    nav._start_gnss_update(b)
     H_fw, z_fw = queued_rows(nav.kf)
 
     # then: position E, N, U (dp + [(C l) x] phi), then velocity E, N
@@ -454,8 +454,8 @@ def test_gnss_rows_are_the_derivative_of_the_antenna_prediction():
     h_v = numeric_h(antenna_v, nominal)
     np.testing.assert_allclose(H_fw[:3], h_p, rtol=0, atol=1e-6 * np.abs(h_p).max())
     # The velocity rows keep only dv: the antenna velocity's sensitivity to attitude,
-    # [(C (w x l)) x] phi, is neglected, as nav.py says, and so is its sensitivity to the
-    # gyro bias, -C [l x] dbg (nav.py does not say so). In this fast turn (|w x l| = 1 m/s)
+    # [(C (w x l)) x] phi, and to the gyro bias, -C [l x] dbg, are neglected, as nav_aid.py
+    # says. In this fast turn (|w x l| = 1 m/s)
     # they reach 1 m/s per rad (17 mm/s for a 1 deg error) and 1 m/s per rad/s (1 mm/s for a
     # 1e-3 rad/s bias error), against the 0.1 m/s fix sigma.
     neglected = np.zeros_like(h_v)

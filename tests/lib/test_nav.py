@@ -1,7 +1,10 @@
-"""firmware/lib/nav.py on simulated BMI055 and GNSS data: alignment, accuracy after alignment,
-robustness (gating, R floor, faults, outages) and re-anchoring. Bit-exactness against the
-NumPy model is in tests/reference/test_nav_model.py."""
+"""firmware/lib/nav.py (with its mixins nav_align.py and nav_aid.py) on simulated BMI055 and
+GNSS data: alignment, accuracy after alignment, robustness (gating, R floor, faults, outages)
+and re-anchoring. Bit-exactness against the NumPy model is in tests/model/test_nav_model.py."""
 
+import nav as fw_nav
+import nav_aid
+import nav_align
 import navcfg
 import numpy as np
 import pytest
@@ -36,6 +39,26 @@ def car_nav(gnss):
 def state_is_finite(nav):
     vals = [*nav.ins.p_n, *nav.ins.v_n, *nav.ins.q_bn, *nav.ins.bg, *nav.ins.ba, *nav.kf.P]
     return bool(np.all(np.isfinite(np.asarray(vals, dtype=float))))
+
+
+def test_mixins_repeat_the_navigators_buffer_indices_exactly():
+    """nav_align.py and nav_aid.py repeat the private consts of nav.py they index with (an
+    underscore const is inlined and exists only in its own module on the board); on CPython
+    they are module attributes, so the copies can be checked against nav.py's."""
+    copies = {
+        nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE"],
+        nav_aid: ["_FX_HDOP", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_H", "_FX_SIG_V"],
+    }
+    for module, names in copies.items():
+        for name in names:
+            assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
+    assert nav_align._NAVIGATING == fw_nav.NAVIGATING
+    # every layout index a mixin defines is one of these copies or a buffer it owns
+    owned = {nav_align: "_TR_", nav_aid: "_US_"}
+    for module, names in copies.items():
+        consts = {n for n in vars(module) if n.startswith(("_FX_", "_ST_", "_TR_", "_US_"))}
+        assert consts == set(names) | {n for n in consts if n.startswith(owned[module])}
+        assert not any(n.startswith(owned[module]) for n in vars(fw_nav))
 
 
 def test_static_board_levels_estimates_gyro_bias_and_waits_for_a_heading():

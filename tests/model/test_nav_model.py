@@ -1,5 +1,6 @@
-"""The NumPy float32 model of the navigator (host_emulator/reference/nav.py) against the
-firmware's Navigator (firmware/lib/nav.py on the float32 seam), bit for bit after every tick.
+"""The NumPy float32 model of the navigator (host_emulator/model/nav.py and its mixins) against
+the firmware's Navigator (firmware/lib/nav.py on the float32 seam), bit for bit after every
+tick.
 
 Both are fed the same simulated drive the way host_emulator/nav_runner.py feeds the firmware
 (BMI055 counts every 5 ms, each GNSS fix at the first tick after it becomes available, with its

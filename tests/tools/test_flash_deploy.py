@@ -232,7 +232,8 @@ def test_a_silent_device_is_not_responding(capsys):
 def test_dry_run_writes_nothing(build_dir, tmp_path):
     with _board(tmp_path) as vb:
         result = deploy.deploy(build_dir, vb.port, dry_run=True, log=_quiet)
-        assert result["dry_run"] and len(result["planned"]) == 18
+        built = json.loads((build_dir / "manifest.json").read_text())["files"]
+        assert result["dry_run"] and len(result["planned"]) == len(built) == 20
         assert list(pathlib.Path(vb.fs_dir).rglob("*")) == []
 
 

@@ -1,0 +1,195 @@
+"""The navigator's aiding measurements: the rows it queues in the filter, and the GNSS reset.
+
+A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in nav.py, and
+nav.py decides when each runs: `_schedule`, `_inject`):
+- `_start_gnss_update`: the antenna position p + C_bn l against the fix, compared with the
+  state at the fix's measurement time (from the GNSS delay ring, nav.py), and with a course the
+  horizontal antenna velocity v + C_bn (w x l) against speed (sin, cos course);
+- `_start_zupt`: the zero-velocity update at standstill, z = v_n;
+- `_start_nhc`: the non-holonomic constraint of a car, body lateral and vertical velocity 0;
+- `_reset_to_gnss`: position and velocity from the fix the filter last rejected;
+- `_lever_n` (antenna lever arm in the navigation frame) and the fix's 1-sigma errors
+  `_sigma_h`, `_sigma_v` (given, else from HDOP).
+
+Each measurement is z = (nominal prediction - measured) = h dx + noise in eskf.py's error
+state (dp, dv, phi, dbg, dba; nominal minus true), ENU navigation frame, body x right,
+y forward, z up; m, m/s, rad. The rows are queued with `eskf.add_scalar` and the update is
+started; the filter works them off over the next ticks.
+"""
+
+import eskf
+from micropython import const
+
+from fmath import cos, sin
+
+# Indices into self._fx, the pending fix's floats, as nav.py defines them (an underscore const
+# is inlined and exists only in its own module; tests/lib/test_nav.py checks the copies agree).
+_FX_HDOP = const(1)
+_FX_SPEED = const(2)
+_FX_COURSE = const(3)
+_FX_SIG_H = const(4)
+_FX_SIG_V = const(5)
+
+# self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
+# used only here
+_US_P = const(0)  # antenna position in the frame (3)
+_US_SPEED = const(3)
+_US_COURSE = const(4)
+_US_SIG_H = const(5)
+_US_SIG_V = const(6)
+
+
+class Aiding:
+    def _lever_n(self, out):
+        """out[0:3] = C_bn lever_b (antenna offset in the navigation frame)."""
+        c = self.ins.c_bn
+        lv = self.cfg.lever_b_m
+        lx = lv[0]
+        ly = lv[1]
+        lz = lv[2]
+        out[0] = c[0] * lx + c[1] * ly + c[2] * lz
+        out[1] = c[3] * lx + c[4] * ly + c[5] * lz
+        out[2] = c[6] * lx + c[7] * ly + c[8] * lz
+
+    def _sigma_h(self):
+        cfg = self.cfg
+        fx = self._fx
+        s = fx[_FX_SIG_H]
+        if not s > 0.0:
+            s = fx[_FX_HDOP] * cfg.gnss_uere_m
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _sigma_v(self, sigma_h):
+        cfg = self.cfg
+        s = self._fx[_FX_SIG_V]
+        if not s > 0.0:
+            s = sigma_h * cfg.gnss_vert_factor
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _start_gnss_update(self, b):
+        """The fix in self._gp against the state at its measurement time, at offset b of the
+        delay ring (self._ring_p, self._ring_v) plus the corrections injected since."""
+        cfg = self.cfg
+        kf = self.kf
+        ins = self.ins
+        rp = self._ring_p
+        rv = self._ring_v
+        corr = self._corr
+        ln = self._tmp4
+        self._lever_n(ln)
+        sh = self._sigma_h()
+        sv = self._sigma_v(sh)
+        rh = sh * sh
+        rv_ = sv * sv
+        gp = self._gp
+        fx = self._fx
+        used = self._used
+        for i in range(3):
+            used[_US_P + i] = gp[i]
+        used[_US_SPEED] = fx[_FX_SPEED]
+        used[_US_COURSE] = fx[_FX_COURSE]
+        used[_US_SIG_H] = sh
+        used[_US_SIG_V] = sv
+        self._used_tick = self._fix_tick
+        lx = ln[0]
+        ly = ln[1]
+        lz = ln[2]
+        # z = (p + C l) - p_gnss = dp + [(C l) x] phi
+        z = (rp[b] + corr[0] + lx) - gp[0]
+        kf.add_scalar(z, rh, 3, 0, 1.0, eskf.IX_ATT + 1, -lz, eskf.IX_ATT + 2, ly)
+        z = (rp[b + 1] + corr[1] + ly) - gp[1]
+        kf.add_scalar(z, rh, 3, 1, 1.0, eskf.IX_ATT, lz, eskf.IX_ATT + 2, -lx)
+        z = (rp[b + 2] + corr[2] + lz) - gp[2]
+        kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
+        course = fx[_FX_COURSE]
+        sp = fx[_FX_SPEED]
+        if course >= 0.0:
+            # (no course, no velocity: standing still is the zero-velocity update's business)
+            ve = sp * sin(course)
+            vn = sp * cos(course)
+            # antenna velocity = v + C (w x l); its attitude and gyro-bias sensitivities are
+            # neglected (tests/lib/test_error_dynamics.py sizes them: mm/s against 0.1 m/s)
+            w = self._w
+            bg = ins.bg
+            lv = cfg.lever_b_m
+            wx = w[0] - bg[0]
+            wy = w[1] - bg[1]
+            wz = w[2] - bg[2]
+            ax = wy * lv[2] - wz * lv[1]
+            ay = wz * lv[0] - wx * lv[2]
+            az = wx * lv[1] - wy * lv[0]
+            c = ins.c_bn
+            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
+            z = (rv[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve
+            kf.add_scalar(z, rvel, 1, eskf.IX_VEL, 1.0)
+            z = (rv[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn
+            kf.add_scalar(z, rvel, 1, eskf.IX_VEL + 1, 1.0)
+        kf.start_update()
+
+    def _start_zupt(self):
+        """Zero-velocity update: z = v_n[i] = dv_i + noise, i = E, N, U."""
+        cfg = self.cfg
+        kf = self.kf
+        r = cfg.zupt_sigma * cfg.zupt_sigma
+        v = self.ins.v_n
+        for i in range(3):
+            kf.add_scalar(v[i], r, 1, eskf.IX_VEL + i, 1.0)
+        kf.start_update()
+
+    def _start_nhc(self):
+        """Body lateral (x) and vertical (z) velocity are zero for a car: z = (C_bn^T v)_k,
+        h = [0, c_k^T, (v x c_k)^T, 0, 0] with c_k the k-th column of C_bn."""
+        kf = self.kf
+        ins = self.ins
+        c = ins.c_bn
+        v = ins.v_n
+        v0 = v[0]
+        v1 = v[1]
+        v2 = v[2]
+        r = self.cfg.nhc_sigma * self.cfg.nhc_sigma
+        for k in range(0, 3, 2):
+            c0 = c[k]
+            c1 = c[3 + k]
+            c2 = c[6 + k]
+            z = c0 * v0 + c1 * v1 + c2 * v2
+            m = kf.add_scalar(z, r, 3, eskf.IX_VEL, c0, eskf.IX_VEL + 1, c1, eskf.IX_VEL + 2, c2)
+            kf.add_scalar_terms(
+                m,
+                eskf.IX_ATT,
+                v1 * c2 - v2 * c1,
+                eskf.IX_ATT + 1,
+                v2 * c0 - v0 * c2,
+                eskf.IX_ATT + 2,
+                v0 * c1 - v1 * c0,
+            )
+        kf.start_update()
+
+    def _reset_to_gnss(self):
+        """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
+        and horizontal velocity from the fix it last rejected (the navigator's own velocity,
+        with the track start's wider sigma, when the fix has no course), a fresh covariance;
+        attitude and biases are kept."""
+        ins = self.ins
+        used = self._used
+        v = self._tmp3
+        course = used[_US_COURSE]
+        sp = used[_US_SPEED]
+        v[2] = ins.v_n[2]
+        if course >= 0.0:
+            v[0] = sp * sin(course)
+            v[1] = sp * cos(course)
+        else:
+            v[0] = ins.v_n[0]
+            v[1] = ins.v_n[1]
+        sh = used[_US_SIG_H]
+        sv = used[_US_SIG_V]
+        sigma_vel = self.cfg.init_vel_sigma
+        if course < 0.0:  # the velocity is the navigator's own, and it has drifted
+            sigma_vel = self.cfg.track_vel_sigma
+        self._restart(used, v, self.tick - self._used_tick, sh, sv, sigma_vel)
+        self._rejects = 0
+        self.resets += 1

@@ -1,0 +1,191 @@
+"""The navigator's alignment (state ALIGNING): levelling, the heading, the start of navigation.
+
+A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in nav.py):
+- `_align` every tick while aligning: sums specific force and rate while levelling, keeps roll
+  and pitch current with the gyros once levelled, and takes a pending fix (`_align_fix`);
+- `_level`: roll and pitch from the mean specific force (it points up at rest), the gyro bias
+  from the mean rate when standing still; the heading is kept;
+- `_align_fix`: a usable fix (`gnss_stable_fixes` in a row) places the origin and the
+  position; once levelled, the heading comes from the receiver's course over ground above
+  `heading_speed_m_s` (this board has no magnetometer: a static board cannot know its
+  heading), or from the track of the fixes when the receiver reports no course (`_track`);
+- `_start_navigation`: heading, velocity along it, position and covariance from the fix, and
+  the switch to NAVIGATING.
+
+Frames and units as everywhere (rot.py): ENU navigation frame, yaw counter-clockwise from
+north, course over ground clockwise from north (so yaw = -course); rad, m, m/s, ticks.
+Runs only while aligning and at fix ticks; nothing here runs in a navigating tick.
+"""
+
+from micropython import const
+
+import f32
+import rot
+from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
+
+# Indices into the Navigator's buffers, as nav.py defines them (an underscore const is inlined
+# and exists only in its own module; tests/lib/test_nav.py checks that the copies agree).
+_NAVIGATING = const(2)  # nav.NAVIGATING
+_FX_H = const(0)  # self._fx: the pending fix's floats
+_FX_SPEED = const(2)
+_FX_COURSE = const(3)
+
+# self._trk: the track anchor (heading from GNSS positions, see _track); used only here
+_TR_E = const(0)  # antenna position of the anchor fix in the frame, m
+_TR_N = const(1)
+_TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
+
+MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
+
+
+class Alignment:
+    def _align(self):
+        cfg = self.cfg
+        ins = self.ins
+        w = self._w
+        f = self._f
+        lv = self._lvl
+        if self.still or not self.leveled:
+            for i in range(3):
+                lv[i] = lv[i] + f[i]
+                lv[3 + i] = lv[3 + i] + w[i]
+            self._n_level += 1
+            if self._n_level >= self._ticks_level:
+                self._level()
+        if self.leveled and not self.still:
+            # keep roll and pitch current while waiting for a heading
+            th = self._tmp3
+            dt = cfg.dt_s
+            bg = ins.bg
+            for i in range(3):
+                th[i] = (w[i] - bg[i]) * dt
+            rot.q_update(ins.q_bn, th)
+            rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        if self._fix_pending:
+            self._fix_pending = False
+            self._align_fix()
+
+    def _level(self):
+        """Roll and pitch from the mean specific force (it points up at rest), gyro bias from
+        the mean rate when static; the heading is kept (zero until the GNSS course gives it)."""
+        ins = self.ins
+        lv = self._lvl
+        n = f32.f32(self._n_level)
+        fx = lv[0] / n
+        fy = lv[1] / n
+        fz = lv[2] / n
+        g = sqrt(fx * fx + fy * fy + fz * fz)
+        if not g > MIN_LEVEL_F:  # a dead accelerometer or free fall: nothing to level on
+            for i in range(6):
+                lv[i] = 0.0
+            self._n_level = 0
+            return
+        ypr = self.ypr
+        rot.dcm_to_euler(ypr, ins.c_bn)
+        s = fy / g
+        ypr[rot.PITCH] = asin(s)
+        ypr[rot.ROLL] = atan2(-fx, fz)
+        rot.euler_to_q(ins.q_bn, ypr)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        if self.still:
+            for i in range(3):
+                ins.bg[i] = lv[3 + i] / n
+        for i in range(6):
+            lv[i] = 0.0
+        self._n_level = 0
+        self.leveled = True
+
+    def _align_fix(self):
+        cfg = self.cfg
+        self._last_fix_tick = self.tick
+        if not self._fix_usable():
+            self._n_stable = 0
+            self._trk_set = False
+            return
+        self._n_stable += 1
+        if self._n_stable < cfg.gnss_stable_fixes:
+            return
+        fx = self._fx
+        if not self.frame.valid:
+            if not self.frame.set_origin(self._fix_lat, self._fix_lon, fx[_FX_H]):
+                return
+            self.ins.set_frame(self.frame)
+        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
+        ins = self.ins
+        for i in range(3):
+            ins.p_n[i] = self._gp[i]
+        if not self.leveled:
+            self._trk_set = False
+            return
+        course = fx[_FX_COURSE]
+        if course >= 0.0:
+            self._trk_set = False
+            sp = fx[_FX_SPEED]
+            if sp >= cfg.heading_speed_m_s:
+                self._start_navigation(course, sp, cfg.init_vel_sigma)
+        else:
+            self._track()
+
+    def _track(self):
+        """Heading and velocity from the track of a receiver that reports no course.
+
+        The anchor is an earlier usable fix (antenna position, measurement tick) and the yaw
+        of the attitude when it was processed (the gyros keep the attitude current while
+        levelled, `_align`). At a fix `track_s` or more after it (at most twice that), the
+        chord d from the anchor gives the mean speed |d| / T; from `heading_speed_m_s` on, d's
+        direction is the course at the window's middle, and the heading has turned since by
+        half the yaw change dyaw over the window (a steady turn): course = atan2(d_E, d_N) -
+        dyaw / 2 (course is clockwise, yaw counter-clockwise). Too slow, a turn beyond
+        `track_turn_max` or a window too long: this fix becomes the anchor. The chord speed is
+        a mean, behind a car accelerating at a by a T / 2, so the filter starts with the
+        horizontal velocity sigma `track_vel_sigma`. Cost, at fix ticks while aligning only:
+        ~25 boxed floats (one atan2), ~60 when a window is evaluated (two atan2, one sqrt)."""
+        cfg = self.cfg
+        trk = self._trk
+        gp = self._gp
+        c = self.ins.c_bn
+        yaw = atan2(-c[1], c[4])  # rot.dcm_to_euler's yaw
+        if self._trk_set:
+            n = self._fix_tick - self._trk_tick
+            if n < self._ticks_track:
+                return  # window not long enough yet: keep the anchor
+            if n <= 2 * self._ticks_track:
+                de = gp[0] - trk[_TR_E]
+                dn = gp[1] - trk[_TR_N]
+                sp = sqrt(de * de + dn * dn) / (f32.f32(n) * cfg.dt_s)
+                dyaw = yaw - trk[_TR_YAW]
+                if dyaw > PI:
+                    dyaw = dyaw - TWO_PI
+                elif dyaw < -PI:
+                    dyaw = dyaw + TWO_PI
+                lim = cfg.track_turn_max
+                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
+                    self._trk_set = False
+                    self._start_navigation(atan2(de, dn) - dyaw * 0.5, sp, cfg.track_vel_sigma)
+                    return
+        trk[_TR_E] = gp[0]
+        trk[_TR_N] = gp[1]
+        trk[_TR_YAW] = yaw
+        self._trk_tick = self._fix_tick
+        self._trk_set = True
+
+    def _start_navigation(self, course, sp, sigma_vel):
+        """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
+        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity."""
+        ins = self.ins
+        ypr = self.ypr
+        rot.dcm_to_euler(ypr, ins.c_bn)
+        ypr[rot.YAW] = -course
+        rot.euler_to_q(ins.q_bn, ypr)
+        rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        v = self._tmp3
+        v[0] = sp * sin(course)
+        v[1] = sp * cos(course)
+        v[2] = 0.0
+        sh = self._sigma_h()
+        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
+        ins.take_dvn(self._tmp3)
+        ins.slow_update(f32.f32(0))
+        self._since_prop = 0
+        self._last_accept_tick = self.tick
+        self.state = _NAVIGATING

@@ -1,0 +1,114 @@
+"""NumPy float32 model of `firmware/lib/nav_aid.py`: the measurement rows and the GNSS reset.
+
+`AidingModel` is a mixin of `NavModel` (nav.py), as the firmware's `Aiding` is of `Navigator`:
+the GNSS position and velocity rows with the lever arm, the zero-velocity update, the
+non-holonomic constraint, the reset to GNSS, the lever arm in the navigation frame and the
+fix's sigmas. Rows are queued as (z, r, [(k, h_k), ...]) in the firmware's order of non-zeros.
+"""
+
+import numpy as np
+
+from host_emulator.model import fmath as ref_fmath
+from host_emulator.model.eskf import IX_ATT, IX_VEL
+from host_emulator.model.f32ops import F32, ONE, cross, mat_vec, vec
+
+
+class AidingModel:
+    def _lever_n(self):
+        """C_bn lever_b: the antenna offset in the navigation frame."""
+        return mat_vec(self.ins.c_bn, self.cfg.lever_b_m)
+
+    def _sigma_h(self):
+        cfg = self.cfg
+        s = self.fix[4]
+        if not s > 0.0:
+            s = self.fix[1] * cfg.gnss_uere_m
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _sigma_v(self, sigma_h):
+        cfg = self.cfg
+        s = self.fix[5]
+        if not s > 0.0:
+            s = sigma_h * cfg.gnss_vert_factor
+        if s < cfg.gnss_sigma_floor_m:
+            s = cfg.gnss_sigma_floor_m
+        return s
+
+    def _start_gnss_update(self, slot):
+        """Antenna position p + C_bn l against the fix at its measurement time (ring slot
+        `slot`, plus the corrections injected since): z = dp + [(C l) x] phi; and, with a
+        course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course)."""
+        cfg = self.cfg
+        kf = self.kf
+        ins = self.ins
+        p_then = self.ring_p[slot]
+        v_then = self.ring_v[slot]
+        corr = self.corr
+        lx, ly, lz = self._lever_n()
+        sh = self._sigma_h()
+        sv = self._sigma_v(sh)
+        rh = sh * sh
+        rv = sv * sv
+        gp = self.gnss_p
+        self.used = np.array([gp[0], gp[1], gp[2], self.fix[2], self.fix[3], sh, sv], F32)
+        self.used_tick = self.fix_tick
+        att = IX_ATT
+        z = (p_then[0] + corr[0] + lx) - gp[0]
+        kf.add_scalar(z, rh, [(0, ONE), (att + 1, -lz), (att + 2, ly)])
+        z = (p_then[1] + corr[1] + ly) - gp[1]
+        kf.add_scalar(z, rh, [(1, ONE), (att, lz), (att + 2, -lx)])
+        z = (p_then[2] + corr[2] + lz) - gp[2]
+        kf.add_scalar(z, rv, [(2, ONE), (att, -ly), (att + 1, lx)])
+        course = self.fix[3]
+        sp = self.fix[2]
+        if course >= 0.0:
+            ve = sp * ref_fmath.sin(course)
+            vn = sp * ref_fmath.cos(course)
+            lever_vel_n = mat_vec(ins.c_bn, cross(self.w_b - ins.bg, cfg.lever_b_m))
+            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
+            z = (v_then[0] + corr[3] + lever_vel_n[0]) - ve
+            kf.add_scalar(z, rvel, [(IX_VEL, ONE)])
+            z = (v_then[1] + corr[4] + lever_vel_n[1]) - vn
+            kf.add_scalar(z, rvel, [(IX_VEL + 1, ONE)])
+        kf.start_update()
+
+    def _start_zupt(self):
+        """Zero-velocity update: z = v_n[i] = dv_i + noise."""
+        kf = self.kf
+        r = self.cfg.zupt_sigma * self.cfg.zupt_sigma
+        for i in range(3):
+            kf.add_scalar(self.ins.v_n[i], r, [(IX_VEL + i, ONE)])
+        kf.start_update()
+
+    def _start_nhc(self):
+        """Body x (lateral) and z (vertical) velocity are zero: z = c_k . v_n with c_k the k-th
+        column of C_bn, h = [0, c_k, v_n x c_k, 0, 0]."""
+        kf = self.kf
+        ins = self.ins
+        v = ins.v_n
+        r = self.cfg.nhc_sigma * self.cfg.nhc_sigma
+        body_v = mat_vec(ins.c_bn.T, v)  # C_bn^T v: (c_k . v) summed in the firmware's order
+        for k in (0, 2):
+            c_k = ins.c_bn[:, k]
+            h_att = cross(v, c_k)
+            terms = [(IX_VEL + j, c_k[j]) for j in range(3)]
+            terms += [(IX_ATT + j, h_att[j]) for j in range(3)]
+            kf.add_scalar(body_v[k], r, terms)
+        kf.start_update()
+
+    def _reset_to_gnss(self):
+        """From the fix the last update rejected: p, horizontal v (from its course, else the
+        INS's), a fresh P; attitude and biases kept."""
+        ins = self.ins
+        u = self.used
+        course, sp = u[4], u[3]
+        if course >= 0.0:
+            v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), ins.v_n[2])
+        else:
+            v = vec(ins.v_n[0], ins.v_n[1], ins.v_n[2])
+        sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
+        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
+        self.rejects = 0
+        self.resets += 1

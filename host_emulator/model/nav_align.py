@@ -1,0 +1,142 @@
+"""NumPy float32 model of `firmware/lib/nav_align.py`: levelling, heading, navigation start.
+
+`AlignmentModel` is a mixin of `NavModel` (nav.py), as the firmware's `Alignment` is of
+`Navigator`: levelling from the mean specific force, the heading from the receiver's course or
+from the track of the fixes, and the start of navigation.
+"""
+
+import numpy as np
+
+from host_emulator import firmware_env
+from host_emulator.model import fmath as ref_fmath
+from host_emulator.model import rot as ref_rot
+from host_emulator.model.f32ops import F32, HALF, ZERO, vec
+
+firmware_env.install()
+import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
+import nav_align as fw_nav_align  # noqa: E402
+
+import fmath as fw_fmath  # noqa: E402
+import rot as fw_rot  # noqa: E402
+
+
+class AlignmentModel:
+    def _align(self):
+        ins = self.ins
+        if self.still or not self.leveled:
+            self.level_sums[0:3] = self.level_sums[0:3] + self.f_b
+            self.level_sums[3:6] = self.level_sums[3:6] + self.w_b
+            self.n_level += 1
+            if self.n_level >= self.ticks_level:
+                self._level()
+        if self.leveled and not self.still:
+            # keep roll and pitch current while waiting for a heading
+            theta = (self.w_b - ins.bg) * self.cfg.dt_s
+            ins.q_bn = ref_rot.q_update(ins.q_bn, theta)[0]
+            ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
+        if self.fix_pending:
+            self.fix_pending = False
+            self._align_fix()
+
+    def _level(self):
+        """pitch = asin(f_y / |f|), roll = atan2(-f_x, f_z) from the mean specific force, yaw
+        kept; b_g = mean rate if still."""
+        ins = self.ins
+        n = F32(self.n_level)
+        f_mean = self.level_sums[0:3] / n
+        fx, fy, fz = f_mean
+        g = np.sqrt((fx * fx + fy * fy) + fz * fz)
+        if not g > fw_nav_align.MIN_LEVEL_F:  # no gravity to level on: start over
+            self.level_sums = np.zeros(6, F32)
+            self.n_level = 0
+            return
+        ypr = ref_rot.dcm_to_euler(ins.c_bn)
+        ypr[fw_rot.PITCH] = ref_fmath.asin(fy / g)
+        ypr[fw_rot.ROLL] = ref_fmath.atan2(-fx, fz)
+        self.ypr = ypr
+        ins.q_bn = ref_rot.euler_to_q(ypr)
+        ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
+        if self.still:
+            ins.bg = self.level_sums[3:6] / n
+        self.level_sums = np.zeros(6, F32)
+        self.n_level = 0
+        self.leveled = True
+
+    def _align_fix(self):
+        cfg = self.cfg
+        self.last_fix_tick = self.tick
+        if not self._fix_usable():
+            self.n_stable = 0
+            self.trk_set = False
+            return
+        self.n_stable += 1
+        if self.n_stable < cfg.gnss_stable_fixes:
+            return
+        h = self.fix[0]
+        if not self.frame_valid:
+            if not self._set_origin(self.fix_lat_e7, self.fix_lon_e7, h):
+                return
+            self.ins.set_frame(self.coef)
+        self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, h)
+        self.ins.p_n = self.gnss_p.copy()
+        if not self.leveled:
+            self.trk_set = False
+            return
+        course = self.fix[3]
+        if course >= 0.0:  # the receiver's course over ground
+            self.trk_set = False
+            if self.fix[2] >= cfg.heading_speed_m_s:
+                self._start_navigation(course, self.fix[2], cfg.init_vel_sigma)
+        else:
+            self._track()
+
+    def _track(self):
+        """No course: the chord d = p - p_anchor over T = n dt (track_s <= T <= 2 track_s)
+        gives the mean speed |d| / T and, from heading_speed_m_s on and for a yaw change
+        |dyaw| <= track_turn_max (wrapped to +-pi), the course atan2(d_E, d_N) - dyaw / 2 now;
+        otherwise this fix becomes the anchor."""
+        cfg = self.cfg
+        gp = self.gnss_p
+        c = self.ins.c_bn
+        yaw = ref_fmath.atan2(-c[0, 1], c[1, 1])  # dcm_to_euler's yaw
+        if self.trk_set:
+            n = self.fix_tick - self.trk_tick
+            if n < self.ticks_track:
+                return
+            if n <= 2 * self.ticks_track:
+                de = gp[0] - self.track[0]
+                dn = gp[1] - self.track[1]
+                sp = np.sqrt(de * de + dn * dn) / (F32(n) * cfg.dt_s)
+                dyaw = yaw - self.track[2]
+                if dyaw > fw_fmath.PI:
+                    dyaw = dyaw - fw_fmath.TWO_PI
+                elif dyaw < -fw_fmath.PI:
+                    dyaw = dyaw + fw_fmath.TWO_PI
+                lim = cfg.track_turn_max
+                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
+                    self.trk_set = False
+                    course = ref_fmath.atan2(de, dn) - dyaw * HALF
+                    self._start_navigation(course, sp, cfg.track_vel_sigma)
+                    return
+        self.track = vec(gp[0], gp[1], yaw)
+        self.trk_tick = self.fix_tick
+        self.trk_set = True
+
+    def _start_navigation(self, course, sp, sigma_vel):
+        """Heading = course (yaw = -course), v = sp (sin, cos course, 0), p = antenna
+        - C_bn lever, P = diag(init) with the fix's sigmas and sigma_vel horizontally."""
+        ins = self.ins
+        ypr = ref_rot.dcm_to_euler(ins.c_bn)
+        ypr[fw_rot.YAW] = -course
+        self.ypr = ypr
+        ins.q_bn = ref_rot.euler_to_q(ypr)
+        ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
+        v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
+        sh = self._sigma_h()
+        age = self.tick - self.fix_tick
+        self._restart(self.gnss_p, v, age, sh, self._sigma_v(sh), sigma_vel)
+        ins.take_dvn()
+        ins.slow_update(ZERO)
+        self.since_prop = 0
+        self.last_accept_tick = self.tick
+        self.state = fw_nav.NAVIGATING
