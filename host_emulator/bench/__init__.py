@@ -1,1 +1,9 @@
-"""(docstring follows in phase B)"""
+"""Measurements, run on purpose (minutes), that write the figures docs/ quotes:
+
+navigation.py       `bench-nav`: accuracy over seeds and GNSS error models, and the cost
+                    per tick in the VM (navigator.py drives the navigator alone)
+accuracy_report.py  `accuracy-report`: drive_0708 and the scenarios -> docs/accuracy.md
+float32.py          `float32`: the float32 math functions over their domains, then the
+                    rotation and lat/lon kernels (core_figures.py) -> docs/float32.md
+digests.py          `digests`: the change indicator (tests/change_indication/)
+"""

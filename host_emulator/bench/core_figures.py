@@ -7,6 +7,7 @@ import numpy as np
 import pymap3d
 
 from host_emulator import firmware_env
+from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()
 
@@ -72,7 +73,7 @@ def rotation_figures(n=3000):
         )
         a[1] = F32(np.clip(a[1], -np.radians(85), np.radians(85)))
         rot.dcm_to_euler(ypr, buf(seed_c_bn(*a.astype(float)).ravel()))
-        d = (np.asarray(ypr, float) - a.astype(float) + np.pi) % (2 * np.pi) - np.pi
+        d = wrap_pi(np.asarray(ypr, float) - a.astype(float))
         worst_euler = max(worst_euler, np.abs(d).max())
     theta = (np.radians(100.0) * np.array([0.36, -0.48, 0.8]) * 0.005).astype(F32)
     q = buf([1, 0, 0, 0])

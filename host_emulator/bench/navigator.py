@@ -20,6 +20,7 @@ import numpy as np
 import pymap3d
 
 from host_emulator import firmware_env
+from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()
 
@@ -50,21 +51,25 @@ class NavRun:
     extra: dict = field(default_factory=dict)
 
 
-def deliver_fix(nav, fx, dt_s):
-    """Hand one simulated fix to the navigator as the board's loop will: integer lat/lon,
-    float32 values, course in radians (-1 when unknown), and the PPS tick of its epoch."""
+def fix_args(fx, dt_s, velocity=True, pps=True):
+    """(Navigator.gnss arguments, fix_tick) of one simulated fix as the board's loop gives it:
+    integer lat/lon, float32 values, course in radians (-1 when unknown), and the PPS tick of
+    its epoch. velocity=False: a receiver that reports no speed or course (both -1);
+    pps=False: no PPS (fix_tick -1: the navigator assumes the configured latency)."""
     course = fx.course_deg
     course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
-    nav.gnss(
-        int(fx.lat_e7),
-        int(fx.lon_e7),
-        f32.f32(fx.h_m),
-        int(fx.quality),
-        f32.f32(fx.hdop),
-        f32.f32(fx.speed_m_s),
-        f32.f32(course_rad),
-        fix_tick=int(round(fx.t_fix_s / dt_s)),
-    )
+    speed, course = (f32.f32(fx.speed_m_s), f32.f32(course_rad)) if velocity else (-1.0, -1.0)
+    args = (
+        int(fx.lat_e7), int(fx.lon_e7), f32.f32(fx.h_m), int(fx.quality), f32.f32(fx.hdop),
+        speed, course,
+    )  # fmt: skip
+    return args, int(round(fx.t_fix_s / dt_s)) if pps else -1
+
+
+def deliver_fix(nav, fx, dt_s):
+    """Hand one simulated fix to the navigator as the board's loop will (fix_args)."""
+    args, fix_tick = fix_args(fx, dt_s)
+    nav.gnss(*args, fix_tick=fix_tick)
 
 
 def feed(nav, imu, gnss, k0, k1, on_tick=None):
@@ -164,10 +169,6 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
     )
 
 
-def wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
 def metrics(run_, truth, outages=(), skip_s=0.0):
     """Errors over the navigation phase (after `skip_s` more seconds), angles wrapped; the
     `_gnss` figures leave out the outage windows."""
@@ -177,7 +178,7 @@ def metrics(run_, truth, outages=(), skip_s=0.0):
     i = idx[keep]
     dp = run_.p_n[keep] - truth.p_n[i]
     dv = run_.v_n[keep] - truth.v_n[i]
-    da = wrap(run_.ypr[keep] - truth.ypr[i])
+    da = wrap_pi(run_.ypr[keep] - truth.ypr[i])
     rms = lambda x: float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")  # noqa: E731
     t = run_.t_s[keep]
     gnss_ok = np.ones(len(t), bool)

@@ -31,16 +31,17 @@ def install():
 
 
 def install_machine(hw):
-    """Install the fake `machine` module backed by the emulated board hw (fake_machine)."""
-    from host_emulator.board.cpython import machine as fake_machine
+    """Install the emulated `machine` module (board/cpython/machine.py) backed by the emulated
+    board hw, and MicroPython's time functions on its virtual clock."""
+    from host_emulator.board.cpython import machine
 
     install()
-    fake_machine.use(hw)
-    sys.modules["machine"] = fake_machine
+    machine.use(hw)
+    sys.modules["machine"] = machine
     import time
 
     for name in ("ticks_us", "ticks_ms", "ticks_diff", "sleep_ms"):  # not in CPython's time
-        setattr(time, name, getattr(fake_machine, name))
+        setattr(time, name, getattr(machine, name))
     import gc
 
     if not hasattr(gc, "mem_free"):  # CPython's heap is not the board's: report plenty free

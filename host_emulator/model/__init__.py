@@ -1,2 +1,9 @@
-"""NumPy float32 model of the firmware's arithmetic, vectorised, mirroring the firmware's
-operation order."""
+"""The NumPy float32 model of the firmware: an independent implementation of its arithmetic,
+vectorised where the firmware loops, that repeats every float32 operation in the firmware's
+order, so the two agree bit for bit (the parity oracle; DESIGN.md 3).
+
+One file per firmware module it mirrors: fmath.py, mat.py, rot.py, geo.py (firmware/lib), ins.py,
+eskf.py, nav.py, nav_align.py, nav_aid.py (the navigator), app.py (firmware/app.py: the output
+stream of a whole run); f32ops.py holds the float32 helpers several of them share. Constants
+are the firmware modules' own objects, never retyped.
+"""

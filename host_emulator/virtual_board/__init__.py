@@ -7,10 +7,10 @@ other, so deploy and monitor tools can be tried without hardware (docs/virtual_b
 (shared/runtime/pyexec.c): the friendly REPL, the raw REPL (Ctrl-A), raw paste (Ctrl-E 'A'
 Ctrl-A, with flow control), soft resets (Ctrl-D). Code runs in the real MicroPython VM
 (the unix port, vm.micropython_exe()): one persistent VM per session between soft resets
-running vm_board/repl_server.py, with `fs_dir` mounted at /flash (capacity `flash_kb`).
+running repl_server.py (beside this file), with `fs_dir` mounted at /flash (capacity `flash_kb`).
 
 A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
-VM (vm_board/emulate.py in its streaming mode) fed from a simulated scenario generated when the
+VM (board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated when the
 board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
 stops it. Everything runs on one background thread around select().
 """

@@ -15,6 +15,7 @@ from host_emulator.bench import navigator as nav_runner
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
+from host_emulator.sim.trajectory import wrap_pi
 
 DT = 0.005
 
@@ -253,17 +254,8 @@ def _feed_positions(nav, imu, gnss, k1, on_tick=None):
     fi = 0
     for k in range(k1):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
-            fx = fixes[fi]
-            nav.gnss(
-                int(fx.lat_e7),
-                int(fx.lon_e7),
-                f32.f32(fx.h_m),
-                int(fx.quality),
-                f32.f32(fx.hdop),
-                -1.0,
-                -1.0,
-                fix_tick=int(round(fx.t_fix_s / DT)),
-            )
+            args, fix_tick = nav_runner.fix_args(fixes[fi], DT, velocity=False)
+            nav.gnss(*args, fix_tick=fix_tick)
             fi += 1
         nav.imu_raw(gyro[k], accel[k])
         if on_tick:
@@ -271,7 +263,7 @@ def _feed_positions(nav, imu, gnss, k1, on_tick=None):
 
 
 def _wrap_deg(a):
-    return float(np.degrees(nav_runner.wrap(a)))
+    return float(np.degrees(wrap_pi(a)))
 
 
 class _Start:

@@ -2,7 +2,7 @@
 the firmware's Navigator (firmware/lib/nav.py on the float32 seam), bit for bit after every
 tick.
 
-Both are fed the same simulated drive the way host_emulator/nav_runner.py feeds the firmware
+Both are fed the same simulated drive the way host_emulator/bench/navigator.py feeds the firmware
 (BMI055 counts every 5 ms, each GNSS fix at the first tick after it becomes available, with its
 PPS tick). After every tick every piece of navigator state is compared through its float32 bit
 pattern: p, v, q, C, biases, the 225 elements of P (also between the slices of a propagation
@@ -22,6 +22,7 @@ import pytest
 from nav import NAVIGATING, Navigator
 
 import f32
+from host_emulator.bench import navigator as nav_runner
 from host_emulator.model.nav import NavModel
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
@@ -368,19 +369,7 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
     seen = Seen()
     for k in range(n_ticks):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
-            fx = fixes[fi]
-            course = fx.course_deg
-            course_rad = -1.0 if (course is None or math.isnan(course)) else math.radians(course)
-            args = (
-                int(fx.lat_e7),
-                int(fx.lon_e7),
-                f32.f32(fx.h_m),
-                int(fx.quality),
-                f32.f32(fx.hdop),
-                f32.f32(fx.speed_m_s),
-                f32.f32(course_rad),
-            )
-            fix_tick = int(round(fx.t_fix_s / DT)) if pps else -1
+            args, fix_tick = nav_runner.fix_args(fixes[fi], DT, pps=pps)
             nav.gnss(*args, fix_tick=fix_tick)
             model.gnss(*args, fix_tick=fix_tick)
             fi += 1

@@ -43,14 +43,8 @@ def board(tmp_path_factory):
 
 
 def _records(data):
-    """[(offset, length, type)] of the records of a clean stream."""
-    out, i = [], 0
-    while i < len(data):
-        assert data[i] == 0xEB
-        n = 52 if data[i + 1] == frame_schema.FRAME_TYPE else 3 + data[i + 2] + 4
-        out.append((i, n, data[i + 1]))
-        i += n
-    return out
+    """[(offset, length, type)] of the records of a clean stream (proto's decoder)."""
+    return [(off, len(r), r[1]) for _, off, r in StreamDecoder().records(data, final=True)]
 
 
 def test_tick_clock_follows_the_counter_and_the_extended_frames(board):

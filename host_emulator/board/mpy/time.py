@@ -1,12 +1,12 @@
 """MicroPython-side `time` for the host emulator: the board's tick functions on a virtual clock.
 
-Runs inside the MicroPython VM only (host_emulator/vm_board/emulate.py puts this directory first
+Runs inside the MicroPython VM only (host_emulator/board/mpy/emulate.py puts this directory first
 on sys.path, so `import time` in the firmware finds this file instead of the built-in module).
 
 The clock is an integer count of microseconds since power-on, `now_us()`. Only the emulator
 moves it forward (`set_us`, `advance_us`), and the firmware's own waits (`sleep_ms`,
 `sleep_us`) advance it by the time they ask for: the firmware's run time is zero on this clock.
-`ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and host_emulator/fake_machine.py);
+`ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and host_emulator/proto/ticks.py);
 `ticks_diff`/`ticks_add` do the port's modular arithmetic. Nothing here allocates (all values
 are small ints), so a tick's GC blocks are the firmware's own.
 """

@@ -1,0 +1,22 @@
+# The freeze list: what a MicroPython image built with this manifest carries in flash
+# (MicroPython's manifest format, tools/makemanifest.py; e.g. make -C ports/stm32
+# BOARD=WEACT_F411_BLACKPILL FROZEN_MANIFEST=<this file>). Frozen modules need no room on the
+# board's small filesystem, which then holds only main.py (run at boot, so it stays a file)
+# and ins.cfg.
+#
+# The layout is the board's: lib/ is on sys.path and its modules are imported flat
+# (`import nav`), so they are frozen as top-level modules; drivers/ is a package. The port's
+# default frozen modules (asyncio, dht, onewire) are not included: the firmware uses none.
+# tests/test_manifest.py checks that this list is every firmware file but main.py and that
+# the firmware imports from the frozen layout.
+
+metadata(description="INS/GNSS navigation firmware (STM32F411 + BMI055)", version="0.1.0")
+
+module("app.py")
+module("board.py")
+package("drivers")
+for name in (
+    "config", "eskf", "f32", "fmath", "frame", "geo", "ins", "mat", "nav", "nav_aid",
+    "nav_align", "navcfg", "records", "rot",
+):  # fmt: skip
+    module(name + ".py", base_path="lib")
