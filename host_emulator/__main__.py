@@ -26,6 +26,7 @@ import argparse
 import importlib
 import sys
 
+from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 
@@ -61,8 +62,6 @@ def _scenarios():
 
 
 def _runtimes():
-    from host_emulator import runtimes
-
     for r in runtimes.RUNTIMES.values():
         print(f"{r.name:12} {r.summary}")
     for alias, name in runtimes.ALIASES.items():
@@ -217,32 +216,29 @@ def main(argv=None):
     for name, (_, text) in DELEGATED.items():
         sub.add_parser(name, help=text, add_help=False)
     args, rest = parser.parse_known_args(argv)
-    try:
-        if args.command in DELEGATED:
-            module, func = DELEGATED[args.command][0].split(":")
-            return getattr(importlib.import_module(module), func)(rest)
-        if rest:
-            parser.error("unrecognized arguments: " + " ".join(rest))
-        if args.command == "scenarios":
-            return _scenarios()
-        if args.command == "runtimes":
-            return _runtimes()
-        if args.command == "run":
-            return _run(args)
-        if args.command == "replay":
-            return _replay(args)
-        if args.command == "export":
-            return _export(args)
-        if args.command == "demo":
-            from host_emulator.eval import demo
+    return cli_args.run_reporting(lambda: _command(parser, args, rest), bad_input_status=1)
 
-            return demo.main(args.out)
-    except EmulatorError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+
+def _command(parser, args, rest):
+    if args.command in DELEGATED:
+        module, func = DELEGATED[args.command][0].split(":")
+        return getattr(importlib.import_module(module), func)(rest)
+    if rest:
+        parser.error("unrecognized arguments: " + " ".join(rest))
+    if args.command == "scenarios":
+        return _scenarios()
+    if args.command == "runtimes":
+        return _runtimes()
+    if args.command == "run":
+        return _run(args)
+    if args.command == "replay":
+        return _replay(args)
+    if args.command == "export":
+        return _export(args)
+    if args.command == "demo":
+        from host_emulator.eval import demo
+
+        return demo.main(args.out)
     return 2
 
 

@@ -4,8 +4,9 @@ so a bad scenario or duration reads the same in `run`, `parity`, `export` and th
 """
 
 import argparse
+import sys
 
-from host_emulator.errors import EmulatorError
+from host_emulator.errors import EmulatorError, FirmwareError
 
 MAX_DURATION_S = 24 * 3600.0
 
@@ -17,6 +18,23 @@ class UsageError(Exception):
 class Parser(argparse.ArgumentParser):
     def error(self, message):
         raise UsageError(message)
+
+
+def run_reporting(command, bad_input_status=2):
+    """command()'s exit status, with what a user must not see as a traceback said in one
+    paragraph on stderr: the firmware raised (1), bad input or a failed run (bad_input_status),
+    Ctrl-C (130)."""
+    try:
+        return command()
+    except FirmwareError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except EmulatorError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return bad_input_status
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
 
 
 def number(text, name):

@@ -22,7 +22,7 @@ import numpy as np
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.errors import EmulatorError
 from host_emulator.eval.compare import EXT, FRAME, RAW, KindResult, compare_kind
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stream
@@ -131,17 +131,14 @@ def main(argv=None):
     except (cli_args.UsageError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    try:
+
+    def command():
         stim = board_input.simulate(args.scenario, duration_s=duration, seed=args.seed).stimulus
         print(
             f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed {args.seed}"
         )
         r = compare(stim)
-    except FirmwareError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
-    except EmulatorError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    print(r.summary())
-    return 0 if r.identical else 1
+        print(r.summary())
+        return 0 if r.identical else 1
+
+    return cli_args.run_reporting(command)

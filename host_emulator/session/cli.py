@@ -7,7 +7,6 @@ from pathlib import Path
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.session.record import record
 from host_emulator.session.replay import replay
 
@@ -49,19 +48,9 @@ def main(argv=None):
     except cli_args.UsageError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    try:
-        if args.command == "record":
-            return _main_record(args, seconds, baud)
-        return _main_replay(args)
-    except FirmwareError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
-    except EmulatorError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    if args.command == "record":
+        return cli_args.run_reporting(lambda: _main_record(args, seconds, baud))
+    return cli_args.run_reporting(lambda: _main_replay(args))
 
 
 def _main_record(args, seconds, baud):
