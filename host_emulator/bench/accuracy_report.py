@@ -8,6 +8,7 @@ The firmware on CPython (bit-identical to the board's float32 arithmetic) over:
 About two minutes on one core.
 """
 
+import argparse
 import json
 import pathlib
 import sys
@@ -156,6 +157,11 @@ LIMITS = """## What limits accuracy (drive_0708)
 
 
 def main(argv=None):
+    argparse.ArgumentParser(
+        prog="python -m host_emulator accuracy-report",
+        description="drive_0708 under the protocol and the simulated scenarios through the "
+        f"firmware; writes {DOC.relative_to(REPO)} and {JSON.relative_to(REPO)} (~3 min)",
+    ).parse_args(argv)
     t0 = time.perf_counter()
     ds = drive_0708.load()
     results = {"date": time.strftime("%Y-%m-%d"), "drive_0708": {}, "simulated": {}}
