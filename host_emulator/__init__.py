@@ -5,7 +5,7 @@ sim/, replay/, session/   where input comes from: a simulation, a real recording
 proto/                    every format the board and the PC exchange, written once
                           (shared with tools/)
 runtimes/                 where the firmware runs: cpython, mpy_unix, model (one registry)
-board/                    the emulated board the runtimes run it on (cpython/, mpy/)
+board/                    the emulated board the runtimes run it on (mpy/: one for all)
 model/                    the NumPy float32 model of the firmware, module by module
 eval/                     scoring, reports, parity, and the `run` and `demo` commands
 bench/                    measurements that write docs/, and the change indicator

@@ -1,29 +1,41 @@
-"""firmware/app.py with the firmware's own board.py and drivers on an emulated board (fake
-`machine`, BMI055 register model on SPI, UARTs): frames out, GNSS silence, a missing or wrong
+"""firmware/app.py with the firmware's own board.py and drivers on the emulated board
+(board/mpy: `machine` with the BMI055 register model on SPI, UARTs; `time`'s virtual clock):
+frames out, GNSS silence, a missing or wrong
 IMU, a corrupt configuration, and a real receiver log flowing through to the frames."""
 
 import importlib
 import pathlib
 import struct
+import time
 
 import numpy as np
 import pytest
 
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine
-from host_emulator.board.cpython.bmi055 import Bmi055Model
-from host_emulator.proto import stream
+from host_emulator.proto import stimulus, stream
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
 LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z
+# ... as the BMI055's data registers (gyro, then accel with the new_data bits)
+LEVEL_REGS = (
+    stimulus.gyro_registers([LEVEL_COUNTS[0]])[0].tobytes()
+    + stimulus.accel_registers([LEVEL_COUNTS[1]])[0].tobytes()
+)
+
+
+def take_tx(port):
+    """What the firmware wrote to a UART since the last take (the transmit buffer emptied)."""
+    out = bytes(port.tx[: port.tx_n])
+    port.tx_clear()
+    return out
 
 
 class Bench:
-    """An emulated board with the firmware loaded on it."""
+    """An emulated board, freshly powered on, with the firmware loaded on it."""
 
     def __init__(self, tmp_path, chip=True, chip_id=None, cfg_bytes=None):
-        self.hw = machine.Hardware()
-        firmware_env.install_machine(self.hw)
+        self.machine = machine = firmware_env.install_machine()
+        machine.power_on()
         import board
 
         self.board = importlib.reload(board)
@@ -31,28 +43,32 @@ class Bench:
         if cfg_bytes is not None:
             pathlib.Path(self.board.CONFIG_PATH).write_bytes(cfg_bytes)
         pins = self.board.PINS
-        self.imu = Bmi055Model(present=chip, gyro_chip_id=chip_id)
+        self.imu = machine.Bmi055(present=chip, gyro_chip_id=chip_id)
         self.imu.attach(
-            self.hw.spi(pins["spi_id"]), self.hw.pin(pins["cs_accel"]), self.hw.pin(pins["cs_gyro"])
+            machine.spi_bus(pins["spi_id"]),
+            machine.pin(pins["cs_accel"]),
+            machine.pin(pins["cs_gyro"]),
         )
-        self.imu.set_sample(*LEVEL_COUNTS)
+        self.imu.set_registers(LEVEL_REGS, 0, 6)
         self.console = []
         import app
 
         self.app = app.App(self.board, console=self.console.append)
         self.app.start()
-        self.gnss_uart = self.hw.uart(pins["gnss_uart"])
-        self.out_uart = self.hw.uart(pins["out_uart"])
+        self.gnss_uart = machine.uart(pins["gnss_uart"])
+        self.out_uart = machine.uart(pins["out_uart"])
 
     def run(self, ticks, nmea=b"", per_tick=8):
         """`ticks` timer periods; NMEA bytes arrive `per_tick` at a time (9600 baud: ~5)."""
+        sent = bytearray()
         for k in range(ticks):
-            self.imu.set_sample(*LEVEL_COUNTS)  # the sensor's next sample
+            self.imu.set_registers(LEVEL_REGS, 0, 6)  # the sensor's next sample
             self.gnss_uart.feed(nmea[k * per_tick : (k + 1) * per_tick])
-            self.hw.advance_us(5000)
-            self.hw.fire_timers()
+            time.advance_us(5000)
+            self.machine.fire_timers()
             self.app.service()
-        self.decoded = stream.decode(self.out_uart.take_tx())
+            sent += take_tx(self.out_uart)
+        self.decoded = stream.decode(bytes(sent))
         d = self.decoded
         assert d.bad_checksum == d.bad_crc == d.skipped_bytes == 0
         return [f["raw"] for f in d.frames]
@@ -81,7 +97,7 @@ def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
     # raw sensor fields: gyro 3 counts at 131.2 -> 3 at 131.07; accel 1024 (1 g) -> 16383
     assert struct.unpack_from("<3h", last, 3) == (3, -2, 1)
     assert struct.unpack_from("<3h", last, 9) == (160, -80, 16383)
-    assert bench.hw.wdt is not None and bench.hw.wdt.feeds == 600
+    assert bench.machine.watchdog is not None and bench.machine.watchdog.feeds == 600
     assert bench.app.overruns == 0
 
 
@@ -89,7 +105,7 @@ def test_a_missing_imu_is_reported_and_retried_without_crashing(tmp_path):
     bench = Bench(tmp_path, chip=False)
     assert any("IMU not ready" in m and "read 0xFF" in m and "no power" in m for m in bench.console)
     assert bench.run(300) == []  # no frames without an IMU, the loop goes on
-    assert bench.hw.wdt.feeds == 300  # and keeps the watchdog fed
+    assert bench.machine.watchdog.feeds == 300  # and keeps the watchdog fed
     bench.imu.accel.responds = bench.imu.gyro.responds = True  # a loose connector, pressed
     out = bench.run(300)
     assert bench.app.imu is not None and len(out) > 0
@@ -169,11 +185,11 @@ def test_a_late_loop_counts_overruns(tmp_path):
     bench = Bench(tmp_path)
     bench.run(5)
     for _ in range(3):
-        bench.hw.advance_us(5000)
-        bench.hw.fire_timers()
+        time.advance_us(5000)
+        bench.machine.fire_timers()
     bench.app.service()
     assert bench.app.overruns == 2 and bench.app.ticks == 6
-    assert [f["counter"] for f in stream.decode(bench.out_uart.take_tx()).frames] == [5]
+    assert [f["counter"] for f in stream.decode(take_tx(bench.out_uart)).frames] == [5]
 
 
 def _sentence(body):
@@ -235,20 +251,20 @@ def test_ctrl_c_stops_the_loop_and_keeps_the_repl_alive(tmp_path):
     bench = Bench(tmp_path)
     assert any(m.startswith("ins: running") and "460800 baud" in m for m in bench.console)
     bench.run(10)
-    hw = bench.hw
-    pps = hw.pin(bench.board.PINS["pps"])
-    assert pps.irq_handler is not None and len(hw.timers) == 1
+    machine = bench.machine
+    pps = machine.pin(bench.board.PINS["pps"])
+    assert pps.irq_handler is not None and len(machine._timers) == 1
     bench.app.stop()  # what main.py does on KeyboardInterrupt
     assert bench.console[-1] == "ins: stopped (Ctrl-D restarts it)"
     assert pps.irq_handler is None
     # the tick timer is gone: nothing is due, no frame goes out
     bench.app.due = 0
-    hw.fire_timers()
+    machine.fire_timers()
     assert bench.app.due == 0
     bench.app.service()
-    assert bench.out_uart.take_tx() == b""
+    assert take_tx(bench.out_uart) == b""
     # the timer left behind feeds the watchdog, which cannot be stopped once started
-    feeds = hw.wdt.feeds
+    feeds = machine.watchdog.feeds
     for _ in range(3):
-        hw.fire_timers()
-    assert hw.wdt.feeds == feeds + 3
+        machine.fire_timers()
+    assert machine.watchdog.feeds == feeds + 3

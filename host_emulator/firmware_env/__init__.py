@@ -2,7 +2,8 @@
 
 On the board `firmware/` is the filesystem root and `firmware/lib/` is on `sys.path`, so the
 portable core is imported as flat modules (`import f32, mat, rot`). `install()` reproduces that
-layout on the desktop and plugs the NumPy float32 backend into the seam.
+layout on the desktop and plugs the NumPy float32 backend into the seam; `install_machine()`
+adds the emulated board (board/mpy's `machine` and `time`) beneath it.
 """
 
 import pathlib
@@ -30,36 +31,55 @@ def install():
     np.seterr(divide="raise", over="ignore", under="ignore", invalid="ignore")
 
 
-def install_machine(hw):
-    """Install the emulated `machine` module (board/cpython/machine.py) backed by the emulated
-    board hw, and MicroPython's time functions on its virtual clock."""
-    from host_emulator.board.cpython import machine
+# MicroPython's time functions the board's time.py adds to CPython's `time` (whose own time(),
+# sleep() and perf_counter() the host keeps using)
+TIME_FUNCTIONS = ("ticks_us", "ticks_ms", "ticks_cpu", "ticks_diff", "ticks_add", "sleep_ms",
+                  "sleep_us", "now_us", "set_us", "advance_us")  # fmt: skip
 
-    install()
-    machine.use(hw)
-    sys.modules["machine"] = machine
+
+def _load(name, path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def install_machine():
+    """The emulated board (board/mpy) on CPython; returns its `machine` module.
+
+    Idempotent: the first call loads board/mpy/time.py (its MicroPython-only functions go onto
+    CPython's `time`) and board/mpy/machine.py as the module `machine`, once per process; the
+    firmware's modules keep the first ones they import (the BMI055 driver binds
+    time.sleep_ms). A run starts a fresh board with `machine.power_on()`."""
     import time
 
-    for name in ("ticks_us", "ticks_ms", "ticks_diff", "sleep_ms"):  # not in CPython's time
-        setattr(time, name, getattr(machine, name))
+    from host_emulator.board import MPY_DIR
+
+    install()
+    machine = sys.modules.get("machine")
+    if machine is None or not hasattr(machine, "power_on"):
+        if not hasattr(time, "now_us"):
+            board_time = _load("host_emulator.board.mpy.time", MPY_DIR / "time.py")
+            for name in TIME_FUNCTIONS:  # not in CPython's time
+                setattr(time, name, getattr(board_time, name))
+        machine = _load("machine", MPY_DIR / "machine.py")
+        sys.modules["machine"] = machine
     import gc
 
     if not hasattr(gc, "mem_free"):  # CPython's heap is not the board's: report plenty free
         gc.mem_free = lambda: 1 << 20
+    return machine
 
 
 def import_module(name):
     """A firmware module by its board name ("app", "drivers.bmi055", ...), for reading its
-    constants on CPython. MicroPython's time functions are put in place first (on a fresh
-    emulated board if none is installed yet): the BMI055 driver binds time.sleep_ms when it is
-    first imported, and bound to anything else it would wait in real time on every emulated
-    board after (whose BMI055 then never leaves its reset: no frames at all)."""
+    constants on CPython. The emulated board is installed first: the BMI055 driver binds
+    time.sleep_ms when it is first imported, and bound to anything else it would wait in real
+    time on every emulated board after (whose BMI055 then never leaves its reset: no frames at
+    all)."""
     import importlib
-    import time
 
-    if "drivers.bmi055" not in sys.modules and not hasattr(time, "sleep_ms"):
-        from host_emulator.board.cpython import machine
-
-        install_machine(machine.Hardware())
-    install()
+    install_machine()
     return importlib.import_module(name)

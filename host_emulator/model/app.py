@@ -27,7 +27,7 @@ Modelled independently here (NumPy float32, or plain integers):
   0x92, encoded by proto/records.py.
 Shared with the firmware (integer or bit-level code, validated on its own):
 - the NMEA parser `drivers/gnss.py` Nmea (checked against gpsd on real logs), including its
-  `pps_isr`, which stamps the edge from the emulator's virtual clock (board/cpython),
+  `pps_isr`, which stamps the edge from the emulated board's virtual clock (board/mpy/time.py),
   and its flag/epoch "take" methods;
 - the configuration: the file the runtimes write (proto/config.py) is decoded by
   firmware/lib/config.py and `BoardConfig.nav_config()` builds the navigator's configuration,
@@ -38,10 +38,11 @@ Not modelled: a missing IMU (the emulated BMI055 always answers), overruns, garb
 collection, tick timing (none of them happen on the emulator).
 """
 
+import time  # CPython's, with the board's ticks_us and set_us once install_machine() ran
+
 import numpy as np
 
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel
 from host_emulator.proto import config as board_config
@@ -215,8 +216,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
     g = Nmea(need_speed=cfg.gnss_need_speed != 0)  # as app.App builds its parser
-    hw = machine.Hardware()  # the virtual clock pps_isr stamps from
-    firmware_env.install_machine(hw)
+    firmware_env.install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
     fw_app, fw_board, _, bmi055 = _firmware()
 
     n = len(stim)
@@ -268,9 +268,9 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             ring += chunk
         t_k = t0 + k * tick_us
         if pps_before[k] >= 0:
-            hw.now_us = t_k - pps_before[k]
+            time.set_us(t_k - pps_before[k])
             g.pps_isr(None)
-        hw.now_us = t_k
+        time.set_us(t_k)
         now = t_k % TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
         # tick k: IMU read, GNSS poll, fix, navigator
         rx = b""

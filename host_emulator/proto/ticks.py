@@ -2,9 +2,9 @@
 `ticks_ms()` wrap at 2**30 (MICROPY_PY_TIME_TICKS_PERIOD), and `ticks_diff(a, b)` is a - b
 taken modulo that period into -2**29 .. 2**29 - 1.
 
-The host's one copy (the CPython board's clock, the model's loop, the session replay). Code
-that runs inside a MicroPython VM cannot import host modules, so board/mpy/time.py has its
-own; tests/proto/test_ticks.py checks that the two agree.
+The host's one copy (the model's loop, the session replay). The emulated board's clock,
+board/mpy/time.py, runs inside a MicroPython VM too and cannot import host modules, so it has
+its own; tests/proto/test_formats.py checks that the two agree.
 """
 
 TICKS_PERIOD = 1 << 30

@@ -6,7 +6,7 @@ sent on its output UART, its console lines and its counters.
 
     fw = runtimes.get("cpython").run(stim, workdir, config_overrides=None, progress=None)
 
-    cpython   the firmware on CPython, over the emulated board of board/cpython (cpython.py);
+    cpython   the firmware on CPython, over the emulated board of board/mpy (cpython.py);
               float32 bit for bit through the seam's NumPy backend; the fastest, and the
               firmware's own tracebacks
     mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over board/mpy

@@ -1,18 +1,21 @@
 """The cpython runtime: the unmodified firmware loop on CPython, fed from a stimulus, on an
 emulated board.
 
-The firmware's own `board.py`, drivers and `app.py` run against the emulated `machine` of
-board/cpython (pins, SPI with the BMI055 register model, UARTs with their receive rings, the
-PPS interrupt, the timer, the watchdog) and a virtual clock. Floats are the float32 seam's
-NumPy backend, so what comes out is what the board computes, bit for bit.
+The firmware's own `board.py`, drivers and `app.py` run against the emulated board of
+board/mpy, the one the VM runtimes use too (`machine`: pins, SPI with the BMI055 register
+model, UARTs with their receive rings, the PPS interrupt, the timer, the watchdog; `time`: the
+virtual clock), loaded by firmware_env.install_machine() and powered on afresh for every run.
+Floats are the float32 seam's NumPy backend, so what comes out is what the board computes, bit
+for bit.
 
-Per stimulus record k (proto/stimulus.py): the BMI055 data and temperature registers take the
-record's values, the GNSS UART receives the record's bytes, the clock advances to the PPS
-edge (its interrupt fires) and to the tick's moment, the timer fires, and the loop makes one
-pass (`App.service()`). Time starts at power-on: the firmware's start-up (configuration, the
-BMI055 resets and their waits) takes virtual time, and tick 0 is the first timer moment after
-it. The loop's own run time is zero on the virtual clock (the board's timing is not modelled:
-the extended frame's tick times read 0).
+Per stimulus record k (proto/stimulus.py), as board/mpy/emulate.py does in the VM: the BMI055
+data and temperature registers take the record's values, the GNSS UART receives the record's
+bytes, the clock advances to the PPS edge (its interrupt fires) and to the tick's moment, the
+timer fires, the loop makes one pass (`App.service()`), and the output UART's transmit buffer
+is emptied. Time starts at power-on: the firmware's start-up (configuration, the BMI055
+resets and their waits) takes virtual time, and tick 0 is the first timer moment after it.
+The loop's own run time is zero on the virtual clock (the board's timing is not modelled: the
+extended frame's tick times read 0).
 
 The board's flash is a directory: its configuration file is written there from the stimulus
 header's "config" (plus any overrides) before the firmware starts.
@@ -20,13 +23,13 @@ header's "config" (plus any overrides) before the firmware starts.
 
 import gc
 import os
-import time
+import time  # CPython's, with the board's ticks_us, now_us, set_us... (install_machine)
 import traceback
 
+import numpy as np
+
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine
-from host_emulator.board.cpython.bmi055 import Bmi055Model
-from host_emulator.errors import FirmwareError
+from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
@@ -53,15 +56,17 @@ def run(stim, workdir, config_overrides=None, progress=None):
         stim = stim_mod.read(stim)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
 
-    hw = machine.Hardware()
-    firmware_env.install_machine(hw)
+    machine = firmware_env.install_machine()
+    machine.power_on()
     import app
     import board
 
     board.CONFIG_PATH = str(cfg_path)
     pins = board.PINS
-    imu = Bmi055Model(clock_ms=lambda: hw.now_us / 1000.0)
-    imu.attach(hw.spi(pins["spi_id"]), hw.pin(pins["cs_accel"]), hw.pin(pins["cs_gyro"]))
+    imu = machine.Bmi055()
+    imu.attach(
+        machine.spi_bus(pins["spi_id"]), machine.pin(pins["cs_accel"]), machine.pin(pins["cs_gyro"])
+    )
     console = []
     gc_was_enabled = gc.isenabled()
     t_wall = time.perf_counter()
@@ -72,51 +77,55 @@ def run(stim, workdir, config_overrides=None, progress=None):
             a.start()
         except Exception as e:
             raise _firmware_failed(e, "at start-up") from e
-        gnss_uart = hw.uart(pins["gnss_uart"])
-        out_uart = hw.uart(pins["out_uart"])
-        pps = hw.pin(pins["pps"])
+        gnss_uart = machine.uart(pins["gnss_uart"])
+        out_uart = machine.uart(pins["out_uart"])
+        tx = out_uart.tx  # the transmit buffer, emptied after every tick
+        pps = machine.pin(pins["pps"])
         tick_us = stim.tick_us
-        t0_us = -(-hw.now_us // tick_us) * tick_us  # the first timer moment after start-up
+        t0_us = -(-time.now_us() // tick_us) * tick_us  # the first timer moment after start-up
         out = bytearray()
-        g = stim.gyro_regs.tobytes()
-        acc = stim.accel_regs.tobytes()
+        regs = np.concatenate((stim.gyro_regs, stim.accel_regs), axis=1).tobytes()  # 12 B a tick
         temp = stim.temp_raw.tolist()
         pps_before = stim.pps_before_us.tolist()
         offs = stim.uart_offsets.tolist()
         ub = stim.uart_bytes
         n = len(stim)
         for k in range(n):
-            imu.set_registers(g[6 * k : 6 * k + 6], acc[6 * k : 6 * k + 6])
+            imu.set_registers(regs, 12 * k, 12 * k + 6)
             imu.set_temperature_raw(temp[k])
             if offs[k + 1] > offs[k]:
                 gnss_uart.feed(ub[offs[k] : offs[k + 1]])
             t_k = t0_us + k * tick_us
             if pps_before[k] >= 0:
-                # never back in time (an edge recorded during the firmware's start-up)
-                hw.now_us = max(hw.now_us, t_k - pps_before[k])
+                edge = t_k - pps_before[k]
+                if edge > time.now_us():  # never back in time (an edge during start-up)
+                    time.set_us(edge)
                 pps.fire()
-            hw.now_us = t_k
-            hw.fire_timers()
+            time.set_us(t_k)
+            machine.fire_timers()
             try:
                 a.service()
             except Exception as e:
                 raise _firmware_failed(e, f"at tick {k} (t = {k * tick_us * 1e-6:.3f} s)") from e
-            if k % 2000 == 1999:
-                out += out_uart.take_tx()
-                if progress:
-                    progress(k + 1, n)
-        out += out_uart.take_tx()
+            if out_uart.tx_n:
+                out += tx[: out_uart.tx_n]
+                out_uart.tx_clear()
+            if k % 2000 == 1999 and progress:
+                progress(k + 1, n)
     finally:
         if gc_was_enabled:
             gc.enable()  # app.start() turned the collector off (board behaviour)
     wall = time.perf_counter() - t_wall
+    if out_uart.tx_overflow:
+        raise EmulatorError(f"the firmware wrote more than {machine.TX_CAPACITY} bytes in a tick")
     if progress and n % 2000:
         progress(n, n)
+    wdt = machine.watchdog
     stats = {
         "overruns": a.overruns,
         "gnss_rx_overflow": gnss_uart.overflow,
         "nmea_rejected": a.gnss.rejected(),
-        "wdt_feeds": hw.wdt.feeds if hw.wdt else 0,
+        "wdt_feeds": wdt.feeds if wdt else 0,
         "imu_error": a.imu_error,
         "config_status": a.config_status,
     }

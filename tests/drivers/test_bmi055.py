@@ -1,46 +1,107 @@
-"""firmware/drivers/bmi055.py against the BMI055 register model (host_emulator/periph) on
-CPython, and against a minimal fake bus inside the MicroPython VM: start-up (chip IDs, soft
-reset and its delays, range/bandwidth registers and their read-back), clear errors for the
-usual wiring faults, exact decoding of every count including the extremes, the over-range
-flag at its documented threshold, temperature, and a read() that allocates nothing."""
+"""firmware/drivers/bmi055.py against the emulated board's BMI055 register model
+(host_emulator/board/mpy/machine.py, on CPython) and against a minimal fake bus inside the
+MicroPython VM: start-up (chip IDs, soft reset and its delays, range/bandwidth registers and
+their read-back), clear errors for the usual wiring faults, exact decoding of every count
+including the extremes, the over-range flag at its documented threshold, temperature, and a
+read() that allocates nothing."""
 
 import json
+import time
 
 import numpy as np
 import pytest
 from drivers import bmi055
 
-from host_emulator.board.cpython.bmi055 import Bmi055Model
-from host_emulator.board.cpython.spi import FakePin, FakeSPI
+from host_emulator import firmware_env
+from host_emulator.proto import stimulus
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import imu as sim_imu
 
+machine = firmware_env.install_machine()  # the emulated board; time.now_us is its clock
+
+# What the range and bandwidth registers mean (Bosch datasheet figures, DESIGN.md 7)
+GYRO_RANGE_DPS = {0: 2000, 1: 1000, 2: 500, 3: 250, 4: 125}  # code -> deg/s
+ACCEL_RANGE_G = {0x03: 2, 0x05: 4, 0x08: 8, 0x0C: 16}  # code -> g
+GYRO_BW = {  # code -> (ODR Hz, filter bandwidth Hz)
+    0: (2000, 523),
+    1: (2000, 230),
+    2: (1000, 116),
+    3: (400, 47),
+    4: (200, 23),
+    5: (100, 12),
+    6: (200, 64),
+    7: (100, 32),
+}
+ACCEL_BW_HZ = {  # code -> filter bandwidth Hz (data update rate = 2x)
+    0x08: 7.81,
+    0x09: 15.63,
+    0x0A: 31.25,
+    0x0B: 62.5,
+    0x0C: 125.0,
+    0x0D: 250.0,
+    0x0E: 500.0,
+    0x0F: 1000.0,
+}
+
+
+def gyro_range_dps(die):
+    """The configured range in deg/s (None for a reserved code)."""
+    return GYRO_RANGE_DPS.get(die.regs[0x0F] & 0x07)
+
+
+def gyro_bw(die):
+    """(ODR Hz, filter bandwidth Hz) configured (None for a reserved code)."""
+    return GYRO_BW.get(die.regs[0x10] & 0x0F)
+
+
+def accel_range_g(die):
+    """The configured range in g (None for a reserved code)."""
+    return ACCEL_RANGE_G.get(die.regs[0x0F] & 0x0F)
+
+
+def accel_bw_hz(die):
+    """The configured filter bandwidth, Hz (codes below 0x08 mean 7.81, above 0x0F 1000)."""
+    return ACCEL_BW_HZ[min(max(die.regs[0x10] & 0x1F, 0x08), 0x0F)]
+
+
+def set_sample(model, gyro_counts, accel_counts):
+    """The next sample from gyro int16 and accel 12-bit counts (x, y, z), encoded into data
+    registers as the emulator's stimulus holds them (new_data bits set)."""
+    regs = stimulus.gyro_registers([gyro_counts])[0].tobytes()
+    regs += stimulus.accel_registers([accel_counts])[0].tobytes()
+    model.set_registers(regs, 0, 6)
+
+
+def temp_raw(deg_c):
+    """The temperature register for deg_c, as sim/imu.py computes it (0.5 K per LSB, 0 = 23
+    degC, clipped to int8)."""
+    return int(np.clip(np.rint((deg_c - 23.0) * 2.0), -128, 127))
+
 
 class Clock:
-    """Virtual milliseconds; the driver's injected sleep_ms advances it and is recorded."""
+    """The board's virtual clock (time.now_us, from 0 at power-on): the driver's injected
+    sleep_ms advances it by advance(ms) milliseconds and is recorded."""
 
     def __init__(self, advance=None):
-        self.t = 0.0
         self.sleeps = []
         self.advance = advance if advance is not None else (lambda ms: ms)
 
-    def __call__(self):
-        return self.t
-
     def sleep_ms(self, ms):
         self.sleeps.append(ms)
-        self.t += self.advance(ms)
+        time.advance_us(1000 * self.advance(ms))
 
 
 def rig(model=None, miso_idle=0xFF, swap_cs=False, clock=None, polarity=0, phase=0, **drv):
-    """A model on a fake bus and a driver on top: (imu, model, spi, clock)."""
+    """A freshly powered board, the model on its SPI bus (every transaction logged) and a
+    driver on top: (imu, model, spi, clock)."""
     clock = Clock() if clock is None else clock
-    model = Bmi055Model(clock_ms=clock) if model is None else model
-    if model.accel.clock_ms is None:
-        model.accel.clock_ms = model.gyro.clock_ms = clock
-    spi = FakeSPI(1, 8_000_000, polarity, phase, miso_idle=miso_idle, record=True)
-    cs_a = FakePin("cs_accel", FakePin.OUT, value=1)
-    cs_g = FakePin("cs_gyro", FakePin.OUT, value=1)
+    model = machine.Bmi055() if model is None else model
+    machine.power_on()
+    spi = machine.SPI(1, baudrate=8_000_000, polarity=polarity, phase=phase)
+    spi.miso_idle = miso_idle
+    spi.log = []
+    cs_a = machine.Pin("cs_accel", machine.Pin.OUT, value=1)
+    cs_g = machine.Pin("cs_gyro", machine.Pin.OUT, value=1)
     if swap_cs:
         model.attach(spi, cs_g, cs_a)
     else:
@@ -61,8 +122,8 @@ def test_init_defaults_configure_the_registers_exactly():
     assert a.writes == [(0x14, 0xB6), (0x0F, 0x03), (0x10, 0x0C)]
     assert g.regs[0x0F] == 0x03 and g.regs[0x10] == 0x83  # gyro bw bit 7 reads 1
     assert a.regs[0x0F] == 0x03 and a.regs[0x10] == 0x0C
-    assert g.range_dps == 250 and g.bw == (400, 47)
-    assert a.range_g == 2 and a.bw_hz == 125.0
+    assert gyro_range_dps(g) == 250 and gyro_bw(g) == (400, 47)
+    assert accel_range_g(a) == 2 and accel_bw_hz(a) == 125.0
     assert imu.gyro_lsb_per_dps_x10 == 1312 and imu.accel_lsb_per_g == 1024
     assert clock.sleeps == [30, 2]
 
@@ -73,8 +134,8 @@ def test_init_defaults_configure_the_registers_exactly():
 )
 def test_ranges_set_their_codes_and_sensitivities(gyro_dps, gyro_code, accel_g, accel_code):
     imu, model, _, _ = rig(gyro_range_dps=gyro_dps, accel_range_g=accel_g)
-    assert model.gyro.regs[0x0F] == gyro_code and model.gyro.range_dps == gyro_dps
-    assert model.accel.regs[0x0F] == accel_code and model.accel.range_g == accel_g
+    assert model.gyro.regs[0x0F] == gyro_code and gyro_range_dps(model.gyro) == gyro_dps
+    assert model.accel.regs[0x0F] == accel_code and accel_range_g(model.accel) == accel_g
     # The driver's integer sensitivities are the simulation's datasheet figures.
     assert imu.gyro_lsb_per_dps_x10 == round(10 * sim_imu.GYRO_LSB_PER_DPS_BY_RANGE[gyro_dps])
     assert imu.accel_lsb_per_g == sim_imu.ACCEL_LSB_PER_G_BY_RANGE[accel_g]
@@ -91,8 +152,8 @@ def test_sensitivity_tables_match_the_datasheet_for_every_range():
 
 def test_bandwidths_are_configurable():
     _, model, _, _ = rig(gyro_bw=bmi055.GYRO_BW_200HZ_23HZ, accel_bw=bmi055.ACCEL_BW_62HZ)
-    assert model.gyro.regs[0x10] == 0x84 and model.gyro.bw == (200, 23)
-    assert model.accel.regs[0x10] == 0x0B and model.accel.bw_hz == 62.5
+    assert model.gyro.regs[0x10] == 0x84 and gyro_bw(model.gyro) == (200, 23)
+    assert model.accel.regs[0x10] == 0x0B and accel_bw_hz(model.accel) == 62.5
 
 
 @pytest.mark.parametrize(
@@ -105,20 +166,21 @@ def test_bandwidths_are_configurable():
     ],
 )
 def test_invalid_configuration_is_a_clear_value_error(kwargs, words):
-    spi = FakeSPI()
+    machine.power_on()
+    spi = machine.SPI(1)
     with pytest.raises(ValueError, match=words):
-        bmi055.BMI055(spi, FakePin(), FakePin(), **kwargs)
+        bmi055.BMI055(spi, machine.Pin("a"), machine.Pin("g"), **kwargs)
     assert spi.bytes_clocked == 0  # rejected before touching the bus
 
 
 def test_soft_reset_returns_registers_to_their_defaults():
-    model = Bmi055Model()
+    model = machine.Bmi055()
     g, a = model.gyro, model.accel
     g.write_reg(0x0F, 0x02)
     g.write_reg(0x11, 0x80)  # suspend
     a.write_reg(0x0F, 0x0C)
     a.write_reg(0x10, 0x08)
-    model.set_sample((1, 2, 3), (4, 5, 6))
+    set_sample(model, (1, 2, 3), (4, 5, 6))
     for die in (g, a):
         die.select()
         for byte in (0x14, 0xB6):
@@ -133,7 +195,7 @@ def test_soft_reset_returns_registers_to_their_defaults():
 
 
 def test_driver_resets_a_die_left_configured_by_a_previous_run():
-    model = Bmi055Model()
+    model = machine.Bmi055()
     model.gyro.write_reg(0x11, 0x80)  # left in suspend by someone else
     model.accel.write_reg(0x13, 0x40)  # shadowing disabled
     _, model, _, _ = rig(model=model)
@@ -141,22 +203,27 @@ def test_driver_resets_a_die_left_configured_by_a_previous_run():
 
 
 def test_soft_reset_delays_are_requested_after_each_reset():
+    machine.power_on()
     clock = Clock()
-    model = Bmi055Model(clock_ms=clock)
-    log = []  # (time ms, die, first MOSI byte) of every transaction
-    spi = FakeSPI(1, 8_000_000, record=True)
-    cs_a, cs_g = FakePin("a", value=1), FakePin("g", value=1)
+    model = machine.Bmi055()
+    spi = machine.SPI(1, baudrate=8_000_000)
+    spi.log = []
+    cs_a, cs_g = machine.Pin("a", value=1), machine.Pin("g", value=1)
     model.attach(spi, cs_a, cs_g)
-    for cs, die in ((cs_a, "accel"), (cs_g, "gyro")):
-        cs.watch(
-            lambda lvl, die=die: lvl and log.append((clock.t, die, spi.transactions[-1][1][0]))
-        )
+    log = []  # (time us, die, first MOSI byte) of every transaction, when its chip select rises
+    for die, name in ((model.accel, "accel"), (model.gyro, "gyro")):
+
+        def deselect(name=name, real=die.deselect):
+            log.append((time.now_us(), name, spi.log[-1][1][0]))
+            real()
+
+        die.deselect = deselect
     bmi055.BMI055(spi, cs_a, cs_g, sleep_ms=clock.sleep_ms)
     assert clock.sleeps == [bmi055.GYRO_RESET_MS, bmi055.ACCEL_RESET_MS] == [30, 2]
-    for die, wait in (("gyro", 30), ("accel", 1.8)):  # datasheet start-up times
+    for die, wait_us in (("gyro", 30_000), ("accel", 1_800)):  # datasheet start-up times
         mine = [(t, b) for t, d, b in log if d == die]
         k = mine.index(next(e for e in mine if e[1] == 0x14))  # the soft reset write
-        assert mine[k + 1][0] - mine[k][0] >= wait  # next access only after the start-up
+        assert mine[k + 1][0] - mine[k][0] >= wait_us  # next access only after the start-up
     assert model.gyro.resets == model.accel.resets == 1
 
 
@@ -176,7 +243,7 @@ def test_without_the_delays_the_dies_do_not_answer():
 @pytest.mark.parametrize("idle", [0xFF, 0x00])
 def test_absent_chip_names_both_dies_and_the_likely_causes(idle):
     with pytest.raises(bmi055.Bmi055Error) as err:
-        rig(model=Bmi055Model(present=False), miso_idle=idle)
+        rig(model=machine.Bmi055(present=False), miso_idle=idle)
     msg = str(err.value)
     got = f"0x{idle:02X}"
     assert f"accel die: expected chip ID 0xFA at register 0x00, read {got}" in msg
@@ -187,7 +254,7 @@ def test_absent_chip_names_both_dies_and_the_likely_causes(idle):
 
 def test_wrong_chip_id_says_another_device_answers():
     with pytest.raises(bmi055.Bmi055Error) as err:
-        rig(model=Bmi055Model(accel_chip_id=0xF8))
+        rig(model=machine.Bmi055(accel_chip_id=0xF8))
     msg = str(err.value)
     assert "accel die: expected chip ID 0xFA at register 0x00, read 0xF8" in msg
     assert "another device answers" in msg
@@ -195,7 +262,7 @@ def test_wrong_chip_id_says_another_device_answers():
 
 
 def test_missing_gyro_with_accel_present_points_at_the_gyro_chip_select():
-    model = Bmi055Model()
+    model = machine.Bmi055()
     model.gyro.responds = False
     with pytest.raises(bmi055.Bmi055Error) as err:
         rig(model=model)
@@ -212,7 +279,7 @@ def test_swapped_chip_selects_are_recognised():
 
 
 def test_lost_writes_are_caught_by_the_read_back():
-    model = Bmi055Model()
+    model = machine.Bmi055()
     model.gyro.ignore_writes = model.accel.ignore_writes = True  # MOSI broken: IDs still read
     with pytest.raises(bmi055.Bmi055Error) as err:
         rig(model=model)
@@ -231,11 +298,11 @@ def test_wrong_spi_mode_fails_the_chip_id_check():
 
 def test_read_is_two_bursts_of_seven_bytes():
     imu, model, spi, _ = rig()
-    model.set_sample((1, 2, 3), (4, 5, 6))
-    n0, t0 = spi.bytes_clocked, len(spi.transactions)
+    set_sample(model, (1, 2, 3), (4, 5, 6))
+    n0, t0 = spi.bytes_clocked, len(spi.log)
     imu.read()
     assert spi.bytes_clocked - n0 == 14
-    new = spi.transactions[t0:]
+    new = spi.log[t0:]
     assert [(name, bytes(mosi)) for name, mosi, _ in new] == [
         ("bmi055-gyro", bytes([0x82, 0, 0, 0, 0, 0, 0])),
         ("bmi055-accel", bytes([0x82, 0, 0, 0, 0, 0, 0])),
@@ -254,7 +321,7 @@ SAMPLES = [
 @pytest.mark.parametrize("gyro, accel", SAMPLES)
 def test_read_decodes_counts_exactly(gyro, accel):
     imu, model, _, _ = rig()
-    model.set_sample(gyro, accel)
+    set_sample(model, gyro, accel)
     imu.read()
     assert list(imu.gyro) == list(gyro)
     assert list(imu.accel) == list(accel)
@@ -271,14 +338,14 @@ def test_read_decodes_random_counts_exactly():
     gyro = rng.integers(-32768, 32768, (300, 3))
     accel = rng.integers(-2048, 2048, (300, 3))
     for g, a in zip(gyro, accel, strict=True):
-        model.set_sample(g, a)
+        set_sample(model, g, a)
         imu.read()
         assert list(imu.gyro) == list(g) and list(imu.accel) == list(a)
 
 
 def test_new_data_bits_clear_once_read():
     imu, model, _, _ = rig()
-    model.set_sample((5, 6, 7), (8, 9, 10))
+    set_sample(model, (5, 6, 7), (8, 9, 10))
     imu.read()
     assert imu.accel_new == 0b111
     imu.read()  # no new sample: same counts, new_data cleared by the first read
@@ -287,14 +354,15 @@ def test_new_data_bits_clear_once_read():
 
 
 def test_sim_counts_go_through_unchanged():
-    """The emulator feeds sim.imu counts (numpy int16) straight into the model."""
+    """The emulator feeds sim.imu counts (numpy int16), encoded as the stimulus's data
+    registers, into the model; a count out of range never gets that far."""
     imu, model, _, _ = rig()
     counts = np.array([[100, -200, 300], [-2048, 2047, 1024]], np.int16)
-    model.set_sample(counts[0], counts[1])
+    set_sample(model, counts[0], counts[1])
     imu.read()
     assert list(imu.gyro) == [100, -200, 300] and list(imu.accel) == [-2048, 2047, 1024]
-    with pytest.raises(ValueError, match="accel counts must be 3 ints in -2048..2047"):
-        model.set_sample((0, 0, 0), (0, 0, 2048))
+    with pytest.raises(ValueError, match=r"accel counts must be 12-bit \(-2048..2047\)"):
+        set_sample(model, (0, 0, 0), (0, 0, 2048))
 
 
 # Threshold: full scale or within one count of it (gyro 32766 / -32767, accel 2046 / -2047).
@@ -320,12 +388,12 @@ def test_over_range_flag_at_full_scale_only(die, count, flagged, axis):
     imu, model, _, _ = rig()
     g, a = [10, -10, 0], [0, 5, -5]
     (g if die == "gyro" else a)[axis] = count
-    model.set_sample(g, a)
+    set_sample(model, g, a)
     assert imu.read() is flagged
     assert imu.saturated is flagged
     bit = 1 << (axis + (0 if die == "gyro" else 3))
     assert imu.sat_mask == (bit if flagged else 0)
-    model.set_sample((0, 0, 0), (0, 0, 0))
+    set_sample(model, (0, 0, 0), (0, 0, 0))
     assert imu.read() is False and imu.sat_mask == 0  # clears on the next good sample
 
 
@@ -339,17 +407,18 @@ def test_temperature(raw):
 
 def test_temperature_from_celsius():
     imu, model, _, _ = rig()
-    model.set_temperature_c(24.5)
+    model.set_temperature_raw(temp_raw(24.5))
     assert imu.read_temperature() == 3
     assert bmi055.temperature_half_c(3) == 49  # 24.5 degC
-    model.set_temperature_c(-40)
+    model.set_temperature_raw(temp_raw(-40))
     assert imu.read_temperature() == -126
 
 
 def test_bus_is_strict_about_chip_selects():
-    spi = FakeSPI()
-    model = Bmi055Model()
-    a, g = FakePin(), FakePin()
+    machine.power_on()
+    spi = machine.SPI(1)
+    model = machine.Bmi055()
+    a, g = machine.Pin("a"), machine.Pin("g")
     model.attach(spi, a, g)
     with pytest.raises(RuntimeError, match="no chip select low"):
         spi.write(b"\x80")

@@ -2,14 +2,13 @@
 short run of the unmodified loop, and the command line (outputs, bad input)."""
 
 import json
+import time
 
 import numpy as np
 import pytest
 
 from host_emulator import __main__ as cli
 from host_emulator import firmware_env
-from host_emulator.board.cpython import machine as board_machine
-from host_emulator.board.cpython.bmi055 import Bmi055Model
 from host_emulator.errors import FirmwareError
 from host_emulator.proto import stimulus, stream
 from host_emulator.runtimes import cpython
@@ -30,21 +29,24 @@ def highway_run(highway, tmp_path_factory):
 def test_the_firmware_driver_reads_the_stimulus_registers():
     """Registers set from a stimulus record reach the firmware's BMI055 driver unchanged
     (gyro int16, accel 12-bit left-justified with new_data), after its own start-up."""
-    hw = board_machine.Hardware()
-    firmware_env.install_machine(hw)
+    board_machine = firmware_env.install_machine()
+    board_machine.power_on()
     import machine
     from drivers.bmi055 import BMI055
 
+    assert machine is board_machine  # what the firmware imports
     spi = machine.SPI(1)
     cs_a, cs_g = machine.Pin("B6"), machine.Pin("B7")
-    model = Bmi055Model(clock_ms=lambda: hw.now_us / 1000.0)
+    model = machine.Bmi055()
     model.attach(spi, cs_a, cs_g)
     imu = BMI055(spi, cs_a, cs_g, gyro_range_dps=500, accel_range_g=4)
-    assert model.gyro.range_dps == 500 and model.accel.range_g == 4  # written by the driver
-    assert hw.now_us >= 30_000  # it waited for the gyro's start-up after the soft reset
+    # written by the driver: range codes for 500 deg/s and 4 g
+    assert model.gyro.regs[0x0F] & 0x07 == 2 and model.accel.regs[0x0F] & 0x0F == 0x05
+    assert time.now_us() >= 30_000  # it waited for the gyro's start-up after the soft reset
     g = np.array([[123, -32768, 32767]])
     a = np.array([[-2048, 2047, 5]])
-    model.set_registers(bytes(stimulus.gyro_registers(g)[0]), bytes(stimulus.accel_registers(a)[0]))
+    regs = bytes(stimulus.gyro_registers(g)[0]) + bytes(stimulus.accel_registers(a)[0])
+    model.set_registers(regs, 0, 6)
     model.set_temperature_raw(-7)
     assert imu.read() is True  # int16 and 12-bit limits: saturated
     assert list(imu.gyro) == [123, -32768, 32767] and list(imu.accel) == [-2048, 2047, 5]
@@ -53,8 +55,9 @@ def test_the_firmware_driver_reads_the_stimulus_registers():
 
 
 def test_the_uart_receive_ring_drops_what_does_not_fit():
-    port = board_machine.UARTPort(2)
-    port.init(9600, rxbuf=16)
+    machine = firmware_env.install_machine()
+    machine.power_on()
+    port = machine.UART(2, 9600, rxbuf=16)
     port.feed(b"0123456789")
     port.feed(b"abcdefghij")
     assert port.any() == 16 and port.overflow == 4

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from host_emulator.board.cpython import machine
+from host_emulator import firmware_env
 from host_emulator.proto import config as board_config
 from host_emulator.proto import session_file, stream
 from host_emulator.proto.ticks import ticks_diff
@@ -129,12 +129,9 @@ def test_pps_edges_across_the_ticks_us_wrap(capture, monkeypatch, tmp_path):
     assert first_tick_us % TICK == 0  # the first timer moment after start-up (clock from 0)
     start = (1 << 30) + 3176 - 2_000_000 - first_tick_us  # tick 400: 3176 us after the wrap
 
-    class LateClock(machine.Hardware):
-        def __init__(self):
-            super().__init__()
-            self.now_us = start
-
-    monkeypatch.setattr(machine, "Hardware", LateClock)
+    machine = firmware_env.install_machine()
+    power_on = machine.power_on
+    monkeypatch.setattr(machine, "power_on", lambda: power_on(start))  # a late power-on clock
     out = cpython.run(stim, tmp_path / "board", {"raw_record": 1}).out
     monkeypatch.undo()
     values = board_config.run_values(stim, {"raw_record": 1})

@@ -1,10 +1,14 @@
-"""MicroPython-side `machine` for the host emulator: the stm32 port's API subset that
-firmware/board.py and the drivers use, backed by emulated peripherals on a virtual clock.
+"""The emulated board's `machine`: the stm32 port's API subset that firmware/board.py and the
+drivers use, backed by emulated peripherals on a virtual clock. Plain Python that runs in the
+MicroPython VM and on CPython alike, the one emulated board of every runtime:
 
-Runs inside the MicroPython VM only: host_emulator/board/mpy/emulate.py puts this directory
-first on sys.path, so the firmware's `import machine` (and `import time`) find these files
-instead of the built-in modules. It mirrors host_emulator/board/cpython/machine.py (the CPython
-runtime's fake) one for one:
+- in the VM, host_emulator/board/mpy/emulate.py puts this directory first on sys.path, so the
+  firmware's `import machine` (and `import time`) find these files instead of the built-ins;
+- on CPython, host_emulator/firmware_env.install_machine() loads this file as `machine` and
+  puts board/mpy/time.py's MicroPython-only functions on CPython's `time`; several boards run
+  one after another in one process, each starting with `power_on()`.
+
+The parts:
 
 - `Pin(name, ...)`: one object per pin name (the constructor returns the existing pin and
   re-initialises it); value()/on()/off()/irq(); `fire()` runs the interrupt handler like an
@@ -12,15 +16,18 @@ runtime's fake) one for one:
   when it falls (select) and rises (deselect).
 - `SPI(id, ...)`: one bus per id; write/readinto/write_readinto/read clock bytes through the
   device whose chip select is low (`spi_bus(id).attach(die, pin(name))`). A floating MISO
-  reads 0xFF; two chip selects low, or none, raises RuntimeError (a driver bug); an SPI mode
-  other than 0/3 or LSB-first shifts every byte by one bit, as a real bus mangles it.
-- `Bmi055` (both dies, `GyroDie`/`AccelDie`): the register model of
-  host_emulator/board/cpython/bmi055.py: chip IDs 0xFA (accel) / 0x0F (gyro); range 0x0F and
-  bandwidth 0x10 reset values and writable masks; read-only 0x00..0x0E; soft reset (0xB6 to
-  0x14) when the chip select rises, then silent for the start-up time on the virtual clock
-  (gyro 30 ms, accel 1.8 ms); data 0x02..0x07 set by the emulator exactly as given (new_data
-  bits included), INT_STATUS 0x0A bit 7 set by a new sample and cleared by a data read, the
-  accel axis' new_data bit cleared when either of its bytes is read; temperature 0x08.
+  reads `miso_idle` (0xFF); two chip selects low, or none, raises RuntimeError (a driver
+  bug); an SPI mode other than 0/3 or LSB-first shifts every byte by one bit, as a real bus
+  mangles it. `log`: None, or a list that gets [device name, MOSI bytearray, MISO bytearray]
+  for every chip-select assertion on the bus (tests; it allocates).
+- `Bmi055` (both dies, `GyroDie`/`AccelDie`): the register model: chip IDs 0xFA (accel) /
+  0x0F (gyro); range 0x0F and bandwidth 0x10 reset values and writable masks; read-only
+  0x00..0x0E; soft reset (0xB6 to 0x14) when the chip select rises, then silent for the
+  start-up time on the virtual clock (gyro 30 ms, accel 1.8 ms); data 0x02..0x07 set by the
+  emulator exactly as given (new_data bits included), INT_STATUS 0x0A bit 7 set by a new
+  sample and cleared by a data read, the accel axis' new_data bit cleared when either of its
+  bytes is read; temperature 0x08. Faults: `responds`, `chip_id`, `ignore_writes`. `writes`
+  lists the accepted register writes as (reg, value) (start-up only; tests).
 - `UART(id, ...)`: one port per id; a receive ring of `rxbuf` bytes (default 64, as the
   port); bytes that arrive (`feed`) when it is full are dropped and counted in `overflow`;
   any()/readinto(buf, n) (None when nothing has arrived); write() appends to a preallocated
@@ -53,6 +60,19 @@ def _part(table, cls, key):
         part._setup(key)
         table[key] = part
     return part
+
+
+def power_on(t_us=0):
+    """The board as at power-on: no pins, buses, UARTs, timers or watchdog yet, the clock at
+    t_us. A new VM starts so; on CPython the runtime calls it before every run (the firmware's
+    modules keep this module, so its tables are emptied rather than the module reloaded)."""
+    global _pins, _buses, _uarts, _timers, watchdog
+    _pins = {}
+    _buses = {}
+    _uarts = {}
+    _timers = []
+    watchdog = None
+    time.set_us(t_us)
 
 
 def pin(name):
@@ -119,6 +139,7 @@ class Pin:
         self.pull = -1
         self._v = 1
         self._dev = None  # a die whose chip select this is
+        self._bus = None  # the SPI bus of that die
         self.edges = 0  # level changes (tests)
         self.irq_handler = None
         self.irq_trigger = 0
@@ -145,6 +166,9 @@ class Pin:
                 if v:
                     dev.deselect()
                 else:
+                    log = self._bus.log
+                    if log is not None:
+                        log.append([dev.name, bytearray(), bytearray()])
                     dev.select()
         return None
 
@@ -197,6 +221,7 @@ class SPI:
         self.id = id
         self.miso_idle = 0xFF  # a floating MISO with the usual pull-up
         self.bytes_clocked = 0
+        self.log = None  # or a list: [device name, MOSI bytearray, MISO bytearray] per selection
         self._devs = []
         self.init()
 
@@ -218,9 +243,12 @@ class SPI:
         """Route bytes to `dev` (select(), exchange(mosi) -> int, -1 floating, deselect())
         while the Pin `cs` is low."""
         cs._dev = dev
+        cs._bus = self
         self._devs.append(dev)
         dev.cs = cs
         if cs._v == 0:
+            if self.log is not None:
+                self.log.append([dev.name, bytearray(), bytearray()])
             dev.select()
 
     def _device(self):
@@ -244,11 +272,18 @@ class SPI:
             miso = dev.exchange((mosi << 1) & 0xFF)
             if miso < 0:
                 miso = self.miso_idle
-            return ((miso & 0xFF) >> 1) | (self.miso_idle & 0x80)
-        miso = dev.exchange(mosi)
-        if miso < 0:
-            return self.miso_idle
-        return miso & 0xFF
+            miso = ((miso & 0xFF) >> 1) | (self.miso_idle & 0x80)
+        else:
+            miso = dev.exchange(mosi)
+            if miso < 0:
+                miso = self.miso_idle
+            miso &= 0xFF
+        log = self.log
+        if log is not None:
+            t = log[-1]
+            t[1].append(mosi)
+            t[2].append(miso)
+        return miso
 
     def write(self, buf):
         dev = self._device()
@@ -307,7 +342,7 @@ class _Die:
         self.ignore_writes = False
         self.regs = bytearray(_N_REGS)
         self.resets = 0  # soft resets performed
-        self.writes = 0  # accepted register writes
+        self.writes = []  # (reg, value) of every accepted write (the driver writes at start-up)
         self.reads = 0  # register bytes read (not counting the chip ID)
         self.cs = None
         self._ready_at = -1  # virtual us when the start-up after a reset ends; -1 ready
@@ -354,7 +389,7 @@ class _Die:
         value &= 0xFF
         if self.ignore_writes or reg < _READ_ONLY_END:
             return
-        self.writes += 1
+        self.writes.append((reg, value))
         if reg == REG_SOFTRESET:
             if value == SOFTRESET_CMD:
                 self._reset_pending = True

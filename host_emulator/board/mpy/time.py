@@ -1,7 +1,10 @@
-"""MicroPython-side `time` for the host emulator: the board's tick functions on a virtual clock.
+"""The emulated board's `time`: the board's tick functions on a virtual clock.
 
-Runs inside the MicroPython VM only (host_emulator/board/mpy/emulate.py puts this directory first
-on sys.path, so `import time` in the firmware finds this file instead of the built-in module).
+In the MicroPython VM this file is `time` (host_emulator/board/mpy/emulate.py puts this
+directory first on sys.path, so the firmware's `import time` finds it instead of the built-in
+module). On CPython, host_emulator/firmware_env.install_machine() loads it once and puts its
+MicroPython-only functions (ticks_*, sleep_ms, sleep_us, now_us, set_us, advance_us) on
+CPython's own `time`, whose time(), sleep() and perf_counter() stay the host's.
 
 The clock is an integer count of microseconds since power-on, `now_us()`. Only the emulator
 moves it forward (`set_us`, `advance_us`), and the firmware's own waits (`sleep_ms`,
@@ -24,8 +27,8 @@ def now_us():
 
 
 def set_us(t):
-    """Set the clock to t us since power-on. The emulator only moves it forward, except (as
-    the cpython runtime does) for a PPS edge in tick 0 that came before start-up ended."""
+    """Set the clock to t us since power-on. The emulator only moves it forward; machine's
+    power_on() sets it to the power-on time."""
     global _now
     _now = t
 

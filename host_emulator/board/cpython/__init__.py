@@ -1,1 +1,0 @@
-"""(docstring follows in phase B)"""
