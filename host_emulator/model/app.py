@@ -38,6 +38,7 @@ Not modelled: a missing IMU (the emulated BMI055 always answers), overruns, garb
 collection, tick timing (none of them happen on the emulator).
 """
 
+import functools
 import time  # CPython's, with the board's ticks_us and set_us once install_machine() ran
 
 import numpy as np
@@ -63,9 +64,10 @@ _PPS_MAX_AGE_US = 1_000_000  # an older PPS edge is not the fix's (app._deliver_
 _I32_LIM = 1073741823  # frame.put_scaled32's clamp (small ints on the board)
 
 
+@functools.cache
 def _firmware():
     """The firmware's modules whose constants the model uses: app, board, frame and the BMI055
-    driver (sensitivities, over-range thresholds, reset waits)."""
+    driver (sensitivities, over-range thresholds, reset waits); imported once."""
     return tuple(map(firmware_env.import_module, ("app", "board", "frame", "drivers.bmi055")))
 
 
