@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint accuracy bench-nav accuracy-report digests replay build-flash deploy \
+.PHONY: demo test toolchain lint accuracy bench-nav accuracy-report digests replay build-flash deploy \
 	monitor virtual-board clean
 
 $(STAMP): requirements.txt
@@ -15,8 +15,13 @@ $(STAMP): requirements.txt
 demo: $(STAMP)
 	$(BIN)/python -m host_emulator demo
 
-test: $(STAMP)
+test: $(STAMP) toolchain
 	$(BIN)/python -m pytest -q
+
+# The Debian cross compiler and QEMU for the image and the emulated Cortex-M4F board: installed
+# (pinned) when missing if run as root, else the command to run is printed and make stops.
+toolchain:
+	@tools/toolchain/ensure.sh
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
