@@ -1,7 +1,9 @@
-"""Parity: the firmware on the cpython runtime against the NumPy float32 model (the model
+"""Parity: the firmware on a bit-exact runtime (cpython, default; m4f, the emulated
+Cortex-M4F with the board's float32 arithmetic) against the NumPy float32 model (the model
 runtime), byte for byte over the whole output stream.
 
     python -m host_emulator parity --scenario highway_outage --duration 45 [--seed 0]
+        [--runtime cpython|m4f]
 
 Exit status 0 when both streams are identical, 1 when they differ (the summary names the first
 differing frame, its tick and its fields with both values) or the firmware raised, 2 for a
@@ -25,7 +27,7 @@ from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.eval.compare import EXT, FRAME, RAW, KindResult, compare_kind
 from host_emulator.proto import config as board_config
-from host_emulator.proto import stream
+from host_emulator.proto import records, stream
 
 LABELS = ("firmware", "model")
 
@@ -43,13 +45,15 @@ class ParityResult:
     wall_firmware_s: float = 0.0
     wall_model_s: float = 0.0
     stream_error: str | None = None  # a stream that does not split into records
-    firmware_stats: dict = field(default_factory=dict)  # the cpython runtime's counters
+    firmware_stats: dict = field(default_factory=dict)  # the firmware runtime's counters
+    runtime: str = "cpython"  # where the firmware ran
+    run_time_zeroed: bool = False  # extended frames compared with their run-time counters 0
     out_firmware: bytes = field(default=b"", repr=False)  # the two streams compared
     out_model: bytes = field(default=b"", repr=False)
 
     def summary(self):
         lines = [
-            f"firmware (CPython emulator) {self.wall_firmware_s:.2f} s wall, "
+            f"firmware ({self.runtime}) {self.wall_firmware_s:.2f} s wall, "
             f"model (NumPy float32) {self.wall_model_s:.2f} s wall"
         ]
         if self.stream_error:
@@ -57,6 +61,13 @@ class ParityResult:
         for k in (self.frame, self.ext, self.raw):
             if k.counts != (0, 0):
                 lines.append(k.line(self.tick_us))
+        if self.run_time_zeroed:
+            lines.append(
+                "(the extended frames' run-time counters, "
+                f"{', '.join(records.EXT_TIMING_FIELDS)}, are the board's own: 0 in both "
+                f"streams before comparing; the firmware collected garbage "
+                f"{self.firmware_stats.get('app_gc_runs', '?')} times)"
+            )
         if self.identical:
             lines.append(f"PARITY: identical, {self.bytes_firmware} bytes")
         else:
@@ -93,21 +104,38 @@ def compare_streams(fw_out, model_out, output_every_ticks=1, ext_every_ticks=20,
     )
 
 
-def compare(stim, config_overrides=None, progress=None):
-    """Run the firmware (cpython runtime, in a temporary flash directory) and the model over
+def bit_exact_runtimes():
+    """The runtimes whose firmware output can equal the model's byte for byte."""
+    return tuple(n for n, r in runtimes.RUNTIMES.items() if r.bit_exact and n != "model")
+
+
+def compare(stim, config_overrides=None, progress=None, runtime="cpython"):
+    """Run the firmware (on `runtime`, in a temporary flash directory) and the model over
     `stim` with the same board configuration; a ParityResult. progress(k, n) is passed to
     each side in turn (firmware first). FirmwareError if the firmware raises."""
+    if runtime not in bit_exact_runtimes():
+        raise EmulatorError(
+            f"parity needs a bit-exact runtime ({', '.join(bit_exact_runtimes())}), not "
+            f"{runtime!r}: the unix VM computes in double"
+        )
     with tempfile.TemporaryDirectory(prefix="parity-") as d:
-        fw = runtimes.get("cpython").run(stim, Path(d), config_overrides, progress)
+        fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress)
         model = runtimes.get("model").run(stim, Path(d), config_overrides, progress)
     cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
+    zeroed = runtimes.get(runtime).own_run_time
+    fw_out, model_out = fw.out, model.out
+    if zeroed:
+        fw_out, model_out = stream.without_run_time(fw_out), stream.without_run_time(model_out)
     r = compare_streams(
-        fw.out, model.out, cfg.output_every_ticks, cfg.ext_every_ticks, bool(cfg.raw_record)
+        fw_out, model_out, cfg.output_every_ticks, cfg.ext_every_ticks, bool(cfg.raw_record)
     )
+    r.run_time_zeroed = zeroed
     r.tick_us = stim.tick_us
     r.wall_firmware_s = fw.wall_s
     r.wall_model_s = model.wall_s
     r.firmware_stats = dict(fw.stats)
+    r.runtime = runtime
+    r.firmware_run = fw
     return r
 
 
@@ -122,6 +150,13 @@ def main(argv=None):
     p.add_argument("--scenario", required=True, help="simulated scenario (sim/trajectory.py)")
     p.add_argument("--duration", required=True, help="seconds of the scenario to run")
     p.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
+    p.add_argument(
+        "--runtime",
+        default="cpython",
+        choices=bit_exact_runtimes(),
+        help="where the firmware runs (default cpython; m4f: the emulated Cortex-M4F, about "
+        "real time)",
+    )
     try:
         args = p.parse_args(argv)
         duration = cli_args.number(args.duration, "--duration")
@@ -135,9 +170,10 @@ def main(argv=None):
     def command():
         stim = board_input.simulate(args.scenario, duration_s=duration, seed=args.seed).stimulus
         print(
-            f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed {args.seed}"
+            f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed "
+            f"{args.seed}, firmware on {args.runtime}"
         )
-        r = compare(stim)
+        r = compare(stim, runtime=args.runtime)
         print(r.summary())
         return 0 if r.identical else 1
 

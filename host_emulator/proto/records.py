@@ -43,6 +43,7 @@ EXT_FIELDS = (
     ("origin_h_m", "f", 1),  # ellipsoidal; the position's U is relative to it
 )
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time
+assert all(code == "H" for name, code, _ in EXT_FIELDS if name in EXT_TIMING_FIELDS)
 EXT_FLOAT_FIELDS = tuple(n for n, code, _ in EXT_FIELDS if code == "f")
 _EXT = struct.Struct("<" + "".join(f"{count}{code}" for _, code, count in EXT_FIELDS))
 EXT_PAYLOAD = _EXT.size  # bytes after the counter

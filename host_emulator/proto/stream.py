@@ -158,23 +158,51 @@ def decode(data):
     return out
 
 
+def _cuts(data):
+    """(record type, start, end) of each record of a stream cut at the lengths their headers
+    announce, then (None, offset, error message) if it does not split to its end."""
+    types = (FRAME_TYPE, EXT_TYPE, RAW_TYPE)
+    i = 0
+    n = len(data)
+    while i < n:
+        if data[i] != HEADER or i + 3 > n or data[i + 1] not in types:
+            yield None, i, f"no record starts at byte {i}"
+            return
+        t = data[i + 1]
+        end = i + (FRAME_LEN if t == FRAME_TYPE else 3 + data[i + 2] + 4)
+        if end > n:
+            yield None, i, f"record at byte {i} is cut short"
+            return
+        yield t, i, end
+        i = end
+
+
 def split(data):
     """(frames, ext, raw, error): the records of a stream cut at the lengths their headers
     announce (nothing checked), each kind in order; error names the offset where no record
     starts or one is cut short (None if the stream splits to its end)."""
     out = {FRAME_TYPE: [], EXT_TYPE: [], RAW_TYPE: []}
-    i = 0
-    n = len(data)
     err = None
-    while i < n:
-        if data[i] != HEADER or i + 3 > n or data[i + 1] not in out:
-            err = f"no record starts at byte {i}"
-            break
-        t = data[i + 1]
-        end = i + (FRAME_LEN if t == FRAME_TYPE else 3 + data[i + 2] + 4)
-        if end > n:
-            err = f"record at byte {i} is cut short"
+    for t, i, end in _cuts(data):
+        if t is None:
+            err = end
             break
         out[t].append(bytes(data[i:end]))
-        i = end
     return out[FRAME_TYPE], out[EXT_TYPE], out[RAW_TYPE], err
+
+
+def without_run_time(data):
+    """A copy of the stream with the board's run-time counters of every extended frame
+    (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs) set to 0 and its CRC renewed:
+    what is left is the firmware's arithmetic and logic, comparable between a board (or the
+    emulated Cortex-M4F, which collects garbage as the board does) and the model."""
+    out = bytearray(data)
+    for t, i, end in _cuts(data):
+        if t is None:
+            break
+        if t == EXT_TYPE and end - i == records.EXT_LEN:
+            for name in records.EXT_TIMING_FIELDS:
+                at = i + records.EXT_OFFSETS[name]
+                out[at : at + 2] = bytes(2)  # the timing fields are u16
+            out[i:end] = records.seal(out[i : end - records.CRC_LEN])
+    return bytes(out)

@@ -12,6 +12,10 @@ sent on its output UART, its console lines and its counters.
     mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over board/mpy
               (mpy_unix/); its floats are doubles, so float output agrees to a tolerance;
               proves the firmware runs on MicroPython and counts the GC blocks of every tick
+    m4f       the firmware on an emulated Cortex-M4F (QEMU mps2-an386, MicroPython v1.28.0
+              built as for the F411 with the firmware frozen; m4f/): the board's float32
+              arithmetic, heap and garbage collection; counts the instructions of every tick;
+              about real time
     model     no firmware: the NumPy float32 model of it (model/app.py through model.py);
               float32 bit for bit; the parity oracle
 
@@ -49,6 +53,9 @@ class Runtime:
     counts_allocations: bool  # FirmwareRun.blocks_per_tick
     counts_instructions: bool
     module: str  # the module whose run(stim, workdir, config_overrides, progress) it is
+    # its extended frames carry run-time counters of its own (garbage collections as on the
+    # board), which the model cannot know: parity compares them with those counters zeroed
+    own_run_time: bool = False
 
     def run(self, stim, workdir, config_overrides=None, progress=None):
         """A FirmwareRun of the stimulus; FirmwareError if the firmware raises, EmulatorError
@@ -64,6 +71,9 @@ RUNTIMES = {
                 "host_emulator.runtimes.cpython"),
         Runtime("mpy_unix", "the firmware in the MicroPython unix VM (double precision); counts "
                 "GC blocks per tick", False, True, False, "host_emulator.runtimes.mpy_unix"),
+        Runtime("m4f", "the firmware on an emulated Cortex-M4F (QEMU), float32 as on the board; "
+                "counts instructions per tick", True, True, True, "host_emulator.runtimes.m4f",
+                own_run_time=True),
         Runtime("model", "the NumPy float32 model of the firmware (the parity oracle)", True,
                 False, False, "host_emulator.runtimes.model"),
     )

@@ -531,6 +531,44 @@ def urban_drive(duration_s, seed, outages):
 
 
 @_scenario(
+    "quick_start",
+    "10 s static, then city driving up to 12 m/s with 90-degree turns both ways and a stop; "
+    "no outages: navigation within seconds, for short runs (the emulated Cortex-M4F runs at "
+    "about real time)",
+    60.0,
+)
+def quick_start(duration_s, seed, outages):
+    rng, road_rng = _streams(seed)
+    script = DriveScript(rng.uniform(-np.pi, np.pi))
+    script.add_road(
+        road_rng,
+        length_m=12.0 * duration_s,
+        grade_max_rad=np.arctan(0.03),
+        bank_max_rad=np.deg2rad(1.5),
+        spacing_m=(100.0, 300.0),
+        transition_m=(30.0, 80.0),
+    )
+    script.hold(10.0)
+    pattern = ("left", "right", "stop")
+    i = 0
+    while script.t_s < duration_s:
+        script.speed_to(rng.uniform(8.0, 12.0), rng.uniform(1.0, 1.5))
+        script.hold(rng.uniform(4.0, 8.0))
+        kind = pattern[i % len(pattern)]
+        i += 1
+        if kind == "stop":
+            brake = rng.uniform(1.0, 1.8)
+            script.speed_to(0.0, brake)
+            script.hold(rng.uniform(3.0, 6.0))
+        else:
+            v_turn = rng.uniform(4.5, 7.0)
+            angle = 0.5 * np.pi if kind == "left" else -0.5 * np.pi
+            script.speed_to(v_turn, rng.uniform(1.0, 1.8))
+            script.turn(angle, v_turn / rng.uniform(10.0, 20.0), ramp_s=rng.uniform(1.5, 2.5))
+    return script
+
+
+@_scenario(
     "highway_outage",
     "30 s static, accelerate to 30 m/s, long straight road with gentle curves; "
     "a 60 s GNSS outage at speed",

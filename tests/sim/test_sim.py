@@ -410,7 +410,7 @@ def test_same_seed_same_data_and_shorter_runs_are_prefixes():
 
 
 def test_scenarios_are_registered_with_descriptions():
-    assert set(tr.SCENARIOS) == {"static", "urban_drive", "highway_outage"}
+    assert set(tr.SCENARIOS) == {"static", "urban_drive", "quick_start", "highway_outage"}
     for name, build in tr.SCENARIOS.items():
         assert build.description and "\n" not in build.description
         truth = build(2.0, seed=0)

@@ -7,12 +7,8 @@ sys.path: this directory first (the VM puts the script's directory there), so `m
 `time` are the emulated ones beside this file; then FIRMWARE_DIR/lib and FIRMWARE_DIR, the
 board's layout. board.CONFIG_PATH = CONFIG, then `app.App(board, console=...)`, `start()`.
 
-Per stimulus record k (host_emulator/proto/stimulus.py; the host has checked the CRC), exactly as
-the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
-GNSS UART receives its bytes, the clock moves to t_k - pps_before_us and the PPS pin fires
-(if the record has an edge), the clock moves to t_k, the timer fires, `app.service()` runs.
-t_k = t0 + k * tick_us (virtual us since power-on), t0 = the first multiple of tick_us at or
-after the clock when start-up ended.
+Each stimulus record is fed as feed.py (beside this file) says, exactly as the cpython
+runtime feeds it, then `app.service()` runs.
 
 Counting: the collector is off (the app turns it off in start()); gc.mem_alloc() is read just
 before and after service(), and the difference in GC blocks (bytes / bytes per block,
@@ -46,6 +42,16 @@ import time  # board/mpy/time.py: this directory is sys.path[0]
 from array import array
 
 import machine  # board/mpy/machine.py
+from feed import (
+    MAGIC,
+    PROGRESS_EVERY,
+    REC_LEN,
+    fire_inputs,
+    firmware_error,
+    first_tick_us,
+    next_input,
+    start_firmware,
+)
 
 if len(sys.argv) != 5:
     print("usage: micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR")
@@ -61,14 +67,9 @@ if not hasattr(time, "now_us") or not hasattr(machine, "fire_timers"):
     print("emulate.py: the built-in time/machine modules shadow the emulated ones")
     sys.exit(2)
 
-MAGIC = b"INSSTIM1"
-REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
-FLAG_PPS = 1
-PROGRESS_EVERY = 1000  # ticks between progress lines
 CHUNK = 2000  # ticks per write of the per-tick arrays
 MARGIN0 = 65536  # free heap bytes to keep before a tick, at least
 OUT_FLUSH = 8192  # write the output UART's bytes to the file beyond this many
-EXIT_FIRMWARE_ERROR = 3
 
 
 def bytes_per_block():
@@ -82,21 +83,6 @@ def bytes_per_block():
     gc.enable()
     del x
     return m1 - m0
-
-
-def console(msg):
-    """The firmware's console: one "C" line per line of text (no allocation for one line)."""
-    if "\n" in msg:
-        for line in msg.split("\n"):
-            print("C", line)
-    else:
-        print("C", msg)
-
-
-def read_exact(f, buf, n, what):
-    got = f.readinto(buf, n) if n else 0
-    if got != n:
-        raise EOFError("stimulus file cut short in " + what)
 
 
 def open_stimulus():
@@ -113,63 +99,13 @@ def open_stimulus():
     return f, header.get("tick_us", 5000), n_ticks
 
 
-def start_firmware(imu):
-    """The firmware's start-up: its modules, the App (configuration, BMI055 init), start().
-    Returns (app, board pins); an exception is reported (firmware_error) and ends the VM."""
-    try:
-        import board
-
-        board.CONFIG_PATH = CONFIG_PATH
-        pins = board.PINS
-        imu.attach(
-            machine.spi_bus(pins["spi_id"]),
-            machine.pin(pins["cs_accel"]),
-            machine.pin(pins["cs_gyro"]),
-        )
-        import app
-
-        a = app.App(board, console=console)
-        a.start()
-    except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
-        firmware_error(-1, e)
-    return a, pins
-
-
-def next_input(f, rec, ubuf, imu, gnss):
-    """The next record into the BMI055 registers and the GNSS UART; returns the UART byte
-    buffer (grown when a record carries more)."""
-    read_exact(f, rec, REC_LEN, "a record")
-    imu.set_registers(rec, 0, 6)
-    t = rec[12]
-    imu.set_temperature_raw(t - 256 if t >= 128 else t)
-    n = rec[16] | (rec[17] << 8)
-    if n:
-        if n > len(ubuf):
-            ubuf = bytearray(n)
-        read_exact(f, ubuf, n, "UART bytes")
-        gnss.feed(ubuf, n)
-    return ubuf
-
-
-def fire_inputs(rec, t_k, pps):
-    """The record's PPS edge (never back in time: an edge during start-up), then the clock to
-    t_k and the tick timer: the firmware's interrupt handlers run."""
-    if rec[13] & FLAG_PPS:
-        edge = t_k - (rec[14] | (rec[15] << 8))
-        if edge > time.now_us():
-            time.set_us(edge)
-        pps.fire()
-    time.set_us(t_k)
-    machine.fire_timers()
-
-
 def main():
     bpb = bytes_per_block()
     f, tick_us, n_ticks = open_stimulus()
     rec = bytearray(REC_LEN)
     ubuf = bytearray(2048)
     imu = machine.Bmi055()
-    a, pins = start_firmware(imu)
+    a, pins = start_firmware(imu, CONFIG_PATH)
     gc.disable()
     gnss = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
@@ -180,8 +116,7 @@ def main():
     blocks = array("i", bytes(4 * CHUNK))
     state = bytearray(CHUNK)
     nav = a.nav
-    now = time.now_us()
-    t0 = (now + tick_us - 1) // tick_us * tick_us
+    t0 = first_tick_us(tick_us)
     gc.collect()
     live = gc.mem_alloc()  # bytes in use after start-up (firmware bytecode, buffers)
     total = gc.mem_free() + live  # heap bytes
@@ -258,14 +193,6 @@ def main():
     print("S", json.dumps(stats))
 
 
-def firmware_error(k, e):
-    """Report an exception the firmware raised (at tick k, -1 at start-up) and exit."""
-    print("E", k)
-    sys.print_exception(e, sys.stdout)
-    print("E-END")
-    sys.exit(EXIT_FIRMWARE_ERROR)
-
-
 def stream_main(realtime):
     """The streaming mode (see the module docstring): the same replay, output as it happens."""
     import binascii
@@ -279,12 +206,11 @@ def stream_main(realtime):
     a = None
     k = -1
     try:
-        a, pins = start_firmware(imu)
+        a, pins = start_firmware(imu, CONFIG_PATH)
         gnss = machine.uart(pins["gnss_uart"])
         out_uart = machine.uart(pins["out_uart"])
         pps = machine.pin(pins["pps"])
-        now = time.now_us()
-        t0 = (now + tick_us - 1) // tick_us * tick_us
+        t0 = first_tick_us(tick_us)
         wall0 = utime.ticks_us()
         for k in range(n_ticks):
             ubuf = next_input(f, rec, ubuf, imu, gnss)

@@ -36,6 +36,12 @@ The parts:
 - `Timer(-1, mode, freq, callback)`: fired by `fire_timers()` (every tick, whatever freq).
 - `WDT(timeout=ms)`: counts feeds; `idle()`.
 
+Emulation is not firmware: on the emulated Cortex-M4F (runtimes/m4f) every method the firmware
+calls per tick runs between `_emu_in()` and `_emu_out()`, the `m4f` module's counter of the
+instructions spent emulating (subtracted from the firmware's count); an interrupt handler the
+emulator fires runs outside such a bracket, since it is the firmware's code. Elsewhere (no `m4f`
+module) the two are empty functions.
+
 Time: `time.now_us()` of board/mpy/time.py (us since power-on). Allocation: everything the
 firmware calls per tick (Pin.value, SPI write/readinto, UART any/readinto/write, WDT.feed)
 allocates nothing: integer work on preallocated buffers, index loops, no slices, tuples or
@@ -43,6 +49,18 @@ bound methods; tests prove it under micropython.heap_lock(). Construction alloca
 """
 
 import time
+
+try:
+    from m4f import emu_in as _emu_in
+    from m4f import emu_out as _emu_out
+except ImportError:
+
+    def _emu_in():
+        pass
+
+    def _emu_out():
+        pass
+
 
 _pins = {}
 _buses = {}
@@ -95,7 +113,9 @@ def fire_timers():
     for i in range(len(_timers)):
         t = _timers[i]
         if t.callback is not None:
+            _emu_out()
             t.callback(t)
+            _emu_in()
 
 
 def idle():
@@ -157,6 +177,7 @@ class Pin:
         """The level (0/1), or set it; a chip select's edge selects/deselects its die."""
         if v is None:
             return self._v
+        _emu_in()
         v = 1 if v else 0
         if v != self._v:
             self._v = v
@@ -170,6 +191,7 @@ class Pin:
                     if log is not None:
                         log.append([dev.name, bytearray(), bytearray()])
                     dev.select()
+        _emu_out()
         return None
 
     def __call__(self, v=None):
@@ -199,7 +221,9 @@ class Pin:
         h = self.irq_handler
         if h is not None and self.irq_trigger & 1:
             self.fired += 1
+            _emu_out()
             h(self)
+            _emu_in()
 
 
 # ---- SPI and the BMI055 ------------------------------------------------------------------
@@ -286,22 +310,28 @@ class SPI:
         return miso
 
     def write(self, buf):
+        _emu_in()
         dev = self._device()
         for i in range(len(buf)):
             self._x(dev, buf[i])
+        _emu_out()
 
     def readinto(self, buf, write=0):
+        _emu_in()
         dev = self._device()
         for i in range(len(buf)):
             buf[i] = self._x(dev, write)
+        _emu_out()
 
     def write_readinto(self, write_buf, read_buf):
         n = len(write_buf)
         if n != len(read_buf):
             raise ValueError("buffers must be the same length")
+        _emu_in()
         dev = self._device()
         for i in range(n):
             read_buf[i] = self._x(dev, write_buf[i])
+        _emu_out()
 
     def read(self, nbytes, write=0):
         buf = bytearray(nbytes)
@@ -507,7 +537,9 @@ class Bmi055:
 
 # ---- UART -------------------------------------------------------------------------------
 
-TX_CAPACITY = 16384  # transmit buffer bytes; the emulator empties it between ticks
+# Transmit buffer bytes of a UART made from now on; the emulator empties it between ticks. The
+# emulated Cortex-M4F, whose heap is the board's, sets it smaller before the firmware starts.
+TX_CAPACITY = 16384
 
 
 class UART:
@@ -568,17 +600,22 @@ class UART:
     # -- the machine.UART API the firmware uses --
 
     def any(self):
-        return self._count
+        _emu_in()
+        n = self._count
+        _emu_out()
+        return n
 
     def readinto(self, buf, nbytes=-1):
         """Up to nbytes (default len(buf)) received bytes into buf; the count, or None when
         nothing has arrived (the stm32 port with timeout=0)."""
+        _emu_in()
         n = len(buf)
         if 0 <= nbytes < n:
             n = nbytes
         if n > self._count:
             n = self._count
         if n <= 0:
+            _emu_out()
             return None
         ring = self._ring
         size = self.rxbuf
@@ -590,6 +627,7 @@ class UART:
                 r = 0
         self._head = r
         self._count -= n
+        _emu_out()
         return n
 
     def read(self, nbytes=-1):
@@ -603,16 +641,18 @@ class UART:
 
     def write(self, buf):
         """Append buf to the transmit buffer; returns the bytes accepted."""
+        _emu_in()
         m = len(buf)
         tx = self.tx
         n = self.tx_n
-        room = TX_CAPACITY - n
+        room = len(tx) - n
         if m > room:
             self.tx_overflow += m - room
             m = room
         for i in range(m):
             tx[n + i] = buf[i]
         self.tx_n = n + m
+        _emu_out()
         return m
 
 
@@ -654,5 +694,7 @@ class WDT:
         watchdog = self
 
     def feed(self):
+        _emu_in()
         self.feeds += 1
         self.last_feed_us = time.now_us()
+        _emu_out()

@@ -11,8 +11,22 @@ moves it forward (`set_us`, `advance_us`), and the firmware's own waits (`sleep_
 `sleep_us`) advance it by the time they ask for: the firmware's run time is zero on this clock.
 `ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and host_emulator/proto/ticks.py);
 `ticks_diff`/`ticks_add` do the port's modular arithmetic. Nothing here allocates (all values
-are small ints), so a tick's GC blocks are the firmware's own.
+are small ints), so a tick's GC blocks are the firmware's own. On the emulated Cortex-M4F the
+tick functions run between `_emu_in()` and `_emu_out()` (see machine.py): they are the board's
+C functions, emulated.
 """
+
+try:
+    from m4f import emu_in as _emu_in
+    from m4f import emu_out as _emu_out
+except ImportError:
+
+    def _emu_in():
+        pass
+
+    def _emu_out():
+        pass
+
 
 _PERIOD = 1 << 30  # ticks_us / ticks_ms wrap here (MICROPY_PY_TIME_TICKS_PERIOD)
 _HALF = 1 << 29
@@ -41,27 +55,42 @@ def advance_us(dt):
 
 def ticks_us():
     """us since power-on, wrapped to 0 .. 2**30 - 1."""
-    return _now & _MASK
+    _emu_in()
+    r = _now & _MASK
+    _emu_out()
+    return r
 
 
 def ticks_ms():
     """ms since power-on, wrapped to 0 .. 2**30 - 1."""
-    return (_now // 1000) & _MASK
+    _emu_in()
+    r = (_now // 1000) & _MASK
+    _emu_out()
+    return r
 
 
 def ticks_cpu():
     """Same as ticks_us (no CPU cycle counter on the virtual board)."""
-    return _now & _MASK
+    _emu_in()
+    r = _now & _MASK
+    _emu_out()
+    return r
 
 
 def ticks_diff(a, b):
     """a - b for two tick values, in -2**29 .. 2**29 - 1 (the port's signed difference)."""
-    return ((a - b + _HALF) & _MASK) - _HALF
+    _emu_in()
+    r = ((a - b + _HALF) & _MASK) - _HALF
+    _emu_out()
+    return r
 
 
 def ticks_add(t, delta):
     """A tick value delta ticks after t (wrapped)."""
-    return (t + delta) & _MASK
+    _emu_in()
+    r = (t + delta) & _MASK
+    _emu_out()
+    return r
 
 
 def sleep_ms(ms):

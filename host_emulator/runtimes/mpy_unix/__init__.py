@@ -22,7 +22,6 @@ tick, so the heap size sets the speed: 512 KB (default) runs 90 s of urban_drive
 2 MB in ~26 s. Garbage is collected between ticks, never during one.
 """
 
-import json
 import os
 import pathlib
 import subprocess
@@ -32,11 +31,12 @@ import time
 import numpy as np
 
 from host_emulator.board import EMULATE
-from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.errors import EmulatorError
 from host_emulator.firmware_env import FIRMWARE_DIR
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
+from host_emulator.runtimes.guest_output import GuestOutput, firmware_error
 from host_emulator.runtimes.mpy_unix import navigator, vm
 
 HEAP_KB = 512
@@ -58,63 +58,12 @@ def _block_stats(blocks):
     }
 
 
-class _Output:
-    """The VM's stdout lines, sorted by their prefix (see board/mpy/emulate.py)."""
-
-    def __init__(self, progress):
-        self.progress = progress
-        self.console = []
-        self.other = []  # lines that are none of the known kinds (VM errors, stray prints)
-        self.stats = None
-        self.error_tick = None  # "E k" seen
-        self.error_lines = []
-        self.last_tick = 0
-        self._in_error = False
-
-    def line(self, text):
-        text = text.rstrip("\n")
-        if self._in_error:
-            if text == "E-END":
-                self._in_error = False
-            else:
-                self.error_lines.append(text)
-            return
-        kind, _, rest = text.partition(" ")
-        fields = rest.split()
-        if kind == "P" and len(fields) == 2 and all(x.isdigit() for x in fields):
-            self.last_tick = int(fields[0])
-            if self.progress:
-                self.progress(int(fields[0]), int(fields[1]))
-        elif kind == "C":
-            self.console.append(rest)
-        elif kind == "E" and len(fields) == 1 and fields[0].lstrip("-").isdigit():
-            self.error_tick = int(fields[0])
-            self._in_error = True
-        elif kind == "S" and rest.startswith("{"):
-            try:
-                self.stats = json.loads(rest)
-            except ValueError:
-                self.other.append(text)
-        else:
-            self.other.append(text)
-
-
-def _firmware_error(out, stim, heap_kb):
-    k = out.error_tick
-    where = "at start-up" if k < 0 else f"at tick {k} (t = {k * stim.tick_us * 1e-6:.3f} s)"
-    tb = "\n".join(out.error_lines)
-    msg = f"the firmware raised {where} in the MicroPython VM:\n{tb}"
-    if "MemoryError" in tb:
-        msg += (
-            f"\n(the VM heap is {heap_kb} KB and the collector is off during a tick: a tick that "
-            "allocates more than is free runs out; a larger heap_kb tells whether the "
-            "firmware or the heap size is at fault)"
-        )
-    err = FirmwareError(msg)
-    err.tick = k
-    err.t_s = None if k < 0 else k * stim.tick_us * 1e-6
-    err.vm_traceback = tb
-    return err
+def _memory_hint(heap_kb):
+    return (
+        f"(the VM heap is {heap_kb} KB and the collector is off during a tick: a tick that "
+        "allocates more than is free runs out; a larger heap_kb tells whether the "
+        "firmware or the heap size is at fault)"
+    )
 
 
 def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None):
@@ -162,7 +111,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         str(out_dir.resolve()),
     ]
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
-    out = _Output(progress)
+    out = GuestOutput(progress)
     t_wall = time.perf_counter()
     try:
         proc = subprocess.Popen(
@@ -196,7 +145,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
             f"{out.last_tick} of {n}); it was stopped"
         )
     if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
-        raise _firmware_error(out, stim, heap_kb)
+        raise firmware_error(out, stim, "the MicroPython VM", _memory_hint(heap_kb))
     if rc != 0 or out.stats is None:
         tail = "\n".join(out.other[-20:]) or "(no output)"
         raise EmulatorError(f"the MicroPython VM failed (exit status {rc}):\n{tail}")

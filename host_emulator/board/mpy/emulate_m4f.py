@@ -1,0 +1,240 @@
+"""The guest side of the m4f runtime: the unmodified firmware loop on the emulated Cortex-M4F
+(MicroPython built for QEMU's mps2-an386 with the board's float32 arithmetic; see
+host_emulator/runtimes/m4f), fed from a stimulus file, counting the instructions of every tick.
+
+Frozen into that build with the firmware, machine.py, time.py and feed.py; the host starts it
+through the raw REPL:
+
+    import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR, HEAP)
+
+Host files go through ARM semihosting (the `m4f` module): the stimulus is read from byte
+OFFSET (its first record) of STIM, the configuration CONFIG is copied to /flash/ins.cfg on a
+FAT RAM disk as on the board, the output goes to OUT_DIR.
+
+The heap the firmware gets is the board's: the build's heap holds the emulator's objects and
+a reserve; before the firmware starts, a ballast takes what is free beyond HEAP bytes, so the
+firmware starts with HEAP bytes free, as on a board. The app collects garbage itself
+(firmware/app.py's low-water rule), as on the board.
+
+Counting, per tick k (fire_inputs + app.service(), the board's interrupt handlers and one pass
+of its loop): the instructions executed (m4f.icount, 40-instruction resolution), those spent in
+the emulated peripherals (m4f.emu_total: machine.py and time.py bracket themselves), the bytes
+the tick allocated (gc.mem_alloc after - before; a tick that collected shows what was freed)
+and whether the app collected (its gc_runs counter). Nothing the driver does between ticks
+allocates (checked: `driver_alloc_bytes` must be 0), so the heap the app sees is its own.
+
+Output (OUT_DIR): out.bin (the output UART's bytes) and ticks.bin, per tick 16 bytes:
+instructions i32, emulation instructions i32, allocated bytes i32, navigation state u8,
+collected u8, 2 pad. Stdout lines as feed.py says; S carries the run's statistics.
+"""
+
+import gc
+import json
+import struct
+import sys
+from array import array
+
+import m4f
+import machine  # board/mpy/machine.py, frozen as `machine`
+import vfs
+from feed import (
+    PROGRESS_EVERY,
+    REC_LEN,
+    fire_inputs,
+    firmware_error,
+    first_tick_us,
+    next_input,
+    start_firmware,
+)
+
+MASK = 0x3FFFFFFF  # m4f counters are modulo 2**30 (small ints)
+CHUNK = 250  # ticks per write of the per-tick records
+TX_CAPACITY = 2048  # output UART buffer: more than a tick writes; emptied beyond half of it
+BLOCK = 512  # RAM disk sector
+
+
+class HostFile:
+    """A host file through semihosting: readinto(buf, n) as feed.read_exact wants."""
+
+    def __init__(self, path, mode):
+        self.h = m4f.open(path, mode)
+
+    def readinto(self, buf, n):
+        return m4f.readinto(self.h, buf, n)
+
+    def write(self, buf, n):
+        m4f.write(self.h, buf, n)
+
+    def seek(self, pos):
+        m4f.seek(self.h, pos)
+
+    def close(self):
+        m4f.close(self.h)
+
+
+class RamDisk:
+    """A block device over the m4f module's static RAM disk (outside the heap)."""
+
+    def __init__(self):
+        self.mem = memoryview(m4f.ramdisk())
+        self.blocks = len(self.mem) // BLOCK
+
+    def readblocks(self, n, buf):
+        buf[:] = self.mem[n * BLOCK : n * BLOCK + len(buf)]
+
+    def writeblocks(self, n, buf):
+        self.mem[n * BLOCK : n * BLOCK + len(buf)] = buf
+
+    def ioctl(self, op, arg):
+        if op == 4:  # block count
+            return self.blocks
+        if op == 5:  # block size
+            return BLOCK
+        return 0
+
+
+def mount_flash(config_path):
+    """/flash: FAT on the RAM disk, holding the host's configuration file as ins.cfg."""
+    bdev = RamDisk()
+    vfs.VfsFat.mkfs(bdev)
+    vfs.mount(vfs.VfsFat(bdev), "/flash")
+    f = HostFile(config_path, 1)
+    n = m4f.flen(f.h)
+    data = bytearray(n)
+    if f.readinto(data, n) != n:
+        raise OSError("cannot read " + config_path)
+    f.close()
+    with open("/flash/ins.cfg", "wb") as out:
+        out.write(data)
+
+
+def bytes_per_block():
+    """Bytes of one GC block: what boxing one float allocates."""
+    a = array("f", bytes(4))
+    gc.collect()
+    m0 = gc.mem_alloc()
+    x = a[0]
+    m1 = gc.mem_alloc()
+    del x
+    return m1 - m0
+
+
+def icount_pair_cost():
+    """Instructions of one m4f.icount() reading as measured by the next (subtracted from
+    nothing: reported, so readers know the counter's own share of a tick)."""
+    icount = m4f.icount
+    c0 = icount()
+    c1 = icount()
+    return (c1 - c0) & MASK
+
+
+def exit_firmware_error(code):
+    m4f.exit(code)
+
+
+def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, heap_bytes):
+    m4f.init()
+    icount = m4f.icount
+    emu_total = m4f.emu_total
+    emu_in = m4f.emu_in
+    emu_out = m4f.emu_out
+    mount_flash(config_path)
+    machine.TX_CAPACITY = TX_CAPACITY
+    bpb = bytes_per_block()
+    f = HostFile(stim_path, 1)
+    f.seek(offset)
+    fo = HostFile(out_dir + "/out.bin", 5)
+    ft = HostFile(out_dir + "/ticks.bin", 5)
+    rec = bytearray(REC_LEN)
+    ubuf = bytearray(256)
+    recs = bytearray(16 * CHUNK)
+    imu = machine.Bmi055()
+    gc.collect()
+    emulator_bytes = gc.mem_alloc()  # MicroPython's own, the driver's and the emulator's
+    spare = (gc.mem_free() - heap_bytes - 16) // 16 * 16  # a bytearray: 16-byte head + data
+    ballast = bytearray(spare) if spare > 0 else None
+    gc.collect()
+    free_at_start = gc.mem_free()
+    c0 = icount()
+    a, pins = start_firmware(imu, "/flash/ins.cfg", exit_firmware_error)
+    startup_instr = (icount() - c0) & MASK
+    gnss = machine.uart(pins["gnss_uart"])
+    out_uart = machine.uart(pins["out_uart"])
+    pps = machine.pin(pins["pps"])
+    nav = a.nav
+    t0 = first_tick_us(tick_us)
+    live_after_start = gc.mem_alloc()
+    flush_at = TX_CAPACITY // 2
+    driver_alloc = 0
+    gc_runs = a.gc_runs
+    j = 0
+    m1 = gc.mem_alloc()
+    for k in range(n_ticks):
+        ubuf = next_input(f, rec, ubuf, imu, gnss)
+        t_k = t0 + k * tick_us
+        m0 = gc.mem_alloc()
+        if m0 != m1:
+            driver_alloc += m0 - m1
+        e0 = emu_total()
+        c0 = icount()
+        try:  # the firmware's code: its interrupt handlers and one pass of its loop
+            emu_in()
+            fire_inputs(rec, t_k, pps)
+            emu_out()
+            a.service()
+        except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
+            fo.write(out_uart.tx, out_uart.tx_n)
+            fo.close()
+            firmware_error(k, e, exit_firmware_error)
+        c1 = icount()
+        e1 = emu_total()
+        ma = gc.mem_alloc()
+        struct.pack_into("<iiiBB", recs, 16 * j, (c1 - c0) & MASK, (e1 - e0) & MASK, ma - m0,
+                         nav.state, a.gc_runs - gc_runs)  # fmt: skip
+        gc_runs = a.gc_runs
+        j += 1
+        if j == CHUNK:
+            ft.write(recs, 16 * j)
+            j = 0
+        if out_uart.tx_n >= flush_at:
+            fo.write(out_uart.tx, out_uart.tx_n)
+            out_uart.tx_clear()
+        if (k + 1) % PROGRESS_EVERY == 0:
+            print("P", k + 1, n_ticks)
+        m1 = gc.mem_alloc()
+        driver_alloc += m1 - ma
+    if j:
+        ft.write(recs, 16 * j)
+    fo.write(out_uart.tx, out_uart.tx_n)
+    out_uart.tx_clear()
+    fo.close()
+    ft.close()
+    f.close()
+    if n_ticks % PROGRESS_EVERY or not n_ticks:
+        print("P", n_ticks, n_ticks)
+    wdt = machine.watchdog
+    stats = {
+        "ticks": n_ticks,
+        "t0_us": t0,
+        "overruns": a.overruns,
+        "gnss_rx_overflow": gnss.overflow,
+        "nmea_rejected": a.gnss.rejected(),
+        "wdt_feeds": wdt.feeds if wdt else 0,
+        "imu_error": a.imu_error,
+        "config_status": a.config_status,
+        "app_gc_runs": a.gc_runs,
+        "bytes_per_block": bpb,
+        "heap_total_bytes": gc.mem_alloc() + gc.mem_free(),
+        "emulator_bytes": emulator_bytes,
+        "ballast_bytes": len(ballast) if ballast is not None else 0,
+        "free_at_start": free_at_start,
+        "live_after_start": live_after_start,
+        "startup_instructions": startup_instr,
+        "icount_cost": icount_pair_cost(),
+        "driver_alloc_bytes": driver_alloc,
+        "tx_overflow": out_uart.tx_overflow,
+        "float32": 1.0 + 2.0**-30 == 1.0,  # the VM's floats are single precision
+        "platform": sys.platform,
+    }
+    print("S", json.dumps(stats))
+    m4f.exit(0)

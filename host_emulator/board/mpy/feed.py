@@ -1,0 +1,109 @@
+"""Feeding the unmodified firmware from a stimulus, shared by the board's two drivers:
+emulate.py (the MicroPython unix VM, mpy_unix runtime) and emulate_m4f.py (the emulated
+Cortex-M4F, m4f runtime). Plain MicroPython on the emulated `machine` and `time` beside it.
+
+Per stimulus record k (host_emulator/proto/stimulus.py; the host has checked the CRC), exactly
+as the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
+GNSS UART receives its bytes (`next_input`), the clock moves to t_k - pps_before_us and the
+PPS pin fires (if the record has an edge), the clock moves to t_k, the timer fires
+(`fire_inputs`), and then the driver calls `app.service()`. t_k = t0 + k * tick_us (virtual us
+since power-on), t0 = `first_tick_us(tick_us)`, the first multiple of tick_us at or after the
+clock when start-up ended.
+
+Reports on stdout, one line each, parsed by host_emulator/runtimes/vm_output.py:
+    C <text>        a line the firmware printed on its console
+    P <k> <n>       progress: k of n ticks done
+    E <k>           the firmware raised at tick k (-1: at start-up); the traceback follows
+                    (sys.print_exception), then a line "E-END"; the driver then exits with 3
+    S <json>        statistics at the end
+"""
+
+import sys
+import time  # board/mpy/time.py
+
+import machine  # board/mpy/machine.py
+
+MAGIC = b"INSSTIM1"
+REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
+FLAG_PPS = 1
+PROGRESS_EVERY = 1000  # ticks between progress lines
+EXIT_FIRMWARE_ERROR = 3
+
+
+def console(msg):
+    """The firmware's console: one "C" line per line of text (no allocation for one line)."""
+    if "\n" in msg:
+        for line in msg.split("\n"):
+            print("C", line)
+    else:
+        print("C", msg)
+
+
+def firmware_error(k, e, exit=sys.exit):
+    """Report an exception the firmware raised (at tick k, -1 at start-up) and exit."""
+    print("E", k)
+    sys.print_exception(e, sys.stdout)
+    print("E-END")
+    exit(EXIT_FIRMWARE_ERROR)
+
+
+def read_exact(f, buf, n, what):
+    """n bytes into buf from f (anything with readinto(buf, n)); EOFError if fewer came."""
+    got = f.readinto(buf, n) if n else 0
+    if got != n:
+        raise EOFError("stimulus file cut short in " + what)
+
+
+def start_firmware(imu, config_path, exit=sys.exit):
+    """The firmware's start-up: its modules, the App (configuration, BMI055 init), start().
+    Returns (app, board pins); an exception is reported (firmware_error) and ends the run."""
+    try:
+        import board
+
+        board.CONFIG_PATH = config_path
+        pins = board.PINS
+        imu.attach(
+            machine.spi_bus(pins["spi_id"]),
+            machine.pin(pins["cs_accel"]),
+            machine.pin(pins["cs_gyro"]),
+        )
+        import app
+
+        a = app.App(board, console=console)
+        a.start()
+    except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
+        firmware_error(-1, e, exit)
+    return a, pins
+
+
+def first_tick_us(tick_us):
+    """t0: the first multiple of tick_us at or after the clock (start-up has ended)."""
+    return (time.now_us() + tick_us - 1) // tick_us * tick_us
+
+
+def next_input(f, rec, ubuf, imu, gnss):
+    """The next record into the BMI055 registers and the GNSS UART; returns the UART byte
+    buffer (grown when a record carries more)."""
+    read_exact(f, rec, REC_LEN, "a record")
+    imu.set_registers(rec, 0, 6)
+    t = rec[12]
+    imu.set_temperature_raw(t - 256 if t >= 128 else t)
+    n = rec[16] | (rec[17] << 8)
+    if n:
+        if n > len(ubuf):
+            ubuf = bytearray(n)
+        read_exact(f, ubuf, n, "UART bytes")
+        gnss.feed(ubuf, n)
+    return ubuf
+
+
+def fire_inputs(rec, t_k, pps):
+    """The record's PPS edge (never back in time: an edge during start-up), then the clock to
+    t_k and the tick timer: the firmware's interrupt handlers run."""
+    if rec[13] & FLAG_PPS:
+        edge = t_k - (rec[14] | (rec[15] << 8))
+        if edge > time.now_us():
+            time.set_us(edge)
+        pps.fire()
+    time.set_us(t_k)
+    machine.fire_timers()

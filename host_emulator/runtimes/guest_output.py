@@ -1,0 +1,63 @@
+"""The report lines a MicroPython guest prints (host_emulator/board/mpy/feed.py: C console,
+P progress, E error + traceback + E-END, S statistics), read back on the host, for the runtimes
+that run the firmware in a MicroPython (mpy_unix, m4f)."""
+
+import json
+
+from host_emulator.errors import FirmwareError
+
+
+class GuestOutput:
+    """The guest's stdout lines, sorted by their prefix."""
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.console = []
+        self.other = []  # lines that are none of the known kinds (VM errors, stray prints)
+        self.stats = None
+        self.error_tick = None  # "E k" seen
+        self.error_lines = []
+        self.last_tick = 0
+        self._in_error = False
+
+    def line(self, text):
+        text = text.rstrip("\r\n")
+        if self._in_error:
+            if text == "E-END":
+                self._in_error = False
+            else:
+                self.error_lines.append(text)
+            return
+        kind, _, rest = text.partition(" ")
+        fields = rest.split()
+        if kind == "P" and len(fields) == 2 and all(x.isdigit() for x in fields):
+            self.last_tick = int(fields[0])
+            if self.progress:
+                self.progress(int(fields[0]), int(fields[1]))
+        elif kind == "C":
+            self.console.append(rest)
+        elif kind == "E" and len(fields) == 1 and fields[0].lstrip("-").isdigit():
+            self.error_tick = int(fields[0])
+            self._in_error = True
+        elif kind == "S" and rest.startswith("{"):
+            try:
+                self.stats = json.loads(rest)
+            except ValueError:
+                self.other.append(text)
+        else:
+            self.other.append(text)
+
+
+def firmware_error(out, stim, where_run, hint=""):
+    """The FirmwareError (with .tick, .t_s, .vm_traceback) for an "E" report in `out`."""
+    k = out.error_tick
+    where = "at start-up" if k < 0 else f"at tick {k} (t = {k * stim.tick_us * 1e-6:.3f} s)"
+    tb = "\n".join(out.error_lines)
+    msg = f"the firmware raised {where} in {where_run}:\n{tb}"
+    if hint and "MemoryError" in tb:
+        msg += "\n" + hint
+    err = FirmwareError(msg)
+    err.tick = k
+    err.t_s = None if k < 0 else k * stim.tick_us * 1e-6
+    err.vm_traceback = tb
+    return err

@@ -1,0 +1,183 @@
+"""The m4f runtime: the unmodified firmware loop on an emulated Cortex-M4F, the board's CPU and
+arithmetic, counting the instructions of every tick.
+
+MicroPython v1.28.0 (tools.toolchain's source tree) is built with its qemu port for our board
+definition (boards/M4F_INS: QEMU's mps2-an386, Cortex-M4 with the single-precision FPU, hard
+float, `MICROPY_FLOAT_IMPL = float`, object representation A: the stm32 port's choices for the
+STM32F411), with the firmware frozen exactly as the board image freezes it (firmware/manifest.py)
+and the emulated board beside it (board/mpy: machine.py, time.py, feed.py and the guest driver
+emulate_m4f.py). See build.py.
+
+QEMU runs it with `-icount shift=0`: one guest instruction is one ns of virtual time, and the
+`m4f` module (usermod/m4f/m4f.c) reads the MPS2's 25 MHz timer, so the guest counts its own
+instructions to 40. The host starts the driver through the raw REPL on the UART; the stimulus,
+the configuration and the output pass through semihosting files.
+
+What it gives besides the frames:
+- floats are float32 as on the board (the unix VM's are doubles), so the frames equal the
+  NumPy model's byte for byte (`parity --runtime m4f`);
+- per tick (`FirmwareRun.per_tick`, a NumPy record array): instructions executed, of which in
+  the emulated peripherals (machine.py, time.py: emulation, not firmware; subtract it), bytes
+  allocated, the navigation state after it, and whether the app's own gc.collect() ran in it;
+- the heap is the board's (BOARD_HEAP_BYTES free when the firmware starts) and the app
+  collects garbage itself, as on the board.
+
+What it cannot give: cycles. A Cortex-M4 at 0 wait states would run about one instruction per
+cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2 (docs/board.md
+gives the calibration). Interrupt entry/exit and the real peripherals' C drivers are not counted.
+"""
+
+import os
+import pathlib
+import shutil
+import struct
+import subprocess
+import threading
+import time
+
+import numpy as np
+
+from host_emulator.errors import EmulatorError
+from host_emulator.proto import config as board_config
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.runtimes import FirmwareRun
+from host_emulator.runtimes.guest_output import GuestOutput, firmware_error
+from host_emulator.runtimes.m4f import build as m4f_build
+
+QEMU = "qemu-system-arm"
+QEMU_MACHINE = "mps2-an386"
+EXIT_FIRMWARE_ERROR = 3  # feed.EXIT_FIRMWARE_ERROR
+EXIT_DRIVER_ERROR = 4  # the guest driver itself raised (a bug of the emulator)
+PER_TICK = np.dtype(
+    [("instr", "<i4"), ("emu_instr", "<i4"), ("alloc_bytes", "<i4"), ("state", "u1"),
+     ("collected", "u1"), ("pad", "u1", 2)]
+)  # fmt: skip
+AFTER_ERROR = b"import m4f\r\nm4f.exit(4)\r\n\x04"  # runs if the driver's command raised
+
+
+def qemu_command(elf):
+    return [
+        QEMU, "-machine", QEMU_MACHINE, "-display", "none", "-monitor", "none",
+        "-serial", "stdio", "-semihosting", "-icount", "shift=0", "-kernel", str(elf),
+    ]  # fmt: skip
+
+
+def _default_timeout_s(stim):
+    """Generous: the emulated board runs about 3-5x faster than real time here (measured)."""
+    return 120.0 + 2.0 * stim.duration_s
+
+
+def _data_offset(path):
+    with open(path, "rb") as f:
+        head = f.read(12)
+    if len(head) < 12 or head[:8] != stim_mod.MAGIC:
+        raise EmulatorError(f"{path} is not a stimulus file")
+    return 12 + struct.unpack_from("<I", head, 8)[0]
+
+
+def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
+    """Run the firmware on the emulated Cortex-M4F over a whole stimulus; a FirmwareRun.
+
+    stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin) or a stimulus file's path.
+    workdir: workdir/flash/ins.cfg (the configuration: the stimulus header's "config" plus
+        `config_overrides`, as every runtime) and the guest's output files (workdir/m4f/).
+    progress(k, n): called as the guest reports ticks done (every 1000 ticks and at the end).
+
+    The FirmwareRun has `per_tick` (PER_TICK records) and stats from the guest (heap,
+    start-up instructions, counters). FirmwareError if the firmware raises; EmulatorError if
+    the board cannot be built or run, or times out."""
+    workdir = pathlib.Path(workdir).resolve()
+    workdir.mkdir(parents=True, exist_ok=True)
+    if isinstance(stim, (str, os.PathLike)):
+        stim_path = pathlib.Path(stim).resolve()
+        stim = stim_mod.read(stim_path)
+    else:
+        stim_path = workdir / "stimulus.bin"
+        stim.write(stim_path)
+    if shutil.which(QEMU) is None:
+        raise EmulatorError(
+            f"{QEMU} not found: run `make toolchain` (installs Debian's qemu-system-arm)"
+        )
+    elf = m4f_build.build(progress=(lambda msg: print(msg, flush=True)) if progress else None)
+    cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
+    out_dir = workdir / "m4f"
+    out_dir.mkdir(exist_ok=True)
+    for name in ("out.bin", "ticks.bin"):
+        (out_dir / name).unlink(missing_ok=True)
+    n = len(stim)
+    call = (
+        f"import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, {_data_offset(stim_path)}, "
+        f"{n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, {str(out_dir)!r}, "
+        f"{m4f_build.BOARD_HEAP_BYTES})\r\n"
+    )
+    stdin = b"\x01" + call.encode() + b"\x04" + b"\x01" + AFTER_ERROR
+    timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
+    out = GuestOutput(progress)
+    t_wall = time.perf_counter()
+    try:
+        proc = subprocess.Popen(
+            qemu_command(elf), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, cwd=workdir,
+        )  # fmt: skip
+    except OSError as e:
+        raise EmulatorError(f"cannot start {QEMU}: {e.strerror}") from None
+    timed_out = threading.Event()
+
+    def kill():
+        timed_out.set()
+        proc.kill()
+
+    watchdog = threading.Timer(timeout_s, kill)
+    watchdog.start()
+    try:
+        proc.stdin.write(stdin)
+        proc.stdin.close()
+        started = False
+        for raw in proc.stdout:
+            text = raw.decode("utf-8", "replace")
+            if not started:  # the banner and the raw REPL's prompt, up to its "OK"
+                i = text.find(">OK")
+                if i < 0:
+                    continue
+                started = True
+                text = text[i + 3 :]
+            out.line(text)
+        rc = proc.wait()
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+    wall = time.perf_counter() - t_wall
+    if timed_out.is_set():
+        raise EmulatorError(
+            f"the emulated Cortex-M4F did not finish within {timeout_s:g} s (at tick "
+            f"{out.last_tick} of {n}); it was stopped"
+        )
+    if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
+        raise firmware_error(out, stim, "the emulated Cortex-M4F")
+    if rc != 0 or out.stats is None:
+        tail = "\n".join(out.other[-20:]) or "(no output)"
+        raise EmulatorError(f"the emulated Cortex-M4F failed (exit status {rc}):\n{tail}")
+    per_tick = np.fromfile(out_dir / "ticks.bin", dtype=PER_TICK)
+    if len(per_tick) != n or out.stats.get("ticks") != n:
+        raise EmulatorError(
+            f"the emulated Cortex-M4F reported {len(per_tick)} ticks of {n}: its output is "
+            "incomplete"
+        )
+    stats = dict(out.stats)
+    stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
+    for problem, what in (
+        ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
+        ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "
+                               "not the board's)"),
+    ):  # fmt: skip
+        if stats.get(problem):
+            raise EmulatorError(f"{what}: {problem} = {stats[problem]}")
+    if not stats.get("float32"):
+        raise EmulatorError("the emulated Cortex-M4F's floats are not float32: wrong build")
+    result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
+                         stats)  # fmt: skip
+    result.per_tick = per_tick
+    return result

@@ -1,0 +1,31 @@
+"""Run a piece of MicroPython on the emulated Cortex-M4F and get what it printed: for tests and
+measurements (instruction counts of one function, float32 behaviour), as runtimes/mpy_unix/vm.py
+does for the unix VM.
+
+The code runs through the raw REPL with the frozen modules importable (the firmware's, the
+emulated board's, `m4f`); `m4f.init()` has run, so `m4f.icount()` counts from 0. Host files are
+reachable through semihosting paths relative to `cwd`.
+"""
+
+import subprocess
+
+from host_emulator.runtimes.m4f import build as m4f_build
+
+
+def run(code, timeout_s=120, cwd=None):
+    """stdout of `code` (a str) run on the emulated board; AssertionError with the output if it
+    raised or QEMU failed."""
+    from host_emulator.runtimes.m4f import qemu_command
+
+    elf = m4f_build.build(progress=None)
+    body = "import m4f\r\nm4f.init()\r\n" + code.replace("\n", "\r\n") + "\r\nm4f.exit(0)\r\n"
+    stdin = b"\x01" + body.encode() + b"\x04" + b"\x01import m4f\r\nm4f.exit(4)\r\n\x04"
+    proc = subprocess.run(
+        qemu_command(elf), input=stdin, capture_output=True, timeout=timeout_s, cwd=cwd
+    )
+    text = proc.stdout.decode("utf-8", "replace")
+    i = text.find(">OK")
+    out = text[i + 3 :] if i >= 0 else text
+    if proc.returncode != 0:
+        raise AssertionError(f"the emulated Cortex-M4F failed ({proc.returncode}):\n{out}")
+    return out.replace("\r\n", "\n")
