@@ -6,4 +6,6 @@ accuracy_report.py  `accuracy-report`: drive_0708 and the scenarios -> docs/accu
 float32.py          `float32`: the float32 math functions over their domains, then the
                     rotation and lat/lon kernels (core_figures.py) -> docs/float32.md
 digests.py          `digests`: the change indicator (tests/change_indication/)
+board_cost.py       the cost of a tick on the board's CPU from an m4f run's instruction counts
+                    (run --runtime m4f, bench-board)
 """

@@ -33,6 +33,8 @@ RUNS = (
     ("highway_outage_45s_raw", "highway_outage", 45.0, 1,
      {"raw_record": 1, "ext_every_ticks": 10, "output_every_ticks": 2}),
 )  # fmt: skip
+# Not m4f: it runs at about real time (these runs would add ~3 minutes to make test); its
+# parity test (tests/runtimes/test_m4f.py) shows its stream equals the model's, digested here.
 RUNTIMES = ("cpython", "model", "mpy_unix")
 CSV_RUNTIMES = ("cpython", "mpy_unix")
 _COLUMNS = (

@@ -4,6 +4,7 @@ CPython, and a short table of how well it navigated, for someone new to the proj
 Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
+from host_emulator.bench import board_cost
 from host_emulator.eval import scenario_run
 from host_emulator.eval.report import fmt
 
@@ -55,6 +56,9 @@ def summary(m, out_dir):
         )
         for state, b in (m.get("gc_blocks_by_state") or {}).items():
             lines.append(f"  {state:<20} mean {b['mean']:.0f}, max {b['max']}")
+    if m.get("board_cost"):
+        lines.append("board CPU cost         (emulated Cortex-M4F, firmware instructions per tick)")
+        lines += [f"  {t}" for t in board_cost.lines(m["board_cost"])]
     lines.append(f"frames                 {m['frames']} sent, {m['frame_errors']} errors")
     lines.append("")
     lines.append(f"report: {out_dir}/report.md   plots: {out_dir}/*.png   metrics: "

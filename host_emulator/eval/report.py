@@ -9,6 +9,8 @@ GNSS outages are shaded in every time plot.
 
 import numpy as np
 
+from host_emulator.bench import board_cost
+
 _DEG = 180.0 / np.pi
 PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")
 
@@ -213,6 +215,12 @@ def markdown(m, description="", console=(), notes=()):
                 f"  - {state}: {b['ticks']} ticks, min {b['min']}, mean {b['mean']:.0f}, "
                 f"p99 {b['p99']:.0f}, max {b['max']}"
             )
+    if m.get("board_cost"):
+        lines.append(
+            "- Cost on the board's CPU (emulated Cortex-M4F, instructions counted; "
+            "docs/benchmarks/board.md says how to read them):"
+        )
+        lines += [f"  - {t.strip()}" for t in board_cost.lines(m["board_cost"])]
     lines += [f"- {n}" for n in notes]
     lines += ["", "## Plots", ""]
     for p in PLOTS:

@@ -22,6 +22,7 @@ import numpy as np
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
+from host_emulator.bench import board_cost
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report
 from host_emulator.proto import stimulus as stim_mod
@@ -129,6 +130,14 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
     if blocks is not None:
         m["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
         m["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
+    per_tick = getattr(fw, "per_tick", None)
+    if per_tick is not None:  # the m4f runtime: instructions per tick on the board's CPU
+        m["board_cost"] = board_cost.summary(per_tick)
+        m["board_heap"] = {
+            k: fw.stats.get(k)
+            for k in ("free_at_start", "live_after_start", "emulator_bytes", "ballast_bytes",
+                      "startup_instructions", "app_gc_runs")
+        }  # fmt: skip
     return m
 
 

@@ -134,3 +134,29 @@ def test_split_cuts_a_clean_stream_at_its_records(board):
     f2, e2, r2, err = stream.split(data[:at] + b"\x00" + data[at:])
     assert err == f"no record starts at byte {at}" and len(f2 + e2 + r2) == 2
     assert stream.split(data[: at + 10])[3] == f"record at byte {at} is cut short"
+
+
+def test_without_run_time_zeroes_only_the_extended_frames_run_time_counters(board):
+    data = bytearray(board[0])
+    recs = _records(bytes(data))
+    ext = [(i, n) for i, n, t in recs if t == records.EXT_TYPE]
+    assert len(ext) > 5
+    for j, (i, n) in enumerate(ext):  # give every run-time counter a value, as a board would
+        for name in records.EXT_TIMING_FIELDS:
+            at = i + records.EXT_OFFSETS[name]
+            data[at : at + 2] = (j + 1000 + at % 7).to_bytes(2, "little")
+        data[i : i + n] = records.seal(data[i : i + n - records.CRC_LEN])
+    out = stream.without_run_time(bytes(data))
+    assert len(out) == len(data)
+    for i, n, t in recs:
+        rec, orig = out[i : i + n], bytes(data[i : i + n])
+        if t != records.EXT_TYPE:
+            assert rec == orig  # frames and raw records untouched
+            continue
+        assert records.crc_ok(rec)
+        got, was = records.decode_ext(rec), records.decode_ext(orig)
+        for name in records.EXT_TIMING_FIELDS:
+            assert got[name] == 0 and was[name] != 0
+        same = [k for k in got if k not in records.EXT_TIMING_FIELDS]
+        assert {k: got[k] for k in same} == {k: was[k] for k in same}
+    assert stream.without_run_time(board[0]) == board[0]  # the emulator's counters are 0

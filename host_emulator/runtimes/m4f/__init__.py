@@ -110,8 +110,41 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
         f"{n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, {str(out_dir)!r}, "
         f"{m4f_build.BOARD_HEAP_BYTES})\r\n"
     )
-    stdin = b"\x01" + call.encode() + b"\x04" + b"\x01" + AFTER_ERROR
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
+    out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)
+    if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
+        raise firmware_error(out, stim, "the emulated Cortex-M4F")
+    if rc != 0 or out.stats is None:
+        tail = "\n".join(out.other[-20:]) or "(no output)"
+        raise EmulatorError(f"the emulated Cortex-M4F failed (exit status {rc}):\n{tail}")
+    per_tick = np.fromfile(out_dir / "ticks.bin", dtype=PER_TICK)
+    if len(per_tick) != n or out.stats.get("ticks") != n:
+        raise EmulatorError(
+            f"the emulated Cortex-M4F reported {len(per_tick)} ticks of {n}: its output is "
+            "incomplete"
+        )
+    stats = dict(out.stats)
+    stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
+    for problem, what in (
+        ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
+        ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "
+                               "not the board's)"),
+    ):  # fmt: skip
+        if stats.get(problem):
+            raise EmulatorError(f"{what}: {problem} = {stats[problem]}")
+    if not stats.get("float32"):
+        raise EmulatorError("the emulated Cortex-M4F's floats are not float32: wrong build")
+    result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
+                         stats)  # fmt: skip
+    result.per_tick = per_tick
+    return result
+
+
+def _execute(elf, call, workdir, progress, timeout_s, n):
+    """Boot the emulated board, run `call` (MicroPython source) through its raw REPL; (the
+    parsed GuestOutput, QEMU's exit status, wall seconds). If `call` raises, the REPL runs
+    AFTER_ERROR next, which ends QEMU with EXIT_DRIVER_ERROR (the traceback is in .other)."""
+    stdin = b"\x01" + call.encode() + b"\x04" + b"\x01" + AFTER_ERROR
     out = GuestOutput(progress)
     t_wall = time.perf_counter()
     try:
@@ -155,29 +188,4 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
             f"the emulated Cortex-M4F did not finish within {timeout_s:g} s (at tick "
             f"{out.last_tick} of {n}); it was stopped"
         )
-    if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
-        raise firmware_error(out, stim, "the emulated Cortex-M4F")
-    if rc != 0 or out.stats is None:
-        tail = "\n".join(out.other[-20:]) or "(no output)"
-        raise EmulatorError(f"the emulated Cortex-M4F failed (exit status {rc}):\n{tail}")
-    per_tick = np.fromfile(out_dir / "ticks.bin", dtype=PER_TICK)
-    if len(per_tick) != n or out.stats.get("ticks") != n:
-        raise EmulatorError(
-            f"the emulated Cortex-M4F reported {len(per_tick)} ticks of {n}: its output is "
-            "incomplete"
-        )
-    stats = dict(out.stats)
-    stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
-    for problem, what in (
-        ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
-        ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "
-                               "not the board's)"),
-    ):  # fmt: skip
-        if stats.get(problem):
-            raise EmulatorError(f"{what}: {problem} = {stats[problem]}")
-    if not stats.get("float32"):
-        raise EmulatorError("the emulated Cortex-M4F's floats are not float32: wrong build")
-    result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
-                         stats)  # fmt: skip
-    result.per_tick = per_tick
-    return result
+    return out, rc, wall

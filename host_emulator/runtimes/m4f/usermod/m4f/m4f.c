@@ -14,6 +14,7 @@
 // - A RAM disk outside the MicroPython heap, so that a FAT /flash can hold ins.cfg as on the
 //   board without taking heap from the firmware; get_fattime() for FatFs.
 // - exit(code): ends QEMU with that status (semihosting SYS_EXIT_EXTENDED).
+// - init() also stops the port's SysTick interrupt (see there).
 //
 // Nothing here allocates on the heap except ramdisk() (once) and the errors.
 
@@ -27,6 +28,7 @@
 #define TIMER_CTRL (*(volatile uint32_t *)(TIMER0_BASE + 0x00))
 #define TIMER_VALUE (*(volatile uint32_t *)(TIMER0_BASE + 0x04))
 #define TIMER_RELOAD (*(volatile uint32_t *)(TIMER0_BASE + 0x08))
+#define SYSTICK_CSR (*(volatile uint32_t *)0xE000E010)
 #define INSTR_PER_COUNT (40u)  // 1 ns per instruction, 25 MHz timer
 #define COUNT_MASK (0x3fffffffu)
 
@@ -60,6 +62,10 @@ static inline uint32_t counts(void) {
 }
 
 static mp_obj_t m4f_init(void) {
+    // The port's 1 ms SysTick interrupt would land in the counted code at a phase that depends
+    // on when the host's REPL input arrived: off, so that counts repeat exactly (the emulated
+    // board's clock is its own, board/mpy/time.py; interrupts are not counted, as documented).
+    SYSTICK_CSR = 0;
     TIMER_CTRL = 0;
     TIMER_RELOAD = 0xffffffffu;
     TIMER_VALUE = 0xffffffffu;

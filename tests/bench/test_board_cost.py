@@ -1,0 +1,52 @@
+"""bench/board_cost.py: the cost figures of an m4f run, checked on per-tick records made up
+so that every figure is known."""
+
+import numpy as np
+import pytest
+
+from host_emulator.bench import board_cost
+from host_emulator.runtimes.m4f import PER_TICK
+
+
+def _ticks():
+    """100 aligning ticks of 300,000 (50,000 of them emulation), then 200 navigating ticks of
+    600,000 (emulation 100,000), every 10th of which also collected (+400,000)."""
+    t = np.zeros(300, PER_TICK)
+    t["state"][:100] = 1
+    t["instr"][:100] = 300_000
+    t["emu_instr"][:100] = 50_000
+    t["state"][100:] = 2
+    t["instr"][100:] = 600_000
+    t["emu_instr"][100:] = 100_000
+    t["alloc_bytes"][100:] = 8_000
+    gc = np.zeros(300, bool)
+    gc[100::10] = True
+    t["collected"][gc] = 1
+    t["instr"][gc] += 400_000
+    t["alloc_bytes"][gc] = -40_000
+    return t
+
+
+def test_the_figures_of_known_ticks(monkeypatch):
+    monkeypatch.setattr(board_cost, "cpi_range", lambda: (1.5, 2.0, 2.5, "test"))
+    s = board_cost.summary(_ticks(), tick_us=5000, clock_hz=100e6)
+    al, nav = s["phases"]["aligning"], s["phases"]["navigating"]
+    assert al["ticks"] == 100 and al["firmware_instr"]["mean"] == 250_000
+    assert al["gc_collections"] == 0 and al["gc_collect_instr"] is None
+    assert al["emulation_instr"]["mean"] == 50_000
+    assert nav["ticks"] == 200 and nav["gc_collections"] == 20
+    assert nav["ticks_per_collection"] == 10
+    assert nav["gc_collect_instr"] == pytest.approx(400_000)
+    assert nav["firmware_instr"]["mean"] == pytest.approx(540_000)
+    assert nav["firmware_instr_without_gc"]["max"] == 500_000
+    assert nav["alloc_bytes_per_tick"]["mean"] == 8_000  # collecting ticks left out
+    # 500,000 instructions x CPI 2 at 100 MHz = 10 ms: every tick overruns the 5 ms at any CPI
+    assert nav["time_ms"]["2"]["mean"] == pytest.approx(540_000 * 2 / 100e6 * 1e3)
+    assert nav["time_ms"]["1.5"]["overrun_share"] == 1.0
+    # 250,000 x 1.5 = 3.75 ms fits; x 2.5 = 6.25 ms does not
+    assert al["time_ms"]["1.5"]["overrun_share"] == 0.0
+    assert al["time_ms"]["2.5"]["overrun_share"] == 1.0
+    text = "\n".join(board_cost.lines(s))
+    assert "navigating (200 ticks): 540,000 instructions per tick mean" in text
+    assert "gc.collect every 10 ticks, ~400,000 instructions each" in text
+    assert "CPI 2 (1.5-2.5)" in text

@@ -1,0 +1,177 @@
+"""The m4f runtime: the unmodified app loop on the emulated Cortex-M4F (MicroPython v1.28.0's
+qemu port for mps2-an386, single-precision hard float, the firmware frozen).
+
+Built once into build/m4f (about 30 s on a clean checkout, then cached). The main run is 30 s
+of quick_start (navigating from ~13 s), which takes about 30 s: its frames and extended frames
+are compared with the NumPy model byte for byte and its instruction counts are checked.
+"""
+
+import numpy as np
+import pytest
+
+from host_emulator import runtimes
+from host_emulator.bench import board_cost
+from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.eval import parity
+from host_emulator.eval.scenario_run import firmware_metrics
+from host_emulator.proto import stream
+from host_emulator.runtimes import m4f
+from host_emulator.runtimes.m4f import build as m4f_build
+from host_emulator.runtimes.m4f import guest
+from host_emulator.sim import board_input
+
+
+@pytest.fixture(scope="module")
+def quick():
+    """30 s of quick_start: firmware on the M4F against the model (parity.compare)."""
+    stim = board_input.simulate("quick_start", 30.0, seed=0).stimulus
+    r = parity.compare(stim, runtime="m4f")
+    return stim, r
+
+
+def test_the_counter_counts_every_instruction():
+    """An inline-assembler loop of two instructions per turn (subs, bne): the difference of two
+    lengths is exactly twice the difference of turns, to the counter's 40-instruction step."""
+    out = guest.run(
+        "import micropython\n"
+        "@micropython.asm_thumb\n"
+        "def spin(r0):\n"
+        "    label(loop)\n"
+        "    sub(r0, r0, 1)\n"
+        "    bne(loop)\n"
+        "def count(n):\n"
+        "    c0 = m4f.icount()\n"
+        "    spin(n)\n"
+        "    return (m4f.icount() - c0) & 0x3FFFFFFF\n"
+        "print(count(100000), count(300000), count(100000))\n"
+    )
+    a, b, a2 = map(int, out.split()[-3:])
+    assert abs((b - a) - 400_000) <= 80  # two readings of +-40 each
+    assert abs(a - a2) <= 80  # repeatable
+    assert 200_000 < a < 201_000  # the call itself costs a few hundred instructions
+
+
+def test_floats_are_the_boards_float32():
+    """The VM's float is IEEE single precision with round-to-nearest on the FPU: products,
+    quotients, sums and sqrt equal NumPy's float32 bit for bit (the unix VM's are doubles)."""
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal(64).astype(np.float32) * np.float32(1e3)
+    y = rng.standard_normal(64).astype(np.float32)
+    out = guest.run(
+        "import array, binascii, math\n"
+        f"x = array.array('f', binascii.unhexlify({x.tobytes().hex()!r}))\n"
+        f"y = array.array('f', binascii.unhexlify({y.tobytes().hex()!r}))\n"
+        "r = array.array('f', bytes(4 * 4 * len(x)))\n"
+        "for i in range(len(x)):\n"
+        "    r[4 * i] = x[i] * y[i] + y[i]\n"
+        "    r[4 * i + 1] = x[i] / y[i]\n"
+        "    r[4 * i + 2] = math.sqrt(abs(x[i]))\n"
+        "    r[4 * i + 3] = (x[i] - y[i]) * 0.5\n"
+        "print('R', binascii.hexlify(bytes(r)).decode())\n"
+    )
+    got = np.frombuffer(bytes.fromhex(out.split("R ")[1].split()[0]), "<f4").reshape(-1, 4)
+    want = np.stack(
+        [x * y + y, x / y, np.sqrt(np.abs(x)), (x - y) * np.float32(0.5)], axis=1
+    ).astype(np.float32)
+    assert got.tobytes() == want.tobytes()
+
+
+def test_the_emulated_board_shadows_the_builtin_modules():
+    out = guest.run(
+        "import time, machine, sys\n"
+        "b = sys.implementation._build\n"
+        "print(hasattr(time, 'now_us'), hasattr(machine, 'fire_timers'), b)\n"
+    )
+    assert out.split()[-3:] == ["True", "True", "M4F_INS"]
+
+
+def test_frames_and_extended_frames_equal_the_model_byte_for_byte(quick):
+    stim, r = quick
+    assert r.runtime == "m4f" and r.run_time_zeroed
+    assert r.frame.counts == (6000, 6000) and r.ext.counts == (300, 300)
+    assert r.identical, r.summary()
+    fw = r.firmware_run
+    # not vacuous: the firmware navigated for more than half the run and collected garbage
+    assert np.sum(fw.per_tick["state"] == 2) > 3000
+    assert fw.stats["app_gc_runs"] > 100
+    # ...and only the run-time counters differ in the raw streams
+    assert stream.without_run_time(fw.out) == r.out_firmware
+    assert "PARITY: identical" in r.summary() and "gc_runs" in r.summary()
+
+
+def test_every_tick_is_counted_and_the_emulation_is_set_apart(quick):
+    stim, r = quick
+    t = r.firmware_run.per_tick
+    assert len(t) == len(stim)
+    fw = t["instr"].astype(np.int64) - t["emu_instr"]
+    assert (fw > 20_000).all()  # a tick runs Python: tens of thousands of instructions at least
+    # every tick reads the IMU through the emulated SPI bus: emulation in every tick
+    assert (t["emu_instr"] > 1_000).all() and (t["emu_instr"] < t["instr"]).all()
+    collecting = t["collected"] > 0
+    assert collecting.sum() == r.firmware_run.stats["app_gc_runs"]
+    assert (t["alloc_bytes"][collecting] < 0).all()  # a collection frees more than a tick takes
+    assert (t["alloc_bytes"][~collecting] >= 0).all()
+
+
+def test_the_firmware_gets_the_boards_heap(quick):
+    s = quick[1].firmware_run.stats
+    assert abs(s["free_at_start"] - m4f_build.BOARD_HEAP_BYTES) <= 16
+    assert 0 <= s["ballast_bytes"] < m4f_build.EMULATOR_RESERVE_BYTES
+    assert s["driver_alloc_bytes"] == 0 and s["float32"] and s["bytes_per_block"] == 16
+
+
+def test_runs_are_deterministic(tmp_path):
+    stim = board_input.simulate("static", 2.0, seed=1).stimulus
+    a = m4f.run(stim, tmp_path / "a")
+    b = m4f.run(stim, tmp_path / "b")
+    assert a.out == b.out
+    assert np.array_equal(a.per_tick, b.per_tick)
+
+
+def test_the_runs_metrics_carry_the_board_cost(quick):
+    stim, r = quick
+    fw = r.firmware_run
+    decoded = stream.decode(fw.out)
+
+    class Track:  # firmware_metrics wants only the alignment time of the track
+        align_time_s = None
+
+    acc = dict.fromkeys(
+        ("horiz_rms_m", "vert_rms_m", "vel_rms_m_s", "roll_rms_deg", "pitch_rms_deg",
+         "yaw_rms_deg", "horiz_rms_gnss_m", "horiz_max_m", "vel_rms_gnss_m_s",
+         "pos_3sigma_coverage"),
+    )  # fmt: skip
+    acc["outages"] = []
+    m = firmware_metrics(fw, decoded, Track(), acc, stim.duration_s)
+    nav = m["board_cost"]["phases"]["navigating"]
+    fi = nav["firmware_instr"]
+    assert fi["p50"] <= fi["p99"] <= fi["max"] and nav["ticks"] > 3000
+    assert m["board_heap"]["app_gc_runs"] == fw.stats["app_gc_runs"]
+    text = "\n".join(board_cost.lines(m["board_cost"]))
+    assert "navigating" in text and "instructions per tick" in text and "MHz" in text
+
+
+def test_a_firmware_error_names_the_tick_and_a_driver_error_is_an_emulator_error(tmp_path):
+    elf = m4f_build.build(progress=None)
+    call = (
+        "import feed, emulate_m4f\r\n"
+        "feed.firmware_error(7, ValueError('boom'), emulate_m4f.exit_firmware_error)\r\n"
+    )
+    out, rc, _ = m4f._execute(elf, call, tmp_path, None, 60, 10)
+    assert rc == m4f.EXIT_FIRMWARE_ERROR and out.error_tick == 7
+    assert any("ValueError: boom" in line for line in out.error_lines)
+    out, rc, _ = m4f._execute(elf, "raise OSError(5)\r\n", tmp_path, None, 60, 10)
+    assert rc == m4f.EXIT_DRIVER_ERROR
+    assert any("OSError" in line for line in out.other)
+    stim = board_input.simulate("static", 60.0, seed=0).stimulus
+    with pytest.raises(EmulatorError, match=r"did not finish within 1 s") as e:
+        m4f.run(stim, tmp_path / "t", timeout_s=1)
+    assert not isinstance(e.value, FirmwareError)
+
+
+def test_the_registry_offers_it_for_parity_only_where_bits_match():
+    rt = runtimes.get("m4f")
+    assert rt.bit_exact and rt.counts_instructions and rt.own_run_time
+    assert parity.bit_exact_runtimes() == ("cpython", "m4f")
+    with pytest.raises(EmulatorError, match="bit-exact runtime"):
+        parity.compare(board_input.simulate("static", 0.1).stimulus, runtime="mpy_unix")
