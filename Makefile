@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain lint accuracy bench-nav accuracy-report digests replay build-flash deploy \
+.PHONY: demo test toolchain lint accuracy bench-nav bench-board accuracy-report digests replay build-flash deploy \
 	monitor virtual-board clean
 
 $(STAMP): requirements.txt
@@ -34,6 +34,11 @@ accuracy: $(STAMP)
 # Navigation accuracy and per-tick cost on simulated data (a few minutes; docs/benchmarks/).
 bench-nav: $(STAMP)
 	$(BIN)/python -m host_emulator bench-nav
+
+# What a tick costs the board: the app loop on the emulated Cortex-M4F over urban_drive, two
+# configurations (~11 min; writes docs/benchmarks/board.md).
+bench-board: $(STAMP) toolchain
+	$(BIN)/python -m host_emulator bench-board
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
 # docs/accuracy.md and docs/benchmarks/accuracy.json).

@@ -4,7 +4,7 @@
     runtimes                        where the firmware can run (runtimes/)
     run --scenario NAME --out DIR   simulate, run the firmware on an emulated board, evaluate
     run --stimulus FILE --out DIR   replay a stimulus file through the firmware
-    parity --scenario NAME --duration S   firmware on CPython vs the NumPy model, bit for bit
+    parity --scenario NAME --duration S   firmware (CPython or M4F) vs the NumPy model, bit for bit
     replay --dataset drive_0708 --out DIR   a real recording through the firmware, evaluated
     replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout
     export --scenario NAME | --dataset drive_0708 --out DIR   KF-GINS files + RTKLIB .pos
@@ -16,6 +16,7 @@
     bench-nav                       navigation accuracy and cost per tick (make bench-nav)
     accuracy-report                 drive_0708 and the scenarios (make accuracy-report)
     float32                         accuracy of the float32 math and kernels (make accuracy)
+    bench-board                     the app loop's cost per tick on the emulated Cortex-M4F
     digests [--update]              the change indicator: frame-stream digests per runtime
 
 Bad input (an unknown scenario, an unreadable stimulus, a firmware exception) prints one clear
@@ -33,7 +34,7 @@ from host_emulator.errors import EmulatorError
 # commands with a parser of their own: name -> ("module:function" taking argv, help)
 DELEGATED = {
     "parity": ("host_emulator.eval.parity:main",
-               "firmware on CPython vs the NumPy float32 model, frame by frame"),
+               "firmware (CPython or the M4F) vs the NumPy float32 model, byte for byte"),
     "session": ("host_emulator.session.cli:main",
                 "record a board's output, or replay a recording bit for bit"),
     "virtual-board": ("host_emulator.virtual_board:main",
@@ -46,6 +47,8 @@ DELEGATED = {
                         "drive_0708 and the scenarios: writes docs/accuracy.md"),
     "float32": ("host_emulator.bench.float32:main",
                 "accuracy of the float32 math functions and kernels (docs/float32.md)"),
+    "bench-board": ("host_emulator.bench.board:main",
+                    "instructions per tick of the app loop on the emulated Cortex-M4F"),
     "digests": ("host_emulator.bench.digests:main",
                 "the change indicator: frame-stream digests per scenario and runtime"),
 }  # fmt: skip

@@ -44,6 +44,8 @@ _SCHEMA = (
     (7, "raw_record", _INT, 1, 0),  # 1: a raw-input record every tick (replay)
     (8, "gnss_baud", _INT, 1, 9600),
     (9, "gnss_need_speed", _INT, 1, 1),  # 0: a GGA alone completes an epoch (GGA-only receiver)
+    (10, "coning", _INT, 1, 0),  # 1: two-sample coning and sculling corrections (navcfg)
+    (11, "slices_per_tick", _INT, 1, 1),  # slices of filter work per tick (1..4, eskf.py)
     (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
     (21, "accel_bias0", _FLOAT, 3, None),  # m/s^2
     (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)
@@ -99,6 +101,8 @@ class BoardConfig:
                 for i in range(n):
                     b[i] = value[i]
                 setattr(nav, name, b)
+        nav.coning = self.coning == 1
+        nav.slices_per_tick = self.slices_per_tick
         _apply_mounting(nav, self.mount_ypr_deg)
         # the sensor ranges set the raw-count scale (BMI055 datasheet sensitivities)
         nav.gyro_counts_per_rad_s = f32.ratio(GYRO_LSB_X10[self.gyro_range_dps], 10) / _DEG
@@ -124,6 +128,10 @@ class BoardConfig:
             return "raw_record must be 0 or 1"
         if self.gnss_need_speed not in (0, 1):
             return "gnss_need_speed must be 0 or 1"
+        if self.coning not in (0, 1):
+            return "coning must be 0 or 1"
+        if not 1 <= self.slices_per_tick <= 4:
+            return "slices_per_tick must be 1..4"
         for _id, name, kind, _n, _default in _SCHEMA:
             value = getattr(self, name)
             if kind != _FLOAT or value is None:
