@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
 .PHONY: demo test toolchain lint accuracy bench-nav accuracy-report digests replay build-flash deploy \
-	monitor virtual-board clean
+	monitor virtual-board image clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -69,6 +69,12 @@ monitor: $(STAMP)
 
 virtual-board: $(STAMP)
 	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board
+
+# The firmware image (docs/image.md): MicroPython v1.28.0 with firmware/ frozen, built out of tree
+# in build/image/BOARD (cached), written to out/image/BOARD/ with its budget; BOARD is
+# WEACT_F411_BLACKPILL (default) or NUCLEO_F411RE.
+image: $(STAMP)
+	$(BIN)/python -m tools.image build $(if $(BOARD),--board $(BOARD))
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

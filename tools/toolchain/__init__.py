@@ -45,7 +45,8 @@ def micropython_version(src=None):
     """(major, minor, micro) of the tree, read from py/mpconfig.h."""
     text = ((src or micropython_dir()) / "py" / "mpconfig.h").read_text()
     parts = [
-        re.search(rf"#define MICROPY_VERSION_{p}\s+(\d+)", text) for p in ("MAJOR", "MINOR", "MICRO")
+        re.search(rf"#define MICROPY_VERSION_{p}\s+(\d+)", text)
+        for p in ("MAJOR", "MINOR", "MICRO")
     ]
     if not all(parts):
         raise ToolchainError("cannot read MicroPython's version from py/mpconfig.h")
