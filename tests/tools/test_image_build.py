@@ -1,6 +1,6 @@
 """python -m tools.image build: the WEACT_F411_BLACKPILL image with the firmware frozen, its
-budget read from the ELF, the firmware id it carries, the cache, the untouched MicroPython
-tree, and the errors a user meets."""
+budget read from the ELF, the firmware id it carries, its three output formats, the cache, the
+untouched MicroPython tree, and the errors a user meets."""
 
 import re
 import shutil
@@ -11,6 +11,7 @@ import pytest
 
 from host_emulator.firmware_env import FIRMWARE_DIR
 from tools import toolchain
+from tools.flash import dfu
 from tools.image import budget, build, fwid
 from tools.image.__main__ import main
 
@@ -58,7 +59,7 @@ def test_the_image_is_within_budget_by_the_elf(weact_image):
 def test_the_image_carries_the_firmware_and_its_id(weact_image):
     report, out, _, _ = weact_image
     flat = (out / "firmware.bin").read_bytes()
-    at = _symbol(report["elf"], "mp_frozen_names") - 0x08000000
+    at = _symbol(report["elf"], "mp_frozen_names") - dfu.FLASH_BASE
     names = flat[at : flat.index(b"\0\0", at)].decode().split("\0")
     frozen = {name for name, _path, _v in fwid.frozen_sources()}
     assert set(names) == frozen | {"fwid.py"}
@@ -70,6 +71,39 @@ def test_the_image_carries_the_firmware_and_its_id(weact_image):
     assert ident["files"] == want == len(frozen)
     gen = (build.BUILD_ROOT / "WEACT_F411_BLACKPILL" / "gen" / "fwid.py").read_text()
     assert f"FIRMWARE_CRC32 = '{ident['crc32']}'" in gen and "BOARD = 'WEACT_F411_BLACKPILL'" in gen
+
+
+def _read_hex(path):
+    """{address: byte} of an Intel HEX file (record checksums checked)."""
+    memory, base = {}, 0
+    for line in path.read_text().split():
+        n, addr, kind = int(line[1:3], 16), int(line[3:7], 16), int(line[7:9], 16)
+        data = bytes.fromhex(line[9 : 9 + 2 * n])
+        assert sum(bytes.fromhex(line[1:])) & 0xFF == 0
+        if kind == 4:
+            base = int.from_bytes(data, "big") << 16
+        elif kind == 0:
+            memory.update((base + addr + i, b) for i, b in enumerate(data))
+    return memory
+
+
+def test_dfu_hex_and_bin_hold_the_same_bytes(weact_image):
+    _, out, _, _ = weact_image
+    memory = _read_hex(out / "firmware.hex")  # straight from the ELF (objcopy -O ihex)
+    parts = dfu.read_image(out / "firmware.dfu")
+    assert [a for a, _ in parts] == [0x08000000, 0x08020000]
+    for addr, data in parts:
+        n = 0
+        while addr + n in memory:
+            n += 1
+        assert data[:n] == bytes(memory[addr + i] for i in range(n))
+        pad = len(data) - n  # tools/dfu.py pads each element to 8 bytes with zeros
+        assert len(data) % 8 == 0 and pad < 8 and data[n:] == bytes(pad)
+    flat = (out / "firmware.bin").read_bytes()
+    assert len(flat) == max(memory) + 1 - dfu.FLASH_BASE
+    assert all(flat[a - dfu.FLASH_BASE] == b for a, b in memory.items())
+    gaps = [flat[i] for i in range(len(flat)) if dfu.FLASH_BASE + i not in memory]
+    assert set(gaps) == {0xFF} and len(gaps) == len(flat) - len(memory)
 
 
 def test_the_build_is_cached_and_never_writes_into_the_micropython_tree(weact_image, tmp_path):
