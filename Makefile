@@ -68,7 +68,7 @@ monitor: $(STAMP)
 		$(if $(CSV),--csv $(CSV))
 
 virtual-board: $(STAMP)
-	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board
+	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board $(if $(FROZEN),--frozen)
 
 # The firmware image (docs/image.md): MicroPython v1.28.0 with firmware/ frozen, built out of tree
 # in build/image/BOARD (cached), written to out/image/BOARD/ with its budget; BOARD is
