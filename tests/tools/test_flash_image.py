@@ -73,6 +73,18 @@ def test_no_dfu_device_says_how_to_enter_dfu_mode(image, monkeypatch, capsys):
     assert "machine.bootloader()" in err and "udev rule" in err and "root" in err
 
 
+def test_no_dfu_device_for_a_nucleo_says_to_use_its_st_link(image, monkeypatch, tmp_path, capsys):
+    from tools.image import build
+
+    (tmp_path / "NUCLEO_F411RE").mkdir()
+    (tmp_path / "NUCLEO_F411RE" / "firmware.dfu").write_bytes(image[0].read_bytes())
+    monkeypatch.setattr(build, "OUT_ROOT", tmp_path)
+    install(monkeypatch)
+    err = _fails(["image", "--board", "NUCLEO_F411RE"], capsys)
+    assert "no DFU device found" in err and "no USB connector on the F411" in err
+    assert "copy firmware.bin to the NOD_F411RE drive" in err
+
+
 def test_no_libusb_backend_names_the_package(image, monkeypatch, capsys):
     install(monkeypatch, FakeDfuSe(), no_backend=True)
     err = _fails(["image", "--file", str(image[0])], capsys)

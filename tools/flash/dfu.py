@@ -116,12 +116,14 @@ def layout_problem(text):
 
 
 def _no_device_message(board):
-    how = board.dfu if board else "hold BOOT0, press and release NRST, then release BOOT0"
+    from tools.image.boards import BOARDS, DEFAULT_BOARD
+
+    how = (board or BOARDS[DEFAULT_BOARD]).dfu
     return (
-        "no DFU device found. Put the board into its ROM DFU bootloader: on a WeAct Black "
-        f"Pill, {how}; from MicroPython's REPL, `import machine; machine.bootloader()` does the "
-        "same. `lsusb` should then list 0483:df11 STMicroelectronics STM Device in DFU Mode. "
-        "On Linux a udev rule for 0483:df11 (or running as root) may be needed for access."
+        f"no DFU device found. Put the board into its ROM DFU bootloader: {how}; from "
+        "MicroPython's REPL, `import machine; machine.bootloader()` does the same. `lsusb` "
+        "should then list 0483:df11 STMicroelectronics STM Device in DFU Mode. On Linux a udev "
+        "rule for 0483:df11 (or running as root) may be needed for access."
     )
 
 

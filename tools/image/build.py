@@ -225,7 +225,7 @@ def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, b
     log(
         f"image {board}: make in {obj} (log: {log_path}); firmware {ident['version']} "
         f"id {ident['crc32']}, {ident['files']} modules + fwid frozen"
-        + ("; a first build takes about a minute on 2 cores" if cold else "")
+        + ("; a first build takes 70-90 s on 2 cores" if cold else "")
     )
     before = snapshot(src)
     on_line, state = _progress(log, t0)

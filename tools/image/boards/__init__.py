@@ -16,7 +16,7 @@ class Board:
     name: str
     description: str
     board_dir: pathlib.Path | None  # None: ports/stm32/boards/<name> of the MicroPython tree
-    dfu: str  # how to put it into its ROM DFU bootloader
+    dfu: str  # how to put it into its ROM DFU bootloader (or why not)
 
 
 BOARDS = {
@@ -27,18 +27,19 @@ BOARDS = {
             "WeAct STM32F411CEU6 'Black Pill' v3.1, 25 MHz crystal, no SPI flash "
             "(filesystem in internal flash)",
             None,
-            "hold BOOT0, press and release NRST, then release BOOT0 (with the USB-C cable "
-            "plugged into the PC)",
+            "on a WeAct Black Pill, hold BOOT0, press and release NRST, then release BOOT0 (the "
+            "USB-C cable plugged into the PC)",
         ),
         Board(
             "NUCLEO_F411RE",
             "ST NUCLEO-F411RE: 8 MHz clock from the ST-LINK, REPL on the ST-LINK's virtual COM "
             "port (USART2)",
             HERE / "NUCLEO_F411RE",
-            "a NUCLEO-F411RE has no USB connector on the F411 (its USB port is the ST-LINK's): "
-            "copy firmware.bin to the NOD_F411RE drive the ST-LINK shows, or program "
-            "firmware.hex with STM32CubeProgrammer or st-flash; DFU needs a USB cable wired to "
-            "PA11/PA12 and BOOT0 tied high at reset",
+            "on a NUCLEO-F411RE there is no USB connector on the F411 (the board's USB port is "
+            "the ST-LINK's), so flash it through the ST-LINK instead: copy firmware.bin to the "
+            "NOD_F411RE drive the ST-LINK shows, or program firmware.hex with "
+            "STM32CubeProgrammer or st-flash; DFU needs a USB cable wired to PA11/PA12 and "
+            "BOOT0 tied high at reset",
         ),
     )
 }
