@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain lint accuracy bench-nav bench-board accuracy-report digests replay build-flash deploy \
-	monitor virtual-board clean
+.PHONY: demo test toolchain lint accuracy bench-nav bench-board accuracy-report digests replay \
+	build-flash deploy monitor virtual-board image flash-image clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -73,7 +73,16 @@ monitor: $(STAMP)
 		$(if $(CSV),--csv $(CSV))
 
 virtual-board: $(STAMP)
-	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board
+	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board $(if $(FROZEN),--frozen)
+
+# The firmware image (docs/image.md): MicroPython v1.28.0 with firmware/ frozen, built out of tree
+# in build/image/BOARD (cached), written to out/image/BOARD/ with its budget; BOARD is
+# WEACT_F411_BLACKPILL (default) or NUCLEO_F411RE. flash-image writes it to a board in DFU mode.
+image: $(STAMP)
+	$(BIN)/python -m tools.image build $(if $(BOARD),--board $(BOARD))
+
+flash-image: $(STAMP)
+	$(BIN)/python -m tools.flash image $(if $(FILE),--file $(FILE),$(if $(BOARD),--board $(BOARD)))
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -69,8 +69,12 @@ class VirtualBoard:
         duration_s=120.0,
         realtime=True,
         boot_main=False,
+        frozen_dir=None,
     ):
         self.fs_dir = pathlib.Path(fs_dir).resolve()
+        # modules "frozen in the image": a directory both VMs import from as the stm32 port
+        # imports frozen modules (tools.image.fwid.frozen_layout writes one)
+        self.frozen_dir = pathlib.Path(frozen_dir).resolve() if frozen_dir else None
         self._fs_bytes = os.fsencode(self.fs_dir)
         self.flash_kb = int(flash_kb)
         self.corrupt_writes = int(corrupt_writes)
@@ -169,6 +173,7 @@ class VirtualBoard:
                 str(self.flash_kb),
                 str(left),
                 self._nonce,
+                *([str(self.frozen_dir)] if self.frozen_dir else []),
             ],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -180,6 +185,8 @@ class VirtualBoard:
 
     def _start_fw_vm(self):
         env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast")
+        if self.frozen_dir:  # after emulate.py's own entries (the firmware in /flash first)
+            env["MICROPYPATH"] = str(self.frozen_dir)
         self._fw = subprocess.Popen(
             [
                 self._exe,
@@ -522,6 +529,11 @@ def main(argv=None):
     p.add_argument("--corrupt-writes", type=int, default=0, help="corrupt the first N writes")
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
+    p.add_argument(
+        "--frozen",
+        action="store_true",
+        help="an image with the firmware frozen (this checkout's firmware/ and its fwid)",
+    )
     args = p.parse_args(argv)
     from host_emulator import args as cli_args
     from host_emulator.errors import EmulatorError
@@ -535,8 +547,20 @@ def main(argv=None):
     except EmulatorError as e:
         print(f"virtual board: {e}", file=sys.stderr)
         return 2
+    frozen_tmp = None
+    if args.frozen:
+        from tools.image import fwid
+        from tools.toolchain import ToolchainError
+
+        frozen_tmp = tempfile.TemporaryDirectory(prefix="vboard-frozen-")
+        try:
+            fwid.frozen_layout(frozen_tmp.name)
+        except (ToolchainError, fwid.FirmwareIdError, OSError) as e:
+            print(f"virtual board: cannot lay out the frozen firmware: {e}", file=sys.stderr)
+            return 1
     board = VirtualBoard(
         args.fs,
+        frozen_dir=frozen_tmp.name if frozen_tmp else None,
         flash_kb=args.flash_kb,
         corrupt_writes=args.corrupt_writes,
         scenario=args.scenario,
@@ -553,6 +577,8 @@ def main(argv=None):
     print(f"REPL console (USB): {board.port}")
     print(f"RS485 output:       {board.rs485_port}")
     print(f"filesystem /flash:  {board.fs_dir} ({board.flash_kb} KB)")
+    if frozen_tmp:
+        print(f"frozen firmware:    {frozen_tmp.name} (this checkout's firmware/, with fwid)")
     print("Ctrl-C to stop", flush=True)
     try:
         while True:
@@ -561,4 +587,6 @@ def main(argv=None):
         pass
     finally:
         board.close()
+        if frozen_tmp:
+            frozen_tmp.cleanup()
     return 0

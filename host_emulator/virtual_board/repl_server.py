@@ -1,14 +1,15 @@
 """The virtual board's Python: runs inside one persistent MicroPython VM per board session and
 executes the code the host's REPL emulation (host_emulator/virtual_board.py) sends it.
 
-    micropython repl_server.py FS_DIR FLASH_KB CORRUPT_WRITES NONCE
+    micropython repl_server.py FS_DIR FLASH_KB CORRUPT_WRITES NONCE [FROZEN_DIR]
 
 The board's filesystem: FS_DIR (a host directory) mounted at /flash through `FlashVfs`, a
 Python VFS (os.mount), cwd /flash, sys.path ['', '/flash', '/flash/lib'] as on the stm32
-port. It reports FLASH_KB as its capacity (os.statvfs: 512-byte blocks, every file rounded up
-to whole blocks), raises OSError(28) (ENOSPC) for a write that would exceed it, and flips
-one byte of each of the first CORRUPT_WRITES writes of 16 bytes or more (a corrupted
-transfer).
+port (with FROZEN_DIR, the modules of an image with the firmware frozen, where the port has
+'.frozen': ['', FROZEN_DIR, '/flash', '/flash/lib']). It reports FLASH_KB as its capacity
+(os.statvfs: 512-byte blocks, every file rounded up to whole blocks), raises OSError(28)
+(ENOSPC) for a write that would exceed it, and flips one byte of each of the first
+CORRUPT_WRITES writes of 16 bytes or more (a corrupted transfer).
 
 Protocol on stdin: b"<mode> <n>\\n" then n bytes of source (mode "x": a file, as the raw
 REPL compiles it; "s": one interactive line, as the friendly REPL, echoing expressions). The
@@ -25,6 +26,7 @@ FS_DIR = sys.argv[1].rstrip("/")
 CAPACITY = int(sys.argv[2]) * 1024
 CORRUPT = [int(sys.argv[3]), 0]  # writes still to corrupt, writes corrupted
 SENTINEL = "\x00\x1bVB" + sys.argv[4] + ":"
+FROZEN = sys.argv[5:6]
 BLOCK = 512
 ENOSPC = 28
 MIN_CORRUPT_LEN = 16
@@ -193,7 +195,7 @@ def main():
     os.mount(FlashVfs(FS_DIR), "/flash")
     os.chdir("/flash")
     sys.path.clear()
-    sys.path.extend(["", "/flash", "/flash/lib"])
+    sys.path.extend([""] + FROZEN + ["/flash", "/flash/lib"])
     g = {"__name__": "__main__"}
     stdin = sys.stdin.buffer
     while True:

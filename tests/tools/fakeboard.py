@@ -4,7 +4,9 @@ of deploy without hardware or the virtual board.
 It speaks the raw REPL as pyexec.c does (banner, raw-paste with flow control, plain raw mode
 with "OK", stdout/stderr each ended by 0x04, then ">") and runs the code it receives in CPython
 with a stand-in `os`/`open` that map /flash onto a host directory, so deploy's board-side code
-runs unchanged. It is not MicroPython: the virtual board (host_emulator.virtual_board) is.
+runs unchanged. `frozen` gives it modules as an image would carry them frozen (e.g. the
+firmware id module `fwid`). It is not MicroPython: the virtual board
+(host_emulator.virtual_board) is.
 """
 
 import binascii
@@ -34,6 +36,7 @@ class FakeSerial:
         b"ins: running\r\n",
         silent=False,
         garbage=None,
+        frozen=None,
     ):
         self.fs_dir = pathlib.Path(fs_dir) if fs_dir else None
         self.raw_paste = raw_paste
@@ -44,6 +47,7 @@ class FakeSerial:
         self.boot_output = boot_output
         self.silent = silent
         self.garbage = garbage
+        self.frozen = frozen or {}  # {module name: {attribute: value}}: the image's frozen modules
         self.timeout = 0.01
         self.out = bytearray()
         self.lock = threading.Lock()
@@ -193,6 +197,7 @@ class FakeSerial:
                 + (host_os.stat(fake._host(p)).st_size, 0, 0, 0)
             ),
             mkdir=lambda p: fake._host(p).mkdir(),
+            rmdir=lambda p: fake._host(p).rmdir(),
             remove=lambda p: fake._host(p).unlink(),
             statvfs=lambda p: (
                 512,
@@ -212,6 +217,8 @@ class FakeSerial:
         def _import(name, globals=None, locals=None, fromlist=(), level=0):
             if name in modules:
                 return modules[name]
+            if name in fake.frozen:
+                return types.SimpleNamespace(**fake.frozen[name])
             return builtins.__import__(name, globals, locals, fromlist, level)
 
         b = dict(builtins.__dict__)

@@ -4,6 +4,8 @@
                                         the flash budget
     deploy --port PORT [--config FILE]  copy what changed (CRC-32 verified), soft-reset, confirm
     config get|set ...                  the board's (or a local file's) persisted configuration
+    image [--board B | --file F.dfu]    write a MicroPython image with the firmware frozen
+                                        (python -m tools.image build) to a board in DFU mode
 
-See docs/deploy.md.
+See docs/deploy.md and docs/image.md.
 """

@@ -1,4 +1,4 @@
-"""`python -m tools.flash build|deploy|config`: see docs/deploy.md.
+"""`python -m tools.flash build|deploy|config|image`: see docs/deploy.md and docs/image.md.
 
 Usage errors exit with status 2, failures with status 1 and one paragraph saying what to do.
 """
@@ -25,6 +25,10 @@ def _build(args):
 
     manifest = build.build(args.out, args.flash_kb, args.strip_lines)
     print(f"built {args.out}: {build.summary(manifest)}")
+    print(
+        "with an image that carries the firmware frozen (make image, make flash-image) only "
+        "main.py and ins.cfg go to the filesystem: its size is then no limit (docs/image.md)"
+    )
     build.check_budget(manifest)
     print(f"fits the {args.flash_kb} KB budget: {args.out}/manifest.json")
     return 0
@@ -62,8 +66,6 @@ def _deploy(args):
             f"built {len(manifest['files'])} files, {manifest['total_bytes']} bytes "
             f"({manifest['mpy_cross']['version']})"
         )
-        if args.flash_kb:
-            build.check_budget(manifest)
         frames_baud = 460800
         if cfg is not None:
             frames_baud = cfg.output_baud
@@ -76,11 +78,36 @@ def _deploy(args):
             frames_baud=frames_baud,
             dry_run=args.dry_run,
             watch_s=args.watch,
+            check_budget=(lambda: build.check_budget(manifest)) if args.flash_kb else None,
         )
     if result.get("dry_run"):
         print("dry run: nothing written")
     else:
         print("deploy OK: the firmware is running")
+    return 0
+
+
+def _image(args):
+    from tools.flash import dfu
+    from tools.image.boards import BOARDS, DEFAULT_BOARD
+
+    board = BOARDS[args.board or DEFAULT_BOARD]
+    if args.file:
+        path = pathlib.Path(args.file)
+    else:
+        from tools.image.build import OUT_ROOT
+
+        path = OUT_ROOT / board.name / "firmware.dfu"
+        if not path.is_file():
+            raise FlashError(
+                f"no image for {board.name} at {path}: build it first with `make image "
+                f"BOARD={board.name}` (python -m tools.image build --board {board.name})."
+            )
+    dfu.flash(path, board=None if args.file else board)
+    print(
+        "flash-image OK: the board runs the new image. Now `make deploy PORT=...` puts "
+        "main.py (and ins.cfg) on its filesystem."
+    )
     return 0
 
 
@@ -181,7 +208,8 @@ def _config(args):
 
 def _parser():
     p = argparse.ArgumentParser(
-        prog="python -m tools.flash", description="Build the firmware and deploy it to a board."
+        prog="python -m tools.flash",
+        description="Build the firmware and deploy it to a board; flash a firmware image.",
     )
     sub = p.add_subparsers(dest="command", required=True)
     b = sub.add_parser("build", help="compile firmware/ with mpy-cross and check the budget")
@@ -199,6 +227,18 @@ def _parser():
     d.add_argument("--strip-lines", action="store_true", help="mpy-cross -X no-source-lines")
     d.add_argument("--watch", type=float, default=15.0, help="seconds to wait for the firmware")
     d.set_defaults(func=_deploy)
+    from tools.image.boards import BOARDS, DEFAULT_BOARD
+
+    i = sub.add_parser(
+        "image", help="write a MicroPython image with the firmware frozen (make image) over DFU"
+    )
+    which = i.add_mutually_exclusive_group()
+    which.add_argument(
+        "--board", choices=sorted(BOARDS), help=f"flash out/image/BOARD/firmware.dfu "
+        f"({DEFAULT_BOARD})"
+    )  # fmt: skip
+    which.add_argument("--file", help="a .dfu file to flash instead")
+    i.set_defaults(func=_image)
     c = sub.add_parser("config", help="read or change the persisted configuration")
     csub = c.add_subparsers(dest="action", required=True)
     for name in ("get", "set"):

@@ -177,9 +177,10 @@ def check_budget(manifest):
     raise FlashFull(
         f"the firmware does not fit a {b['flash_kb']} KB flash filesystem (the manifest is "
         "written all the same). The STM32F411's internal filesystem (48 KB, sectors 1-3) is too "
-        "small for it. Ways out: use a board with SPI flash (e.g. a WeAct BlackPill with a "
-        "W25Q flash chip, whose MicroPython build puts the filesystem there) and pass its size, "
-        "e.g. --flash-kb 4096; or freeze firmware/ into the MicroPython image (FROZEN_MANIFEST) "
-        "so only main.py and ins.cfg live on the filesystem. --strip-lines (mpy-cross -X "
+        "small for it. Ways out: freeze firmware/ into the MicroPython image (`make image`, then "
+        "`make flash-image` in DFU mode; docs/image.md): deploy then writes only main.py and "
+        "ins.cfg, and the 31 KB are no longer a limit; or use a board with SPI flash (e.g. a "
+        "WeAct BlackPill with a W25Q flash chip, whose MicroPython build puts the filesystem "
+        "there) and pass its size, e.g. --flash-kb 4096. --strip-lines (mpy-cross -X "
         "no-source-lines) saves about 4 KB but not enough, and tracebacks lose line numbers."
     )

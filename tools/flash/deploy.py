@@ -1,6 +1,7 @@
 """Deploy a build to a board over its raw REPL: compare CRC-32s, copy only what changed (each
 file verified by the board's own CRC-32), delete stale firmware files, upload the
-configuration, soft-reset and confirm the firmware started."""
+configuration, soft-reset and confirm the firmware started. A board whose MicroPython image
+carries this firmware frozen (tools/image: its `fwid` module) gets main.py only."""
 
 import binascii
 import pathlib
@@ -13,6 +14,7 @@ from tools.flash.errors import (
     FirmwareNotRunning,
     FlashError,
     FlashFull,
+    FrozenMismatch,
     TransferCorrupted,
 )
 from tools.flash.rawrepl import RawRepl
@@ -113,6 +115,22 @@ class Board:
             "total": blocks * (frsize or bsize),
             "free": bfree * (frsize or bsize),
         }
+
+    def frozen_firmware(self):
+        """What the image's frozen `fwid` module says ({"crc32", "version", "micropython",
+        "board"}), or None when the image carries no frozen firmware."""
+        from tools.image import fwid
+
+        out = self._exec(fwid.BOARD_QUERY, "asking which firmware its image carries")
+        return fwid.parse_board_answer(out)
+
+    def rmdir(self, rel):
+        """Remove an empty directory; False if it is not empty (or not there)."""
+        out = self._exec(
+            f"try:\n os.rmdir({ROOT + '/' + rel!r})\n print('Y')\nexcept OSError:\n print('N')",
+            f"removing {rel}/",
+        )
+        return out.strip() == "Y"
 
     def mkdir(self, rel):
         self._exec(f"_mk({ROOT + '/' + rel!r})", f"creating {rel}")
@@ -218,6 +236,51 @@ def space_needed(writes, stale, new_dirs, board_files, cluster, extra=()):
     return grow * cluster
 
 
+FROZEN_PACKAGES = ("drivers",)  # firmware packages a frozen image carries: on /flash, even an
+# empty directory of that name would come first on sys.path ('' is /flash) and hide them
+
+
+def host_firmware_id():
+    """The id of this checkout's firmware (tools/image/fwid.py); FlashError if unreadable."""
+    from tools import toolchain
+    from tools.image import fwid
+
+    try:
+        return fwid.host_id()
+    except (toolchain.ToolchainError, fwid.FirmwareIdError) as e:
+        raise FlashError(
+            f"the board's image carries frozen firmware, and telling whether it is this "
+            f"checkout's needs MicroPython's manifest runner: {e}."
+        ) from None
+
+
+def frozen_plan(manifest, board_id, log, with_config):
+    """The manifest to deploy next to an image that carries the firmware frozen: main.py only
+    when the image's firmware is this checkout's; FrozenMismatch otherwise."""
+    host = host_firmware_id()
+    if board_id["crc32"] != host["crc32"]:
+        raise FrozenMismatch(
+            f"the board's MicroPython image carries another firmware frozen (id "
+            f"{board_id['crc32']}, version {board_id['version']}, built for {board_id['board']}) "
+            f"than this checkout's firmware/ (id {host['crc32']}, version {host['version']}). "
+            "Frozen modules come before /flash/lib on the board's sys.path, so files deployed "
+            "next to them would mix two versions. Flash an image of this firmware: `make image "
+            f"BOARD={board_id['board']}`, then `make flash-image BOARD={board_id['board']}` with "
+            "the board in DFU mode (its filesystem and ins.cfg are kept), and run deploy again. "
+            "To deploy the firmware as files instead, flash a MicroPython image without it "
+            "frozen onto a board whose filesystem holds them (SPI flash). Nothing was written."
+        )
+    goes = "main.py and ins.cfg go" if with_config else "main.py goes"
+    log(
+        f"the board's image carries this firmware frozen (id {host['crc32']}, version "
+        f"{board_id['version']}, {board_id['board']}, MicroPython {board_id['micropython']}): "
+        f"only {goes} to /flash; with the firmware frozen the F411's 31 KB filesystem is no "
+        "longer a limit"
+    )
+    files = [f for f in manifest["files"] if f["path"] == "main.py"]
+    return {**manifest, "files": files, "dirs": [], "total_bytes": sum(f["size"] for f in files)}
+
+
 def connect(port, baud, timeout=5.0):
     ser = open_port(port, baud)
     repl = RawRepl(ser, timeout=timeout, port=port)
@@ -239,8 +302,11 @@ def deploy(
     dry_run=False,
     log=print,
     watch_s=15.0,
+    check_budget=None,
 ):
-    """Deploy the build in build_dir; returns a summary dict."""
+    """Deploy the build in build_dir; returns a summary dict. When the board's image carries
+    this firmware frozen, only main.py (and the configuration) are written and the firmware
+    files on /flash are deleted; check_budget() is called only when all files are deployed."""
     manifest = build_mod.load_manifest(build_dir)
     ser, repl = connect(port, baud)
     try:
@@ -252,6 +318,18 @@ def deploy(
         ]
         if said:
             log("board said: " + " / ".join(said))
+        board_id = board.frozen_firmware()
+        if board_id is not None:
+            manifest = frozen_plan(manifest, board_id, log, config_bytes is not None)
+        else:
+            log(
+                f"the board's image has no frozen firmware: deploying all "
+                f"{len(manifest['files'])} files ({manifest['total_bytes'] / 1024:.1f} KB). An "
+                "image with the firmware frozen (make image, make flash-image) needs only "
+                "main.py and ins.cfg on the filesystem: the F411's 31 KB are then no limit"
+            )
+            if check_budget is not None:
+                check_budget()
         want = [f["path"] for f in manifest["files"]] + [CONFIG_NAME]
         board_files, board_dirs = board.listing(want)
         fs = board.statvfs()
@@ -276,9 +354,10 @@ def deploy(
                 f"{fs['cluster']}-byte clusters). Nothing was written. "
                 + (
                     "The firmware is larger than this whole filesystem (the STM32F411's "
-                    "internal one holds about 31 KB of files): use a board with SPI flash (e.g. "
-                    "a WeAct BlackPill with a W25Q chip) or freeze firmware/ into the "
-                    "MicroPython image; see docs/deploy.md."
+                    "internal one holds about 31 KB of files): flash an image with the "
+                    "firmware frozen (`make image`, then `make flash-image` in DFU mode; "
+                    "docs/image.md), after which deploy sends only main.py and ins.cfg; or use "
+                    "a board with SPI flash (e.g. a WeAct BlackPill with a W25Q chip)."
                     if total_fw * fs["cluster"] > fs["total"]
                     else "Delete files you no longer need from the board (e.g. old logs), then "
                     "run deploy again."
@@ -289,10 +368,27 @@ def deploy(
                 log(f"would write {f['path']} ({f['size']} bytes)")
             for p in stale:
                 log(f"would delete {p}")
-            return {"written": [], "stale": stale, "dry_run": True, "planned": writes}
+            return {
+                "written": [],
+                "stale": stale,
+                "dry_run": True,
+                "planned": writes,
+                "frozen": board_id,
+            }
+        why = " (frozen in the image)" if board_id is not None else ""
         for p in stale:
             board.remove(p)
-            log(f"deleted stale {p}")
+            log(f"deleted stale {p}{why}")
+        if board_id is not None:
+            for d in FROZEN_PACKAGES:
+                if d in board_dirs and not board.rmdir(d):
+                    raise FlashError(
+                        f"/flash/{d} holds files that are not firmware modules; as a directory "
+                        f"on /flash it hides the frozen {d} package (sys.path puts /flash "
+                        f"first). Move those files elsewhere and run deploy again."
+                    )
+                if d in board_dirs:
+                    log(f"removed /flash/{d}/ (it would hide the frozen {d} package)")
         for d in new_dirs:
             board.mkdir(d)
         sent = 0
@@ -312,7 +408,12 @@ def deploy(
             f"{len(manifest['files']) - len(writes)} unchanged, {len(stale)} stale deleted"
         )
         console = restart(repl, watch_s)
-        result = {"written": [f["path"] for f in writes], "stale": stale, "console": console}
+        result = {
+            "written": [f["path"] for f in writes],
+            "stale": stale,
+            "console": console,
+            "frozen": board_id,
+        }
         log("firmware: " + console.strip().replace("\r\n", "\n").replace("\n", "\n  "))
         if frames_port:
             n = count_frames(frames_port, frames_baud)

@@ -21,6 +21,10 @@ class FlashFull(FlashError):
     """The firmware does not fit the board's filesystem (or the stated budget)."""
 
 
+class FrozenMismatch(FlashError):
+    """The board's image carries another version of the firmware frozen."""
+
+
 class TransferCorrupted(FlashError):
     """A file's CRC-32 on the board differed from the host's after every attempt."""
 

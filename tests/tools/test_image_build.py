@@ -1,0 +1,199 @@
+"""python -m tools.image build: the WEACT_F411_BLACKPILL image with the firmware frozen, its
+budget read from the ELF, the firmware id it carries, its three output formats, the cache, the
+untouched MicroPython tree, and the errors a user meets."""
+
+import re
+import shutil
+import subprocess
+import zlib
+
+import pytest
+
+from host_emulator.firmware_env import FIRMWARE_DIR
+from tools import toolchain
+from tools.flash import dfu
+from tools.image import budget, build, fwid
+from tools.image.__main__ import main
+
+KB = 1024
+
+
+def _sections(elf):
+    out = subprocess.run(["arm-none-eabi-size", "-A", str(elf)], capture_output=True, text=True)
+    return {p[0]: int(p[1]) for p in (ln.split() for ln in out.stdout.splitlines()) if len(p) == 3
+            and p[1].isdigit()}  # fmt: skip
+
+
+def _symbol(elf, name):
+    out = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True).stdout
+    return int(re.search(rf"^([0-9a-f]+) \w {name}$", out, re.MULTILINE).group(1), 16)
+
+
+def test_the_image_is_within_budget_by_the_elf(weact_image):
+    report, out, lines, _ = weact_image
+    fig = report["figures"]
+    sec = _sections(report["elf"])
+    # the code region holds .text, .ARM and .data's initial values: what firmware1.bin is
+    code = sec[".text"] + sec[".ARM"] + sec[".data"]
+    assert fig["code_bytes"] == code
+    obj = build.BUILD_ROOT / "WEACT_F411_BLACKPILL" / "obj"
+    assert fig["code_bytes"] == (obj / "firmware1.bin").stat().st_size
+    assert fig["code_region_bytes"] == 384 * KB and fig["flash_bytes"] == 512 * KB
+    assert 300 * KB < fig["code_bytes"] <= 384 * KB  # measured 361,304 B: 91.9 %
+    assert fig["vector_sector_used_bytes"] == sec[".isr_vector"] + sec[".isr_extratext"] <= 16 * KB
+    assert fig["flash_programmed_bytes"] == fig["code_bytes"] + fig["vector_sector_used_bytes"]
+    assert fig["static_ram_bytes"] == sec[".data"] + sec[".bss"]
+    # RAM = static + heap + stack (+ 8 bytes reserved above the stack)
+    assert fig["ram_bytes"] == 112 * KB and fig["stack_bytes"] == 16 * KB
+    assert 0 <= fig["ram_bytes"] - fig["static_ram_bytes"] - fig["heap_bytes"] - 16 * KB <= 16
+    assert fig["heap_bytes"] >= budget.MIN_HEAP_BYTES  # measured 89,272 B
+    assert report["problems"] == []
+    # the frozen firmware: its bytecode (the .mpy files makemanifest compiled) plus qstrs
+    mpy = sum(p.stat().st_size for p in (obj / "frozen_mpy").rglob("*.mpy"))
+    assert 1.0 < fig["frozen_bytes"] / mpy < 1.3  # measured 52,655 B for 48,691 B of .mpy
+    printed = "\n".join(lines)
+    assert f"{fig['code_bytes']:,} B of 393,216" in printed
+    assert f"{fig['heap_bytes']:,} B" in printed
+
+
+def test_the_image_carries_the_firmware_and_its_id(weact_image):
+    report, out, _, _ = weact_image
+    flat = (out / "firmware.bin").read_bytes()
+    at = _symbol(report["elf"], "mp_frozen_names") - dfu.FLASH_BASE
+    names = flat[at : flat.index(b"\0\0", at)].decode().split("\0")
+    frozen = {name for name, _path, _v in fwid.frozen_sources()}
+    assert set(names) == frozen | {"fwid.py"}
+    assert {"app.py", "board.py", "nav.py", "drivers/bmi055.py"} <= frozen
+    ident = fwid.host_id()
+    assert report["firmware"]["crc32"] == ident["crc32"]
+    assert ident["crc32"].encode() in flat  # the frozen fwid's FIRMWARE_CRC32 string
+    want = sum(1 for p in FIRMWARE_DIR.rglob("*.py") if p.name not in ("main.py", "manifest.py"))
+    assert ident["files"] == want == len(frozen)
+    gen = (build.BUILD_ROOT / "WEACT_F411_BLACKPILL" / "gen" / "fwid.py").read_text()
+    assert f"FIRMWARE_CRC32 = '{ident['crc32']}'" in gen and "BOARD = 'WEACT_F411_BLACKPILL'" in gen
+
+
+def _read_hex(path):
+    """{address: byte} of an Intel HEX file (record checksums checked)."""
+    memory, base = {}, 0
+    for line in path.read_text().split():
+        n, addr, kind = int(line[1:3], 16), int(line[3:7], 16), int(line[7:9], 16)
+        data = bytes.fromhex(line[9 : 9 + 2 * n])
+        assert sum(bytes.fromhex(line[1:])) & 0xFF == 0
+        if kind == 4:
+            base = int.from_bytes(data, "big") << 16
+        elif kind == 0:
+            memory.update((base + addr + i, b) for i, b in enumerate(data))
+    return memory
+
+
+def test_dfu_hex_and_bin_hold_the_same_bytes(weact_image):
+    _, out, _, _ = weact_image
+    memory = _read_hex(out / "firmware.hex")  # straight from the ELF (objcopy -O ihex)
+    parts = dfu.read_image(out / "firmware.dfu")
+    assert [a for a, _ in parts] == [0x08000000, 0x08020000]
+    for addr, data in parts:
+        n = 0
+        while addr + n in memory:
+            n += 1
+        assert data[:n] == bytes(memory[addr + i] for i in range(n))
+        pad = len(data) - n  # tools/dfu.py pads each element to 8 bytes with zeros
+        assert len(data) % 8 == 0 and pad < 8 and data[n:] == bytes(pad)
+    flat = (out / "firmware.bin").read_bytes()
+    assert len(flat) == max(memory) + 1 - dfu.FLASH_BASE
+    assert all(flat[a - dfu.FLASH_BASE] == b for a, b in memory.items())
+    gaps = [flat[i] for i in range(len(flat)) if dfu.FLASH_BASE + i not in memory]
+    assert set(gaps) == {0xFF} and len(gaps) == len(flat) - len(memory)
+
+
+def test_the_build_is_cached_and_never_writes_into_the_micropython_tree(weact_image, tmp_path):
+    _, _, _, changes = weact_image
+    assert changes == []  # whether the session's build was cold (CI) or cached
+    src = toolchain.micropython_dir()
+    before = build.snapshot(src)
+    lines = []
+    again = build.build("WEACT_F411_BLACKPILL", tmp_path, log=lines.append)
+    assert build.tree_changes(before, build.snapshot(src)) == []
+    assert again["rebuilt"] is False and again["seconds"] < 20  # measured 2 s
+    assert any("up to date: nothing to rebuild" in line for line in lines)
+    assert again["figures"] == weact_image[0]["figures"]
+
+
+def test_the_firmware_id_is_a_crc_over_names_sizes_and_bytes():
+    one = zlib.crc32(b"a.py\x001\x00x")
+    assert fwid.firmware_crc([("a.py", b"x")]) == f"{one:08x}"
+    two = [("b.py", b"yy"), ("a.py", b"x")]
+    expect = zlib.crc32(b"b.py\x002\x00yy", one)
+    assert fwid.firmware_crc(two) == f"{expect:08x}"  # in order of the names
+    assert fwid.firmware_crc([("a.py", b"xb.py")]) != fwid.firmware_crc([("a.py", b"x"),
+                                                                       ("b.py", b"")])  # fmt: skip
+
+
+def test_the_board_answer_is_parsed():
+    got = fwid.parse_board_answer("FWID 8c8e949f 0.1.0 1.28.0 WEACT_F411_BLACKPILL\r\n")
+    assert got == {"crc32": "8c8e949f", "version": "0.1.0", "micropython": "1.28.0",
+                   "board": "WEACT_F411_BLACKPILL"}  # fmt: skip
+    assert fwid.parse_board_answer("FWID -\r\n") is None
+
+
+def test_over_budget_figures_are_named():
+    fig = {
+        "code_bytes": 400_000,
+        "code_region_bytes": 393_216,
+        "vector_sector_used_bytes": 100,
+        "vector_sector_bytes": 16_384,
+        "heap_bytes": 60_000,
+        "static_ram_bytes": 40_000,
+    }
+    problems = budget.problems(fig)
+    assert problems[0] == "the code needs 400,000 bytes but the code region holds 393,216 (384 KB)"
+    assert "the heap is 60,000 bytes, under the 64 KB" in problems[1]
+
+
+def test_a_linker_overflow_is_reported_as_over_budget(tmp_path):
+    log = "LINK firmware.elf\nld: region `FLASH_TEXT' overflowed by 1234 bytes\ncollect2: error\n"
+    e = build.explain_failure(log, tmp_path / "build.log", "WEACT_F411_BLACKPILL")
+    assert "over budget" in str(e) and "FLASH_TEXT by 1,234 bytes" in str(e)
+    assert "384 KB code region" in str(e) and str(tmp_path / "build.log") in str(e)
+
+
+def test_a_build_error_names_the_log_and_quotes_its_tail(tmp_path, capsys):
+    board = tmp_path / "NUCLEO_F411RE"
+    shutil.copytree(build.BOARDS["NUCLEO_F411RE"].board_dir, board)
+    with open(board / "pins.csv", "a") as f:
+        f.write("D99,PZ99\n")
+    with pytest.raises(build.ImageError) as e:
+        build.build("NUCLEO_F411RE", tmp_path / "out", log=lambda _: None,
+                    build_root=tmp_path / "b", board_dir=board)  # fmt: skip
+    log = tmp_path / "b" / "NUCLEO_F411RE" / "build.log"
+    assert f"full log: {log}" in str(e.value)
+    assert "Invalid cpu pin name 'PZ99'" in str(e.value) and log.is_file()
+    assert not (tmp_path / "out" / "firmware.dfu").exists()
+
+
+def test_a_wrong_micropython_dir_is_said_plainly(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv("MICROPY_DIR", str(tmp_path / "nowhere"))
+    assert main(["build", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "no MicroPython source tree at" in err and "MICROPY_DIR" in err
+    assert "Traceback" not in err
+
+
+def test_a_missing_toolchain_stops_the_build_with_ensures_message(monkeypatch, tmp_path, capsys):
+    def missing():
+        raise toolchain.ToolchainError(
+            "toolchain: missing gcc-arm-none-eabi; install them with\n"
+            "  sudo apt-get install gcc-arm-none-eabi=15:12.2.rel1-1"
+        )
+
+    monkeypatch.setattr(toolchain, "ensure", missing)
+    assert main(["build", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "missing gcc-arm-none-eabi" in err and "sudo apt-get install" in err
+
+
+def test_an_unknown_board_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["build", "--board", "PYBV11"])
+    assert e.value.code == 2
+    assert "invalid choice: 'PYBV11'" in capsys.readouterr().err

@@ -1,0 +1,63 @@
+"""`python -m tools.image build|boards`: see docs/image.md.
+
+Usage errors exit with status 2, failures with status 1 and one paragraph saying what to do.
+"""
+
+import argparse
+import sys
+
+from tools.image.boards import BOARDS, DEFAULT_BOARD
+
+
+def _build(args):
+    from tools.image import build
+
+    build.build(args.board, args.out)
+    return 0
+
+
+def _boards(_args):
+    for name, board in BOARDS.items():
+        where = "this repository" if board.board_dir else "the MicroPython tree"
+        print(f"{name}: {board.description} (board definition from {where})")
+    return 0
+
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="python -m tools.image",
+        description="Build MicroPython for the STM32F411 with the firmware frozen in.",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="build the image and report its budget")
+    b.add_argument(
+        "--board", default=DEFAULT_BOARD, choices=sorted(BOARDS), help=f"({DEFAULT_BOARD})"
+    )
+    b.add_argument("--out", help="output folder (out/image/BOARD)")
+    b.set_defaults(func=_build)
+    sub.add_parser("boards", help="the boards an image can be built for").set_defaults(
+        func=_boards
+    )
+    return p
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
+    from tools.image.budget import BudgetError
+    from tools.image.build import ImageError
+    from tools.image.fwid import FirmwareIdError
+    from tools.toolchain import ToolchainError
+
+    try:
+        return args.func(args)
+    except (ImageError, BudgetError, FirmwareIdError, ToolchainError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted: run the command again (make resumes where it stopped)",
+              file=sys.stderr)  # fmt: skip
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

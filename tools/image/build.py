@@ -1,0 +1,287 @@
+"""Build a MicroPython image with the firmware frozen in (docs/image.md).
+
+    build(board) -> report dict; the image files in out/image/<board>/
+
+Steps: the toolchain (tools.toolchain.ensure: Debian's arm-none-eabi-gcc), the MicroPython
+tree (micropython_dir(), v1.28.0) and its own mpy-cross; then, in build/image/<board>/:
+
+    gen/fwid.py       the firmware id module (tools/image/fwid.py), rewritten only when its
+                      text changes, so an unchanged firmware leaves make nothing to do
+    gen/manifest.py   include()s firmware/manifest.py and adds gen/fwid.py: the FROZEN_MANIFEST
+    obj/              make -C <tree>/ports/stm32 BUILD=obj ...: every object, firmware.elf/.map
+    key.json          what obj/ was built from (tree, version, board, compiler); a change
+                      empties obj/ first, since make alone would not notice another tree
+    build.log         make's output
+
+The source tree is checked before and after make (every file's size and mtime): a build that
+wrote into it fails. The outputs (firmware.dfu, firmware.hex, firmware.bin: sector 0 and the
+code at 0x08020000 in one file, the gap filled with 0xFF) and budget.json go to the output
+folder; over budget, only budget.json goes there and the build fails saying why.
+"""
+
+import json
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import time
+
+from tools import toolchain
+from tools.image import budget, fwid
+from tools.image.boards import BOARDS, DEFAULT_BOARD
+
+BUILD_ROOT = toolchain.BUILD_ROOT / "image"
+OUT_ROOT = toolchain.REPO / "out" / "image"
+IMAGE_FILES = ("firmware.dfu", "firmware.hex", "firmware.bin")
+REPORT = "budget.json"
+CC_STEP = 100  # print a progress line every this many compiled C files
+TAIL_LINES = 20  # lines of make's log quoted when it fails
+CLIP = 240  # characters of one quoted line (make prints whole command lines)
+
+
+class ImageError(Exception):
+    """The image could not be built or is over budget; the message says what to do."""
+
+
+def snapshot(tree):
+    """{relative path: (size, mtime_ns)} of every file under tree, plus its directories."""
+    out = {}
+    for root, _dirs, files in os.walk(tree):
+        rel = os.path.relpath(root, tree)
+        out[rel + "/"] = None
+        for name in files:
+            st = os.lstat(os.path.join(root, name))
+            out[os.path.join(rel, name)] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
+def tree_changes(before, after):
+    """Paths created, changed or removed between two snapshots, sorted."""
+    return sorted(p for p in before.keys() | after.keys() if before.get(p) != after.get(p))
+
+
+def write_if_changed(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_file() and path.read_text() == text:
+        return False
+    path.write_text(text)
+    return True
+
+
+def _gcc_version():
+    try:
+        proc = subprocess.run(["arm-none-eabi-gcc", "--version"], capture_output=True, text=True)
+    except OSError:
+        return "missing"
+    return proc.stdout.splitlines()[0] if proc.stdout else "unknown"
+
+
+def _progress(log, t0):
+    """A callback for make's output lines that prints what the build is doing."""
+    state = {"cc": 0, "mpy": 0, "said": set()}
+
+    def say(key, text):
+        if key not in state["said"]:
+            state["said"].add(key)
+            log(f"  {text} ({time.monotonic() - t0:.0f} s)")
+
+    def on_line(line):
+        if line.startswith("CC "):
+            state["cc"] += 1
+            if state["cc"] == 1:
+                say("cc", "compiling MicroPython's C sources")
+            elif state["cc"] % CC_STEP == 0:
+                log(f"  compiled {state['cc']} C files ({time.monotonic() - t0:.0f} s)")
+        elif line.startswith("GEN ") and "/genhdr/" in line:
+            say("gen", "generating MicroPython's headers (pins, qstrs, version)")
+        elif line.startswith("MPY "):
+            state["mpy"] += 1
+            say("mpy", "compiling the frozen modules with mpy-cross")
+        elif line.startswith("GEN ") and line.rstrip().endswith("frozen_content.c"):
+            say("freeze", "freezing the firmware into frozen_content.c")
+        elif line.startswith("LINK "):
+            say("link", "linking firmware.elf")
+        elif line.startswith("GEN ") and line.rstrip().endswith("firmware.dfu"):
+            say("dfu", "writing firmware.dfu and firmware.hex")
+
+    return on_line, state
+
+
+def run_make(args, log_path, on_line):
+    """make with args, its output to log_path and, line by line, to on_line."""
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with open(log_path, "w") as logf:
+            proc = subprocess.Popen(
+                ["make", "-j", toolchain.jobs(), *args],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+                errors="replace",
+            )
+            for line in proc.stdout:
+                logf.write(line)
+                on_line(line)
+            return proc.wait()
+    except OSError as e:
+        raise ImageError(f"cannot run make: {e.strerror}. Install it (Debian: apt-get install "
+                         "make).") from None  # fmt: skip
+
+
+def explain_failure(log_text, log_path, board):
+    """The ImageError for a failed make, from its log."""
+    over = re.findall(r"region [`'](\w+)' overflowed by (\d+) bytes", log_text)
+    if over:
+        what = ", ".join(f"{name} by {int(n):,} bytes" for name, n in over)
+        return ImageError(
+            f"the image for {board} is over budget: the linker says {what} (FLASH_TEXT is the "
+            "384 KB code region, FLASH_START the 16 KB vector sector, RAM the 112 KB of RAM). "
+            "Freeze less (firmware/manifest.py) or turn MicroPython features off in the board "
+            f"definition, then build again. Full log: {log_path}"
+        )
+    lines = [_clip(line) for line in log_text.rstrip().splitlines()]
+    tail = lines[-TAIL_LINES:]
+    first_error = next((line for line in lines if "error:" in line.lower()), None)
+    if first_error and first_error not in tail:
+        tail = [first_error, "..."] + tail
+    tail = "\n".join(tail)
+    return ImageError(
+        f"building the image for {board} failed (full log: {log_path}); its last lines:\n{tail}"
+    )
+
+
+def _clip(line):
+    return line if len(line) <= CLIP else line[:CLIP] + f" ... ({len(line)} characters)"
+
+
+def combined_bin(part0, addr0, part1, addr1):
+    """One flat image from 0x08000000: part0 at addr0, part1 at addr1, gaps of 0xFF."""
+    if addr1 < addr0 + len(part0):
+        raise ImageError("firmware0.bin overlaps firmware1.bin")
+    return part0 + b"\xff" * (addr1 - addr0 - len(part0)) + part1
+
+
+def _board(name):
+    if name not in BOARDS:
+        raise ImageError(f"unknown board {name!r}; the boards are: {', '.join(BOARDS)}")
+    return BOARDS[name]
+
+
+def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, board_dir=None):
+    """Build the image for `board` into build_root/<board>, copy it to out_dir (default
+    out/image/<board>) and return the report (also out_dir/budget.json). board_dir overrides
+    the board definition's folder (tests use it). ImageError when it fails or is over budget;
+    toolchain.ToolchainError when the toolchain or the MicroPython tree is missing."""
+    spec = _board(board)
+    t0 = time.monotonic()
+    build_dir = pathlib.Path(build_root) / board
+    out_dir = pathlib.Path(out_dir) if out_dir else OUT_ROOT / board
+    board_dir = pathlib.Path(board_dir) if board_dir else spec.board_dir
+
+    log(f"image {board}: checking the toolchain (arm-none-eabi-gcc, MicroPython tree)")
+    toolchain.ensure()
+    src = toolchain.micropython_dir()
+    version = ".".join(map(str, toolchain.check_version(src)))
+    port = src / "ports" / "stm32"
+    if not (port / "Makefile").is_file():
+        raise ImageError(f"the MicroPython tree {src} has no ports/stm32: set MICROPY_DIR to a "
+                         "full MicroPython v1.28.0 tree")  # fmt: skip
+    if board_dir is None and not (port / "boards" / board).is_dir():
+        raise ImageError(f"the MicroPython tree {src} has no board folder {board}")
+    log(f"image {board}: MicroPython {version} from {src}; building its mpy-cross")
+    mpy_cross = toolchain.mpy_cross()
+
+    ident = fwid.host_id(src=src)
+    gen = build_dir / "gen"
+    write_if_changed(gen / "fwid.py", fwid.module_source(ident, board, version))
+    write_if_changed(
+        gen / "manifest.py",
+        "# Generated by python -m tools.image build: the firmware's freeze list and the module\n"
+        "# that says which firmware the image carries (tools/image/fwid.py).\n"
+        f"include({str(fwid.FIRMWARE_MANIFEST)!r})\n"
+        f"module('fwid.py', base_path={str(gen)!r})\n",
+    )
+    obj = build_dir / "obj"
+    key = {
+        "micropython_dir": str(src),
+        "micropython": version,
+        "board": board,
+        "board_dir": str(board_dir) if board_dir else None,
+        "compiler": _gcc_version(),
+    }
+    key_path = build_dir / "key.json"
+    if obj.exists() and (not key_path.is_file() or json.loads(key_path.read_text()) != key):
+        log(f"image {board}: the tree, board or compiler changed since the last build: "
+            "starting afresh")  # fmt: skip
+        shutil.rmtree(obj)
+    key_path.write_text(json.dumps(key, indent=1) + "\n")
+
+    args = ["-C", str(port), f"BUILD={obj}"]
+    args += [f"BOARD_DIR={board_dir}"] if board_dir else [f"BOARD={board}"]
+    args += [f"MICROPY_MPYCROSS={mpy_cross}", f"FROZEN_MANIFEST={gen / 'manifest.py'}"]
+    log_path = build_dir / "build.log"
+    cold = not (obj / "firmware.elf").exists()
+    log(
+        f"image {board}: make in {obj} (log: {log_path}); firmware {ident['version']} "
+        f"id {ident['crc32']}, {ident['files']} modules + fwid frozen"
+        + ("; a first build takes 70-90 s on 2 cores" if cold else "")
+    )
+    before = snapshot(src)
+    on_line, state = _progress(log, t0)
+    rc = run_make(args, log_path, on_line)
+    changed = tree_changes(before, snapshot(src))
+    if changed:
+        more = f" and {len(changed) - 5} more" if len(changed) > 5 else ""
+        shown = ", ".join(changed[:5]) + more
+        raise ImageError(
+            f"the build wrote into the MicroPython source tree {src} ({shown}); it must stay "
+            "untouched (builds go to build/image). Restore the tree (e.g. from its VENDOR.md "
+            "commit) and report this."
+        )
+    if rc != 0:
+        raise explain_failure(log_path.read_text(errors="replace"), log_path, board)
+    rebuilt = state["cc"] > 0 or "link" in state["said"]
+    if not rebuilt:
+        log(f"  up to date: nothing to rebuild ({time.monotonic() - t0:.1f} s)")
+
+    figures = budget.measure(obj / "firmware.elf", obj / "firmware.map")
+    report = {
+        "board": board,
+        "description": spec.description,
+        "micropython": version,
+        "firmware": {**ident, "module": fwid.MODULE},
+        "figures": figures,
+        "min_heap_bytes": budget.MIN_HEAP_BYTES,
+        "problems": budget.problems(figures),
+        "build_dir": str(build_dir),
+        "elf": str(obj / "firmware.elf"),
+        "rebuilt": rebuilt,
+        "seconds": round(time.monotonic() - t0, 1),
+    }
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log(f"image {board}: budget")
+    for line in budget.report_lines(figures):
+        log("  " + line)
+    if report["problems"]:
+        for name in IMAGE_FILES:
+            (out_dir / name).unlink(missing_ok=True)  # never leave an older image to flash
+        (out_dir / REPORT).write_text(json.dumps(report, indent=1) + "\n")
+        raise ImageError(
+            f"the image for {board} is over budget: " + "; ".join(report["problems"]) + ". "
+            f"No image was written (figures: {out_dir / REPORT}). Freeze less "
+            "(firmware/manifest.py) or turn MicroPython features off in the board definition."
+        )
+    shutil.copyfile(obj / "firmware.dfu", out_dir / "firmware.dfu")
+    shutil.copyfile(obj / "firmware.hex", out_dir / "firmware.hex")
+    flat = combined_bin(
+        (obj / "firmware0.bin").read_bytes(), 0x08000000, (obj / "firmware1.bin").read_bytes(),
+        0x08020000,
+    )  # fmt: skip
+    (out_dir / "firmware.bin").write_bytes(flat)
+    report["outputs"] = {name: str(out_dir / name) for name in IMAGE_FILES}
+    report["seconds"] = round(time.monotonic() - t0, 1)
+    (out_dir / REPORT).write_text(json.dumps(report, indent=1) + "\n")
+    log(f"image {board}: {out_dir}/firmware.dfu, .hex, .bin and {REPORT} "
+        f"({report['seconds']:.1f} s)")  # fmt: skip
+    return report
