@@ -202,6 +202,17 @@ def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, b
         f"include({str(fwid.FIRMWARE_MANIFEST)!r})\n"
         f"module('fwid.py', base_path={str(gen)!r})\n",
     )
+    if spec.pins_from and board_dir is not None:
+        # the port wants pins.csv inside BOARD_DIR: the board folder is assembled in the build
+        # tree from ours and the MicroPython tree's pins.csv (named as the board: BOARD)
+        assembled = build_dir / "boarddef" / board
+        for f in sorted(board_dir.iterdir()):
+            if f.is_file():
+                write_if_changed(assembled / f.name, f.read_text())
+        write_if_changed(
+            assembled / "pins.csv", (port / "boards" / spec.pins_from / "pins.csv").read_text()
+        )
+        board_dir = assembled
     obj = build_dir / "obj"
     key = {
         "micropython_dir": str(src),

@@ -1,8 +1,9 @@
 """The boards an image is built for (python -m tools.image build --board B).
 
-WEACT_F411_BLACKPILL is the vendored MicroPython tree's own board folder (BOARD=); the others
-are board definitions kept in this folder (BOARD_DIR=), for boards the vendored tree does not
-carry. Each entry also says how the board is flashed, for the messages of tools.flash image.
+Every board is a definition kept in this folder (BOARD_DIR=): WEACT_F411_BLACKPILL wraps the
+MicroPython tree's own board folder with one change (no REPL on USART1, the firmware's RS485
+output; its pins.csv is the tree's, `pins_from`), NUCLEO_F411RE is written here (the vendored
+tree does not carry it). Each entry also says how the board is flashed, for the messages of tools.flash image.
 """
 
 import dataclasses
@@ -17,6 +18,7 @@ class Board:
     description: str
     board_dir: pathlib.Path | None  # None: ports/stm32/boards/<name> of the MicroPython tree
     dfu: str  # how to put it into its ROM DFU bootloader (or why not)
+    pins_from: str | None = None  # take pins.csv from ports/stm32/boards/<this> of the tree
 
 
 BOARDS = {
@@ -25,10 +27,11 @@ BOARDS = {
         Board(
             "WEACT_F411_BLACKPILL",
             "WeAct STM32F411CEU6 'Black Pill' v3.1, 25 MHz crystal, no SPI flash "
-            "(filesystem in internal flash)",
-            None,
+            "(filesystem in internal flash); REPL on USB only (USART1 is the RS485 output)",
+            HERE / "WEACT_F411_BLACKPILL",
             "on a WeAct Black Pill, hold BOOT0, press and release NRST, then release BOOT0 (the "
             "USB-C cable plugged into the PC)",
+            pins_from="WEACT_F411_BLACKPILL",
         ),
         Board(
             "NUCLEO_F411RE",
