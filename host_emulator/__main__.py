@@ -17,6 +17,7 @@
     accuracy-report                 drive_0708 and the scenarios (make accuracy-report)
     float32                         accuracy of the float32 math and kernels (make accuracy)
     digests [--update]              the change indicator: frame-stream digests per runtime
+    cpi [--no-write]                CPI of MicroPython on an STM32F4 (make cpi; ~1 min)
 
 Bad input (an unknown scenario, an unreadable stimulus, a firmware exception) prints one clear
 message and exits non-zero.
@@ -48,6 +49,9 @@ DELEGATED = {
                 "accuracy of the float32 math functions and kernels (docs/float32.md)"),
     "digests": ("host_emulator.bench.digests:main",
                 "the change indicator: frame-stream digests per scenario and runtime"),
+    "cpi": ("host_emulator.bench.cpi:main",
+            "CPI of MicroPython on an STM32F4: published F401 perf_bench cycles over the "
+            "emulated Cortex-M4F's instruction counts (docs/benchmarks/cpi.md)"),
 }  # fmt: skip
 
 
