@@ -18,6 +18,7 @@
     float32                         accuracy of the float32 math and kernels (make accuracy)
     bench-board                     the app loop's cost per tick on the emulated Cortex-M4F
     digests [--update]              the change indicator: frame-stream digests per runtime
+    cpi [--no-write]                CPI of MicroPython on an STM32F4 (make cpi; ~1 min)
 
 Bad input (an unknown scenario, an unreadable stimulus, a firmware exception) prints one clear
 message and exits non-zero.
@@ -51,6 +52,9 @@ DELEGATED = {
                     "instructions per tick of the app loop on the emulated Cortex-M4F"),
     "digests": ("host_emulator.bench.digests:main",
                 "the change indicator: frame-stream digests per scenario and runtime"),
+    "cpi": ("host_emulator.bench.cpi:main",
+            "CPI of MicroPython on an STM32F4: published F401 perf_bench cycles over the "
+            "emulated Cortex-M4F's instruction counts (docs/benchmarks/cpi.md)"),
 }  # fmt: skip
 
 

@@ -23,8 +23,9 @@ What it gives besides the frames:
   collects garbage itself, as on the board.
 
 What it cannot give: cycles. A Cortex-M4 at 0 wait states would run about one instruction per
-cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2 (docs/board.md
-gives the calibration). Interrupt entry/exit and the real peripherals' C drivers are not counted.
+cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2
+(docs/benchmarks/cpi.md gives the calibration: `python -m host_emulator cpi`). Interrupt
+entry/exit and the real peripherals' C drivers are not counted.
 """
 
 import os

@@ -4,8 +4,8 @@ with the `m4f` module (usermod/) and, frozen, the firmware exactly as the board 
 it plus the emulated board and its driver (manifest.py).
 
 Out of tree, from tools.toolchain's MicroPython source (MICROPY_DIR) with its own mpy-cross,
-into build/m4f/; make decides what is stale, so a second build with nothing changed takes a
-second.
+into build/m4f/ (build/m4f-heap<N>/ for another GC heap size); make decides what is stale, so
+a second build with nothing changed takes a second.
 """
 
 import hashlib
@@ -27,15 +27,29 @@ BUILD_DIR = toolchain.BUILD_ROOT / "m4f"
 # the emulator's and the driver's objects; the driver sets aside what the reserve leaves over.
 BOARD_HEAP_BYTES = 89_272
 EMULATOR_RESERVE_BYTES = 24 * 1024
+GC_HEAP_BYTES = BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES  # MICROPY_HEAP_SIZE of the build
 
 
-def firmware_elf():
-    return BUILD_DIR / "firmware.elf"
+def build_dir(gc_heap_bytes=None):
+    """build/m4f; build/m4f-heap<N> for a build that differs from it only in the size of its GC
+    heap (MICROPY_HEAP_SIZE = N bytes; e.g. bench/cpi.py's, sized as the NUCLEO-F401RE's)."""
+    if gc_heap_bytes is None or gc_heap_bytes == GC_HEAP_BYTES:
+        return BUILD_DIR
+    return toolchain.BUILD_ROOT / f"m4f-heap{int(gc_heap_bytes)}"
 
 
-def build(progress=print):
+def firmware_elf(gc_heap_bytes=None):
+    return build_dir(gc_heap_bytes) / "firmware.elf"
+
+
+def build(progress=print, gc_heap_bytes=None):
     """Build (or bring up to date) the emulated board's firmware; returns the ELF's path.
+    gc_heap_bytes: another size of the GC heap than GC_HEAP_BYTES (a build of its own).
     EmulatorError with what to do when the toolchain or the build fails."""
+    heap = GC_HEAP_BYTES if gc_heap_bytes is None else int(gc_heap_bytes)
+    if not 16 * 1024 <= heap <= 1024 * 1024 or heap % 4:
+        raise EmulatorError(f"a GC heap of {heap} bytes: give a multiple of 4, 16 KB to 1 MB")
+    out = build_dir(heap)
     try:
         toolchain.ensure()
         mpy_cross = toolchain.mpy_cross()
@@ -46,14 +60,14 @@ def build(progress=print):
         "-C", str(src / "ports" / "qemu"),
         "BOARD=M4F_INS",
         f"BOARD_DIR={BOARD_DIR}",
-        f"BUILD={BUILD_DIR}",
+        f"BUILD={out}",
         f"MICROPY_MPYCROSS={mpy_cross}",
         f"FROZEN_MANIFEST={MANIFEST}",
         f"USER_C_MODULES={USER_C_MODULES}",
-        f"MICROPY_HEAP_SIZE={BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES}",
+        f"MICROPY_HEAP_SIZE={heap}",
     ]  # fmt: skip
-    _clean_if_configuration_changed(args)
-    elf = firmware_elf()
+    _clean_if_configuration_changed(args, out)
+    elf = out / "firmware.elf"
     t = time.perf_counter()
     if progress and not elf.exists():
         progress("building the emulated Cortex-M4F (MicroPython qemu port, once; ~30 s)")
@@ -61,7 +75,7 @@ def build(progress=print):
         toolchain.make(
             args,
             "the emulated Cortex-M4F (qemu port)",
-            toolchain.BUILD_ROOT / "logs" / "m4f.log",
+            toolchain.BUILD_ROOT / "logs" / f"{out.name}.log",
         )
     except toolchain.ToolchainError as e:
         raise EmulatorError(str(e)) from None
@@ -70,15 +84,15 @@ def build(progress=print):
     return elf
 
 
-def _clean_if_configuration_changed(args):
+def _clean_if_configuration_changed(args, out):
     """make tracks sources, not flags: a changed make command line or board definition starts
     the build afresh."""
     h = hashlib.sha256("\n".join(args).encode())
     for p in sorted(BOARD_DIR.iterdir()):
         h.update(p.read_bytes())
-    stamp = BUILD_DIR / "configuration.sha256"
+    stamp = out / "configuration.sha256"
     if stamp.exists() and stamp.read_text() == h.hexdigest():
         return
-    shutil.rmtree(BUILD_DIR, ignore_errors=True)
-    BUILD_DIR.mkdir(parents=True)
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
     stamp.write_text(h.hexdigest())

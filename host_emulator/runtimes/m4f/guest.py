@@ -4,7 +4,8 @@ does for the unix VM.
 
 The code runs through the raw REPL with the frozen modules importable (the firmware's, the
 emulated board's, `m4f`); `m4f.init()` has run, so `m4f.icount()` counts from 0. Host files are
-reachable through semihosting paths relative to `cwd`.
+reachable through semihosting paths relative to `cwd`. `gc_heap_bytes` runs it on a build that
+differs only in the size of its GC heap (build.build_dir).
 """
 
 import subprocess
@@ -12,12 +13,12 @@ import subprocess
 from host_emulator.runtimes.m4f import build as m4f_build
 
 
-def run(code, timeout_s=120, cwd=None):
+def run(code, timeout_s=120, cwd=None, gc_heap_bytes=None):
     """stdout of `code` (a str) run on the emulated board; AssertionError with the output if it
     raised or QEMU failed."""
     from host_emulator.runtimes.m4f import qemu_command
 
-    elf = m4f_build.build(progress=None)
+    elf = m4f_build.build(progress=None, gc_heap_bytes=gc_heap_bytes)
     body = "import m4f\r\nm4f.init()\r\n" + code.replace("\n", "\r\n") + "\r\nm4f.exit(0)\r\n"
     stdin = b"\x01" + body.encode() + b"\x04" + b"\x01import m4f\r\nm4f.exit(4)\r\n\x04"
     proc = subprocess.run(
