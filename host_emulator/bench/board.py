@@ -27,6 +27,7 @@ from host_emulator import args as cli_args
 from host_emulator.bench import board_cost
 from host_emulator.errors import EmulatorError
 from host_emulator.firmware_env import REPO_DIR
+from host_emulator.runtimes.m4f import build as m4f_build
 
 VARIANTS = (
     ("default (coning off, 1 slice per tick)", {}),
@@ -60,17 +61,7 @@ def _one(task):
         "ticks": fw.ticks,
         "wall_s": fw.wall_s,
         "cost": board_cost.summary(fw.per_tick, stim.tick_us),
-        "heap": {
-            k: fw.stats[k]
-            for k in (
-                "free_at_start",
-                "live_after_start",
-                "emulator_bytes",
-                "ballast_bytes",
-                "app_gc_runs",
-                "startup_instructions",
-            )
-        },  # fmt: skip
+        "heap": {k: fw.stats[k] for k in board_cost.HEAP_KEYS},  # fmt: skip
         "overruns_reported": fw.stats["overruns"],
         "per_tick_fw": (fw.per_tick["instr"].astype(np.int64) - fw.per_tick["emu_instr"]).tolist(),
         "per_tick_state": fw.per_tick["state"].tolist(),
@@ -181,14 +172,17 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
     else:
         lines.append("The firmware never navigated in this run: no navigating figures.")
     h = results[0]["heap"]
-    own_live = h["live_after_start"] - h["emulator_bytes"] - h["ballast_bytes"]
+    own_live = h["live_after_start"] - h["emulator_bytes"] - h["ballast_bytes"] - h["system_bytes"]
     lines += [
         "",
         "## Heap and start-up",
         "",
-        f"- Free heap when the firmware starts: {h['free_at_start']:,} bytes (the board's; the "
-        f"emulator's own {h['emulator_bytes']:,} bytes and a ballast of "
-        f"{h['ballast_bytes']:,} bytes are set aside in the build's larger heap).",
+        f"- Free heap when the firmware starts: {h['free_at_start']:,} bytes: what a board with "
+        f"the image's {m4f_build.BOARD_HEAP_BYTES:,}-byte heap has free once MicroPython's own "
+        f"start-up objects ({h['system_bytes']:,} bytes here, /flash's FAT object among them) "
+        f"are made (the emulated board's {h['emulator_bytes']:,} bytes sit in a reserve of "
+        f"the build's heap; a ballast of {h['ballast_bytes']:,} bytes takes what is left of "
+        "it).",
         f"- Live after start-up: {own_live:,} bytes of the firmware's own.",
         f"- Start-up (imports of the frozen modules, configuration, BMI055 set-up, the App): "
         f"{h['startup_instructions']:,} instructions "

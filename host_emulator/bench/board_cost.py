@@ -22,6 +22,9 @@ import pathlib
 import numpy as np
 
 PHASES = {1: "aligning", 2: "navigating"}
+# the m4f run's heap and start-up figures (FirmwareRun.stats keys) a report quotes
+HEAP_KEYS = ("free_at_start", "live_after_start", "system_bytes", "emulator_bytes",
+             "ballast_bytes", "startup_instructions", "app_gc_runs")  # fmt: skip
 CLOCK_HZ = 100e6  # the F411's maximum; the WEACT_F411_BLACKPILL image runs at 96 MHz
 CPI_FILE = pathlib.Path(__file__).resolve().parents[2] / "docs" / "benchmarks" / "cpi.json"
 # Until docs/benchmarks/cpi.json exists (make cpi): DESIGN.md section 4's range.

@@ -133,11 +133,7 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
     per_tick = getattr(fw, "per_tick", None)
     if per_tick is not None:  # the m4f runtime: instructions per tick on the board's CPU
         m["board_cost"] = board_cost.summary(per_tick)
-        m["board_heap"] = {
-            k: fw.stats.get(k)
-            for k in ("free_at_start", "live_after_start", "emulator_bytes", "ballast_bytes",
-                      "startup_instructions", "app_gc_runs")
-        }  # fmt: skip
+        m["board_heap"] = {k: fw.stats.get(k) for k in board_cost.HEAP_KEYS}
     return m
 
 

@@ -124,9 +124,7 @@ class FakeDfuSe:
                    "@Option Bytes  /0x1FFFC000/01*016 e"]  # fmt: skip
         self.strings = {i + 1: s for i, s in enumerate(strings)}
         self.langids = (0x0409,)
-        self._cfg = _Configuration(
-            [_Interface(0, 4, functional), _Interface(1, 5, functional)]
-        )
+        self._cfg = _Configuration([_Interface(0, 4, functional), _Interface(1, 5, functional)])
 
     # -- what pyusb's Device offers pydfu -------------------------------------------------
 

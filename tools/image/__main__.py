@@ -35,9 +35,7 @@ def _parser():
     )
     b.add_argument("--out", help="output folder (out/image/BOARD)")
     b.set_defaults(func=_build)
-    sub.add_parser("boards", help="the boards an image can be built for").set_defaults(
-        func=_boards
-    )
+    sub.add_parser("boards", help="the boards an image can be built for").set_defaults(func=_boards)
     return p
 
 

@@ -186,7 +186,5 @@ def report_lines(fig):
         f"{100 * fig['frozen_bytes'] / fig['code_bytes']:.1f} % of the code)",
     ]
     if 0 <= fig["code_free_bytes"] < LOW_CODE_MARGIN:
-        lines.append(
-            f"warning: less than {LOW_CODE_MARGIN // 1024} KB of the code region is left"
-        )
+        lines.append(f"warning: less than {LOW_CODE_MARGIN // 1024} KB of the code region is left")
     return lines

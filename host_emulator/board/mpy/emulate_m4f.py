@@ -5,16 +5,21 @@ host_emulator/runtimes/m4f), fed from a stimulus file, counting the instructions
 Frozen into that build with the firmware, machine.py, time.py and feed.py; the host starts it
 through the raw REPL:
 
-    import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR, HEAP)
+    import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR,
+                                         BOARD_HEAP, BUILD_HEAP)
 
 Host files go through ARM semihosting (the `m4f` module): the stimulus is read from byte
 OFFSET (its first record) of STIM, the configuration CONFIG is copied to /flash/ins.cfg on a
 FAT RAM disk as on the board, the output goes to OUT_DIR.
 
-The heap the firmware gets is the board's: the build's heap holds the emulator's objects and
-a reserve; before the firmware starts, a ballast takes what is free beyond HEAP bytes, so the
-firmware starts with HEAP bytes free, as on a board. The app collects garbage itself
-(firmware/app.py's low-water rule), as on the board.
+The heap the firmware gets is the board's. BOARD_HEAP is the board image's heap region and
+BUILD_HEAP this build's (MICROPY_HEAP_SIZE: the board's plus a reserve for the emulated
+peripherals and the driver). What the board has free when the firmware starts is its region's
+usable bytes (the GC's tables take their share) less what MicroPython itself holds by then
+(start-up objects, /flash's FAT object; measured here, before the emulator's objects exist);
+a ballast takes what the reserve leaves over beyond that, so the firmware starts with the
+board's free heap. The app collects garbage itself (firmware/app.py's low-water rule), as on
+the board.
 
 Counting, per tick k (fire_inputs + app.service(), the board's interrupt handlers and one pass
 of its loop): the instructions executed (m4f.icount, 40-instruction resolution), those spent in
@@ -35,21 +40,15 @@ import sys
 from array import array
 
 import m4f
-import machine  # board/mpy/machine.py, frozen as `machine`
 import vfs
-from feed import (
-    PROGRESS_EVERY,
-    REC_LEN,
-    fire_inputs,
-    firmware_error,
-    first_tick_us,
-    next_input,
-    start_firmware,
-)
+
+# machine (board/mpy/machine.py, frozen as `machine`) and feed are imported in main(), after
+# the heap MicroPython itself holds is measured: their objects are the emulator's
 
 MASK = 0x3FFFFFFF  # m4f counters are modulo 2**30 (small ints)
-CHUNK = 250  # ticks per write of the per-tick records
-TX_CAPACITY = 2048  # output UART buffer: more than a tick writes; emptied beyond half of it
+CHUNK = 64  # ticks per write of the per-tick records (small: the heap is the board's)
+TX_CAPACITY = 1024  # output UART buffer: a tick writes at most 446 bytes (frame, extended
+# frame, raw record with 232 GNSS bytes); emptied when over half full
 BLOCK = 512  # RAM disk sector
 
 
@@ -132,13 +131,27 @@ def exit_firmware_error(code):
     m4f.exit(code)
 
 
-def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, heap_bytes):
+def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, build_heap):
     m4f.init()
     icount = m4f.icount
     emu_total = m4f.emu_total
     emu_in = m4f.emu_in
     emu_out = m4f.emu_out
     mount_flash(config_path)
+    gc.collect()
+    system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
+    usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region
+    import machine
+    from feed import (
+        PROGRESS_EVERY,
+        REC_LEN,
+        fire_inputs,
+        firmware_error,
+        first_tick_us,
+        next_input,
+        start_firmware,
+    )
+
     machine.TX_CAPACITY = TX_CAPACITY
     bpb = bytes_per_block()
     f = HostFile(stim_path, 1)
@@ -150,8 +163,9 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, heap_bytes):
     recs = bytearray(16 * CHUNK)
     imu = machine.Bmi055()
     gc.collect()
-    emulator_bytes = gc.mem_alloc()  # MicroPython's own, the driver's and the emulator's
-    spare = (gc.mem_free() - heap_bytes - 16) // 16 * 16  # a bytearray: 16-byte head + data
+    emulator_bytes = gc.mem_alloc() - system_bytes  # the emulated board's and the driver's
+    board_free = usable - system_bytes
+    spare = (gc.mem_free() - board_free - 16) // 16 * 16  # a bytearray: 16-byte head + data
     ballast = bytearray(spare) if spare > 0 else None
     gc.collect()
     free_at_start = gc.mem_free()
@@ -226,6 +240,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, heap_bytes):
         "bytes_per_block": bpb,
         "heap_total_bytes": gc.mem_alloc() + gc.mem_free(),
         "emulator_bytes": emulator_bytes,
+        "system_bytes": system_bytes,
+        "board_free_at_start": board_free,
         "ballast_bytes": len(ballast) if ballast is not None else 0,
         "free_at_start": free_at_start,
         "live_after_start": live_after_start,

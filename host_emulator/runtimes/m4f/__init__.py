@@ -19,8 +19,9 @@ What it gives besides the frames:
 - per tick (`FirmwareRun.per_tick`, a NumPy record array): instructions executed, of which in
   the emulated peripherals (machine.py, time.py: emulation, not firmware; subtract it), bytes
   allocated, the navigation state after it, and whether the app's own gc.collect() ran in it;
-- the heap is the board's (BOARD_HEAP_BYTES free when the firmware starts) and the app
-  collects garbage itself, as on the board.
+- the heap is the board's (what a board with the image's BOARD_HEAP_BYTES heap would have free
+  when the firmware starts; board/mpy/emulate_m4f.py says how) and the app collects garbage
+  itself, as on the board.
 
 What it cannot give: cycles. A Cortex-M4 at 0 wait states would run about one instruction per
 cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2
@@ -109,7 +110,7 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
     call = (
         f"import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, {_data_offset(stim_path)}, "
         f"{n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, {str(out_dir)!r}, "
-        f"{m4f_build.BOARD_HEAP_BYTES})\r\n"
+        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES})\r\n"
     )
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)

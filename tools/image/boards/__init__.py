@@ -3,7 +3,8 @@
 Every board is a definition kept in this folder (BOARD_DIR=): WEACT_F411_BLACKPILL wraps the
 MicroPython tree's own board folder with one change (no REPL on USART1, the firmware's RS485
 output; its pins.csv is the tree's, `pins_from`), NUCLEO_F411RE is written here (the vendored
-tree does not carry it). Each entry also says how the board is flashed, for the messages of tools.flash image.
+tree does not carry it). Each entry also says how the board is flashed, for the messages of
+tools.flash image.
 """
 
 import dataclasses
