@@ -50,3 +50,26 @@ def test_the_figures_of_known_ticks(monkeypatch):
     assert "navigating (200 ticks): 540,000 instructions per tick mean" in text
     assert "gc.collect every 10 ticks, ~400,000 instructions each" in text
     assert "CPI 2 (1.5-2.5)" in text
+
+
+def test_the_board_benchmark_page_states_the_figures_and_the_budget(monkeypatch):
+    from host_emulator.bench import board
+
+    monkeypatch.setattr(board_cost, "cpi_range", lambda: (1.5, 2.0, 2.5, "test"))
+    t = _ticks()
+    result = {
+        "label": "default",
+        "wall_s": 12.0,
+        "cost": board_cost.summary(t),
+        "heap": {"free_at_start": 84_880, "live_after_start": 40_000, "system_bytes": 2_600,
+                 "emulator_bytes": 6_700, "ballast_bytes": 48, "startup_instructions": 4_600_000,
+                 "app_gc_runs": 20},
+    }  # fmt: skip
+    text = board.markdown([result], "urban_drive", 600.0, ["code region ..."], None, "cmd")
+    assert "| default | navigating | 200 | 540,000 | 500,000 |" in text
+    assert "20 (every 10 ticks) | 400,000 |" in text
+    assert "p99 900,000 instructions (18.0x the budget)" in text
+    assert "Live after start-up: 30,652 bytes of the firmware's own" in text
+    assert "code region ..." in text
+    assert board.main(["--jobs", "0"]) == 2
+    assert board.main(["--scenario", "nowhere"]) == 2
