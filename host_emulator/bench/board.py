@@ -53,8 +53,12 @@ def _one(task):
             last[0] = decile
             print(f"  {label}: {100 * k // n:3d} % ({time.perf_counter() - t:.0f} s)", flush=True)
 
-    with tempfile.TemporaryDirectory(prefix="bench-board-") as d:
-        fw = m4f.run(stim, pathlib.Path(d), overrides, progress)
+    try:
+        with tempfile.TemporaryDirectory(prefix="bench-board-") as d:
+            fw = m4f.run(stim, pathlib.Path(d), overrides, progress)
+    except EmulatorError as e:  # a firmware exception on the board's heap is a finding
+        print(f"  {label}: failed: {e}", flush=True)
+        return {"label": label, "overrides": overrides, "error": str(e)}
     return {
         "label": label,
         "overrides": overrides,
@@ -139,6 +143,8 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
         f"{central:g} | overrunning ticks at CPI {low:g} / {central:g} / {high:g} |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    failed = [r for r in results if "error" in r]
+    results = [r for r in results if "error" not in r]
     for r in results:
         for phase, ph in r["cost"]["phases"].items():
             fi = ph["firmware_instr"]
@@ -157,6 +163,10 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
                 f"{ph['emulation_instr']['mean']:,.0f} | {gc} | {one} | "
                 f"{t[f'{central:g}']['mean']:.1f} / {t[f'{central:g}']['p99']:.1f} | {shares} |"
             )
+    for r in failed:
+        lines += ["", f"**{r['label']}: the run failed:**", "", "```", r["error"], "```"]
+    if not results:
+        return "\n".join(lines)
     nav = results[0]["cost"]["phases"].get("navigating")
     lines += ["", "![instructions per tick](board_ticks.png)", "", "## Against the budget", ""]
     if nav:
@@ -249,7 +259,7 @@ def main(argv=None):
         out.parent.mkdir(parents=True, exist_ok=True)
         text = markdown(results, args.scenario, dur, budget, why, cmd)
         out.write_text(text)
-        _plot(results, out.with_name("board_ticks.png"))
+        _plot([r for r in results if "error" not in r], out.with_name("board_ticks.png"))
         slim = [{k: v for k, v in r.items() if not k.startswith("per_tick")} for r in results]
         out.with_suffix(".json").write_text(
             json.dumps(
