@@ -89,6 +89,8 @@ def image_budget():
 
 
 def _plot(results, path):
+    if not results:
+        return
     import matplotlib
 
     matplotlib.use("Agg")
