@@ -209,7 +209,7 @@ def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_
         t.start()
         rc = cli.main(
             [
-                "--port", name, "--baud", str(BAUD), "--seconds", "120", "--config", str(cfg),
+                "--port", name, "--baud", str(BAUD), "--seconds", "30", "--config", str(cfg),
                 "--csv", str(tmp_path / "p.csv"), "--mdf", str(tmp_path / "p.mf4"),
                 "--record", str(tmp_path / "p.ins"),
             ],
