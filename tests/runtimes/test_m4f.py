@@ -19,6 +19,7 @@ from host_emulator.runtimes import m4f
 from host_emulator.runtimes.m4f import build as m4f_build
 from host_emulator.runtimes.m4f import guest
 from host_emulator.sim import board_input
+from tools import toolchain
 
 
 @pytest.fixture(scope="module")
@@ -179,3 +180,10 @@ def test_the_registry_offers_it_for_parity_only_where_bits_match():
     assert parity.bit_exact_runtimes() == ("cpython", "m4f")
     with pytest.raises(EmulatorError, match="bit-exact runtime"):
         parity.compare(board_input.simulate("static", 0.1).stimulus, runtime="mpy_unix")
+
+
+def test_no_fused_multiply_add_in_the_build():
+    """tools.toolchain.C_FLOAT_FLAGS (-ffp-contract=off): without it GCC fuses a*b + c into one
+    vfma.f32, rounding once where the float32 contract rounds twice (300 of them otherwise)."""
+    elf = m4f_build.build(progress=None)
+    assert toolchain.fused_multiply_adds(elf) == []

@@ -204,3 +204,8 @@ def test_the_emulated_cortex_m4f_gives_the_firmware_this_images_heap(weact_image
     from host_emulator.runtimes.m4f import build as m4f_build
 
     assert weact_image[0]["figures"]["heap_bytes"] == m4f_build.BOARD_HEAP_BYTES
+
+
+def test_the_image_has_no_fused_multiply_add(weact_image):
+    """Built with tools.toolchain.C_FLOAT_FLAGS, as the emulated Cortex-M4F is."""
+    assert toolchain.fused_multiply_adds(weact_image[0]["elf"]) == []

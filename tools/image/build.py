@@ -220,6 +220,7 @@ def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, b
         "board": board,
         "board_dir": str(board_dir) if board_dir else None,
         "compiler": _gcc_version(),
+        "cflags_extra": toolchain.C_FLOAT_FLAGS,
     }
     key_path = build_dir / "key.json"
     if obj.exists() and (not key_path.is_file() or json.loads(key_path.read_text()) != key):
@@ -231,6 +232,7 @@ def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, b
     args = ["-C", str(port), f"BUILD={obj}"]
     args += [f"BOARD_DIR={board_dir}"] if board_dir else [f"BOARD={board}"]
     args += [f"MICROPY_MPYCROSS={mpy_cross}", f"FROZEN_MANIFEST={gen / 'manifest.py'}"]
+    args += [f"CFLAGS_EXTRA={toolchain.C_FLOAT_FLAGS}"]
     log_path = build_dir / "build.log"
     cold = not (obj / "firmware.elf").exists()
     log(

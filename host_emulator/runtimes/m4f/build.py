@@ -68,6 +68,7 @@ def build(progress=print, gc_heap_bytes=None):
         f"FROZEN_MANIFEST={MANIFEST}",
         f"USER_C_MODULES={USER_C_MODULES}",
         f"MICROPY_HEAP_SIZE={heap}",
+        f"CFLAGS_EXTRA={toolchain.C_FLOAT_FLAGS}",
     ]  # fmt: skip
     _clean_if_configuration_changed(args, out)
     elf = out / "firmware.elf"
