@@ -3,8 +3,11 @@ P progress, E error + traceback + E-END, S statistics), read back on the host, f
 that run the firmware in a MicroPython (mpy_unix, m4f)."""
 
 import json
+import subprocess
+import threading
+import time
 
-from host_emulator.errors import FirmwareError
+from host_emulator.errors import EmulatorError, FirmwareError
 
 
 class GuestOutput:
@@ -61,3 +64,52 @@ def firmware_error(out, stim, where_run, hint=""):
     err.t_s = None if k < 0 else k * stim.tick_us * 1e-6
     err.vm_traceback = tb
     return err
+
+
+def run_guest(cmd, out, timeout_s, what, n_ticks, stdin=b"", cwd=None, start_marker=None):
+    """Run the guest process `cmd`, its stdout lines into `out` (a GuestOutput) as they come
+    (after `start_marker`, if given: what precedes it, a banner, is dropped); stop it after
+    timeout_s. Returns (exit status, wall seconds); EmulatorError naming `what` if it cannot
+    start or times out."""
+    t_wall = time.perf_counter()
+    try:
+        proc = subprocess.Popen(
+            cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            cwd=cwd,
+        )  # fmt: skip
+    except OSError as e:
+        raise EmulatorError(f"cannot start {what} ({cmd[0]}): {e.strerror}") from None
+    timed_out = threading.Event()
+
+    def kill():
+        timed_out.set()
+        proc.kill()
+
+    watchdog = threading.Timer(timeout_s, kill)
+    watchdog.start()
+    try:
+        proc.stdin.write(stdin)  # small: the pipe holds it whole
+        proc.stdin.close()
+        started = start_marker is None
+        for raw in proc.stdout:
+            text = raw.decode("utf-8", "replace")
+            if not started:
+                i = text.find(start_marker)
+                if i < 0:
+                    continue
+                started = True
+                text = text[i + len(start_marker) :]
+            out.line(text)
+        rc = proc.wait()
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+    if timed_out.is_set():
+        raise EmulatorError(
+            f"{what} did not finish within {timeout_s:g} s (at tick {out.last_tick} of "
+            f"{n_ticks}); it was stopped"
+        )
+    return rc, time.perf_counter() - t_wall

@@ -46,6 +46,8 @@ from feed import (
     MAGIC,
     PROGRESS_EVERY,
     REC_LEN,
+    app_stats,
+    bytes_per_block,
     fire_inputs,
     firmware_error,
     first_tick_us,
@@ -70,19 +72,6 @@ if not hasattr(time, "now_us") or not hasattr(machine, "fire_timers"):
 CHUNK = 2000  # ticks per write of the per-tick arrays
 MARGIN0 = 65536  # free heap bytes to keep before a tick, at least
 OUT_FLUSH = 8192  # write the output UART's bytes to the file beyond this many
-
-
-def bytes_per_block():
-    """Bytes of one GC block: what boxing one float allocates (as in runtimes/mpy_unix/vm.py)."""
-    a = array("f", bytes(4))
-    gc.collect()
-    gc.disable()
-    m0 = gc.mem_alloc()
-    x = a[0]
-    m1 = gc.mem_alloc()
-    gc.enable()
-    del x
-    return m1 - m0
 
 
 def open_stimulus():
@@ -171,25 +160,17 @@ def main():
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
-    wdt = machine.watchdog
-    stats = {
-        "ticks": n_ticks,
-        "t0_us": t0,
-        "overruns": a.overruns,
-        "gnss_rx_overflow": gnss.overflow,
-        "nmea_rejected": a.gnss.rejected(),
-        "wdt_feeds": wdt.feeds if wdt else 0,
-        "imu_error": a.imu_error,
-        "config_status": a.config_status,
-        "app_gc_runs": a.gc_runs,
-        "gc_collects": collects,
-        "negative_ticks": negative,
-        "bytes_per_block": bpb,
-        "heap_bytes": total,
-        "live_bytes_at_start": live,
-        "tx_overflow": out_uart.tx_overflow,
-        "spi_bytes": machine.spi_bus(pins["spi_id"]).bytes_clocked,
-    }
+    stats = app_stats(a, n_ticks, t0, pins)
+    stats.update(
+        {
+            "gc_collects": collects,
+            "negative_ticks": negative,
+            "bytes_per_block": bpb,
+            "heap_bytes": total,
+            "live_bytes_at_start": live,
+            "spi_bytes": machine.spi_bus(pins["spi_id"]).bytes_clocked,
+        }
+    )
     print("S", json.dumps(stats))
 
 

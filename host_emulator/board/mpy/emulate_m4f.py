@@ -37,7 +37,6 @@ import gc
 import json
 import struct
 import sys
-from array import array
 
 import m4f
 import vfs
@@ -107,17 +106,6 @@ def mount_flash(config_path):
         out.write(data)
 
 
-def bytes_per_block():
-    """Bytes of one GC block: what boxing one float allocates."""
-    a = array("f", bytes(4))
-    gc.collect()
-    m0 = gc.mem_alloc()
-    x = a[0]
-    m1 = gc.mem_alloc()
-    del x
-    return m1 - m0
-
-
 def icount_pair_cost():
     """Instructions of one m4f.icount() reading as measured by the next (subtracted from
     nothing: reported, so readers know the counter's own share of a tick)."""
@@ -145,6 +133,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     from feed import (
         PROGRESS_EVERY,
         REC_LEN,
+        app_stats,
+        bytes_per_block,
         fire_inputs,
         firmware_error,
         first_tick_us,
@@ -226,31 +216,23 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
-    wdt = machine.watchdog
-    stats = {
-        "ticks": n_ticks,
-        "t0_us": t0,
-        "overruns": a.overruns,
-        "gnss_rx_overflow": gnss.overflow,
-        "nmea_rejected": a.gnss.rejected(),
-        "wdt_feeds": wdt.feeds if wdt else 0,
-        "imu_error": a.imu_error,
-        "config_status": a.config_status,
-        "app_gc_runs": a.gc_runs,
-        "bytes_per_block": bpb,
-        "heap_total_bytes": gc.mem_alloc() + gc.mem_free(),
-        "emulator_bytes": emulator_bytes,
-        "system_bytes": system_bytes,
-        "board_free_at_start": board_free,
-        "ballast_bytes": len(ballast) if ballast is not None else 0,
-        "free_at_start": free_at_start,
-        "live_after_start": live_after_start,
-        "startup_instructions": startup_instr,
-        "icount_cost": icount_pair_cost(),
-        "driver_alloc_bytes": driver_alloc,
-        "tx_overflow": out_uart.tx_overflow,
-        "float32": 1.0 + 2.0**-30 == 1.0,  # the VM's floats are single precision
-        "platform": sys.platform,
-    }
+    stats = app_stats(a, n_ticks, t0, pins)
+    stats.update(
+        {
+            "bytes_per_block": bpb,
+            "heap_total_bytes": gc.mem_alloc() + gc.mem_free(),
+            "emulator_bytes": emulator_bytes,
+            "system_bytes": system_bytes,
+            "board_free_at_start": board_free,
+            "ballast_bytes": len(ballast) if ballast is not None else 0,
+            "free_at_start": free_at_start,
+            "live_after_start": live_after_start,
+            "startup_instructions": startup_instr,
+            "icount_cost": icount_pair_cost(),
+            "driver_alloc_bytes": driver_alloc,
+            "float32": 1.0 + 2.0**-30 == 1.0,  # the VM's floats are single precision
+            "platform": sys.platform,
+        }
+    )
     print("S", json.dumps(stats))
     m4f.exit(0)

@@ -18,8 +18,10 @@ Reports on stdout, one line each, parsed by host_emulator/runtimes/vm_output.py:
     S <json>        statistics at the end
 """
 
+import gc
 import sys
 import time  # board/mpy/time.py
+from array import array
 
 import machine  # board/mpy/machine.py
 
@@ -107,3 +109,36 @@ def fire_inputs(rec, t_k, pps):
         pps.fire()
     time.set_us(t_k)
     machine.fire_timers()
+
+
+def bytes_per_block():
+    """Bytes of one GC block: what boxing one float allocates (as runtimes/mpy_unix/vm.py
+    measures it)."""
+    a = array("f", bytes(4))
+    gc.collect()
+    gc.disable()
+    m0 = gc.mem_alloc()
+    x = a[0]
+    m1 = gc.mem_alloc()
+    gc.enable()
+    del x
+    return m1 - m0
+
+
+def app_stats(a, n_ticks, t0, pins):
+    """The run's counters both drivers report in their "S" line (the firmware's own and the
+    emulated board's)."""
+    wdt = machine.watchdog
+    out_uart = machine.uart(pins["out_uart"])
+    return {
+        "ticks": n_ticks,
+        "t0_us": t0,
+        "overruns": a.overruns,
+        "gnss_rx_overflow": machine.uart(pins["gnss_uart"]).overflow,
+        "nmea_rejected": a.gnss.rejected(),
+        "wdt_feeds": wdt.feeds if wdt else 0,
+        "imu_error": a.imu_error,
+        "config_status": a.config_status,
+        "app_gc_runs": a.gc_runs,
+        "tx_overflow": out_uart.tx_overflow,
+    }

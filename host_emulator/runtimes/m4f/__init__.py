@@ -33,9 +33,6 @@ import os
 import pathlib
 import shutil
 import struct
-import subprocess
-import threading
-import time
 
 import numpy as np
 
@@ -43,7 +40,7 @@ from host_emulator.errors import EmulatorError
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
-from host_emulator.runtimes.guest_output import GuestOutput, firmware_error
+from host_emulator.runtimes.guest_output import GuestOutput, firmware_error, run_guest
 from host_emulator.runtimes.m4f import build as m4f_build
 
 QEMU = "qemu-system-arm"
@@ -148,46 +145,8 @@ def _execute(elf, call, workdir, progress, timeout_s, n):
     AFTER_ERROR next, which ends QEMU with EXIT_DRIVER_ERROR (the traceback is in .other)."""
     stdin = b"\x01" + call.encode() + b"\x04" + b"\x01" + AFTER_ERROR
     out = GuestOutput(progress)
-    t_wall = time.perf_counter()
-    try:
-        proc = subprocess.Popen(
-            qemu_command(elf), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, cwd=workdir,
-        )  # fmt: skip
-    except OSError as e:
-        raise EmulatorError(f"cannot start {QEMU}: {e.strerror}") from None
-    timed_out = threading.Event()
-
-    def kill():
-        timed_out.set()
-        proc.kill()
-
-    watchdog = threading.Timer(timeout_s, kill)
-    watchdog.start()
-    try:
-        proc.stdin.write(stdin)
-        proc.stdin.close()
-        started = False
-        for raw in proc.stdout:
-            text = raw.decode("utf-8", "replace")
-            if not started:  # the banner and the raw REPL's prompt, up to its "OK"
-                i = text.find(">OK")
-                if i < 0:
-                    continue
-                started = True
-                text = text[i + 3 :]
-            out.line(text)
-        rc = proc.wait()
-    finally:
-        watchdog.cancel()
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-    wall = time.perf_counter() - t_wall
-    if timed_out.is_set():
-        raise EmulatorError(
-            f"the emulated Cortex-M4F did not finish within {timeout_s:g} s (at tick "
-            f"{out.last_tick} of {n}); it was stopped"
-        )
+    rc, wall = run_guest(
+        qemu_command(elf), out, timeout_s, "the emulated Cortex-M4F", n, stdin,
+        workdir, start_marker=">OK",
+    )  # fmt: skip
     return out, rc, wall

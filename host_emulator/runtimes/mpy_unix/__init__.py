@@ -24,9 +24,6 @@ tick, so the heap size sets the speed: 512 KB (default) runs 90 s of urban_drive
 
 import os
 import pathlib
-import subprocess
-import threading
-import time
 
 import numpy as np
 
@@ -36,7 +33,7 @@ from host_emulator.firmware_env import FIRMWARE_DIR
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
-from host_emulator.runtimes.guest_output import GuestOutput, firmware_error
+from host_emulator.runtimes.guest_output import GuestOutput, firmware_error, run_guest
 from host_emulator.runtimes.mpy_unix import navigator, vm
 
 HEAP_KB = 512
@@ -112,38 +109,8 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     ]
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out = GuestOutput(progress)
-    t_wall = time.perf_counter()
-    try:
-        proc = subprocess.Popen(
-            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1
-        )
-    except OSError as e:
-        raise EmulatorError(f"cannot start the MicroPython VM ({exe}): {e.strerror}") from None
-    timed_out = threading.Event()
-
-    def kill():
-        timed_out.set()
-        proc.kill()
-
-    watchdog = threading.Timer(timeout_s, kill)
-    watchdog.start()
-    try:
-        for text in proc.stdout:
-            out.line(text)
-        rc = proc.wait()
-    finally:
-        watchdog.cancel()
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-    wall = time.perf_counter() - t_wall
     n = len(stim)
-    if timed_out.is_set():
-        raise EmulatorError(
-            f"the MicroPython VM did not finish within {timeout_s:g} s (at tick "
-            f"{out.last_tick} of {n}); it was stopped"
-        )
+    rc, wall = run_guest(cmd, out, timeout_s, "the MicroPython VM", n)
     if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
         raise firmware_error(out, stim, "the MicroPython VM", _memory_hint(heap_kb))
     if rc != 0 or out.stats is None:
