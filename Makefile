@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain lint accuracy bench-nav bench-board cpi accuracy-report digests \
-	replay build-flash deploy monitor virtual-board image flash-image clean
+.PHONY: demo test toolchain native lint accuracy bench-nav bench-board cpi accuracy-report \
+	digests replay build-flash deploy monitor virtual-board image flash-image clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -15,13 +15,19 @@ $(STAMP): requirements.txt
 demo: $(STAMP)
 	$(BIN)/python -m host_emulator demo
 
-test: $(STAMP) toolchain
+test: $(STAMP) toolchain native
 	$(BIN)/python -m pytest -q
 
 # The Debian cross compiler and QEMU for the image and the emulated Cortex-M4F board: installed
 # (pinned) when missing if run as root, else the command to run is printed and make stops.
 toolchain:
 	@tools/toolchain/ensure.sh
+
+# The native float32 kernels (firmware/native), three builds out of tree in build/native/
+# (docs/native.md): armv7emsp and x64 MicroPython native modules, the CPython (cffi) extension.
+# Seconds; make decides what is stale. A missing compiler stops it with what to install.
+native: $(STAMP) toolchain
+	$(BIN)/python -m tools.native
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -37,7 +43,7 @@ bench-nav: $(STAMP)
 
 # What a tick costs the board: the app loop on the emulated Cortex-M4F over urban_drive, two
 # configurations (~11 min; writes docs/benchmarks/board.md).
-bench-board: $(STAMP) toolchain
+bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
@@ -64,10 +70,10 @@ replay: $(STAMP)
 
 # Board tools (docs/deploy.md, docs/monitor.md, docs/virtual_board.md). PORT: the board's USB
 # serial port (its REPL) for deploy; the RS485 adapter that carries the frames for monitor.
-build-flash: $(STAMP)
+build-flash: $(STAMP) native
 	$(BIN)/python -m tools.flash build --out out/flash $(if $(FLASH_KB),--flash-kb $(FLASH_KB))
 
-deploy: $(STAMP)
+deploy: $(STAMP) native
 	@test -n "$(PORT)" || { echo "usage: make deploy PORT=/dev/ttyACM0 [CONFIG=ins.cfg]" \
 		"[FRAMES_PORT=/dev/ttyUSB0]" >&2; exit 2; }
 	$(BIN)/python -m tools.flash deploy --port $(PORT) $(if $(CONFIG),--config $(CONFIG)) \

@@ -22,6 +22,7 @@ from array import array
 
 import config
 import frame
+import kern
 import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
@@ -35,6 +36,10 @@ _RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians 
 _US_PER_TICK = const(5000)
 _E7 = const(10000000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
+# gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
+# tick): with the native kernels a navigating tick allocates tens of bytes, not kilobytes, so
+# the heap is checked once a second then; otherwise (aligning, Python kernels) every tick.
+_GC_CHECK_TICKS = const(200)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 
 
@@ -43,6 +48,7 @@ class App:
         self.console = console
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
         console(msg)
+        console(kern.describe())
         self.cfg = cfg
         self.config_status = status
         self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)
@@ -52,6 +58,7 @@ class App:
         self.gnss = Nmea(need_speed=cfg.gnss_need_speed != 0)
         self.rx = bytearray(_RX_LEN)
         self.out = bytearray(frame.FRAME_LEN)
+        self._fields = array("i", bytes(4 * frame.NF))
         self.lat = array("i", (0, 0))  # (degrees, 1e-7 deg fraction) of the last fix
         self.lon = array("i", (0, 0))
         self.height_dm = 0
@@ -179,6 +186,10 @@ class App:
             self.t_worst_us = dt
         self.t_sum_us += dt
         self._period_ticks += 1
+        if (
+            kern.NATIVE and self.nav.state == NAVIGATING and self.ticks % _GC_CHECK_TICKS
+        ):  # fmt: skip
+            return
         if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
@@ -250,25 +261,19 @@ class App:
         ins = nav.ins
         nav.euler()
         g = self.gnss
-        frame.pack(
-            self.out,
-            self.counter,
-            imu.gyro,
-            imu.accel,
-            imu.gyro_lsb_per_dps_x10,
-            imu.accel_lsb_per_g,
-            g.pps_flag_take(),
-            g.gga_flag_take(),
-            self.gnss_valid,
-            self.lat,
-            self.lon,
-            self.height_dm,
-            nav.state,
+        fi = self._fields
+        fi[frame.F_COUNTER] = self.counter
+        fi[frame.F_GYRO_LSB_X10] = imu.gyro_lsb_per_dps_x10
+        fi[frame.F_ACCEL_LSB] = imu.accel_lsb_per_g
+        fi[frame.F_PPS] = 1 if g.pps_flag_take() else 0
+        fi[frame.F_GGA] = 1 if g.gga_flag_take() else 0
+        fi[frame.F_VALID] = 1 if self.gnss_valid else 0
+        fi[frame.F_HEIGHT_DM] = self.height_dm
+        fi[frame.F_STATE] = nav.state
+        frame.pack_fields(
+            self.out, fi, imu.gyro, imu.accel, self.lat, self.lon, nav.ypr, ins.v_n, ins.p_n,
             _CDEG_PER_RAD,
-            nav.ypr,
-            ins.v_n,
-            ins.p_n,
-        )
+        )  # fmt: skip
         self.counter = (self.counter + 1) & 0xFF
         self.board.out_uart.write(self.out)
         navigating = nav.state == NAVIGATING

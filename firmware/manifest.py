@@ -16,7 +16,7 @@ module("app.py")
 module("board.py")
 package("drivers")
 for name in (
-    "config", "eskf", "f32", "fmath", "frame", "geo", "ins", "mat", "nav", "nav_aid",
+    "config", "eskf", "f32", "fmath", "frame", "geo", "ins", "kern", "mat", "nav", "nav_aid",
     "nav_align", "navcfg", "records", "rot",
 ):  # fmt: skip
     module(name + ".py", base_path="lib")

@@ -80,15 +80,23 @@ def _run(args):
     from host_emulator.eval import scenario_run
 
     if args.stimulus:
-        m = scenario_run.run_stimulus(args.stimulus, args.runtime, args.out, not args.quiet)
+        m = scenario_run.run_stimulus(
+            args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args)
+        )
     else:
         m = scenario_run.run(
-            args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet
-        )
+            args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet,
+            kernels=_kernels(args),
+        )  # fmt: skip
     from host_emulator.eval import demo
 
     print(demo.summary(m, args.out))
     return 0
+
+
+def _kernels(args):
+    """--kernels, or None for a runtime without kernels (the model)."""
+    return None if runtimes.get(args.runtime).name == "model" else args.kernels
 
 
 def _replay_options(args, has_gnss):
@@ -157,7 +165,7 @@ def _replay(args):
     ds = _load(args)
     m = replay_run.replay(
         ds, _replay_options(args, ds.gnss is not None), args.runtime, args.out,
-        show_progress=not args.quiet,
+        show_progress=not args.quiet, kernels=_kernels(args),
     )  # fmt: skip
     print(demo.summary(m, args.out))
     return 0
@@ -199,6 +207,7 @@ def main(argv=None):
     run.add_argument("--duration", type=float, default=None, help="seconds (default: full)")
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
+    cli_args.add_kernels_option(run)
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
@@ -207,6 +216,7 @@ def main(argv=None):
     src.add_argument("--kf-gins", help="a directory in the KF-GINS layout (docs/formats.md)")
     _add_replay_options(rp)
     rp.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
+    cli_args.add_kernels_option(rp)
     rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
     rp.add_argument("--quiet", action="store_true", help="no progress bar")
     ex = sub.add_parser(

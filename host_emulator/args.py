@@ -37,6 +37,19 @@ def run_reporting(command, bad_input_status=2):
         return 130
 
 
+KERNELS_HELP = (
+    "the firmware's float32 kernels: native (navk, firmware/native, built for the runtime on "
+    "demand; default) or python (no navk: the firmware's Python kernels)"
+)
+
+
+def add_kernels_option(parser):
+    """--kernels native|python (default native), for the commands that run the firmware."""
+    parser.add_argument(
+        "--kernels", default="native", choices=("native", "python"), help=KERNELS_HELP
+    )
+
+
 def number(text, name):
     """float(text), or a UsageError naming the option."""
     try:

@@ -39,6 +39,9 @@ Inputs are copied when a job starts and only jobs change P, so the result does n
 where the slices fall. Measurement rows are sparse: each names its non-zero columns.
 """
 
+from array import array
+
+import kern
 from micropython import const
 
 import f32
@@ -67,36 +70,103 @@ _INV_TAU_G = const(6)
 _INV_TAU_A = const(7)
 _NS = const(8)
 
+# The float buffer `Eskf.e` (its parts are the views P, dx, ...) and the int buffer `Eskf.i`
+# (the job's state), so that a native kernel takes the filter as two arguments.
+# firmware/native/layout.h repeats these offsets.
+E_P = const(0)  # P (N x N)
+E_A = const(225)  # A = Phi P during propagation (N x N)
+E_U = const(450)  # Phi x (N)
+E_V = const(465)  # P h^T (N)
+E_K = const(480)  # gain (N)
+E_FN = const(495)  # mean specific force over T (3)
+E_C = const(498)  # C_bn at the start of the propagation (9)
+E_W = const(507)  # w_ie_n (3)
+E_S = const(510)  # job scalars (_NS)
+E_H = const(518)  # measurement rows (MAX_SCALARS x N)
+E_Z = const(638)  # measurements (MAX_SCALARS)
+E_R = const(646)  # their noise variances (MAX_SCALARS)
+E_DX = const(654)  # error state (N)
+E_Q = const(669)  # process noise per second (N)
+E_LO = const(684)  # P diagonal floor (N)
+E_HI = const(699)  # P diagonal ceiling (N)
+NE = const(714)
+I_JOB = const(0)  # IDLE, PROPAGATING, UPDATING
+I_STEP = const(1)  # slice of the job
+I_M = const(2)  # scalar being processed (update)
+I_NSCAL = const(3)  # scalars queued
+I_READY = const(4)  # an update finished: dx waits for injection
+I_ACCEPTED = const(5)  # scalars accepted / gated out by the last update
+I_REJECTED = const(6)
+I_GATE_MASK = const(7)  # bit m set: scalar m of the last update was gated out
+I_EARTH = const(8)  # earth_terms
+I_NNZ = const(9)  # non-zeros per scalar (MAX_SCALARS)
+I_NZ = const(17)  # their column indices (MAX_SCALARS x MAX_NZ)
+NI = const(65)
+
+_work = kern.pick("eskf_work", None)
+_diagonal_ok = kern.pick("eskf_diagonal_ok", None)
+
 
 class Eskf:
     def __init__(self, earth_terms=True):
         self.earth_terms = earth_terms
-        self.P = f32.zeros(N * N)
-        self.dx = f32.zeros(N)
-        self.q_psd = f32.zeros(N)  # process noise per second on the diagonal
-        self.p_floor = f32.zeros(N)
-        self.p_ceiling = f32.zeros(N)
-        self._a = f32.zeros(N * N)
-        self._u = f32.zeros(N)
-        self._v = f32.zeros(N)
-        self._k = f32.zeros(N)
-        self._fn = f32.zeros(3)
-        self._c = f32.zeros(9)
-        self._w = f32.zeros(3)
-        self._s = f32.zeros(_NS)
-        self._h = f32.zeros(MAX_SCALARS * N)
-        self._z = f32.zeros(MAX_SCALARS)
-        self._r = f32.zeros(MAX_SCALARS)
-        self._nz = bytearray(MAX_SCALARS * MAX_NZ)
-        self._nnz = bytearray(MAX_SCALARS)
-        self.n_scalars = 0
-        self.job = IDLE
-        self._step = 0
-        self._m = 0
-        self.ready = False  # an update finished: dx waits for injection
-        self.accepted = 0  # scalars accepted / gated out by the last update
-        self.rejected = 0
-        self.gate_mask = 0  # bit m set: scalar m of the last update was gated out
+        e = f32.zeros(NE)
+        self.e = e
+        self.i = ii = array("i", bytes(4 * NI))
+        ii[I_EARTH] = 1 if earth_terms else 0
+        self.P = f32.view(e, E_P, N * N)
+        self.dx = f32.view(e, E_DX, N)
+        self.q_psd = f32.view(e, E_Q, N)  # process noise per second on the diagonal
+        self.p_floor = f32.view(e, E_LO, N)
+        self.p_ceiling = f32.view(e, E_HI, N)
+        self._a = f32.view(e, E_A, N * N)
+        self._u = f32.view(e, E_U, N)
+        self._v = f32.view(e, E_V, N)
+        self._k = f32.view(e, E_K, N)
+        self._fn = f32.view(e, E_FN, 3)
+        self._c = f32.view(e, E_C, 9)
+        self._w = f32.view(e, E_W, 3)
+        self._s = f32.view(e, E_S, _NS)
+        self._h = f32.view(e, E_H, MAX_SCALARS * N)
+        self._z = f32.view(e, E_Z, MAX_SCALARS)
+        self._r = f32.view(e, E_R, MAX_SCALARS)
+
+    # the job's state, by name (the navigator reads self.i directly in its per-tick path)
+    @property
+    def job(self):
+        return self.i[I_JOB]
+
+    @property
+    def ready(self):
+        return self.i[I_READY] != 0
+
+    @ready.setter
+    def ready(self, value):
+        self.i[I_READY] = 1 if value else 0
+
+    @property
+    def n_scalars(self):
+        return self.i[I_NSCAL]
+
+    @property
+    def accepted(self):
+        return self.i[I_ACCEPTED]
+
+    @property
+    def rejected(self):
+        return self.i[I_REJECTED]
+
+    @property
+    def gate_mask(self):
+        return self.i[I_GATE_MASK]
+
+    @property
+    def _step(self):
+        return self.i[I_STEP]
+
+    @property
+    def _m(self):
+        return self.i[I_M]
 
     # ---- configuration ---------------------------------------------------------------------
 
@@ -114,9 +184,10 @@ class Eskf:
         for i in range(N):
             p[i * (N + 1)] = diag[i]
             self.dx[i] = 0.0
-        self.job = IDLE
-        self.ready = False
-        self.n_scalars = 0
+        ii = self.i
+        ii[I_JOB] = IDLE
+        ii[I_READY] = 0
+        ii[I_NSCAL] = 0
 
     # ---- propagation -----------------------------------------------------------------------
 
@@ -132,8 +203,8 @@ class Eskf:
             self._w[i] = w_ie_n[i]
         for i in range(9):
             self._c[i] = c_bn[i]
-        self.job = PROPAGATING
-        self._step = 0
+        self.i[I_JOB] = PROPAGATING
+        self.i[I_STEP] = 0
 
     def _phi_apply(self, src, base):
         """self._u = Phi x, for x = src[base:base+15]."""
@@ -205,7 +276,8 @@ class Eskf:
         u[14] = a * x14
 
     def _propagation_slice(self):
-        st = self._step
+        ii = self.i
+        st = ii[I_STEP]
         u = self._u
         if st < N:
             # column st of A = Phi P: Phi times column st of P (= row st, P symmetric)
@@ -230,24 +302,25 @@ class Eskf:
                 d = i * (N + 1)
                 p[d] = p[d] + q[i] * t
             self._clamp_diagonal()
-            self.job = IDLE
-        self._step = st + 1
+            ii[I_JOB] = IDLE
+        ii[I_STEP] = st + 1
 
     # ---- measurement update ----------------------------------------------------------------
 
     def add_scalar(self, z, r, nnz, i0, h0, i1=0, h1=0.0, i2=0, h2=0.0):
         """Queue z = h dx + noise of variance r, h with nnz non-zeros (index, value); more than
         three non-zeros: call add_scalar_terms afterwards. Returns the scalar's slot."""
-        m = self.n_scalars
-        self.n_scalars = m + 1
+        ii = self.i
+        m = ii[I_NSCAL]
+        ii[I_NSCAL] = m + 1
         hb = m * N
         h = self._h
         for k in range(N):
             h[hb + k] = 0.0
         self._z[m] = z
         self._r[m] = r
-        nz = self._nz
-        b = m * MAX_NZ
+        nz = ii
+        b = I_NZ + m * MAX_NZ
         nz[b] = i0
         h[hb + i0] = h0
         if nnz > 1:
@@ -256,44 +329,46 @@ class Eskf:
         if nnz > 2:
             nz[b + 2] = i2
             h[hb + i2] = h2
-        self._nnz[m] = nnz
+        ii[I_NNZ + m] = nnz
         return m
 
     def add_scalar_terms(self, m, i0, h0, i1, h1, i2, h2):
         """Three more non-zeros for queued scalar m."""
         h = self._h
         hb = m * N
-        nz = self._nz
-        b = m * MAX_NZ + self._nnz[m]
+        nz = self.i
+        b = I_NZ + m * MAX_NZ + nz[I_NNZ + m]
         nz[b] = i0
         nz[b + 1] = i1
         nz[b + 2] = i2
         h[hb + i0] = h0
         h[hb + i1] = h1
         h[hb + i2] = h2
-        self._nnz[m] = self._nnz[m] + 3
+        nz[I_NNZ + m] = nz[I_NNZ + m] + 3
 
     def start_update(self):
-        self.job = UPDATING
-        self._step = 0
-        self._m = 0
-        self.accepted = 0
-        self.rejected = 0
-        self.gate_mask = 0
+        ii = self.i
+        ii[I_JOB] = UPDATING
+        ii[I_STEP] = 0
+        ii[I_M] = 0
+        ii[I_ACCEPTED] = 0
+        ii[I_REJECTED] = 0
+        ii[I_GATE_MASK] = 0
 
     def _update_slice(self):
-        m = self._m
-        if m >= self.n_scalars:
+        ii = self.i
+        m = ii[I_M]
+        if m >= ii[I_NSCAL]:
             self._clamp_diagonal()
-            self.n_scalars = 0
-            self.job = IDLE
-            self.ready = True
+            ii[I_NSCAL] = 0
+            ii[I_JOB] = IDLE
+            ii[I_READY] = 1
             return
-        st = self._step
+        st = ii[I_STEP]
         hb = m * N
-        b = m * MAX_NZ
-        nnz = self._nnz[m]
-        nz = self._nz
+        b = I_NZ + m * MAX_NZ
+        nnz = ii[I_NNZ + m]
+        nz = ii
         h = self._h
         p = self.P
         v = self._v
@@ -305,7 +380,7 @@ class Eskf:
                     k = nz[b + t]
                     acc = acc + p[i * N + k] * h[hb + k]
                 v[i] = acc
-            self._step = st + 1
+            ii[I_STEP] = st + 1
             return
         s = self._s
         kg = self._k
@@ -321,10 +396,10 @@ class Eskf:
             sv = hv + self._r[m]
             y = self._z[m] - hx
             if not (sv > 0.0) or y * y > s[_GATE2] * sv:
-                self.rejected += 1
-                self.gate_mask |= 1 << m
-                self._m = m + 1
-                self._step = 0
+                ii[I_REJECTED] += 1
+                ii[I_GATE_MASK] |= 1 << m
+                ii[I_M] = m + 1
+                ii[I_STEP] = 0
                 return
             s[_S] = sv
             s[_Y] = y
@@ -332,8 +407,8 @@ class Eskf:
                 ki = v[i] / sv
                 kg[i] = ki
                 dx[i] = dx[i] + ki * y
-            self.accepted += 1
-            self._step = 4
+            ii[I_ACCEPTED] += 1
+            ii[I_STEP] = 4
             return
         # Joseph form, row i, upper triangle: P - K v^T - v K^T + S K K^T
         i = st - 4
@@ -346,17 +421,21 @@ class Eskf:
             p[i * N + j] = x
             p[j * N + i] = x
         if i == N - 1:
-            self._m = m + 1
-            self._step = 0
+            ii[I_M] = m + 1
+            ii[I_STEP] = 0
         else:
-            self._step = st + 1
+            ii[I_STEP] = st + 1
 
     # ---- common ----------------------------------------------------------------------------
 
     def work(self, n):
         """Run up to n slices of the current job."""
-        while n > 0 and self.job != IDLE:
-            if self.job == PROPAGATING:
+        if _work is not None:
+            _work(self.e, self.i, n)
+            return
+        ii = self.i
+        while n > 0 and ii[I_JOB] != IDLE:
+            if ii[I_JOB] == PROPAGATING:
                 self._propagation_slice()
             else:
                 self._update_slice()
@@ -379,6 +458,8 @@ class Eskf:
 
     def diagonal_ok(self):
         """False if any variance is NaN, infinite or not positive (P must be reset)."""
+        if _diagonal_ok is not None:
+            return _diagonal_ok(self.e) != 0
         p = self.P
         for i in range(N):
             d = p[i * (N + 1)]

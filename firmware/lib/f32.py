@@ -31,6 +31,11 @@ if sys.implementation.name == "micropython":
         """A new float32 buffer of n zeros (allocate at start-up only)."""
         return array("f", bytes(4 * n))
 
+    def view(buf, start, n):
+        """Elements start .. start+n-1 of a float32 buffer as a buffer of their own, sharing
+        its memory (a kernel's state is one buffer; its parts are views, made at start-up)."""
+        return memoryview(buf)[start : start + n]
+
     def from_bits(u):
         """The float32 whose IEEE-754 bit pattern is the integer u."""
         return struct.unpack("<f", struct.pack("<I", u))[0]
@@ -44,7 +49,7 @@ if sys.implementation.name == "micropython":
 
 else:
     try:
-        from f32_host import byte_view, f32, from_bits, sqrt, zeros  # noqa: F401
+        from f32_host import byte_view, f32, from_bits, sqrt, view, zeros  # noqa: F401
     except ImportError:
         raise ImportError(
             "f32: on CPython the firmware needs the NumPy float32 backend; "

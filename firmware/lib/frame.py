@@ -29,9 +29,20 @@ angles are passed as (whole degrees, fraction in 1e-7 deg, same sign) and packed
 16-bit halves: 1e7 = 152 * 65536 + 38528.
 """
 
+import kern
 from micropython import const
 
 FRAME_LEN = const(52)
+# The int fields of `pack_fields` (firmware/native/layout.h repeats them)
+F_COUNTER = const(0)
+F_GYRO_LSB_X10 = const(1)
+F_ACCEL_LSB = const(2)
+F_PPS = const(3)
+F_GGA = const(4)
+F_VALID = const(5)
+F_HEIGHT_DM = const(6)
+F_STATE = const(7)
+NF = const(8)
 _GYRO_FRAME_X100 = const(13107)  # 131.07 per deg/s, x100
 _ACCEL_FRAME = const(16383)  # per g
 
@@ -169,3 +180,30 @@ def pack(
     put_scaled32(buf, 45, p_n[1], 100)
     put_scaled16(buf, 49, p_n[2], 10)
     finish(buf, counter)
+
+
+def _pack_fields_py(buf, fields, gyro, accel, lat, lon, ypr, v_n, p_n, ypr_cdeg_scale):
+    """`pack` with its int arguments in the int32 buffer `fields` (F_*): the signature of the
+    native kernel, which packs a whole frame in one call."""
+    pack(
+        buf,
+        fields[F_COUNTER],
+        gyro,
+        accel,
+        fields[F_GYRO_LSB_X10],
+        fields[F_ACCEL_LSB],
+        fields[F_PPS],
+        fields[F_GGA],
+        fields[F_VALID],
+        lat,
+        lon,
+        fields[F_HEIGHT_DM],
+        fields[F_STATE],
+        ypr_cdeg_scale,
+        ypr,
+        v_n,
+        p_n,
+    )
+
+
+pack_fields = kern.pick("frame_pack", _pack_fields_py)

@@ -24,6 +24,9 @@ every few hundred milliseconds: they change slowly and cost too much per tick.
 Units: rad, rad/s, m, m/s, m/s^2. Buffers are public and owned here.
 """
 
+import kern
+from micropython import const
+
 import f32
 import geo
 import rot
@@ -35,32 +38,54 @@ SOMIGLIANA_K = f32.from_bits(0x3AFD3638)  # 0.00193185265241
 FREE_AIR = f32.from_bits(0x364F1914)  # 3.086e-6 (m/s^2)/m
 TWELFTH = f32.ratio(1, 12)
 
+# The state buffer `Ins.x` (one buffer, so a native kernel takes it as one argument; the
+# public names are views of it). firmware/native/navk.c repeats these offsets (X_*).
+X_P = const(0)  # p_n (3): position of the IMU, m, from the origin
+X_V = const(3)  # v_n (3), m/s
+X_Q = const(6)  # q_bn (4)
+X_C = const(10)  # c_bn (9)
+X_BG = const(19)  # bg (3): gyro bias estimate, rad/s
+X_BA = const(22)  # ba (3): accelerometer bias estimate, m/s^2
+X_DVS = const(25)  # dvn_sum (3): sum of C_bn dv since `take_dvn` (specific force x time)
+X_AN = const(28)  # a_n (3): gravity + Coriolis, m/s^2, refreshed by slow_update
+X_WIE = const(31)  # w_ie_n (3): Earth rate in n, rad/s
+X_PK = const(34)  # Kahan compensation of p_n (3)
+X_TH = const(37)  # this tick's rotation vector (3)
+X_THP = const(40)  # the previous tick's rotation vector (3, coning)
+X_DVP = const(43)  # the previous tick's velocity increment (3, sculling)
+X_DT = const(46)  # tick, s
+X_HDT = const(47)  # tick / 2
+X_G0 = const(48)  # normal gravity at the origin, m/s^2
+X_INV_RN = const(49)
+X_INV_RM = const(50)
+X_H0 = const(51)
+NX = const(52)
+
 
 class Ins:
     """Nominal navigation state and its mechanization."""
 
     def __init__(self, dt_s, earth_terms=True, coning=True):
-        self.dt = f32.f32(dt_s)
-        self._half_dt = self.dt * 0.5
+        x = f32.zeros(NX)
+        self.x = x
+        x[X_DT] = f32.f32(dt_s)
+        x[X_HDT] = x[X_DT] * 0.5
+        self.dt = x[X_DT]
         self.earth_terms = earth_terms
         self.coning = coning
-        self.p_n = f32.zeros(3)  # position of the IMU, m, from the origin
-        self.v_n = f32.zeros(3)  # m/s
-        self.q_bn = f32.zeros(4)
-        self.c_bn = f32.zeros(9)
-        self.bg = f32.zeros(3)  # gyro bias estimate, rad/s
-        self.ba = f32.zeros(3)  # accelerometer bias estimate, m/s^2
-        self.dvn_sum = f32.zeros(3)  # sum of C_bn dv since `take_dvn` (specific force x time)
-        self.a_n = f32.zeros(3)  # gravity + Coriolis, m/s^2, refreshed by slow_update
-        self.w_ie_n = f32.zeros(3)  # Earth rate in n, rad/s
-        self._pk = f32.zeros(3)  # Kahan compensation of p_n
-        self._th = f32.zeros(3)  # this tick's rotation vector
-        self._th_prev = f32.zeros(3)
-        self._dv_prev = f32.zeros(3)
-        self._g0 = f32.f32(0)  # normal gravity at the origin, m/s^2
-        self._inv_rn = f32.f32(0)
-        self._inv_rm = f32.f32(0)
-        self._h0 = f32.f32(0)
+        self._coning = 1 if coning else 0
+        self.p_n = f32.view(x, X_P, 3)
+        self.v_n = f32.view(x, X_V, 3)
+        self.q_bn = f32.view(x, X_Q, 4)
+        self.c_bn = f32.view(x, X_C, 9)
+        self.bg = f32.view(x, X_BG, 3)
+        self.ba = f32.view(x, X_BA, 3)
+        self.dvn_sum = f32.view(x, X_DVS, 3)
+        self.a_n = f32.view(x, X_AN, 3)
+        self.w_ie_n = f32.view(x, X_WIE, 3)
+        self._pk = f32.view(x, X_PK, 3)
+        self._th_prev = f32.view(x, X_THP, 3)
+        self._dv_prev = f32.view(x, X_DVP, 3)
         self._tmp4 = f32.zeros(4)
         self._tmp4b = f32.zeros(4)
         rot.q_identity(self.q_bn)
@@ -72,10 +97,11 @@ class Ins:
         s = c[geo.SIN_LAT]
         co = c[geo.COS_LAT]
         s2 = s * s
-        self._g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) / sqrt(1.0 - geo.E2 * s2)
-        self._inv_rn = c[geo.INV_RN]
-        self._inv_rm = c[geo.INV_RM]
-        self._h0 = c[geo.H0]
+        x = self.x
+        x[X_G0] = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) / sqrt(1.0 - geo.E2 * s2)
+        x[X_INV_RN] = c[geo.INV_RN]
+        x[X_INV_RM] = c[geo.INV_RM]
+        x[X_H0] = c[geo.H0]
         w = self.w_ie_n
         w[0] = 0.0
         if self.earth_terms:
@@ -97,79 +123,7 @@ class Ins:
 
     def step(self, w_b, f_b):
         """Advance one tick with body rate w_b (rad/s) and specific force f_b (m/s^2)."""
-        dt = self.dt
-        bg = self.bg
-        ba = self.ba
-        tx = (w_b[0] - bg[0]) * dt
-        ty = (w_b[1] - bg[1]) * dt
-        tz = (w_b[2] - bg[2]) * dt
-        dx = (f_b[0] - ba[0]) * dt
-        dy = (f_b[1] - ba[1]) * dt
-        dz = (f_b[2] - ba[2]) * dt
-        th = self._th
-        if self.coning:
-            tp = self._th_prev
-            px = tp[0]
-            py = tp[1]
-            pz = tp[2]
-            dp = self._dv_prev
-            qx = dp[0]
-            qy = dp[1]
-            qz = dp[2]
-            tp[0] = tx
-            tp[1] = ty
-            tp[2] = tz
-            dp[0] = dx
-            dp[1] = dy
-            dp[2] = dz
-            # sculling with the uncorrected increments, then coning
-            sx = ((py * dz - pz * dy) + (qy * tz - qz * ty)) * TWELFTH
-            sy = ((pz * dx - px * dz) + (qz * tx - qx * tz)) * TWELFTH
-            sz = ((px * dy - py * dx) + (qx * ty - qy * tx)) * TWELFTH
-            cx = (py * tz - pz * ty) * TWELFTH
-            cy = (pz * tx - px * tz) * TWELFTH
-            cz = (px * ty - py * tx) * TWELFTH
-            tx = tx + cx
-            ty = ty + cy
-            tz = tz + cz
-            dx = dx + sx
-            dy = dy + sy
-            dz = dz + sz
-        # rotation of the velocity increment within the tick
-        ux = dx + (ty * dz - tz * dy) * 0.5
-        uy = dy + (tz * dx - tx * dz) * 0.5
-        uz = dz + (tx * dy - ty * dx) * 0.5
-        c = self.c_bn
-        ex = c[0] * ux + c[1] * uy + c[2] * uz
-        ey = c[3] * ux + c[4] * uy + c[5] * uz
-        ez = c[6] * ux + c[7] * uy + c[8] * uz
-        s = self.dvn_sum
-        s[0] = s[0] + ex
-        s[1] = s[1] + ey
-        s[2] = s[2] + ez
-        th[0] = tx
-        th[1] = ty
-        th[2] = tz
-        rot.q_update(self.q_bn, th)
-        rot.q_to_dcm(self.c_bn, self.q_bn)
-        a = self.a_n
-        self._advance(0, ex, a[0])
-        self._advance(1, ey, a[1])
-        self._advance(2, ez, a[2])
-
-    def _advance(self, i, dv, acc):
-        """v[i] += dv + acc dt; p[i] += (v_old + v_new) dt/2, Kahan-compensated."""
-        v = self.v_n
-        k = self._pk
-        p = self.p_n
-        v0 = v[i]
-        v1 = v0 + dv + acc * self.dt
-        v[i] = v1
-        y = (v0 + v1) * self._half_dt - k[i]
-        p0 = p[i]
-        t = p0 + y
-        k[i] = (t - p0) - y
-        p[i] = t
+        step(self.x, w_b, f_b, self._coning)
 
     def take_dvn(self, out):
         """out = the specific-force increment summed since the last call; restarts the sum."""
@@ -182,7 +136,8 @@ class Ins:
         """Earth rate on the attitude over the last t_s seconds; then a_n = g_n - 2 w x v anew."""
         v = self.v_n
         p = self.p_n
-        g = self._g0 - FREE_AIR * (self._h0 + p[2])
+        x = self.x
+        g = x[X_G0] - FREE_AIR * (x[X_H0] + p[2])
         a = self.a_n
         if not self.earth_terms:
             a[0] = 0.0
@@ -208,8 +163,8 @@ class Ins:
         wy2 = w[1] + w[1]
         wz2 = w[2] + w[2]
         # -2 w x v with w = (0, wy, wz)
-        a[0] = -(g * p[0] * self._inv_rn) - (wy2 * v[2] - wz2 * v[1])
-        a[1] = -(g * p[1] * self._inv_rm) - wz2 * v[0]
+        a[0] = -(g * p[0] * x[X_INV_RN]) - (wy2 * v[2] - wz2 * v[1])
+        a[1] = -(g * p[1] * x[X_INV_RM]) - wz2 * v[0]
         a[2] = wy2 * v[0] - g
 
     def shift_origin(self, dp_n, rho_n):
@@ -243,3 +198,75 @@ def _rotate_small(out, x, y, z, rx, ry, rz):
     out[0] = x - (ry * z - rz * y)
     out[1] = y - (rz * x - rx * z)
     out[2] = z - (rx * y - ry * x)
+
+
+def _step_py(x, w_b, f_b, coning):
+    """The reference of navk_ins_step: one tick on the state buffer x (see Ins.step)."""
+    dt = x[X_DT]
+    tx = (w_b[0] - x[X_BG]) * dt
+    ty = (w_b[1] - x[X_BG + 1]) * dt
+    tz = (w_b[2] - x[X_BG + 2]) * dt
+    dx = (f_b[0] - x[X_BA]) * dt
+    dy = (f_b[1] - x[X_BA + 1]) * dt
+    dz = (f_b[2] - x[X_BA + 2]) * dt
+    if coning:
+        px = x[X_THP]
+        py = x[X_THP + 1]
+        pz = x[X_THP + 2]
+        qx = x[X_DVP]
+        qy = x[X_DVP + 1]
+        qz = x[X_DVP + 2]
+        x[X_THP] = tx
+        x[X_THP + 1] = ty
+        x[X_THP + 2] = tz
+        x[X_DVP] = dx
+        x[X_DVP + 1] = dy
+        x[X_DVP + 2] = dz
+        # sculling with the uncorrected increments, then coning
+        sx = ((py * dz - pz * dy) + (qy * tz - qz * ty)) * TWELFTH
+        sy = ((pz * dx - px * dz) + (qz * tx - qx * tz)) * TWELFTH
+        sz = ((px * dy - py * dx) + (qx * ty - qy * tx)) * TWELFTH
+        cx = (py * tz - pz * ty) * TWELFTH
+        cy = (pz * tx - px * tz) * TWELFTH
+        cz = (px * ty - py * tx) * TWELFTH
+        tx = tx + cx
+        ty = ty + cy
+        tz = tz + cz
+        dx = dx + sx
+        dy = dy + sy
+        dz = dz + sz
+    # rotation of the velocity increment within the tick
+    ux = dx + (ty * dz - tz * dy) * 0.5
+    uy = dy + (tz * dx - tx * dz) * 0.5
+    uz = dz + (tx * dy - ty * dx) * 0.5
+    ex = x[X_C] * ux + x[X_C + 1] * uy + x[X_C + 2] * uz
+    ey = x[X_C + 3] * ux + x[X_C + 4] * uy + x[X_C + 5] * uz
+    ez = x[X_C + 6] * ux + x[X_C + 7] * uy + x[X_C + 8] * uz
+    x[X_DVS] = x[X_DVS] + ex
+    x[X_DVS + 1] = x[X_DVS + 1] + ey
+    x[X_DVS + 2] = x[X_DVS + 2] + ez
+    x[X_TH] = tx
+    x[X_TH + 1] = ty
+    x[X_TH + 2] = tz
+    # views made per call: the Python kernels allocate anyway (float results); native does not
+    q = f32.view(x, X_Q, 4)
+    rot.q_update(q, f32.view(x, X_TH, 3))
+    rot.q_to_dcm(f32.view(x, X_C, 9), q)
+    _advance(x, 0, ex)
+    _advance(x, 1, ey)
+    _advance(x, 2, ez)
+
+
+def _advance(x, i, dv):
+    """v[i] += dv + a[i] dt; p[i] += (v_old + v_new) dt/2, Kahan-compensated."""
+    v0 = x[X_V + i]
+    v1 = v0 + dv + x[X_AN + i] * x[X_DT]
+    x[X_V + i] = v1
+    y = (v0 + v1) * x[X_HDT] - x[X_PK + i]
+    p0 = x[X_P + i]
+    t = p0 + y
+    x[X_PK + i] = (t - p0) - y
+    x[X_P + i] = t
+
+
+step = kern.pick("ins_step", _step_py)

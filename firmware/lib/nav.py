@@ -39,6 +39,8 @@ detected and reset, non-finite IMU input) held for one second.
 from array import array
 
 import eskf
+import ins as ins_mod
+import kern
 from ins import Ins
 from micropython import const
 from nav_aid import Aiding
@@ -78,6 +80,34 @@ _ST_SPEED = const(5)  # speed of the last usable fix, m/s
 
 STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
 
+# self._cal: the calibration of raw counts (firmware/native/layout.h repeats the layout)
+_CAL_G = const(0)  # gyro counts per rad/s
+_CAL_A = const(1)  # accel counts per m/s^2
+_CAL_GB = const(2)  # gyro bias (3), rad/s
+_CAL_AB = const(5)  # accel bias (3), m/s^2
+_CAL_GM = const(8)  # gyro matrix (9), when flag 1
+_CAL_AM = const(17)  # accel matrix (9), when flag 2
+_NCAL = const(26)
+# self._stp: the standstill detector's parameters; flags of its kernel
+_STP_ALPHA = const(0)
+_STP_ACCEL = const(1)
+_STP_GYRO = const(2)
+_STP_GNSS_SPEED = const(3)
+_STP_MAX_SPEED = const(4)
+_NSTP = const(5)
+_STILL_FIRST = const(1)
+_STILL_GNSS_SPEED = const(2)
+_STILL_NAVIGATING = const(4)
+# self._aid: the aiding parameters (layout.h AID_*; nav_aid.py reads them from cfg)
+_AID_UERE = const(0)
+_AID_FLOOR = const(1)
+_AID_VERT = const(2)
+_AID_VEL_SIGMA = const(3)
+_AID_ZUPT_SIGMA = const(4)
+_AID_NHC_SIGMA = const(5)
+_AID_LEVER = const(6)
+_NAID = const(9)
+
 
 def _ticks(seconds, dt):
     return int(seconds / dt + 0.5)
@@ -96,11 +126,8 @@ class Navigator(Alignment, Aiding):
         self.ypr = f32.zeros(3)
         self._w = f32.zeros(3)  # calibrated body rate, rad/s
         self._f = f32.zeros(3)  # calibrated specific force, m/s^2
-        self._wr = f32.zeros(3)
-        self._fr = f32.zeros(3)
         self._tmp3 = f32.zeros(3)
         self._tmp4 = f32.zeros(4)
-        self._tmp4b = f32.zeros(4)
         self._e7 = array("i", bytes(8))
         self._ring_p = f32.zeros(3 * RING)
         self._ring_v = f32.zeros(3 * RING)
@@ -124,6 +151,7 @@ class Navigator(Alignment, Aiding):
         self._ticks_track = _ticks(cfg.track_s, dt)
         if self._ticks_track < 1:
             self._ticks_track = 1
+        self._set_calibration(cfg)
         self._set_noise(cfg)
         self._reset_counters()
 
@@ -164,6 +192,48 @@ class Navigator(Alignment, Aiding):
         ini[eskf.IX_ATT + 2] = cfg.init_yaw_sigma * cfg.init_yaw_sigma
         kf.set_gate(cfg.gate_sigma, 1.0 / cfg.gyro_bias_tau_s, 1.0 / cfg.accel_bias_tau_s)
 
+    def _set_calibration(self, cfg):
+        cal = f32.zeros(_NCAL)
+        self._cal = cal
+        cal[_CAL_G] = cfg.gyro_counts_per_rad_s
+        cal[_CAL_A] = cfg.accel_counts_per_m_s2
+        flags = 0
+        for i in range(3):
+            cal[_CAL_GB + i] = cfg.gyro_bias0[i]
+            cal[_CAL_AB + i] = cfg.accel_bias0[i]
+        if cfg.gyro_matrix is not None:
+            flags |= 1
+            for i in range(9):
+                cal[_CAL_GM + i] = cfg.gyro_matrix[i]
+        if cfg.accel_matrix is not None:
+            flags |= 2
+            for i in range(9):
+                cal[_CAL_AM + i] = cfg.accel_matrix[i]
+        self._cal_flags = flags
+        self._gb0 = f32.view(cal, _CAL_GB, 3)
+        self._ab0 = f32.view(cal, _CAL_AB, 3)
+        self._gm = f32.view(cal, _CAL_GM, 9) if flags & 1 else None
+        self._am = f32.view(cal, _CAL_AM, 9) if flags & 2 else None
+        self._counts_g = array("h", bytes(6))
+        self._counts_a = array("h", bytes(6))
+        stp = f32.zeros(_NSTP)
+        self._stp = stp
+        stp[_STP_ALPHA] = STILL_ALPHA
+        stp[_STP_ACCEL] = cfg.still_accel
+        stp[_STP_GYRO] = cfg.still_gyro
+        stp[_STP_GNSS_SPEED] = cfg.still_gnss_speed
+        stp[_STP_MAX_SPEED] = cfg.still_max_speed
+        aid = f32.zeros(_NAID)
+        self._aid = aid
+        aid[_AID_UERE] = cfg.gnss_uere_m
+        aid[_AID_FLOOR] = cfg.gnss_sigma_floor_m
+        aid[_AID_VERT] = cfg.gnss_vert_factor
+        aid[_AID_VEL_SIGMA] = cfg.gnss_vel_sigma
+        aid[_AID_ZUPT_SIGMA] = cfg.zupt_sigma
+        aid[_AID_NHC_SIGMA] = cfg.nhc_sigma
+        for i in range(3):
+            aid[_AID_LEVER + i] = cfg.lever_b_m[i]
+
     def _reset_counters(self):
         self.leveled = False
         self.still = False
@@ -198,21 +268,22 @@ class Navigator(Alignment, Aiding):
 
     def imu_raw(self, gyro_counts, accel_counts, saturated=False):
         """One tick from BMI055 counts (3 ints each, sensor axes)."""
-        g = self.cfg.gyro_counts_per_rad_s
-        a = self.cfg.accel_counts_per_m_s2
-        wr = self._wr
-        fr = self._fr
+        cg = self._counts_g
+        ca = self._counts_a
         for i in range(3):
-            wr[i] = f32.f32(gyro_counts[i]) / g
-            fr[i] = f32.f32(accel_counts[i]) / a
-        self.imu(wr, fr, saturated)
+            cg[i] = gyro_counts[i]
+            ca[i] = accel_counts[i]
+        self._tick(imu_cal(self._w, self._f, cg, ca, self._cal, self._cal_flags), saturated)
 
     def imu(self, w_in, f_in, saturated=False):
         """One tick: sensor-axes rate (rad/s) and specific force (m/s^2)."""
+        self._tick(self._calibrate(w_in, f_in), saturated)
+
+    def _tick(self, finite, saturated):
         self.tick += 1
         if saturated:
             self._sat_until = self.tick + self._ticks_second
-        if not self._calibrate(w_in, f_in):
+        if not finite:
             self._fault_until = self.tick + self._ticks_second
             self._update_health()
             return
@@ -259,52 +330,24 @@ class Navigator(Alignment, Aiding):
     # ---- per tick ------------------------------------------------------------------------
 
     def _calibrate(self, w_in, f_in):
-        cfg = self.cfg
         w = self._w
         f = self._f
-        _apply_cal(w, w_in, cfg.gyro_bias0, cfg.gyro_matrix)
-        _apply_cal(f, f_in, cfg.accel_bias0, cfg.accel_matrix)
+        _apply_cal(w, w_in, self._gb0, self._gm)
+        _apply_cal(f, f_in, self._ab0, self._am)
         s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
         return s - s == 0.0
 
     def _still_update(self):
-        """Standstill detector at 50 Hz: low-passed specific-force changes and rotation rate."""
-        cfg = self.cfg
-        st = self._st
-        f = self._f
-        w = self._w
-        bg = self.ins.bg
-        alpha = STILL_ALPHA
+        """Standstill detector at 50 Hz: low-passed specific-force changes and rotation rate
+        (the float work: `still`, below)."""
+        flags = 0
         if self.tick == 4:
-            for i in range(3):
-                st[_ST_FX + i] = f[i]  # start the low-pass at the first sample, not at zero
-        var = 0.0
-        for i in range(3):
-            lp = st[_ST_FX + i]
-            d = f[i] - lp
-            st[_ST_FX + i] = lp + alpha * d
-            var = var + d * d
-        st[_ST_VAR] = st[_ST_VAR] + alpha * (var - st[_ST_VAR])
-        wx = w[0] - bg[0]
-        wy = w[1] - bg[1]
-        wz = w[2] - bg[2]
-        st[_ST_GYRO] = st[_ST_GYRO] + alpha * ((wx * wx + wy * wy + wz * wz) - st[_ST_GYRO])
-        ga = cfg.still_gyro
-        aa = cfg.still_accel
-        quiet = st[_ST_VAR] < aa * aa and st[_ST_GYRO] < ga * ga
-        # A smooth road at constant speed is as quiet as standing still: speed must agree,
-        # the GNSS speed when there is a recent usable fix (so an INS velocity error cannot
-        # lock the zero-velocity update out), else the navigator's own.
-        if quiet:
-            if self.tick - self._speed_tick < self._ticks_second:
-                if st[_ST_SPEED] > cfg.still_gnss_speed:
-                    quiet = False
-            elif self.state == NAVIGATING:
-                v = self.ins.v_n
-                lim = cfg.still_max_speed
-                if v[0] * v[0] + v[1] * v[1] > lim * lim:
-                    quiet = False
-        if quiet:
+            flags = _STILL_FIRST  # start the low-pass at the first sample, not at zero
+        if self.tick - self._speed_tick < self._ticks_second:
+            flags |= _STILL_GNSS_SPEED
+        if self.state == NAVIGATING:
+            flags |= _STILL_NAVIGATING
+        if still(self._st, self._f, self._w, self.ins.x, self._stp, flags):
             self._n_still += 4
         else:
             self._n_still = 0
@@ -325,17 +368,10 @@ class Navigator(Alignment, Aiding):
 
     def _navigate(self):
         ins = self.ins
-        ins.step(self._w, self._f)
+        x = ins.x
+        ins_step(x, self._w, self._f, ins._coning)
         # ring of state history, minus the corrections injected so far
-        b = (self.tick % RING) * 3
-        p = ins.p_n
-        v = ins.v_n
-        c = self._corr
-        rp = self._ring_p
-        rv = self._ring_v
-        for i in range(3):
-            rp[b + i] = p[i] - c[i]
-            rv[b + i] = v[i] - c[3 + i]
+        ring_put(self._ring_p, self._ring_v, x, self._corr, (self.tick % RING) * 3)
         self._since_prop += 1
         self._since_zupt += 1
         self._since_nhc += 1
@@ -343,18 +379,18 @@ class Navigator(Alignment, Aiding):
             self._fix_pending = False
             self._nav_fix()
         kf = self.kf
-        if kf.job == eskf.IDLE and not kf.ready:
+        ki = kf.i
+        if ki[eskf.I_JOB] == eskf.IDLE and not ki[eskf.I_READY]:
             self._schedule()
-        busy = kf.job != eskf.IDLE
+        busy = ki[eskf.I_JOB] != eskf.IDLE
         kf.work(self.cfg.slices_per_tick)
-        if kf.ready:
+        if ki[eskf.I_READY]:
             self._inject()
         # P changes only when a job finishes: check it then, not every tick
-        if busy and kf.job == eskf.IDLE and not kf.diagonal_ok():
+        if busy and ki[eskf.I_JOB] == eskf.IDLE and not kf.diagonal_ok():
             self._fault_reset()
             return
-        s = p[0] + p[1] + p[2] + v[0] + v[1] + v[2] + ins.q_bn[0]
-        if s - s != 0.0:
+        if not ins_finite(x):
             self._fault_reset()
 
     def _nav_fix(self):
@@ -416,10 +452,13 @@ class Navigator(Alignment, Aiding):
             self.updates += 1
         elif self._since_prop >= self._ticks_prop:
             ins = self.ins
-            t = f32.f32(self._since_prop) * cfg.dt_s
-            ins.take_dvn(self._tmp3)
-            ins.slow_update(t)
-            kf.start_propagation(self._tmp3, t, ins.c_bn, ins.w_ie_n)
+            if _prop_start is not None:
+                _prop_start(ins.x, kf.e, kf.i, self._since_prop)
+            else:
+                t = f32.f32(self._since_prop) * cfg.dt_s
+                ins.take_dvn(self._tmp3)
+                ins.slow_update(t)
+                kf.start_propagation(self._tmp3, t, ins.c_bn, ins.w_ie_n)
             self._since_prop = 0
         elif cfg.zupt and self.still and self._since_zupt >= self._ticks_zupt:
             self._since_zupt = 0
@@ -433,32 +472,8 @@ class Navigator(Alignment, Aiding):
     def _inject(self):
         """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
         kf = self.kf
-        ins = self.ins
-        dx = kf.dx
-        p = ins.p_n
-        v = ins.v_n
-        corr = self._corr
-        for i in range(3):
-            d = dx[eskf.IX_POS + i]
-            p[i] = p[i] - d
-            corr[i] = corr[i] - d
-            d = dx[eskf.IX_VEL + i]
-            v[i] = v[i] - d
-            corr[3 + i] = corr[3 + i] - d
-            ins.bg[i] = ins.bg[i] + dx[eskf.IX_BG + i]
-            ins.ba[i] = ins.ba[i] + dx[eskf.IX_BA + i]
-            self._tmp3[i] = dx[eskf.IX_ATT + i]
-        dq = self._tmp4
-        rot.q_from_rotvec(dq, self._tmp3)
-        q = self._tmp4b
-        for i in range(4):
-            q[i] = ins.q_bn[i]
-        rot.q_mul(ins.q_bn, dq, q)
-        rot.q_normalize(ins.q_bn)
-        rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        for i in range(eskf.N):
-            dx[i] = 0.0
-        kf.ready = False
+        inject(self.ins.x, kf.e, self._corr)
+        kf.i[eskf.I_READY] = 0
         if self._job == _JOB_GNSS:
             # a fix whose east or north was gated out counts as rejected: one axis drifting
             # away while the others are accepted must still end in a reset
@@ -538,7 +553,7 @@ class Navigator(Alignment, Aiding):
 
     def euler(self):
         """self.ypr = yaw, pitch, roll (rad) of the current attitude."""
-        rot.dcm_to_euler(self.ypr, self.ins.c_bn)
+        euler(self.ypr, self.ins.c_bn)
         return self.ypr
 
     def p_diag(self, out):
@@ -563,3 +578,109 @@ def _apply_cal(out, x, b0, m):
         out[0] = m[0] * x0 + m[1] * x1 + m[2] * x2
         out[1] = m[3] * x0 + m[4] * x1 + m[5] * x2
         out[2] = m[6] * x0 + m[7] * x1 + m[8] * x2
+
+
+# ---- reference kernels (Python); kern.pick chooses native ones with the same signatures ----
+
+
+def _imu_cal_py(w, f, gyro, accel, cal, flags):
+    """BMI055 counts to calibrated SI: w, f = M (counts / scale - b0); False if not finite."""
+    g = cal[_CAL_G]
+    a = cal[_CAL_A]
+    wr = f32.zeros(3)  # the Python kernels allocate anyway (every float result)
+    fr = f32.zeros(3)
+    for i in range(3):
+        wr[i] = f32.f32(gyro[i]) / g
+        fr[i] = f32.f32(accel[i]) / a
+    _apply_cal(w, wr, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
+    _apply_cal(f, fr, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
+    s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
+    return s - s == 0.0
+
+
+def _still_py(st, f, w, x, prm, flags):
+    """One 50 Hz step of the standstill detector's low-passes; returns "quiet": small
+    specific-force changes and rotation, and a speed that agrees (the GNSS speed when there is
+    a recent usable fix, so that an INS velocity error cannot lock the zero-velocity update
+    out; else the navigator's own while navigating: a smooth road is as quiet as a stop)."""
+    alpha = prm[_STP_ALPHA]
+    if flags & _STILL_FIRST:
+        for i in range(3):
+            st[_ST_FX + i] = f[i]
+    var = 0.0
+    for i in range(3):
+        lp = st[_ST_FX + i]
+        d = f[i] - lp
+        st[_ST_FX + i] = lp + alpha * d
+        var = var + d * d
+    st[_ST_VAR] = st[_ST_VAR] + alpha * (var - st[_ST_VAR])
+    wx = w[0] - x[ins_mod.X_BG]
+    wy = w[1] - x[ins_mod.X_BG + 1]
+    wz = w[2] - x[ins_mod.X_BG + 2]
+    st[_ST_GYRO] = st[_ST_GYRO] + alpha * ((wx * wx + wy * wy + wz * wz) - st[_ST_GYRO])
+    ga = prm[_STP_GYRO]
+    aa = prm[_STP_ACCEL]
+    quiet = st[_ST_VAR] < aa * aa and st[_ST_GYRO] < ga * ga
+    if quiet:
+        if flags & _STILL_GNSS_SPEED:
+            if st[_ST_SPEED] > prm[_STP_GNSS_SPEED]:
+                quiet = False
+        elif flags & _STILL_NAVIGATING:
+            v0 = x[ins_mod.X_V]
+            v1 = x[ins_mod.X_V + 1]
+            lim = prm[_STP_MAX_SPEED]
+            if v0 * v0 + v1 * v1 > lim * lim:
+                quiet = False
+    return quiet
+
+
+def _ring_put_py(ring_p, ring_v, x, corr, b):
+    """The delay ring's entry at offset b: position and velocity minus the corrections."""
+    for i in range(3):
+        ring_p[b + i] = x[ins_mod.X_P + i] - corr[i]
+        ring_v[b + i] = x[ins_mod.X_V + i] - corr[3 + i]
+
+
+def _ins_finite_py(x):
+    """False if the position, velocity or attitude went NaN or infinite."""
+    s = x[0] + x[1] + x[2] + x[3] + x[4] + x[5] + x[ins_mod.X_Q]
+    return s - s == 0.0
+
+
+def _inject_py(x, e, corr):
+    """Closed-loop correction (seed 002) of the state buffer x from the filter's dx (in e):
+    p -= dp, v -= dv, q = q(phi) (x) q, b += db (corr keeps the sum of p, v corrections);
+    then dx = 0."""
+    dx = f32.view(e, eskf.E_DX, eskf.N)
+    att = f32.zeros(3)
+    for i in range(3):
+        d = dx[eskf.IX_POS + i]
+        x[ins_mod.X_P + i] = x[ins_mod.X_P + i] - d
+        corr[i] = corr[i] - d
+        d = dx[eskf.IX_VEL + i]
+        x[ins_mod.X_V + i] = x[ins_mod.X_V + i] - d
+        corr[3 + i] = corr[3 + i] - d
+        x[ins_mod.X_BG + i] = x[ins_mod.X_BG + i] + dx[eskf.IX_BG + i]
+        x[ins_mod.X_BA + i] = x[ins_mod.X_BA + i] + dx[eskf.IX_BA + i]
+        att[i] = dx[eskf.IX_ATT + i]
+    dq = f32.zeros(4)
+    rot.q_from_rotvec(dq, att)
+    q = f32.zeros(4)
+    for i in range(4):
+        q[i] = x[ins_mod.X_Q + i]
+    q_bn = f32.view(x, ins_mod.X_Q, 4)
+    rot.q_mul(q_bn, dq, q)
+    rot.q_normalize(q_bn)
+    rot.q_to_dcm(f32.view(x, ins_mod.X_C, 9), q_bn)
+    for i in range(eskf.N):
+        dx[i] = 0.0
+
+
+ins_step = ins_mod.step
+_prop_start = kern.pick("prop_start", None)
+imu_cal = kern.pick("imu_cal", _imu_cal_py)
+still = kern.pick("still", _still_py)
+ring_put = kern.pick("ring_put", _ring_put_py)
+ins_finite = kern.pick("ins_finite", _ins_finite_py)
+inject = kern.pick("inject", _inject_py)
+euler = kern.pick("euler", rot.dcm_to_euler)

@@ -18,6 +18,7 @@ started; the filter works them off over the next ticks.
 """
 
 import eskf
+import kern
 from micropython import const
 
 from fmath import cos, sin
@@ -29,6 +30,11 @@ _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
+
+# The native kernels of the three rows (the methods below are their reference)
+_gnss_rows = kern.pick("gnss_rows", None)
+_zupt_rows = kern.pick("zupt_rows", None)
+_nhc_rows = kern.pick("nhc_rows", None)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
 # used only here
@@ -73,6 +79,14 @@ class Aiding:
     def _start_gnss_update(self, b):
         """The fix in self._gp against the state at its measurement time, at offset b of the
         delay ring (self._ring_p, self._ring_v) plus the corrections injected since."""
+        self._used_tick = self._fix_tick
+        if _gnss_rows is not None:
+            kf = self.kf
+            _gnss_rows(
+                kf.e, kf.i, self.ins.x, self._ring_p, self._ring_v, self._corr, self._gp,
+                self._fx, self._used, self._w, self._aid, b,
+            )  # fmt: skip
+            return
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
@@ -94,7 +108,6 @@ class Aiding:
         used[_US_COURSE] = fx[_FX_COURSE]
         used[_US_SIG_H] = sh
         used[_US_SIG_V] = sv
-        self._used_tick = self._fix_tick
         lx = ln[0]
         ly = ln[1]
         lz = ln[2]
@@ -132,6 +145,9 @@ class Aiding:
 
     def _start_zupt(self):
         """Zero-velocity update: z = v_n[i] = dv_i + noise, i = E, N, U."""
+        if _zupt_rows is not None:
+            _zupt_rows(self.kf.e, self.kf.i, self.ins.x, self._aid)
+            return
         cfg = self.cfg
         kf = self.kf
         r = cfg.zupt_sigma * cfg.zupt_sigma
@@ -143,6 +159,9 @@ class Aiding:
     def _start_nhc(self):
         """Body lateral (x) and vertical (z) velocity are zero for a car: z = (C_bn^T v)_k,
         h = [0, c_k^T, (v x c_k)^T, 0, 0] with c_k the k-th column of C_bn."""
+        if _nhc_rows is not None:
+            _nhc_rows(self.kf.e, self.kf.i, self.ins.x, self._aid)
+            return
         kf = self.kf
         ins = self.ins
         c = ins.c_bn

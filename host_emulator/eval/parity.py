@@ -109,17 +109,18 @@ def bit_exact_runtimes():
     return tuple(n for n, r in runtimes.RUNTIMES.items() if r.bit_exact and n != "model")
 
 
-def compare(stim, config_overrides=None, progress=None, runtime="cpython"):
-    """Run the firmware (on `runtime`, in a temporary flash directory) and the model over
-    `stim` with the same board configuration; a ParityResult. progress(k, n) is passed to
-    each side in turn (firmware first). FirmwareError if the firmware raises."""
+def compare(stim, config_overrides=None, progress=None, runtime="cpython", kernels=None):
+    """Run the firmware (on `runtime` with `kernels`, "native" or "python", None: the default,
+    native; in a temporary flash directory) and the model over `stim` with the same board
+    configuration; a ParityResult. progress(k, n) is passed to each side in turn (firmware
+    first). FirmwareError if the firmware raises."""
     if runtime not in bit_exact_runtimes():
         raise EmulatorError(
             f"parity needs a bit-exact runtime ({', '.join(bit_exact_runtimes())}), not "
             f"{runtime!r}: the unix VM computes in double"
         )
     with tempfile.TemporaryDirectory(prefix="parity-") as d:
-        fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress)
+        fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress, kernels)
         model = runtimes.get("model").run(stim, Path(d), config_overrides, progress)
     cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
     zeroed = runtimes.get(runtime).own_run_time
@@ -157,6 +158,7 @@ def main(argv=None):
         help="where the firmware runs (default cpython; m4f: the emulated Cortex-M4F, about "
         "real time)",
     )
+    cli_args.add_kernels_option(p)
     try:
         args = p.parse_args(argv)
         duration = cli_args.number(args.duration, "--duration")
@@ -171,9 +173,9 @@ def main(argv=None):
         stim = board_input.simulate(args.scenario, duration_s=duration, seed=args.seed).stimulus
         print(
             f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed "
-            f"{args.seed}, firmware on {args.runtime}"
+            f"{args.seed}, firmware on {args.runtime}, {args.kernels} kernels"
         )
-        r = compare(stim, runtime=args.runtime)
+        r = compare(stim, runtime=args.runtime, kernels=args.kernels)
         print(r.summary())
         return 0 if r.identical else 1
 

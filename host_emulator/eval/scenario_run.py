@@ -73,13 +73,14 @@ class Progress:
                 self.stream.flush()
 
 
-def run_firmware(runtime, stim_path, progress=None):
+def run_firmware(runtime, stim_path, progress=None, kernels=None):
     """FirmwareRun of the stimulus file (read back from disk: the file is the seam) on the
-    runtime (a name of host_emulator.runtimes); EmulatorError if the firmware sent nothing at
-    all (its console says why, e.g. the IMU did not start)."""
+    runtime (a name of host_emulator.runtimes) with `kernels` ("native", "python"; None: the
+    default, native); EmulatorError if the firmware sent nothing at all (its console says why,
+    e.g. the IMU did not start)."""
     rt = runtimes.get(runtime)
     with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
-        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress)
+        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress, kernels=kernels)
     if not fw.out:
         said = "; ".join(fw.console) or "nothing"
         raise EmulatorError(f"the firmware sent no output in {fw.ticks} ticks; its console: {said}")
@@ -126,6 +127,7 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
         "nmea_rejected": fw.stats.get("nmea_rejected"),
         "gnss_rx_overflow": fw.stats.get("gnss_rx_overflow"),
         "overruns": fw.stats.get("overruns"),
+        "kernels": fw.stats.get("kernels"),  # native (navk) or python; None: the model
     }
     if blocks is not None:
         m["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
@@ -184,7 +186,8 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
 
 
-def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print):
+def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print,
+        kernels=None):  # fmt: skip
     """The whole `run` command; returns the metrics. EmulatorError on bad input or failure."""
     cli_args.check_scenario(scenario)
     cli_args.check_duration(duration_s)
@@ -205,7 +208,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, stim_path, prog)
+    fw = run_firmware(runtime, stim_path, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
@@ -214,7 +217,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     return metrics
 
 
-def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
+def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=None):
     """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
     is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
     only the output is checked (frames, frame errors, time to navigation)."""
@@ -229,7 +232,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print):
     if src.resolve() != local.resolve():
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, local, prog)
+    fw = run_firmware(runtime, local, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))

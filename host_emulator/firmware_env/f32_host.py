@@ -19,6 +19,11 @@ def zeros(n):
     return np.zeros(n, dtype=np.float32)
 
 
+def view(buf, start, n):
+    """Elements start .. start+n-1 of a float32 buffer, sharing its memory."""
+    return buf[start : start + n]
+
+
 def from_bits(u):
     """The float32 whose IEEE-754 bit pattern is the integer u."""
     return np.array(u, dtype=np.uint32).view(np.float32)[()]

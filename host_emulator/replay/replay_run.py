@@ -209,7 +209,7 @@ def write_solution_pos(path, rep, tr):
 
 
 def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progress=True,
-           log=print):  # fmt: skip
+           log=print, kernels=None):  # fmt: skip
     """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
     input or when the firmware never navigates."""
     runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
@@ -233,7 +233,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
-    fw = scenario_run.run_firmware(runtime, stim_path, prog)
+    fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:

@@ -22,6 +22,11 @@ sent on its output UART, its console lines and its counters.
 `micropython`, the old name of mpy_unix, still works; mpy_unix is named for what it is, a
 double-precision build of the unix port, not the board's single-precision MicroPython.
 A runtime is imported only when it is used.
+
+Every firmware runtime runs with the firmware's native kernels (navk, firmware/native: a cffi
+build on CPython, the x64 native module in the VM, the armv7emsp one in /flash/lib on the
+Cortex-M4F) unless `kernels="python"` (or INS_KERNELS=python) leaves navk out, so that the
+firmware falls back to its Python kernels (docs/native.md).
 """
 
 import importlib
@@ -57,11 +62,20 @@ class Runtime:
     # board), which the model cannot know: parity compares them with those counters zeroed
     own_run_time: bool = False
 
-    def run(self, stim, workdir, config_overrides=None, progress=None):
+    def run(self, stim, workdir, config_overrides=None, progress=None, kernels=None):
         """A FirmwareRun of the stimulus; FirmwareError if the firmware raises, EmulatorError
-        if the runtime cannot run it."""
+        if the runtime cannot run it. kernels: the firmware's float32 kernels, "native" (navk
+        built for this runtime) or "python" (no navk); None: the default, native unless
+        $INS_KERNELS says python. The model has no kernels: it takes None only."""
         mod = importlib.import_module(self.module)
-        return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress)
+        if kernels is None:
+            return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress)
+        if self.name == "model":
+            raise EmulatorError("the model runtime has no kernels to choose (it is NumPy)")
+        check_kernels(kernels)
+        return mod.run(
+            stim, workdir, config_overrides=config_overrides, progress=progress, kernels=kernels
+        )
 
 
 RUNTIMES = {
@@ -79,6 +93,41 @@ RUNTIMES = {
     )
 }  # fmt: skip
 ALIASES = {"micropython": "mpy_unix"}
+KERNELS = ("native", "python")  # the firmware's kernels (firmware_env.KERNELS)
+
+
+def check_kernels(kernels):
+    if kernels not in KERNELS:
+        raise EmulatorError(f"unknown kernels {kernels!r}: choose {' or '.join(KERNELS)}")
+    return kernels
+
+
+_built = {}
+
+
+def native_module(arch):
+    """The path of navk.mpy built for `arch` (tools.native.ARCHS), brought up to date when a
+    file of firmware/native changed since this process last built it; EmulatorError saying
+    what to install when it cannot be built."""
+    from tools import native
+
+    key = tuple((p.name, p.stat().st_mtime_ns) for p in native.inputs())
+    if _built.get(arch, (None,))[0] != key:
+        try:
+            _built[arch] = (key, native.natmod(arch))
+        except (native.NativeError, ValueError) as e:  # ValueError: bindings.HeaderError
+            raise EmulatorError(f"cannot build the native kernels ({arch}): {e}") from None
+    return _built[arch][1]
+
+
+def default_kernels():
+    """What a run gets when it names no kernels: $INS_KERNELS, else native."""
+    import os
+
+    kind = os.environ.get("INS_KERNELS") or "native"
+    if kind not in KERNELS:
+        raise EmulatorError(f"INS_KERNELS={kind!r}: choose {' or '.join(KERNELS)}")
+    return kind
 
 
 def names(aliases=True):

@@ -19,6 +19,10 @@ extended frame's tick times read 0).
 
 The board's flash is a directory: its configuration file is written there from the stimulus
 header's "config" (plus any overrides) before the firmware starts.
+
+Kernels: native (the cffi build of firmware/native as `navk`, default) or python (no navk: the
+firmware's Python kernels); firmware_env.use_kernels() switches them, re-importing the
+firmware when the choice changes.
 """
 
 import gc
@@ -47,16 +51,35 @@ def _firmware_failed(exc, where):
     return FirmwareError(f"the firmware raised {where}:\n{_firmware_traceback(exc)}")
 
 
-def run(stim, workdir, config_overrides=None, progress=None):
+def _use_kernels(kernels):
+    """firmware_env.use_kernels(kernels), the native module built first: EmulatorError if it
+    cannot be (rather than an error inside the firmware's `import navk`)."""
+    from tools import native
+
+    kind = firmware_env.use_kernels(kernels)
+    if kind == "native":
+        from host_emulator.firmware_env import navk_host
+
+        try:
+            navk_host.load()
+        except (native.NativeError, ValueError) as e:  # ValueError: bindings.HeaderError
+            raise EmulatorError(f"cannot build the native kernels for CPython: {e}") from None
+    return kind
+
+
+def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     """Run the firmware on CPython over a whole Stimulus (or stimulus file); a FirmwareRun.
 
     workdir: the emulated board's flash (a directory; the configuration file goes there).
-    progress(k, n): called every 2000 ticks. A firmware exception -> FirmwareError."""
+    progress(k, n): called every 2000 ticks. kernels: "native", "python" or None (the
+    default: $INS_KERNELS, else native). A firmware exception -> FirmwareError; EmulatorError
+    if the native kernels are asked for and cannot be built."""
     if isinstance(stim, (str, os.PathLike)):
         stim = stim_mod.read(stim)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
 
     machine = firmware_env.install_machine()
+    kind = _use_kernels(kernels)
     machine.power_on()
     import app
     import board
@@ -128,5 +151,6 @@ def run(stim, workdir, config_overrides=None, progress=None):
         "wdt_feeds": wdt.feeds if wdt else 0,
         "imu_error": a.imu_error,
         "config_status": a.config_status,
+        "kernels": kind,
     }
     return FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)

@@ -66,16 +66,17 @@ def firmware_error(out, stim, where_run, hint=""):
     return err
 
 
-def run_guest(cmd, out, timeout_s, what, n_ticks, stdin=b"", cwd=None, start_marker=None):
+def run_guest(cmd, out, timeout_s, what, n_ticks, stdin=b"", cwd=None, start_marker=None,
+              env=None):  # fmt: skip
     """Run the guest process `cmd`, its stdout lines into `out` (a GuestOutput) as they come
     (after `start_marker`, if given: what precedes it, a banner, is dropped); stop it after
-    timeout_s. Returns (exit status, wall seconds); EmulatorError naming `what` if it cannot
-    start or times out."""
+    timeout_s; env: its environment (default: ours). Returns (exit status, wall seconds);
+    EmulatorError naming `what` if it cannot start or times out."""
     t_wall = time.perf_counter()
     try:
         proc = subprocess.Popen(
             cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            cwd=cwd,
+            cwd=cwd, env=env,
         )  # fmt: skip
     except OSError as e:
         raise EmulatorError(f"cannot start {what} ({cmd[0]}): {e.strerror}") from None

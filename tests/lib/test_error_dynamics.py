@@ -361,7 +361,10 @@ def test_textbook_F_is_the_jacobian_of_the_continuous_dynamics(seed, earth_terms
 def navigator_at(rng, speed_m_s, lever_b_m=(0.0, 0.0, 0.0)):
     """A navigator holding a random nominal state (car profile); returns it and that state as
     float64 (the values the firmware actually holds)."""
-    nav = nav_mod.Navigator(navcfg.NavConfig("car"))
+    cfg = navcfg.NavConfig("car")
+    for i in range(3):
+        cfg.lever_b_m[i] = lever_b_m[i]  # the navigator takes its configuration when made
+    nav = nav_mod.Navigator(cfg)
     nav.state = nav_mod.NAVIGATING
     ins = nav.ins
     q = quaternion(random_rotvec(rng))
@@ -375,7 +378,6 @@ def navigator_at(rng, speed_m_s, lever_b_m=(0.0, 0.0, 0.0)):
         ins.v_n[i] = v_n[i]
         ins.bg[i] = 1e-3 * rng.standard_normal()
         ins.ba[i] = 5e-2 * rng.standard_normal()
-        nav.cfg.lever_b_m[i] = lever_b_m[i]
     return nav, nominal_of(nav)
 
 
@@ -396,7 +398,7 @@ def queued_rows(kf):
     z = np.zeros(kf.n_scalars)
     for m in range(kf.n_scalars):
         full = as64(kf._h[m * N : (m + 1) * N])
-        cols = [kf._nz[m * eskf.MAX_NZ + t] for t in range(kf._nnz[m])]
+        cols = [kf.i[eskf.I_NZ + m * eskf.MAX_NZ + t] for t in range(kf.i[eskf.I_NNZ + m])]
         H[m, cols] = full[cols]
         assert np.array_equal(H[m], full), "a non-zero outside the listed columns"
         z[m] = kf._z[m]

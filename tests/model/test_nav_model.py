@@ -16,6 +16,7 @@ meant to exercise really happened, so it cannot pass vacuously.
 import math
 from dataclasses import dataclass, field
 
+import ins as ins_mod
 import navcfg
 import numpy as np
 import pytest
@@ -193,7 +194,7 @@ def firmware_snapshot(nav):
         "p_comp": ins._pk,
         "theta_prev": ins._th_prev,
         "dv_prev": ins._dv_prev,
-        "earth_model": [ins._g0, ins._inv_rn, ins._inv_rm, ins._h0],
+        "earth_model": ins.x[ins_mod.X_G0 : ins_mod.X_H0 + 1],
         "P": kf.P,
         "dx": kf.dx,
         "kf_A": kf._a,

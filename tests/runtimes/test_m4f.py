@@ -94,7 +94,7 @@ def test_frames_and_extended_frames_equal_the_model_byte_for_byte(quick):
     fw = r.firmware_run
     # not vacuous: the firmware navigated for more than half the run and collected garbage
     assert np.sum(fw.per_tick["state"] == 2) > 3000
-    assert fw.stats["app_gc_runs"] > 100
+    assert fw.stats["app_gc_runs"] > 20  # (native kernels: 75; Python ones: over 500)
     # ...and only the run-time counters differ in the raw streams
     assert stream.without_run_time(fw.out) == r.out_firmware
     assert "PARITY: identical" in r.summary() and "gc_runs" in r.summary()

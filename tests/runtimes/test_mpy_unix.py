@@ -102,12 +102,13 @@ def test_blocks_per_tick_are_counted(urban, runs):
     assert b.shape == (len(urban),) and b.dtype.kind == "i"
     assert s["app_gc_runs"] == 0 and s["negative_ticks"] == 0  # no collection inside a tick
     assert s["bytes_per_block"] in (16, 32)
-    assert b.min() > 0  # every tick does float work (levelling, standstill detection)
     by = s["blocks_by_state"]
     nav, align = by["navigating"], by["aligning"]
     assert nav["ticks"] > 500 and nav["ticks"] + align["ticks"] == len(urban)
-    # measured: aligning ~170 mean, navigating ~470 mean / ~700 max (INS + filter slices)
-    assert 50 < align["mean"] < nav["mean"] < 1500
+    # With the native kernels (x64 navk) the per-tick float work allocates nothing; what is
+    # left is the Python float work not native yet: alignment, and in a navigating tick the
+    # fix delivery and screening (measured: navigating mean < 1, max ~500 at a fix)
+    assert 0 < nav["mean"] < 10 < align["mean"] < 1500
     assert nav["max"] < 4000 and np.isfinite(s["blocks_p99"])
     assert s["blocks_max"] == b.max() and s["blocks_mean"] == pytest.approx(b.mean())
 

@@ -51,7 +51,7 @@ def _fake(monkeypatch, fs, **kw):
     return fake
 
 
-def test_frozen_firmware_gets_main_py_only_and_firmware_files_go(
+def test_frozen_firmware_gets_main_py_and_navk_only_and_firmware_files_go(
     build_dir, host_id, tmp_path, monkeypatch
 ):
     fs = tmp_path / "flash"
@@ -64,12 +64,15 @@ def test_frozen_firmware_gets_main_py_only_and_firmware_files_go(
     assert result["frozen"]["crc32"] == host_id["crc32"]
     assert fake.written == ["/flash/main.py"]
     left = sorted(p.relative_to(fs).as_posix() for p in fs.rglob("*"))
-    assert left == ["ins.cfg", "lib", "main.py", "track.log"]  # drivers/ would hide the package
+    # drivers/ would hide the package; the native kernels stay (a natmod cannot be frozen)
+    assert left == ["ins.cfg", "lib", "lib/navk.mpy", "main.py", "track.log"]
     assert (fs / "main.py").read_bytes() == (build_dir / "main.py").read_bytes()
-    assert len(result["stale"]) == 19 and "lib/nav.mpy" in result["stale"]
+    n_files = len(build.load_manifest(build_dir)["files"])
+    assert len(result["stale"]) == n_files - 2 and "lib/nav.mpy" in result["stale"]
     text = "\n".join(lines)
     assert f"carries this firmware frozen (id {host_id['crc32']}" in text
-    assert "only main.py goes to /flash" in text and "31 KB filesystem is no longer a limit" in text
+    assert "only main.py and lib/navk.mpy go to /flash" in text
+    assert "31 KB filesystem is no longer a limit" in text
     assert "deleted stale lib/nav.mpy (frozen in the image)" in text
     assert "removed /flash/drivers/ (it would hide the frozen drivers package)" in text
 
@@ -87,8 +90,8 @@ def test_frozen_firmware_with_a_configuration(build_dir, host_id, tmp_path, monk
     assert main(["deploy", "--port", "/dev/fake", "--config", str(cfg), "--flash-kb", "48",
                  "--watch", "2"]) == 0  # fmt: skip
     out = capsys.readouterr().out
-    assert "only main.py and ins.cfg go to /flash" in out and "deploy OK" in out
-    assert fake.written == ["/flash/main.py", "/flash/ins.cfg"]
+    assert "only main.py, lib/navk.mpy and ins.cfg go to /flash" in out and "deploy OK" in out
+    assert fake.written == ["/flash/lib/navk.mpy", "/flash/main.py", "/flash/ins.cfg"]
     assert (fs / "ins.cfg").read_bytes() == cfg.read_bytes()
 
 
@@ -127,8 +130,10 @@ def test_without_frozen_firmware_all_files_go_and_the_image_is_suggested(
     _fake(monkeypatch, fs)
     lines = []
     result = deploy.deploy(build_dir, "/dev/fake", log=lines.append, watch_s=2)
-    assert result["frozen"] is None and len(result["written"]) == 20
-    assert any("no frozen firmware: deploying all 20 files" in line
+    n_files = len(build.load_manifest(build_dir)["files"])
+    assert result["frozen"] is None and len(result["written"]) == n_files
+    assert build.NATIVE_PATH in result["written"]
+    assert any(f"no frozen firmware: deploying all {n_files} files" in line
                and "make image, make flash-image" in line for line in lines)  # fmt: skip
     _fake(monkeypatch, tmp_path / "empty")
     (tmp_path / "empty").mkdir()
@@ -146,6 +151,9 @@ def test_the_firmware_runs_from_the_frozen_image_on_the_virtual_board(build_dir,
         tmp_path / "flash", realtime=False, duration_s=30.0, frozen_dir=frozen
     ) as vb:
         result = deploy.deploy(build_dir, vb.port, frames_port=vb.rs485_port, log=lambda _: None)
-        assert sorted(p.name for p in vb.fs_dir.iterdir()) == ["main.py"]
-    assert result["frozen"]["crc32"] == ident["crc32"] and result["written"] == ["main.py"]
+        assert sorted(p.name for p in vb.fs_dir.iterdir()) == ["lib", "main.py"]
+        assert [p.name for p in (vb.fs_dir / "lib").iterdir()] == ["navk.mpy"]
+    assert result["frozen"]["crc32"] == ident["crc32"]
+    assert result["written"] == ["lib/navk.mpy", "main.py"]  # the x64 build: the VM's arch
     assert "ins: running" in result["console"] and result["frames"] >= 3
+    assert "kernels: native" in result["console"]

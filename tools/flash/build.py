@@ -4,6 +4,8 @@ Layout (the board's /flash is firmware/): lib/x.py -> lib/x.mpy, drivers/x.py ->
 app.py -> app.mpy, board.py -> board.mpy; main.py is copied as source because MicroPython runs
 main.py (not main.mpy) at boot. Each .mpy embeds its board path ("lib/nav.py") as the source
 name, so tracebacks name the board's files and the bytes do not depend on the checkout's path.
+lib/navk.mpy is the native kernels (tools.native, armv7emsp, built on demand): a native module
+cannot be frozen into an image, so it goes to the filesystem even beside a frozen firmware.
 
 The budget follows FatFs's f_mkfs as MicroPython formats a flash filesystem (lib/oofatfs/ff.c):
 one reserved sector, one FAT, a fixed root directory of 512 entries x 32 bytes = 16 KB, and the
@@ -87,9 +89,25 @@ def mpy_cross_version():
     return proc.stdout.strip()
 
 
-def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRMWARE_DIR):
+NATIVE_PATH = "lib/navk.mpy"  # the native kernels on the board (docs/native.md)
+NATIVE_ARCH = "armv7emsp"  # the board's: Cortex-M4F, single-precision FPU
+
+
+def native_module(arch=NATIVE_ARCH):
+    """The navk.mpy built for `arch` (tools.native); FlashError saying what to install."""
+    from tools import native
+
+    try:
+        return native.natmod(arch)
+    except (native.NativeError, ValueError) as e:  # ValueError: bindings.HeaderError
+        raise FlashError(f"cannot build the native kernels (navk.mpy, {arch}): {e}") from None
+
+
+def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRMWARE_DIR,
+          native=True):  # fmt: skip
     """Compile source_dir into out_dir and write the manifest; returns the manifest (a dict).
-    Does not judge the budget: see check_budget."""
+    native: add lib/navk.mpy, the native kernels for the board. Does not judge the budget: see
+    check_budget."""
     out_dir = pathlib.Path(out_dir)
     options = ARCH_OPTIONS + (NO_LINES_OPTIONS if strip_lines else [])
     version = mpy_cross_version()
@@ -123,10 +141,18 @@ def build(out_dir, flash_kb=DEFAULT_FLASH_KB, strip_lines=False, source_dir=FIRM
                 )
         data = dest.read_bytes()
         files.append({"path": dest_rel, "size": len(data), "crc32": f"{crc32(data):08x}"})
+    if native:
+        dest = out_dir / NATIVE_PATH
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(native_module(), dest)
+        dirs.add("lib")
+        data = dest.read_bytes()
+        files.append({"path": NATIVE_PATH, "size": len(data), "crc32": f"{crc32(data):08x}"})
     total = sum(f["size"] for f in files)
     manifest = {
         "format": 1,
         "mpy_cross": {"version": version, "options": options},
+        "native": {"path": NATIVE_PATH, "arch": NATIVE_ARCH} if native else None,
         "files": files,
         "dirs": sorted(dirs),
         "total_bytes": total,

@@ -1,7 +1,9 @@
 """Deploy a build to a board over its raw REPL: compare CRC-32s, copy only what changed (each
 file verified by the board's own CRC-32), delete stale firmware files, upload the
 configuration, soft-reset and confirm the firmware started. A board whose MicroPython image
-carries this firmware frozen (tools/image: its `fwid` module) gets main.py only."""
+carries this firmware frozen (tools/image: its `fwid` module) gets main.py only, and the native
+kernels lib/navk.mpy (a native module cannot be frozen): built for the architecture the board
+reports (sys.implementation._mpy: armv7emsp on the board, x64 on the virtual board's VM)."""
 
 import binascii
 import pathlib
@@ -116,6 +118,16 @@ class Board:
             "free": bfree * (frsize or bsize),
         }
 
+    def native_arch(self):
+        """The native architecture of the board's MicroPython (MP_NATIVE_ARCH_*, 0: none), -1
+        when it does not say (not MicroPython)."""
+        out = self._exec(ARCH_QUERY, "asking its native architecture")
+        for line in out.splitlines():
+            parts = line.split()
+            if len(parts) == 2 and parts[0] == "ARCH":
+                return int(parts[1])
+        return -1
+
     def frozen_firmware(self):
         """What the image's frozen `fwid` module says ({"crc32", "version", "micropython",
         "board"}), or None when the image carries no frozen firmware."""
@@ -192,6 +204,40 @@ class Board:
         )
 
 
+# The native architecture of the board's MicroPython (-1: not MicroPython, e.g. a stand-in)
+ARCH_QUERY = (
+    "import sys\n_m = getattr(sys.implementation, '_mpy', None)\n"
+    "print('ARCH', -1 if _m is None else (_m >> 10) & 0x2F)"
+)
+NATIVE_ARCHS = {2: "x64", 7: "armv7emsp"}  # MP_NATIVE_ARCH_* (py/persistentcode.h) we build
+
+
+def native_plan(manifest, arch, log):
+    """The manifest with lib/navk.mpy for the board's native architecture `arch`: the built one
+    (armv7emsp) as it is; for another architecture we build (x64: the virtual board's VM) that
+    build instead; none when the board cannot load native code (the firmware then runs its
+    Python kernels)."""
+    from tools.flash import build as build_mod
+
+    nat = manifest.get("native")
+    if not nat or arch < 0 or NATIVE_ARCHS.get(arch) == nat["arch"]:
+        return manifest
+    files = [f for f in manifest["files"] if f["path"] != nat["path"]]
+    name = NATIVE_ARCHS.get(arch)
+    if name is None:
+        log(
+            f"the board's MicroPython loads no native module we build (arch {arch}): "
+            f"{nat['path']} is not sent, the firmware runs its Python kernels"
+        )
+    else:
+        src = build_mod.native_module(name)
+        data = src.read_bytes()
+        files.append({"path": nat["path"], "size": len(data), "crc32": f"{crc32(data):08x}",
+                      "src": str(src)})  # fmt: skip
+        log(f"the board's MicroPython is {name}: {nat['path']} built for it")
+    return {**manifest, "files": files, "total_bytes": sum(f["size"] for f in files)}
+
+
 def is_firmware_file(rel):
     """Files deploy owns (and may delete): .py/.mpy under lib/ and drivers/, and the top-level
     app, board and main modules. Never ins.cfg or other user data."""
@@ -255,8 +301,9 @@ def host_firmware_id():
 
 
 def frozen_plan(manifest, board_id, log, with_config):
-    """The manifest to deploy next to an image that carries the firmware frozen: main.py only
-    when the image's firmware is this checkout's; FrozenMismatch otherwise."""
+    """The manifest to deploy next to an image that carries the firmware frozen: main.py and
+    the native kernels (lib/navk.mpy: a native module cannot be frozen) when the image's
+    firmware is this checkout's; FrozenMismatch otherwise."""
     host = host_firmware_id()
     if board_id["crc32"] != host["crc32"]:
         raise FrozenMismatch(
@@ -270,15 +317,20 @@ def frozen_plan(manifest, board_id, log, with_config):
             "To deploy the firmware as files instead, flash a MicroPython image without it "
             "frozen onto a board whose filesystem holds them (SPI flash). Nothing was written."
         )
-    goes = "main.py and ins.cfg go" if with_config else "main.py goes"
+    keep = ("main.py", (manifest.get("native") or {}).get("path"))
+    names = [p for p in keep if p and any(f["path"] == p for f in manifest["files"])]
+    names += ["ins.cfg"] if with_config else []
+    goes = " and ".join((", ".join(names[:-1]), names[-1])) + " go" if names[1:] else "main.py goes"
     log(
         f"the board's image carries this firmware frozen (id {host['crc32']}, version "
         f"{board_id['version']}, {board_id['board']}, MicroPython {board_id['micropython']}): "
         f"only {goes} to /flash; with the firmware frozen the F411's 31 KB filesystem is no "
         "longer a limit"
     )
-    files = [f for f in manifest["files"] if f["path"] == "main.py"]
-    return {**manifest, "files": files, "dirs": [], "total_bytes": sum(f["size"] for f in files)}
+    files = [f for f in manifest["files"] if f["path"] in keep]
+    dirs = sorted({f["path"].rsplit("/", 1)[0] for f in files if "/" in f["path"]})
+    return {**manifest, "files": files, "dirs": dirs,
+            "total_bytes": sum(f["size"] for f in files)}  # fmt: skip
 
 
 def connect(port, baud, timeout=5.0):
@@ -318,6 +370,7 @@ def deploy(
         ]
         if said:
             log("board said: " + " / ".join(said))
+        manifest = native_plan(manifest, board.native_arch(), log)
         board_id = board.frozen_firmware()
         if board_id is not None:
             manifest = frozen_plan(manifest, board_id, log, config_bytes is not None)
@@ -394,7 +447,7 @@ def deploy(
         sent = 0
         t0 = time.monotonic()
         for f in writes:
-            data = (pathlib.Path(build_dir) / f["path"]).read_bytes()
+            data = pathlib.Path(f.get("src") or pathlib.Path(build_dir) / f["path"]).read_bytes()
             attempts = board.write_verified(f["path"], data, log)
             sent += len(data) * attempts
             note = "" if attempts == 1 else f" after {attempts} attempts"

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Make sure the Debian cross toolchain and QEMU that the firmware image and the emulated
 # Cortex-M4F board are built and run with are installed (docs/board.md):
-#   gcc-arm-none-eabi, libnewlib-arm-none-eabi (C library headers), qemu-system-arm.
+#   gcc-arm-none-eabi, libnewlib-arm-none-eabi (C library headers), qemu-system-arm;
+# and the host C compiler that builds the native kernels for the desktop (docs/native.md: the
+# x64 native module and the CPython extension): gcc.
 # Versions are pinned to what the project was built and measured with (Debian 12). When a
 # package is missing: as root, apt-get installs the pinned version; otherwise this prints the
 # command to run and fails. Nothing is ever skipped: a build that needs the toolchain stops here.
@@ -11,6 +13,7 @@ PINNED=(
   "gcc-arm-none-eabi=15:12.2.rel1-1"
   "libnewlib-arm-none-eabi=3.3.0-1.3+deb12u1"
   "qemu-system-arm=1:7.2+dfsg-7+deb12u18+b3"
+  "gcc=4:12.2.0-3"
 )
 
 have() {  # a package's tool is present: the command, or newlib's header for the C library
@@ -18,6 +21,7 @@ have() {  # a package's tool is present: the command, or newlib's header for the
     gcc-arm-none-eabi) command -v arm-none-eabi-gcc >/dev/null ;;
     libnewlib-arm-none-eabi) [ -f /usr/lib/arm-none-eabi/include/stdlib.h ] ;;
     qemu-system-arm) command -v qemu-system-arm >/dev/null ;;
+    gcc) command -v gcc >/dev/null ;;
   esac
 }
 

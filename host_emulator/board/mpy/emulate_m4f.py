@@ -6,11 +6,13 @@ Frozen into that build with the firmware, machine.py, time.py and feed.py; the h
 through the raw REPL:
 
     import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR,
-                                         BOARD_HEAP, BUILD_HEAP)
+                                         BOARD_HEAP, BUILD_HEAP[, NAVK])
 
 Host files go through ARM semihosting (the `m4f` module): the stimulus is read from byte
 OFFSET (its first record) of STIM, the configuration CONFIG is copied to /flash/ins.cfg on a
-FAT RAM disk as on the board, the output goes to OUT_DIR.
+FAT RAM disk as on the board, the output goes to OUT_DIR. With a 9th argument NAVK (a host
+path), the native kernels' navk.mpy goes to /flash/lib as on the board (docs/native.md); without
+it the firmware runs its Python kernels.
 
 The heap the firmware gets is the board's. BOARD_HEAP is the board image's heap region and
 BUILD_HEAP this build's (MICROPY_HEAP_SIZE: the board's plus a reserve for the emulated
@@ -35,6 +37,7 @@ collected u8, 2 pad. Stdout lines as feed.py says; S carries the run's statistic
 
 import gc
 import json
+import os
 import struct
 import sys
 
@@ -91,19 +94,38 @@ class RamDisk:
         return 0
 
 
-def mount_flash(config_path):
-    """/flash: FAT on the RAM disk, holding the host's configuration file as ins.cfg."""
+def copy_in(host_path, path):
+    """A host file (semihosting) into the guest's file `path`, a block at a time."""
+    f = HostFile(host_path, 1)
+    left = m4f.flen(f.h)
+    buf = bytearray(BLOCK)
+    with open(path, "wb") as out:
+        while left:
+            k = BLOCK if left > BLOCK else left
+            if f.readinto(buf, k) != k:
+                raise OSError("cannot read " + host_path)
+            out.write(buf if k == BLOCK else buf[:k])
+            left -= k
+    f.close()
+
+
+def mount_flash(config_path=None, navk_path=None):
+    """/flash: FAT on the RAM disk, with /flash and /flash/lib on sys.path after the frozen
+    modules, as the stm32 port has them. config_path: the host's configuration file, copied to
+    /flash/ins.cfg; navk_path: the native kernels (the armv7emsp navk.mpy), copied to
+    /flash/lib/navk.mpy where a board keeps them (a native module cannot be frozen: mpy-tool
+    refuses code with relocations). Without navk_path `import navk` fails: Python kernels."""
     bdev = RamDisk()
     vfs.VfsFat.mkfs(bdev)
     vfs.mount(vfs.VfsFat(bdev), "/flash")
-    f = HostFile(config_path, 1)
-    n = m4f.flen(f.h)
-    data = bytearray(n)
-    if f.readinto(data, n) != n:
-        raise OSError("cannot read " + config_path)
-    f.close()
-    with open("/flash/ins.cfg", "wb") as out:
-        out.write(data)
+    for p in ("/flash", "/flash/lib"):
+        if p not in sys.path:
+            sys.path.append(p)
+    if config_path:
+        copy_in(config_path, "/flash/ins.cfg")
+    if navk_path:
+        os.mkdir("/flash/lib")
+        copy_in(navk_path, "/flash/lib/navk.mpy")
 
 
 def icount_pair_cost():
@@ -119,13 +141,14 @@ def exit_firmware_error(code):
     m4f.exit(code)
 
 
-def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, build_heap):
+def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, build_heap,
+         navk_path=None):  # fmt: skip
     m4f.init()
     icount = m4f.icount
     emu_total = m4f.emu_total
     emu_in = m4f.emu_in
     emu_out = m4f.emu_out
-    mount_flash(config_path)
+    mount_flash(config_path, navk_path)
     gc.collect()
     system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
     usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region

@@ -36,6 +36,7 @@ import struct
 
 import numpy as np
 
+from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
@@ -74,13 +75,16 @@ def _data_offset(path):
     return 12 + struct.unpack_from("<I", head, 8)[0]
 
 
-def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
+def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None, kernels=None):
     """Run the firmware on the emulated Cortex-M4F over a whole stimulus; a FirmwareRun.
 
     stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin) or a stimulus file's path.
     workdir: workdir/flash/ins.cfg (the configuration: the stimulus header's "config" plus
         `config_overrides`, as every runtime) and the guest's output files (workdir/m4f/).
     progress(k, n): called as the guest reports ticks done (every 1000 ticks and at the end).
+    kernels: "native" (the armv7emsp navk.mpy, built on demand, in the guest's /flash/lib as on
+        a board), "python" (none: the firmware's Python kernels) or None (the default: native
+        unless $INS_KERNELS says python).
 
     The FirmwareRun has `per_tick` (PER_TICK records) and stats from the guest (heap,
     start-up instructions, counters). FirmwareError if the firmware raises; EmulatorError if
@@ -97,6 +101,8 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
         raise EmulatorError(
             f"{QEMU} not found: run `make toolchain` (installs Debian's qemu-system-arm)"
         )
+    kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
+    navk = str(runtimes.native_module("armv7emsp")) if kind == "native" else None
     elf = m4f_build.build(progress=(lambda msg: print(msg, flush=True)) if progress else None)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "m4f"
@@ -107,7 +113,7 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
     call = (
         f"import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, {_data_offset(stim_path)}, "
         f"{n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, {str(out_dir)!r}, "
-        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES})\r\n"
+        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk!r})\r\n"
     )
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)
@@ -124,6 +130,7 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None):
         )
     stats = dict(out.stats)
     stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
+    stats["kernels"] = kind
     for problem, what in (
         ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
         ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "

@@ -13,13 +13,22 @@ import subprocess
 from host_emulator.runtimes.m4f import build as m4f_build
 
 
-def run(code, timeout_s=120, cwd=None, gc_heap_bytes=None):
+def run(code, timeout_s=120, cwd=None, gc_heap_bytes=None, kernels=None):
     """stdout of `code` (a str) run on the emulated board; AssertionError with the output if it
-    raised or QEMU failed."""
+    raised or QEMU failed. kernels="native": /flash is mounted first (FAT on the RAM disk, as
+    the m4f runtime does) with the armv7emsp navk.mpy in /flash/lib, on sys.path, so that `import
+    navk` loads the native module as on a board; "python": /flash without it; None (default):
+    no /flash at all (nothing runs before `code` but m4f.init())."""
+    from host_emulator import runtimes
     from host_emulator.runtimes.m4f import qemu_command
 
     elf = m4f_build.build(progress=None, gc_heap_bytes=gc_heap_bytes)
-    body = "import m4f\r\nm4f.init()\r\n" + code.replace("\n", "\r\n") + "\r\nm4f.exit(0)\r\n"
+    body = "import m4f\r\nm4f.init()\r\n"
+    if kernels is not None:
+        runtimes.check_kernels(kernels)
+        navk = str(runtimes.native_module("armv7emsp")) if kernels == "native" else None
+        body += f"import emulate_m4f\r\nemulate_m4f.mount_flash(None, {navk!r})\r\n"
+    body += code.replace("\n", "\r\n") + "\r\nm4f.exit(0)\r\n"
     stdin = b"\x01" + body.encode() + b"\x04" + b"\x01import m4f\r\nm4f.exit(4)\r\n\x04"
     proc = subprocess.run(
         qemu_command(elf), input=stdin, capture_output=True, timeout=timeout_s, cwd=cwd

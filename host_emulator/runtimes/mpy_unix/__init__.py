@@ -27,6 +27,7 @@ import pathlib
 
 import numpy as np
 
+from host_emulator import runtimes
 from host_emulator.board import EMULATE
 from host_emulator.errors import EmulatorError
 from host_emulator.firmware_env import FIRMWARE_DIR
@@ -63,7 +64,8 @@ def _memory_hint(heap_kb):
     )
 
 
-def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None):
+def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None,
+        kernels=None):  # fmt: skip
     """Run the firmware in the MicroPython VM over a whole stimulus; returns a FirmwareRun.
 
     stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin for the VM) or the path of a
@@ -73,6 +75,8 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         VM's output files (workdir/vm/).
     progress(k, n): called as the VM reports ticks done (every 1000 ticks and at the end).
     heap_kb: the VM's heap; timeout_s: wall-time limit (default 60 s + the stimulus duration).
+    kernels: "native" (the x64 navk.mpy on the VM's path, built on demand), "python" (no
+        navk) or None (the default: native unless $INS_KERNELS says python).
 
     The FirmwareRun's stats hold the blocks' mean/p99/max, overall and by navigation state
     ("blocks_by_state"), and the run's counters; its extra attribute `nav_state` is the
@@ -97,6 +101,8 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         exe = vm.micropython_exe()
     except RuntimeError as e:
         raise EmulatorError(f"cannot run the MicroPython VM: {e}") from None
+    kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
+    vm_env = vm.env(kind)
     cmd = [
         exe,
         "-X",
@@ -110,7 +116,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out = GuestOutput(progress)
     n = len(stim)
-    rc, wall = run_guest(cmd, out, timeout_s, "the MicroPython VM", n)
+    rc, wall = run_guest(cmd, out, timeout_s, "the MicroPython VM", n, env=vm_env)
     if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
         raise firmware_error(out, stim, "the MicroPython VM", _memory_hint(heap_kb))
     if rc != 0 or out.stats is None:
@@ -141,6 +147,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         "live_bytes_at_start": reported["live_bytes_at_start"],
         "tx_overflow": reported["tx_overflow"],
         "realtime_factor": stim.duration_s / wall if wall > 0 else None,
+        "kernels": kind,
     }
     if stats["tx_overflow"]:
         raise EmulatorError(

@@ -9,9 +9,15 @@ Scripts see `firmware/lib` and `firmware` on `sys.path` like the board, plus hel
 `_buf(hex)` makes an `array('f')` from float32 bytes, `_hex(buf)` returns a buffer's bytes
 as hex (exact), `_blocks(fn)` counts the GC blocks one call of `fn()` allocates, and
 `_locked(fn)` is True if `fn()` runs under `micropython.heap_lock()` without allocating.
+
+Kernels: the VM's search path is set through MICROPYPATH (`env(kernels)`): ".frozen" alone for
+the Python kernels, the directory of the x64 navk.mpy (tools.native, built on demand) before
+it for the native ones, so that `import navk` finds the native module or nothing (never a
+stray one in ~/.micropython/lib).
 """
 
 import json
+import os
 import pathlib
 import shutil
 import subprocess
@@ -72,15 +78,33 @@ def micropython_exe():
     return found
 
 
-def run(body, timeout=120):
-    """Run prelude + body in the VM; return stdout. A VM error fails with its traceback."""
+VM_PATH = ".frozen"  # the VM's own frozen modules; the script's directory comes first anyway
+
+
+def env(kernels=None):
+    """The VM's environment for `kernels` ("native", "python"; None: the default, native
+    unless $INS_KERNELS says python); EmulatorError if native cannot be built."""
+    from host_emulator import runtimes
+
+    kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
+    path = VM_PATH
+    if kind == "native":
+        path = f"{runtimes.native_module('x64').parent}:{VM_PATH}"
+    return {**os.environ, "MICROPYPATH": path}
+
+
+def run(body, timeout=120, kernels=None):
+    """Run prelude + body in the VM; return stdout. A VM error fails with its traceback.
+    kernels: as env() says (native by default: `import navk` finds the x64 module)."""
+    vm_env = env(kernels)
     with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
         f.write(_PRELUDE + "\n" + body)
         path = f.name
     try:
         proc = subprocess.run(
-            [micropython_exe(), path], capture_output=True, text=True, timeout=timeout
-        )
+            [micropython_exe(), path], capture_output=True, text=True, timeout=timeout,
+            env=vm_env,
+        )  # fmt: skip
     finally:
         pathlib.Path(path).unlink()
     if proc.returncode != 0:
@@ -90,9 +114,9 @@ def run(body, timeout=120):
     return proc.stdout
 
 
-def run_json(body, timeout=120):
+def run_json(body, timeout=120, kernels=None):
     """Run a script whose last printed line is JSON; return it parsed."""
-    out = run(body, timeout).strip().splitlines()
+    out = run(body, timeout, kernels).strip().splitlines()
     return json.loads(out[-1])
 
 

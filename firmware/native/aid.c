@@ -1,0 +1,206 @@
+/* Starting the filter's jobs: propagation (nav._schedule with ins.take_dvn, ins.slow_update
+ * and eskf.start_propagation) and the measurement rows of nav_aid.py (_start_gnss_update,
+ * _start_zupt, _start_nhc with eskf.add_scalar and start_update). Those are the reference. */
+#include <stdint.h>
+
+#include "fmath32.h"
+#include "layout.h"
+#include "navk.h"
+#include "rot32.h"
+
+#define FREE_AIR F32_BITS(0x364F1914) /* ins.FREE_AIR: 3.086e-6 (m/s^2)/m */
+
+/* eskf.add_scalar: queue z = h dx + noise (variance r), h with nnz <= 3 non-zeros. */
+static int32_t add_scalar(float *e, int32_t *ii, float z, float r, int32_t nnz, int32_t i0,
+    float h0, int32_t i1, float h1, int32_t i2, float h2) {
+    int32_t m = ii[I_NSCAL];
+    ii[I_NSCAL] = m + 1;
+    float *h = e + E_H + m * N;
+    for (int k = 0; k < N; k++) {
+        h[k] = 0.0f;
+    }
+    e[E_Z + m] = z;
+    e[E_R + m] = r;
+    int32_t *nz = ii + I_NZ + m * MAX_NZ;
+    nz[0] = i0;
+    h[i0] = h0;
+    if (nnz > 1) {
+        nz[1] = i1;
+        h[i1] = h1;
+    }
+    if (nnz > 2) {
+        nz[2] = i2;
+        h[i2] = h2;
+    }
+    ii[I_NNZ + m] = nnz;
+    return m;
+}
+
+/* eskf.add_scalar_terms: three more non-zeros for scalar m. */
+static void add_scalar_terms(float *e, int32_t *ii, int32_t m, int32_t i0, float h0, int32_t i1,
+    float h1, int32_t i2, float h2) {
+    float *h = e + E_H + m * N;
+    int32_t *nz = ii + I_NZ + m * MAX_NZ + ii[I_NNZ + m];
+    nz[0] = i0;
+    nz[1] = i1;
+    nz[2] = i2;
+    h[i0] = h0;
+    h[i1] = h1;
+    h[i2] = h2;
+    ii[I_NNZ + m] = ii[I_NNZ + m] + 3;
+}
+
+static void start_update(int32_t *ii) {
+    ii[I_JOB] = UPDATING;
+    ii[I_STEP] = 0;
+    ii[I_M] = 0;
+    ii[I_ACCEPTED] = 0;
+    ii[I_REJECTED] = 0;
+    ii[I_GATE_MASK] = 0;
+}
+
+/* ins.slow_update(t): Earth rate on the attitude over t, then a_n = g_n - 2 w x v. */
+static void slow_update(float *x, float t, int32_t earth) {
+    const float *p = x + X_P;
+    const float *v = x + X_V;
+    float g = x[X_G0] - FREE_AIR * (x[X_H0] + p[2]);
+    float *a = x + X_AN;
+    if (!earth) {
+        a[0] = 0.0f;
+        a[1] = 0.0f;
+        a[2] = -g;
+        return;
+    }
+    const float *w = x + X_WIE;
+    if (t > 0.0f) {
+        float r[4], q[4];
+        r[0] = 1.0f;
+        r[1] = 0.0f;
+        r[2] = -(w[1] * t) * 0.5f;
+        r[3] = -(w[2] * t) * 0.5f;
+        for (int i = 0; i < 4; i++) {
+            q[i] = x[X_Q + i];
+        }
+        rot_q_mul(x + X_Q, r, q);
+        rot_q_normalize(x + X_Q);
+        rot_q_to_dcm(x + X_C, x + X_Q);
+    }
+    float wy2 = w[1] + w[1];
+    float wz2 = w[2] + w[2];
+    a[0] = -(g * p[0] * x[X_INV_RN]) - (wy2 * v[2] - wz2 * v[1]);
+    a[1] = -(g * p[1] * x[X_INV_RM]) - wz2 * v[0];
+    a[2] = wy2 * v[0] - g;
+}
+
+void navk_prop_start(float *x, float *e, int32_t *ii, int32_t ticks) {
+    float t = (float)ticks * x[X_DT];
+    float dvn[3];
+    for (int i = 0; i < 3; i++) { /* ins.take_dvn */
+        dvn[i] = x[X_DVS + i];
+        x[X_DVS + i] = 0.0f;
+    }
+    slow_update(x, t, ii[I_EARTH]);
+    float *s = e + E_S; /* eskf.start_propagation */
+    s[S_T] = t;
+    s[S_DECAY_G] = 1.0f - t * s[S_INV_TAU_G];
+    s[S_DECAY_A] = 1.0f - t * s[S_INV_TAU_A];
+    for (int i = 0; i < 3; i++) {
+        e[E_FN + i] = dvn[i] / t;
+        e[E_W + i] = x[X_WIE + i];
+    }
+    for (int i = 0; i < 9; i++) {
+        e[E_C + i] = x[X_C + i];
+    }
+    ii[I_JOB] = PROPAGATING;
+    ii[I_STEP] = 0;
+}
+
+void navk_zupt_rows(float *e, int32_t *ii, const float *x, const float *aid) {
+    float r = aid[AID_ZUPT_SIGMA] * aid[AID_ZUPT_SIGMA];
+    for (int i = 0; i < 3; i++) {
+        add_scalar(e, ii, x[X_V + i], r, 1, IX_VEL + i, 1.0f, 0, 0.0f, 0, 0.0f);
+    }
+    start_update(ii);
+}
+
+void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid) {
+    const float *c = x + X_C;
+    float v0 = x[X_V], v1 = x[X_V + 1], v2 = x[X_V + 2];
+    float r = aid[AID_NHC_SIGMA] * aid[AID_NHC_SIGMA];
+    for (int k = 0; k < 3; k += 2) {
+        float c0 = c[k], c1 = c[3 + k], c2 = c[6 + k];
+        float z = c0 * v0 + c1 * v1 + c2 * v2;
+        int32_t m = add_scalar(e, ii, z, r, 3, IX_VEL, c0, IX_VEL + 1, c1, IX_VEL + 2, c2);
+        add_scalar_terms(e, ii, m, IX_ATT, v1 * c2 - v2 * c1, IX_ATT + 1, v2 * c0 - v0 * c2,
+            IX_ATT + 2, v0 * c1 - v1 * c0);
+    }
+    start_update(ii);
+}
+
+/* nav_aid._sigma_h and _sigma_v */
+static float sigma_h(const float *fx, const float *aid) {
+    float s = fx[FX_SIG_H];
+    if (!(s > 0.0f)) {
+        s = fx[FX_HDOP] * aid[AID_UERE];
+    }
+    if (s < aid[AID_FLOOR]) {
+        s = aid[AID_FLOOR];
+    }
+    return s;
+}
+
+static float sigma_v(const float *fx, const float *aid, float sh) {
+    float s = fx[FX_SIG_V];
+    if (!(s > 0.0f)) {
+        s = sh * aid[AID_VERT];
+    }
+    if (s < aid[AID_FLOOR]) {
+        s = aid[AID_FLOOR];
+    }
+    return s;
+}
+
+void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
+    const float *ring_v, const float *corr, const float *gp, const float *fx, float *used,
+    const float *w, const float *aid, int32_t b) {
+    const float *c = x + X_C;
+    const float *lv = aid + AID_LEVER;
+    float lx = c[0] * lv[0] + c[1] * lv[1] + c[2] * lv[2]; /* nav_aid._lever_n */
+    float ly = c[3] * lv[0] + c[4] * lv[1] + c[5] * lv[2];
+    float lz = c[6] * lv[0] + c[7] * lv[1] + c[8] * lv[2];
+    float sh = sigma_h(fx, aid);
+    float sv = sigma_v(fx, aid, sh);
+    float rh = sh * sh;
+    float rv = sv * sv;
+    for (int i = 0; i < 3; i++) {
+        used[US_P + i] = gp[i];
+    }
+    used[US_SPEED] = fx[FX_SPEED];
+    used[US_COURSE] = fx[FX_COURSE];
+    used[US_SIG_H] = sh;
+    used[US_SIG_V] = sv;
+    float z = (ring_p[b] + corr[0] + lx) - gp[0];
+    add_scalar(e, ii, z, rh, 3, 0, 1.0f, IX_ATT + 1, -lz, IX_ATT + 2, ly);
+    z = (ring_p[b + 1] + corr[1] + ly) - gp[1];
+    add_scalar(e, ii, z, rh, 3, 1, 1.0f, IX_ATT, lz, IX_ATT + 2, -lx);
+    z = (ring_p[b + 2] + corr[2] + lz) - gp[2];
+    add_scalar(e, ii, z, rv, 3, 2, 1.0f, IX_ATT, -ly, IX_ATT + 1, lx);
+    float course = fx[FX_COURSE];
+    float sp = fx[FX_SPEED];
+    if (course >= 0.0f) {
+        float ve = sp * f32_sin(course);
+        float vn = sp * f32_cos(course);
+        float wx = w[0] - x[X_BG];
+        float wy = w[1] - x[X_BG + 1];
+        float wz = w[2] - x[X_BG + 2];
+        float ax = wy * lv[2] - wz * lv[1];
+        float ay = wz * lv[0] - wx * lv[2];
+        float az = wx * lv[1] - wy * lv[0];
+        float rvel = aid[AID_VEL_SIGMA] * aid[AID_VEL_SIGMA];
+        z = (ring_v[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve;
+        add_scalar(e, ii, z, rvel, 1, IX_VEL, 1.0f, 0, 0.0f, 0, 0.0f);
+        z = (ring_v[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn;
+        add_scalar(e, ii, z, rvel, 1, IX_VEL + 1, 1.0f, 0, 0.0f, 0, 0.0f);
+    }
+    start_update(ii);
+}

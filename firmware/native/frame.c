@@ -1,0 +1,92 @@
+/* The 52-byte output frame (firmware/lib/frame.py `pack` is the reference, field by field). */
+#include <stdint.h>
+
+#include "layout.h"
+#include "navk.h"
+
+#define GYRO_FRAME_X100 13107 /* 131.07 per deg/s, x100 */
+#define ACCEL_FRAME 16383 /* per g */
+
+/* frame.round_div: num / den (den > 0) rounded half away from zero (Python floor division). */
+static int32_t round_div(int64_t num, int64_t den) {
+    if (num >= 0) {
+        return (int32_t)((2 * num + den) / (2 * den));
+    }
+    return (int32_t)-((-2 * num + den) / (2 * den));
+}
+
+static int32_t clamp16(int32_t x) {
+    return x > 32767 ? 32767 : (x < -32768 ? -32768 : x);
+}
+
+/* frame._round_clamp: the float x rounded half away from zero, clamped; NaN gives 0. The
+ * limits compare as floats, as MicroPython compares a float with an int. */
+static int32_t round_clamp(float x, int32_t lo, int32_t hi) {
+    if (x >= (float)hi) {
+        return hi;
+    }
+    if (x <= (float)lo) {
+        return lo;
+    }
+    if (x != x) {
+        return 0;
+    }
+    if (x >= 0.0f) {
+        return (int32_t)(x + 0.5f);
+    }
+    return -(int32_t)(0.5f - x);
+}
+
+static void put_u16(uint8_t *buf, int off, int32_t x) {
+    buf[off] = (uint8_t)(x & 0xFF);
+    buf[off + 1] = (uint8_t)((x >> 8) & 0xFF);
+}
+
+static void put_i32(uint8_t *buf, int off, int32_t x) {
+    buf[off] = (uint8_t)(x & 0xFF);
+    buf[off + 1] = (uint8_t)((x >> 8) & 0xFF);
+    buf[off + 2] = (uint8_t)((x >> 16) & 0xFF);
+    buf[off + 3] = (uint8_t)((x >> 24) & 0xFF);
+}
+
+/* frame.put_e7: int32 deg * 1e7 + frac_e7 through 16-bit halves (1e7 = 152 * 65536 + 38528). */
+static void put_e7(uint8_t *buf, int off, int32_t deg, int32_t frac_e7) {
+    int32_t t = deg * 38528 + frac_e7;
+    int32_t lo = t & 0xFFFF;
+    int32_t hi = deg * 152 + (t >> 16);
+    buf[off] = (uint8_t)(lo & 0xFF);
+    buf[off + 1] = (uint8_t)(lo >> 8);
+    buf[off + 2] = (uint8_t)(hi & 0xFF);
+    buf[off + 3] = (uint8_t)((hi >> 8) & 0xFF);
+}
+
+void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro,
+    const int16_t *accel, const int32_t *lat, const int32_t *lon, const float *ypr,
+    const float *v_n, const float *p_n, float ypr_cdeg_scale) {
+    for (int i = 0; i < 3; i++) {
+        put_u16(buf, 3 + 2 * i,
+            clamp16(round_div((int64_t)gyro[i] * GYRO_FRAME_X100, 10 * (int64_t)fields[F_GYRO_LSB_X10])));
+        put_u16(buf, 9 + 2 * i,
+            clamp16(round_div((int64_t)accel[i] * ACCEL_FRAME, fields[F_ACCEL_LSB])));
+        put_u16(buf, 29 + 2 * i, round_clamp(ypr[i] * ypr_cdeg_scale, -32768, 32767));
+        put_u16(buf, 35 + 2 * i, round_clamp(v_n[i] * 100.0f, -32768, 32767));
+    }
+    buf[15] = fields[F_PPS] ? 1 : 0;
+    buf[16] = fields[F_GGA] ? 1 : 0;
+    buf[17] = fields[F_VALID] ? 1 : 0;
+    put_e7(buf, 18, lat[0], lat[1]);
+    put_e7(buf, 22, lon[0], lon[1]);
+    put_u16(buf, 26, clamp16(fields[F_HEIGHT_DM]));
+    buf[28] = (uint8_t)(fields[F_STATE] & 0xFF);
+    put_i32(buf, 41, round_clamp(p_n[0] * 100.0f, -1073741823, 1073741823));
+    put_i32(buf, 45, round_clamp(p_n[1] * 100.0f, -1073741823, 1073741823));
+    put_u16(buf, 49, round_clamp(p_n[2] * 10.0f, -32768, 32767));
+    buf[0] = 0xEB;
+    buf[1] = 0x90;
+    buf[2] = (uint8_t)(fields[F_COUNTER] & 0xFF);
+    int32_t sum = 0;
+    for (int i = 2; i < 51; i++) {
+        sum += buf[i];
+    }
+    buf[51] = (uint8_t)(sum & 0xFF);
+}

@@ -1,0 +1,136 @@
+/* Buffer layouts shared by the kernels and the Python side. Each block repeats constants of
+ * one Python module (named there); tests/native checks that the two agree. */
+#ifndef NAVK_LAYOUT_H
+#define NAVK_LAYOUT_H
+
+/* ins.py: the state buffer Ins.x */
+#define X_P 0
+#define X_V 3
+#define X_Q 6
+#define X_C 10
+#define X_BG 19
+#define X_BA 22
+#define X_DVS 25
+#define X_AN 28
+#define X_WIE 31
+#define X_PK 34
+#define X_TH 37
+#define X_THP 40
+#define X_DVP 43
+#define X_DT 46
+#define X_HDT 47
+#define X_G0 48
+#define X_INV_RN 49
+#define X_INV_RM 50
+#define X_H0 51
+#define NX 52
+
+/* eskf.py: the float buffer Eskf.e and the int buffer Eskf.i */
+#define N 15
+#define MAX_SCALARS 8
+#define MAX_NZ 6
+#define IDLE 0
+#define PROPAGATING 1
+#define UPDATING 2
+#define S_T 0
+#define S_DECAY_G 1
+#define S_DECAY_A 2
+#define S_S 3
+#define S_Y 4
+#define S_GATE2 5
+#define S_INV_TAU_G 6
+#define S_INV_TAU_A 7
+#define E_P 0
+#define E_A 225
+#define E_U 450
+#define E_V 465
+#define E_K 480
+#define E_FN 495
+#define E_C 498
+#define E_W 507
+#define E_S 510
+#define E_H 518
+#define E_Z 638
+#define E_R 646
+#define E_DX 654
+#define E_Q 669
+#define E_LO 684
+#define E_HI 699
+#define NE 714
+#define I_JOB 0
+#define I_STEP 1
+#define I_M 2
+#define I_NSCAL 3
+#define I_READY 4
+#define I_ACCEPTED 5
+#define I_REJECTED 6
+#define I_GATE_MASK 7
+#define I_EARTH 8
+#define I_NNZ 9
+#define I_NZ 17
+#define NI 65
+
+/* nav.py: the calibration buffer Navigator._cal */
+#define CAL_G 0 /* gyro counts per rad/s */
+#define CAL_A 1 /* accel counts per m/s^2 */
+#define CAL_GB 2 /* gyro bias (3), rad/s */
+#define CAL_AB 5 /* accel bias (3), m/s^2 */
+#define CAL_GM 8 /* gyro matrix (9) */
+#define CAL_AM 17 /* accel matrix (9) */
+#define NCAL 26
+#define CAL_HAS_GM 1 /* flags */
+#define CAL_HAS_AM 2
+/* nav.py: the standstill detector self._st and its parameters self._stp */
+#define ST_FX 0
+#define ST_VAR 3
+#define ST_GYRO 4
+#define ST_SPEED 5
+#define STP_ALPHA 0
+#define STP_ACCEL 1
+#define STP_GYRO 2
+#define STP_GNSS_SPEED 3
+#define STP_MAX_SPEED 4
+#define NSTP 5
+#define STILL_FIRST 1 /* flags */
+#define STILL_GNSS_SPEED 2
+#define STILL_NAVIGATING 4
+/* eskf.py error-state indices */
+#define IX_POS 0
+#define IX_VEL 3
+#define IX_ATT 6
+#define IX_BG 9
+#define IX_BA 12
+/* frame.py: the int fields of App._frame_ints */
+#define F_COUNTER 0
+#define F_GYRO_LSB_X10 1
+#define F_ACCEL_LSB 2
+#define F_PPS 3
+#define F_GGA 4
+#define F_VALID 5
+#define F_HEIGHT_DM 6
+#define F_STATE 7
+#define NF 8
+
+/* nav.py: the aiding parameters Navigator._aid */
+#define AID_UERE 0 /* m per HDOP */
+#define AID_FLOOR 1 /* least 1-sigma position error, m */
+#define AID_VERT 2 /* vertical / horizontal sigma */
+#define AID_VEL_SIGMA 3 /* m/s */
+#define AID_ZUPT_SIGMA 4 /* m/s */
+#define AID_NHC_SIGMA 5 /* m/s */
+#define AID_LEVER 6 /* IMU -> antenna, body, m (3) */
+#define NAID 9
+/* nav.py: the pending fix self._fx and the used fix self._used */
+#define FX_H 0
+#define FX_HDOP 1
+#define FX_SPEED 2
+#define FX_COURSE 3
+#define FX_SIG_H 4
+#define FX_SIG_V 5
+#define US_P 0
+#define US_SPEED 3
+#define US_COURSE 4
+#define US_SIG_H 5
+#define US_SIG_V 6
+
+#endif

@@ -1,0 +1,46 @@
+/* navk kernels: float32 work of the firmware over caller buffers, in the operation order of
+ * the Python reference kernels (firmware/lib) and the NumPy model. Compiled with
+ * -ffp-contract=off and without fast-math: every + - * / is one rounded float32 operation. */
+#include <stdint.h>
+
+#include "navk.h"
+
+/* Bumped whenever a kernel's signature or a buffer layout changes: firmware/lib/kern.py
+ * refuses a module built from another version. */
+#define NAVK_ABI 1
+
+int32_t navk_abi(void) { return NAVK_ABI; }
+
+void navk_add(float *out, const float *a, const float *b, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        out[i] = a[i] + b[i];
+    }
+}
+
+/* ---- fmath32 (vectorised, for the exhaustive tests) ---- */
+/* firmware/lib/fmath.py's functions over buffers, bit for bit (tests/native/test_fmath32.py) */
+#include "fmath32.h"
+
+void navk_sin_n(float *out, const float *x, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        out[i] = f32_sin(x[i]);
+    }
+}
+
+void navk_cos_n(float *out, const float *x, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        out[i] = f32_cos(x[i]);
+    }
+}
+
+void navk_asin_n(float *out, const float *x, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        out[i] = f32_asin(x[i]);
+    }
+}
+
+void navk_atan2_n(float *out, const float *y, const float *x, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        out[i] = f32_atan2(y[i], x[i]);
+    }
+}

@@ -1,0 +1,35 @@
+/* navk: the firmware's native float32 kernels (DESIGN.md section 3 rule 7).
+ *
+ * This header is the one interface of the kernels. The bindings are generated from it: the
+ * MicroPython native module (armv7emsp for the board, x64 for the desktop VM) and the cffi
+ * extension for CPython. So it holds only plain prototypes, one per line, of these types:
+ *   float * / const float *       a float32 buffer (array('f') on the board, numpy.float32)
+ *   int32_t * / const int32_t *   an int32 buffer (array('i'))
+ *   int16_t * / const int16_t *   an int16 buffer (array('h'))
+ *   uint8_t * / const uint8_t *   a byte buffer (bytearray)
+ *   int32_t                       a small int
+ *   float                         a float scalar (boxes a float: tests only, never per tick)
+ * returning void, int32_t or float. Every exported name starts with navk_.
+ */
+int32_t navk_abi(void);
+void navk_add(float *out, const float *a, const float *b, int32_t n);
+void navk_ins_step(float *x, const float *w_b, const float *f_b, int32_t coning);
+void navk_eskf_work(float *e, int32_t *ii, int32_t n);
+int32_t navk_eskf_diagonal_ok(const float *e);
+int32_t navk_imu_cal(float *w, float *f, const int16_t *gyro, const int16_t *accel, const float *cal, int32_t flags);
+int32_t navk_still(float *st, const float *f, const float *w, const float *x, const float *prm, int32_t flags);
+void navk_ring_put(float *ring_p, float *ring_v, const float *x, const float *corr, int32_t b);
+int32_t navk_ins_finite(const float *x);
+void navk_inject(float *x, float *e, float *corr);
+void navk_euler(float *ypr, const float *c_bn);
+void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, const int32_t *lat, const int32_t *lon, const float *ypr, const float *v_n, const float *p_n, float ypr_cdeg_scale);
+void navk_prop_start(float *x, float *e, int32_t *ii, int32_t ticks);
+void navk_zupt_rows(float *e, int32_t *ii, const float *x, const float *aid);
+void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid);
+void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, const float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b);
+
+/* ---- fmath32 (vectorised, for the exhaustive tests) ---- */
+void navk_sin_n(float *out, const float *x, int32_t n);
+void navk_cos_n(float *out, const float *x, int32_t n);
+void navk_asin_n(float *out, const float *x, int32_t n);
+void navk_atan2_n(float *out, const float *y, const float *x, int32_t n);
