@@ -161,7 +161,7 @@ class App:
         imu.read()
         self._gnss_poll()
         nav = self.nav
-        nav.imu_raw(imu.gyro, imu.accel, imu.saturated)
+        nav.imu_counts(imu.gyro, imu.accel, imu.saturated)
         cfg = self.cfg
         if self.ticks % cfg.output_every_ticks == 0:
             self._send_frame(imu)

@@ -109,7 +109,6 @@ _diagonal_ok = kern.pick("eskf_diagonal_ok", None)
 
 class Eskf:
     def __init__(self, earth_terms=True):
-        self.earth_terms = earth_terms
         e = f32.zeros(NE)
         self.e = e
         self.i = ii = array("i", bytes(4 * NI))
@@ -159,14 +158,6 @@ class Eskf:
     @property
     def gate_mask(self):
         return self.i[I_GATE_MASK]
-
-    @property
-    def _step(self):
-        return self.i[I_STEP]
-
-    @property
-    def _m(self):
-        return self.i[I_M]
 
     # ---- configuration ---------------------------------------------------------------------
 
@@ -245,7 +236,7 @@ class Eskf:
         da0 = c0 * x9 + c1 * x10 + c2 * x11
         da1 = c3 * x9 + c4 * x10 + c5 * x11
         da2 = c6 * x9 + c7 * x10 + c8 * x11
-        if self.earth_terms:
+        if self.i[I_EARTH]:
             # w = (0, w1, w2): dv' -= 2 w x dv ; phi' -= w x phi
             w = self._w
             w1 = w[1]

@@ -70,10 +70,8 @@ class Ins:
         self.x = x
         x[X_DT] = f32.f32(dt_s)
         x[X_HDT] = x[X_DT] * 0.5
-        self.dt = x[X_DT]
         self.earth_terms = earth_terms
-        self.coning = coning
-        self._coning = 1 if coning else 0
+        self.coning = 1 if coning else 0  # an int: the kernel's argument
         self.p_n = f32.view(x, X_P, 3)
         self.v_n = f32.view(x, X_V, 3)
         self.q_bn = f32.view(x, X_Q, 4)
@@ -123,7 +121,7 @@ class Ins:
 
     def step(self, w_b, f_b):
         """Advance one tick with body rate w_b (rad/s) and specific force f_b (m/s^2)."""
-        step(self.x, w_b, f_b, self._coning)
+        step(self.x, w_b, f_b, self.coning)
 
     def take_dvn(self, out):
         """out = the specific-force increment summed since the last call; restarts the sum."""

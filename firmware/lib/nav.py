@@ -210,10 +210,6 @@ class Navigator(Alignment, Aiding):
             for i in range(9):
                 cal[_CAL_AM + i] = cfg.accel_matrix[i]
         self._cal_flags = flags
-        self._gb0 = f32.view(cal, _CAL_GB, 3)
-        self._ab0 = f32.view(cal, _CAL_AB, 3)
-        self._gm = f32.view(cal, _CAL_GM, 9) if flags & 1 else None
-        self._am = f32.view(cal, _CAL_AM, 9) if flags & 2 else None
         self._counts_g = array("h", bytes(6))
         self._counts_a = array("h", bytes(6))
         stp = f32.zeros(_NSTP)
@@ -267,13 +263,18 @@ class Navigator(Alignment, Aiding):
     # ---- inputs --------------------------------------------------------------------------
 
     def imu_raw(self, gyro_counts, accel_counts, saturated=False):
-        """One tick from BMI055 counts (3 ints each, sensor axes)."""
+        """One tick from BMI055 counts (3 ints each, sensor axes, any sequence)."""
         cg = self._counts_g
         ca = self._counts_a
         for i in range(3):
             cg[i] = gyro_counts[i]
             ca[i] = accel_counts[i]
-        self._tick(imu_cal(self._w, self._f, cg, ca, self._cal, self._cal_flags), saturated)
+        self.imu_counts(cg, ca, saturated)
+
+    def imu_counts(self, gyro_h, accel_h, saturated=False):
+        """imu_raw for counts already in array('h') buffers (the BMI055 driver's): no copy."""
+        finite = imu_cal(self._w, self._f, gyro_h, accel_h, self._cal, self._cal_flags)
+        self._tick(finite, saturated)
 
     def imu(self, w_in, f_in, saturated=False):
         """One tick: sensor-axes rate (rad/s) and specific force (m/s^2)."""
@@ -330,12 +331,7 @@ class Navigator(Alignment, Aiding):
     # ---- per tick ------------------------------------------------------------------------
 
     def _calibrate(self, w_in, f_in):
-        w = self._w
-        f = self._f
-        _apply_cal(w, w_in, self._gb0, self._gm)
-        _apply_cal(f, f_in, self._ab0, self._am)
-        s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
-        return s - s == 0.0
+        return _cal_si(self._w, self._f, w_in, f_in, self._cal, self._cal_flags)
 
     def _still_update(self):
         """Standstill detector at 50 Hz: low-passed specific-force changes and rotation rate
@@ -369,7 +365,7 @@ class Navigator(Alignment, Aiding):
     def _navigate(self):
         ins = self.ins
         x = ins.x
-        ins_step(x, self._w, self._f, ins._coning)
+        ins_step(x, self._w, self._f, ins.coning)
         # ring of state history, minus the corrections injected so far
         ring_put(self._ring_p, self._ring_v, x, self._corr, (self.tick % RING) * 3)
         self._since_prop += 1
@@ -592,8 +588,13 @@ def _imu_cal_py(w, f, gyro, accel, cal, flags):
     for i in range(3):
         wr[i] = f32.f32(gyro[i]) / g
         fr[i] = f32.f32(accel[i]) / a
-    _apply_cal(w, wr, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
-    _apply_cal(f, fr, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
+    return _cal_si(w, f, wr, fr, cal, flags)
+
+
+def _cal_si(w, f, w_in, f_in, cal, flags):
+    """w, f = M (x - b0) from SI rate and specific force; False if not finite."""
+    _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
+    _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
     s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
     return s - s == 0.0
 

@@ -5,6 +5,13 @@
 
 #include "navk.h"
 
+/* Every build keeps each float operation as written (DESIGN.md 3 rule 7): -ffast-math or
+ * -Ofast (also when slipped in through CFLAGS) would let the compiler reorder them, so they stop
+ * the build here. Fused multiply-adds are checked in the objects (tests/native). */
+#ifdef __FAST_MATH__
+#error "navk must not be compiled with -ffast-math or -Ofast"
+#endif
+
 /* Bumped whenever a kernel's signature or a buffer layout changes: firmware/lib/kern.py
  * refuses a module built from another version. */
 #define NAVK_ABI 1

@@ -16,6 +16,7 @@ meant to exercise really happened, so it cannot pass vacuously.
 import math
 from dataclasses import dataclass, field
 
+import eskf
 import ins as ins_mod
 import navcfg
 import numpy as np
@@ -255,8 +256,8 @@ def firmware_snapshot(nav):
         "resets": nav.resets,
         "reanchors": nav.reanchors,
         "kf_job": kf.job,
-        "kf_step": kf._step,
-        "kf_m": kf._m,
+        "kf_step": kf.i[eskf.I_STEP],
+        "kf_m": kf.i[eskf.I_M],
         "kf_ready": kf.ready,
         "kf_n_scalars": kf.n_scalars,
         "kf_accepted": kf.accepted,

@@ -449,3 +449,15 @@ def test_m4f_heap_and_cost_of_one_call():
 
 def test_bindings_module_name():
     assert bindings.MODULE == "navk" and native.MODULE == "navk"
+
+
+@pytest.mark.parametrize("flag", ["-ffast-math", "-Ofast"])
+def test_a_fast_math_build_of_the_kernels_stops(flag):
+    """navk.c refuses to compile when the compiler may reorder float operations."""
+    cc = shutil.which("gcc")
+    assert cc, "gcc not found: make toolchain installs it"
+    src = native.NATIVE_DIR / "navk.c"
+    args = [cc, "-fsyntax-only", f"-I{native.NATIVE_DIR}", *native.FLOAT_FLAGS, str(src)]
+    assert subprocess.run(args, capture_output=True).returncode == 0
+    proc = subprocess.run([*args, flag], capture_output=True, text=True)
+    assert proc.returncode != 0 and "must not be compiled with -ffast-math" in proc.stderr

@@ -90,14 +90,14 @@ def test_a_firmware_exception_names_the_tick(highway, tmp_path, monkeypatch):
     firmware_env.install()
     import nav
 
-    real = nav.Navigator.imu_raw
+    real = nav.Navigator.imu_counts  # the app's call
 
     def failing(self, g, a, s=False):
         if self.tick == 1234:
             raise ZeroDivisionError("float divide by zero")
         return real(self, g, a, s)
 
-    monkeypatch.setattr(nav.Navigator, "imu_raw", failing)
+    monkeypatch.setattr(nav.Navigator, "imu_counts", failing)
     with pytest.raises(FirmwareError, match=r"at tick 1234 \(t = 6\.170 s\)") as e:
         cpython.run(highway.stimulus.head(2000), tmp_path)
     assert "ZeroDivisionError: float divide by zero" in str(e.value)
@@ -179,7 +179,7 @@ def test_a_failed_run_leaves_no_report(tmp_path, capsys, monkeypatch):
     def broken(self, *a):
         raise ValueError("math domain error")
 
-    monkeypatch.setattr(nav.Navigator, "imu_raw", broken)
+    monkeypatch.setattr(nav.Navigator, "imu_counts", broken)
     assert cli.main(["run", "--scenario", "static", "--duration", "2", "--out", str(out),
                      "--quiet"]) == 1  # fmt: skip
     err = capsys.readouterr().err

@@ -44,6 +44,8 @@ def test_the_counter_counts_every_instruction():
         "    c0 = m4f.icount()\n"
         "    spin(n)\n"
         "    return (m4f.icount() - c0) & 0x3FFFFFFF\n"
+        # a first call fills MicroPython's attribute look-up caches: it costs more
+        "count(1)\n"
         "print(count(100000), count(300000), count(100000))\n"
     )
     a, b, a2 = map(int, out.split()[-3:])
@@ -130,7 +132,16 @@ def test_runs_are_deterministic(tmp_path):
     a = m4f.run(stim, tmp_path / "a")
     b = m4f.run(stim, tmp_path / "b")
     assert a.out == b.out
-    assert np.array_equal(a.per_tick, b.per_tick)
+    # Everything but the instruction counts repeats exactly. A count is read from the 25 MHz
+    # timer, one step per 40 instructions, whose phase against the instructions can differ
+    # between two QEMU runs (seen in full test runs): each reading may then move by one step,
+    # so a tick by at most 40 and the running sum too (a phase shift, not a cost change).
+    instr = ("instr", "emu_instr")
+    others = [n for n in a.per_tick.dtype.names if n not in instr]
+    assert np.array_equal(a.per_tick[others], b.per_tick[others])
+    for name in instr:
+        d = a.per_tick[name].astype(np.int64) - b.per_tick[name]
+        assert np.abs(d).max() <= 40 and np.abs(np.cumsum(d)).max() <= 40
 
 
 def test_the_runs_metrics_carry_the_board_cost(quick):
