@@ -296,7 +296,10 @@ def test_no_fused_multiply_add_and_sqrt_is_one_instruction(built):
     assert objs
     for o in objs:
         assert toolchain.fused_multiply_adds(o) == [], o
-    dis = native.run_checked(["arm-none-eabi-objdump", "-d", str(objs[-1])])  # sample navk.o
+    # the sample's navk.o by name: its path under build/ mirrors the checkout's absolute path,
+    # so its place in a sorted list depends on where the clone lives
+    (sample_o,) = [o for o in objs if o.name == "navk.o"]
+    dis = native.run_checked(["arm-none-eabi-objdump", "-d", str(sample_o)])
     madd = dis[dis.index("<navk_madd>:") :].split("\n\n")[0]
     # vmla.f32 is the FPv4's chained multiply-accumulate: the product is rounded before the
     # sum (two roundings, as vmul + vadd); only vfma & co. fuse (the sample's bits prove it)
