@@ -8,8 +8,10 @@ frame (every `output_every_ticks`) -> watchdog -> timing statistics -> garbage c
 the heap runs low. Automatic collection is off: a collection only ever runs here, after the
 frame has gone out, so it never delays a sample or a frame.
 
-Nothing here allocates per tick but the navigator's float results (and, in the frame, the
-float-to-int conversions); buffers are made once in `__init__`.
+Buffers are made once in `__init__`. With the native kernels (lib/kern.py) a navigating tick
+allocates nothing, fix delivery and both frames included (the float work is in the kernels,
+longitudes travel as (degrees, fraction) small ints); re-anchoring and resets still compute in
+Python. With the Python kernels every float result is a heap object.
 
 Errors a user meets never end the loop: a missing or wrong configuration falls back to
 defaults and says so; a missing IMU is reported on the console every second and retried
@@ -23,6 +25,7 @@ from array import array
 import config
 import frame
 import kern
+import nav as nav_mod
 import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
@@ -32,14 +35,12 @@ from nav import NAVIGATING, Navigator
 import f32
 
 _CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
-_RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 _US_PER_TICK = const(5000)
 _E7 = const(10000000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
-# tick): with the native kernels a navigating tick allocates tens of bytes, not kilobytes, so
-# the heap is checked once a second then; otherwise (aligning, Python kernels) every tick.
-_GC_CHECK_TICKS = const(200)
+# tick): with the native kernels it runs while navigating only after an event that allocates
+# (see tick); otherwise (aligning, Python kernels) every tick.
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 
 
@@ -70,18 +71,11 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
+        self._events = 0  # the navigator's re-anchorings + resets when the heap was checked
         self.t0_us = 0
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame()
         self.raw = records.RawRecord()
-        nav = self.nav
-        self._views = (
-            f32.byte_view(nav.kf.P),
-            f32.byte_view(nav.ins.bg),
-            f32.byte_view(nav.ins.ba),
-            f32.byte_view(nav.ins.p_n),
-            f32.byte_view(nav.frame.coef),
-        )
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self._led = False
         self.imu = None
@@ -186,10 +180,14 @@ class App:
             self.t_worst_us = dt
         self.t_sum_us += dt
         self._period_ticks += 1
-        if (
-            kern.NATIVE and self.nav.state == NAVIGATING and self.ticks % _GC_CHECK_TICKS
-        ):  # fmt: skip
-            return
+        nav = self.nav
+        if kern.NATIVE and nav.state == NAVIGATING:
+            # a navigating tick allocates nothing (tests/runtimes: the allocation proof), so
+            # the heap only shrinks at a re-anchoring or a reset (Python, rare): check then
+            events = nav.reanchors + nav.resets
+            if events == self._events:
+                return
+            self._events = events
         if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
@@ -217,10 +215,17 @@ class App:
         an empty course."""
         g = self.gnss
         nav = self.nav
+        fi = nav.fix_in
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         self.gnss_valid = ok
-        if not ok:
-            nav.gnss(0, 0, 0.0, 0, f32.f32(99), -1.0, -1.0)  # a no-fix epoch (counts as lost)
+        if not ok:  # a no-fix epoch (counts as lost)
+            for i in range(nav_mod.NFI):
+                fi[i] = 0
+            fi[nav_mod.FI_HDOP_X100] = 9900
+            fi[nav_mod.FI_SPEED_MM_S] = -1
+            fi[nav_mod.FI_COURSE_CDEG] = -1
+            fi[nav_mod.FI_TICK] = -1
+            nav.gnss_fix()
             return
         lat = g.epoch_lat_e7
         deg = lat // _E7 if lat >= 0 else -((-lat) // _E7)
@@ -229,32 +234,22 @@ class App:
         self.lon[0] = g.epoch_lon_deg
         self.lon[1] = g.epoch_lon_frac_e7
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
-        alt_mm = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal height
         self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
-        hdop = self.cfg.gnss_hdop_max  # unknown HDOP: the worst still accepted
-        if g.epoch_hdop_x100 >= 0:
-            hdop = f32.ratio(g.epoch_hdop_x100, 100)
-        speed = -1.0  # unknown
-        course = -1.0
-        if g.epoch_speed_mm_s >= 0:
-            speed = f32.ratio(g.epoch_speed_mm_s, 1000)
-            if g.epoch_course_cdeg >= 0:
-                course = f32.f32(g.epoch_course_cdeg) * _RAD_PER_CDEG
+        fi[nav_mod.FI_LAT_E7] = lat
+        fi[nav_mod.FI_LON_DEG] = g.epoch_lon_deg
+        fi[nav_mod.FI_LON_FRAC] = g.epoch_lon_frac_e7
+        fi[nav_mod.FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
+        fi[nav_mod.FI_QUALITY] = g.epoch_quality
+        fi[nav_mod.FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted
+        speed = g.epoch_speed_mm_s  # < 0: unknown
+        fi[nav_mod.FI_SPEED_MM_S] = speed
+        fi[nav_mod.FI_COURSE_CDEG] = g.epoch_course_cdeg if speed >= 0 else -1
         fix_tick = -1
         age_us = time.ticks_diff(time.ticks_us(), g.epoch_pps_us)
         if g.epoch_pps_us and 0 <= age_us < 1000000:
             fix_tick = nav.tick - age_us // _US_PER_TICK
-        # a longitude past +-107.37 deg is a long int on the board: one allocation per fix
-        nav.gnss(
-            lat,
-            g.epoch_lon_e7(),
-            f32.ratio(alt_mm, 1000),
-            g.epoch_quality,
-            hdop,
-            speed,
-            course,
-            fix_tick,
-        )
+        fi[nav_mod.FI_TICK] = fix_tick
+        nav.gnss_fix()
 
     def _send_frame(self, imu):
         nav = self.nav
@@ -291,28 +286,23 @@ class App:
             (1 if self.gnss_valid else 0) | (2 if nav.still else 0) | (4 if imu.saturated else 0)
         )
         mean = self.t_sum_us // self._period_ticks if self._period_ticks else 0
-        p, bg, ba, pos, coef = self._views
         fr = nav.frame
-        self.ext.pack(
-            self.counter,
-            health,
-            nav.state,
-            self.config_status,
-            flags,
-            self.t_worst_us,
-            mean,
-            self.overruns & 0xFFFF,
-            self.gc_runs & 0xFFFF,
-            p,
-            bg,
-            ba,
-            pos,
-            fr.lat0_e7,
-            fr.lon0_deg,
-            fr.lon0_frac,
-            nav.tick & 0x3FFFFFFF,
-            coef,
-        )
+        ext = self.ext
+        fi = ext.fields
+        fi[records.EF_COUNTER] = self.counter
+        fi[records.EF_HEALTH] = health
+        fi[records.EF_STATE] = nav.state
+        fi[records.EF_CONFIG] = self.config_status
+        fi[records.EF_FLAGS] = flags
+        fi[records.EF_WORST_US] = self.t_worst_us
+        fi[records.EF_MEAN_US] = mean
+        fi[records.EF_OVERRUNS] = self.overruns & 0xFFFF
+        fi[records.EF_GC_RUNS] = self.gc_runs & 0xFFFF
+        fi[records.EF_LAT0_E7] = fr.lat0_e7
+        fi[records.EF_LON0_DEG] = fr.lon0_deg
+        fi[records.EF_LON0_FRAC] = fr.lon0_frac
+        fi[records.EF_TICK] = nav.tick & 0x3FFFFFFF
+        ext.pack(nav.kf.P, nav.ins.x, fr.coef)
         self.board.out_uart.write(self.ext.data)
         self.t_sum_us = 0
         self._period_ticks = 0

@@ -80,9 +80,10 @@ def field(f, fmt, off):
 
 def test_the_app_constants_are_the_correctly_rounded_values():
     import app
+    import nav
 
     assert app._CDEG_PER_RAD == np.float32(18000 / np.pi)
-    assert app._RAD_PER_CDEG == np.float32(np.pi / 18000)
+    assert nav.RAD_PER_CDEG == np.float32(np.pi / 18000)
 
 
 def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
@@ -226,20 +227,23 @@ def test_the_navigator_is_told_whether_the_speed_is_known(tmp_path, fields, need
     cfg = config.BoardConfig()
     cfg.gnss_need_speed = need_speed
     bench = Bench(tmp_path, cfg_bytes=config.encode(cfg))
+    import nav
+
     calls = []
-    real = bench.app.nav.gnss
+    n = bench.app.nav
+    real = n.gnss_fix
 
-    def spy(*args, **kw):
-        calls.append(args)
-        real(*args, **kw)
+    def spy():
+        real()
+        calls.append((n._fx[nav._FX_SPEED], n._fx[nav._FX_COURSE]))
 
-    bench.app.nav.gnss = spy
+    n.gnss_fix = spy
     data = b"".join(_epoch(f"02000{s}", fields) for s in range(3))
     bench.run(len(data) // 8 + 2, nmea=data)
     assert len(calls) == 3
     speed_mm_s, course_e5 = want
-    for args in calls:
-        speed, course = float(args[5]), float(args[6])
+    for speed, course in calls:
+        speed, course = float(speed), float(course)
         assert speed == -1.0 if speed_mm_s is None else round(speed * 1000) == speed_mm_s
         assert course == -1.0 if course_e5 is None else round(course * 100000) == course_e5
     # the fixes were usable; only a known speed is a measurement for the standstill detector

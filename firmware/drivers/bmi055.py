@@ -43,6 +43,7 @@ the tests prove it on the MicroPython VM under `micropython.heap_lock()`.
 
 from array import array
 
+import kern
 from micropython import const
 
 try:
@@ -306,8 +307,7 @@ class BMI055:
         """
         self._burst(self._cs_g, self.raw_gyro)
         self._burst(self._cs_a, self.raw_accel)
-        m = _decode_gyro(self.raw_gyro, self.gyro)
-        m |= _decode_accel(self.raw_accel, self.accel) << 3
+        m = _decode(self.gyro, self.accel, self.raw_gyro, self.raw_accel)
         self.sat_mask = m & 0x3F
         self.accel_new = m >> 6
         self.saturated = (m & 0x3F) != 0
@@ -357,3 +357,13 @@ def _decode_accel(b, out):
             m |= 1 << i
         m |= (lsb & 1) << (i + 3)
     return m
+
+
+def _decode_py(gyro, accel, raw_gyro, raw_accel):
+    """Both dies' data registers into gyro and accel (int16 counts); returns the over-range
+    mask (bits 0-2 gyro, 3-5 accel) and the accel new_data bits (6-8). The reference of the
+    native kernel `bmi055_decode`."""
+    return _decode_gyro(raw_gyro, gyro) | (_decode_accel(raw_accel, accel) << 3)
+
+
+_decode = kern.pick("bmi055_decode", _decode_py)

@@ -40,16 +40,9 @@ if sys.implementation.name == "micropython":
         """The float32 whose IEEE-754 bit pattern is the integer u."""
         return struct.unpack("<f", struct.pack("<I", u))[0]
 
-    def byte_view(buf):
-        """The bytes of a float32 buffer (little-endian), indexable as ints without boxing a
-        float; make it once at start-up (it shares the buffer's memory)."""
-        import uctypes
-
-        return uctypes.bytearray_at(uctypes.addressof(buf), 4 * len(buf))
-
 else:
     try:
-        from f32_host import byte_view, f32, from_bits, sqrt, view, zeros  # noqa: F401
+        from f32_host import f32, from_bits, sqrt, view, zeros  # noqa: F401
     except ImportError:
         raise ImportError(
             "f32: on CPython the firmware needs the NumPy float32 backend; "

@@ -17,10 +17,16 @@ pymap3d): 0.1 mm at 2 km, 2 cm at 10 km, 7 cm at 20 km at 34 deg latitude. float
 adds about 2e-7 d. The navigator re-anchors the origin long before either matters; origins
 beyond +-89 deg latitude are refused (the series degrades as 1/cos^2).
 
-Allocation: the integer differences are exact small ints; on the board a longitude beyond
-+-107.37 deg is a long int (MicroPython's small ints are 31-bit), so the subtraction then
-allocates a few words per fix. Conversions are per GNSS fix, not per tick.
+Allocation: a longitude beyond +-107.37 deg in 1e-7 deg is a long int on the board
+(MicroPython's small ints are 31-bit), so longitudes travel as (whole degrees, fraction in
+1e-7 deg with the degrees' sign), as the NMEA parser delivers them (`split_e7`/`join_e7`
+convert on a host); every difference formed here is a small int. `to_enu` is one native
+kernel call (`geo_enu`) and allocates nothing; `set_origin` and `to_e7` (alignment and
+re-anchoring, not per fix) compute in Python.
 """
+
+import kern
+from micropython import const
 
 import f32
 from fmath import cos, sin, sqrt
@@ -30,8 +36,7 @@ A_M = f32.f32(6378137)
 E2 = f32.from_bits(0x3BDB5C88)  # 0.0066943799901413165
 RAD_PER_E7 = f32.from_bits(0x30EFE050)  # pi / 1.8e9 = 1.7453292519943295e-09 rad per 1e-7 deg
 MAX_LAT_E7 = 890000000
-HALF_TURN_E7 = 1800000000
-FULL_TURN_E7 = 3600000000
+_E7 = const(10000000)
 
 # Float32 coefficient buffer layout (`LocalFrame.coef`, set by set_origin); H0, INV_RN,
 # INV_RM, SIN_LAT and COS_LAT also give the navigator its Earth model.
@@ -50,6 +55,64 @@ COS_LAT = 11  # cos(phi0)
 NCOEF = 12
 
 
+def split_e7(x_e7):
+    """(whole degrees, 1e-7 deg fraction with the same sign) of an angle in 1e-7 deg."""
+    d = x_e7 // _E7 if x_e7 >= 0 else -((-x_e7) // _E7)
+    return d, x_e7 - d * _E7
+
+
+def join_e7(deg, frac_e7):
+    """The angle in 1e-7 deg (a long int on the board beyond +-107.37 deg: hosts only)."""
+    return deg * _E7 + frac_e7
+
+
+def _normalize(out, i, deg, frac):
+    """out[i], out[i + 1] = the (degrees, fraction) form of deg + frac * 1e-7 (small ints):
+    fraction in (-1e7, 1e7) with the degrees' sign, longitude in [-180, 180) deg."""
+    while frac >= _E7:
+        deg += 1
+        frac -= _E7
+    while frac <= -_E7:
+        deg -= 1
+        frac += _E7
+    if deg > 0 and frac < 0:
+        deg -= 1
+        frac += _E7
+    elif deg < 0 and frac > 0:
+        deg += 1
+        frac -= _E7
+    if deg >= 180:
+        deg -= 360
+        if frac > 0:
+            deg += 1
+            frac -= _E7
+    elif deg < -180 or (deg == -180 and frac < 0):
+        deg += 360
+        if frac < 0:
+            deg -= 1
+            frac += _E7
+    out[i] = deg
+    out[i + 1] = frac
+
+
+def _enu_py(enu, coef, h, dlat_e7, dlon_e7):
+    """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin of the
+    coefficients coef, at the height h[0] (m) above the ellipsoid; the reference of the native
+    kernel `geo_enu`."""
+    c = coef
+    dh = h[0] - c[H0]
+    n1 = f32.f32(dlat_e7) * c[KN]
+    e1 = f32.f32(dlon_e7) * c[KE]
+    ee = e1 * e1
+    nn = n1 * n1
+    enu[0] = e1 + e1 * (dh * c[INV_RN] - n1 * c[GE_N])
+    enu[1] = n1 + (n1 * (n1 * c[GN_N] + dh * c[INV_RM]) + ee * c[GN_E])
+    enu[2] = dh - (nn * c[GU_N] + ee * c[GU_E])
+
+
+_enu = kern.pick("geo_enu", _enu_py)
+
+
 def _round_half_away(x):
     """Nearest int of a float32, halves away from zero."""
     if x >= 0.0:
@@ -62,14 +125,14 @@ class LocalFrame:
 
     def __init__(self):
         self.lat0_e7 = 0
-        self.lon0_e7 = 0
         self.lon0_deg = 0
         self.lon0_frac = 0
         self.valid = False
         self.coef = f32.zeros(NCOEF)
 
-    def set_origin(self, lat0_e7, lon0_e7, h0_m):
-        """(Re-)anchor the frame; False (and the frame left unchanged) beyond +-89 deg."""
+    def set_origin(self, lat0_e7, lon0_deg, lon0_frac, h0_m):
+        """(Re-)anchor the frame at lat0_e7, the longitude lon0_deg + lon0_frac * 1e-7 deg and
+        the height h0_m (a float); False (and the frame left unchanged) beyond +-89 deg."""
         if lat0_e7 > MAX_LAT_E7 or lat0_e7 < -MAX_LAT_E7:
             return False
         c = self.coef
@@ -97,40 +160,32 @@ class LocalFrame:
         c[SIN_LAT] = s
         c[COS_LAT] = co
         self.lat0_e7 = lat0_e7
-        self.lon0_e7 = lon0_e7
-        # the longitude as (degrees, 1e-7 deg fraction): small ints for allocation-free packing
-        d = lon0_e7 // 10000000 if lon0_e7 >= 0 else -((-lon0_e7) // 10000000)
-        self.lon0_deg = d
-        self.lon0_frac = lon0_e7 - d * 10000000
+        self.lon0_deg = lon0_deg
+        self.lon0_frac = lon0_frac
         self.valid = True
         return True
 
-    def offset_to_enu(self, enu, dlat_e7, dlon_e7, h_m):
+    def offset_to_enu(self, enu, dlat_e7, dlon_e7, h):
         """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin, at
-        height h_m above the ellipsoid."""
-        c = self.coef
-        dh = h_m - c[H0]
-        n1 = f32.f32(dlat_e7) * c[KN]
-        e1 = f32.f32(dlon_e7) * c[KE]
-        ee = e1 * e1
-        nn = n1 * n1
-        enu[0] = e1 + e1 * (dh * c[INV_RN] - n1 * c[GE_N])
-        enu[1] = n1 + (n1 * (n1 * c[GN_N] + dh * c[INV_RM]) + ee * c[GN_E])
-        enu[2] = dh - (nn * c[GU_N] + ee * c[GU_E])
+        the height h[0] (a float32 buffer: m above the ellipsoid)."""
+        _enu(enu, self.coef, h, dlat_e7, dlon_e7)
 
-    def to_enu(self, enu, lat_e7, lon_e7, h_m):
-        """enu[0:3] (m) of an absolute integer position; longitude wraps across +-180 deg."""
-        dlon = lon_e7 - self.lon0_e7
-        if dlon > HALF_TURN_E7:
-            dlon -= FULL_TURN_E7
-        elif dlon < -HALF_TURN_E7:
-            dlon += FULL_TURN_E7
-        self.offset_to_enu(enu, lat_e7 - self.lat0_e7, dlon, h_m)
+    def to_enu(self, enu, lat_e7, lon_deg, lon_frac, h):
+        """enu[0:3] (m) of an absolute integer position at the height h[0] (a float32 buffer);
+        longitude wraps across +-180 deg. Allocates nothing."""
+        dd = lon_deg - self.lon0_deg
+        if dd > 180:
+            dd -= 360
+        elif dd < -180:
+            dd += 360
+        dlon = dd * _E7 + (lon_frac - self.lon0_frac)  # a small int near the origin
+        _enu(enu, self.coef, h, lat_e7 - self.lat0_e7, dlon)
 
-    def to_e7(self, out_e7, enu):
-        """Inverse of to_enu: out_e7[0], out_e7[1] = lat, lon (ints, 1e-7 deg, longitude in
-        [-180, 180) deg); returns the height (m). Three fixed-point passes of the series
-        converge to float32 resolution within 20 km (each pass gains a factor ~d/R)."""
+    def to_e7(self, out, enu):
+        """Inverse of to_enu: out[0] = lat (1e-7 deg), out[1], out[2] = the longitude as
+        (degrees, 1e-7 deg fraction) in [-180, 180) deg; returns the height (m). Three
+        fixed-point passes of the series converge to float32 resolution within 20 km (each
+        pass gains a factor ~d/R)."""
         c = self.coef
         e = enu[0]
         n = enu[1]
@@ -143,11 +198,6 @@ class LocalFrame:
             dh = u + (n1 * n1 * c[GU_N] + ee * c[GU_E])
             e1 = e / (1.0 + (dh * c[INV_RN] - n1 * c[GE_N]))
             n1 = (n - ee * c[GN_E]) / (1.0 + (n1 * c[GN_N] + dh * c[INV_RM]))
-        out_e7[0] = self.lat0_e7 + _round_half_away(n1 / c[KN])
-        lon = self.lon0_e7 + _round_half_away(e1 / c[KE])
-        if lon >= HALF_TURN_E7:
-            lon -= FULL_TURN_E7
-        elif lon < -HALF_TURN_E7:
-            lon += FULL_TURN_E7
-        out_e7[1] = lon
+        out[0] = self.lat0_e7 + _round_half_away(n1 / c[KN])
+        _normalize(out, 1, self.lon0_deg, self.lon0_frac + _round_half_away(e1 / c[KE]))
         return c[H0] + dh

@@ -106,7 +106,25 @@ _AID_VEL_SIGMA = const(3)
 _AID_ZUPT_SIGMA = const(4)
 _AID_NHC_SIGMA = const(5)
 _AID_LEVER = const(6)
-_NAID = const(9)
+_AID_HDOP_MAX = const(9)  # worst HDOP accepted (and assumed when a fix gives none)
+_AID_REANCHOR = const(10)  # re-anchor the origin beyond this east or north distance, m
+_NAID = const(11)
+# self.fix_in: a fix as the receiver gives it, in ints (the app fills it; `gnss_fix`)
+FI_LAT_E7 = const(0)
+FI_LON_DEG = const(1)  # longitude: whole degrees and 1e-7 deg fraction with their sign
+FI_LON_FRAC = const(2)
+FI_ALT_MM = const(3)  # height above the ellipsoid, mm
+FI_QUALITY = const(4)  # GGA fix quality, 0 none
+FI_HDOP_X100 = const(5)  # < 0 if unknown
+FI_SPEED_MM_S = const(6)  # < 0 if unknown
+FI_COURSE_CDEG = const(7)  # < 0 if unknown
+FI_TICK = const(8)  # measurement tick (< 0: arrival less the configured latency)
+NFI = const(9)
+# fix_check's result bits
+_FC_USABLE = const(1)  # HDOP acceptable
+_FC_SPEED = const(2)  # ... and the fix has a speed (now in self._st)
+_FC_REANCHOR = const(4)  # the position is beyond reanchor_m from the origin
+RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 
 
 def _ticks(seconds, dt):
@@ -128,7 +146,9 @@ class Navigator(Alignment, Aiding):
         self._f = f32.zeros(3)  # calibrated specific force, m/s^2
         self._tmp3 = f32.zeros(3)
         self._tmp4 = f32.zeros(4)
-        self._e7 = array("i", bytes(8))
+        self._e7 = array("i", bytes(12))  # lat, lon degrees, lon fraction
+        self._h = f32.zeros(1)  # a height (m) for geo.to_enu
+        self.fix_in = array("i", bytes(4 * NFI))
         self._ring_p = f32.zeros(3 * RING)
         self._ring_v = f32.zeros(3 * RING)
         self._corr = f32.zeros(6)  # cumulative injected corrections of p and v
@@ -229,6 +249,8 @@ class Navigator(Alignment, Aiding):
         aid[_AID_NHC_SIGMA] = cfg.nhc_sigma
         for i in range(3):
             aid[_AID_LEVER + i] = cfg.lever_b_m[i]
+        aid[_AID_HDOP_MAX] = cfg.gnss_hdop_max
+        aid[_AID_REANCHOR] = cfg.reanchor_m
 
     def _reset_counters(self):
         self.leveled = False
@@ -240,7 +262,9 @@ class Navigator(Alignment, Aiding):
         self._fix_queued = False  # a usable fix waits for the filter
         self._used_tick = 0  # measurement tick of the fix in self._used
         self._fix_lat = 0
-        self._fix_lon = 0
+        self._fix_lon_deg = 0
+        self._fix_lon_frac = 0
+        self._fix_flags = 0  # fix_check's result for the fix being screened
         self._fix_quality = 0
         self._fix_tick = 0
         self._last_fix_tick = -1000000
@@ -296,29 +320,14 @@ class Navigator(Alignment, Aiding):
             self._align()
         self._update_health()
 
-    def gnss(
-        self,
-        lat_e7,
-        lon_e7,
-        h_m,
-        quality,
-        hdop,
-        speed_m_s,
-        course_rad,
-        fix_tick=-1,
-        sigma_h_m=0.0,
-        sigma_v_m=0.0,
-    ):
-        """A completed fix of the antenna: integer lat/lon (1e-7 deg), height (m), fix quality
-        (0 none), HDOP, speed (m/s, < 0 if unknown) and course over ground (rad clockwise from
-        north, < 0 if unknown), the tick of its measurement time (the PPS tick; < 0: arrival -
-        latency), and optional 1-sigma errors (0: from HDOP). Processed at the next tick."""
-        self._fix_lat = lat_e7
-        self._fix_lon = lon_e7
-        self._fix_quality = quality
-        if fix_tick < 0:
-            fix_tick = self.tick - self._ticks_latency
-        self._fix_tick = fix_tick
+    def gnss(self, lat_e7, lon_deg, lon_frac, h_m, quality, hdop, speed_m_s, course_rad,
+             fix_tick=-1, sigma_h_m=0.0, sigma_v_m=0.0):  # fmt: skip
+        """A completed fix of the antenna in floats (hosts, tests): integer lat (1e-7 deg) and
+        lon (whole degrees and 1e-7 deg fraction of the same sign: geo.split_e7), height (m),
+        fix quality (0 none), HDOP, speed (m/s, < 0 if unknown) and course over ground (rad
+        clockwise from north, < 0 if unknown), the tick of its measurement time (the PPS tick;
+        < 0: arrival - latency), and optional 1-sigma errors (0: from HDOP). Processed at the
+        next tick. The board's app uses `gnss_fix` (ints, no allocation)."""
         fx = self._fx
         fx[_FX_H] = h_m
         fx[_FX_HDOP] = hdop
@@ -326,6 +335,24 @@ class Navigator(Alignment, Aiding):
         fx[_FX_COURSE] = course_rad
         fx[_FX_SIG_H] = sigma_h_m
         fx[_FX_SIG_V] = sigma_v_m
+        self._take_fix(lat_e7, lon_deg, lon_frac, quality, fix_tick)
+
+    def gnss_fix(self):
+        """The fix in self.fix_in (FI_*: the receiver's integers) as `gnss` takes it; the
+        conversion to floats is one kernel (`fix_in`), so nothing is allocated."""
+        fi = self.fix_in
+        fix_in(self._fx, fi, self._aid)
+        self._take_fix(fi[FI_LAT_E7], fi[FI_LON_DEG], fi[FI_LON_FRAC], fi[FI_QUALITY],
+                       fi[FI_TICK])  # fmt: skip
+
+    def _take_fix(self, lat_e7, lon_deg, lon_frac, quality, fix_tick):
+        self._fix_lat = lat_e7
+        self._fix_lon_deg = lon_deg
+        self._fix_lon_frac = lon_frac
+        self._fix_quality = quality
+        if fix_tick < 0:
+            fix_tick = self.tick - self._ticks_latency
+        self._fix_tick = fix_tick
         self._fix_pending = True
 
     # ---- per tick ------------------------------------------------------------------------
@@ -351,16 +378,16 @@ class Navigator(Alignment, Aiding):
 
     def _fix_usable(self):
         """Quality and HDOP acceptable; a usable fix's speed, if it has one, also feeds
-        standstill detection (an unknown speed, < 0 or NaN, is no speed measurement)."""
-        cfg = self.cfg
-        fx = self._fx
-        if self._fix_quality >= cfg.gnss_min_quality and fx[_FX_HDOP] <= cfg.gnss_hdop_max:
-            sp = fx[_FX_SPEED]
-            if sp >= 0.0:
-                self._st[_ST_SPEED] = sp
-                self._speed_tick = self.tick
-            return True
-        return False
+        standstill detection (an unknown speed, < 0 or NaN, is no speed measurement). Leaves
+        fix_check's bits in self._fix_flags (re-anchoring: _nav_fix)."""
+        self._fix_flags = 0
+        if self._fix_quality < self.cfg.gnss_min_quality:
+            return False
+        r = fix_check(self._st, self._fx, self.ins.x, self._aid)
+        self._fix_flags = r
+        if r & _FC_SPEED:
+            self._speed_tick = self.tick
+        return r & _FC_USABLE != 0
 
     def _navigate(self):
         ins = self.ins
@@ -395,13 +422,11 @@ class Navigator(Alignment, Aiding):
         if not self._fix_usable():
             self._gated_until = self.tick + self._ticks_second
             return
-        ins = self.ins
-        p = ins.p_n
-        lim = self.cfg.reanchor_m
-        if p[0] > lim or p[0] < -lim or p[1] > lim or p[1] < -lim:
+        if self._fix_flags & _FC_REANCHOR:
             self._reanchor()
-        fx = self._fx
-        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
+        # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
+        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,
+                          self._fx)  # fmt: skip
         self._fix_queued = True  # until the filter is free (see _schedule)
 
     def _reanchor(self):
@@ -409,9 +434,10 @@ class Navigator(Alignment, Aiding):
         fr = self.frame
         ins = self.ins
         e7 = self._e7
-        h = fr.to_e7(e7, ins.p_n)
+        hb = self._h
+        hb[0] = fr.to_e7(e7, ins.p_n)
         dp = self._tmp3
-        fr.to_enu(dp, e7[0], e7[1], h)  # the new origin, in the old frame
+        fr.to_enu(dp, e7[0], e7[1], e7[2], hb)  # the new origin, in the old frame
         c = fr.coef
         rho = self._tmp4
         # the tangent plane tilts by the angle subtended at the Earth's centre
@@ -422,7 +448,7 @@ class Navigator(Alignment, Aiding):
         corr = self._corr
         for i in range(3):
             corr[i] = corr[i] - dp[i]
-        fr.set_origin(e7[0], e7[1], h)
+        fr.set_origin(e7[0], e7[1], e7[2], hb[0])
         ins.set_frame(fr)
         self.reanchors += 1
 
@@ -558,7 +584,8 @@ class Navigator(Alignment, Aiding):
             out[i] = p[i * (eskf.N + 1)]
 
     def lat_lon(self, out_e7):
-        """Integrated position as integer lat/lon (1e-7 deg) into out_e7; returns height (m)."""
+        """Integrated position into out_e7: lat (1e-7 deg), lon as (degrees, 1e-7 deg
+        fraction); returns the height (m)."""
         return self.frame.to_e7(out_e7, self.ins.p_n)
 
 
@@ -678,7 +705,46 @@ def _inject_py(x, e, corr):
 
 
 ins_step = ins_mod.step
+
+
+def _fix_in_py(fx, fi, aid):
+    """The receiver's integers fi (FI_*) as the fix's floats fx (_FX_*): unknown HDOP is the
+    worst accepted one, unknown speed or course -1.0."""
+    fx[_FX_H] = f32.ratio(fi[FI_ALT_MM], 1000)
+    if fi[FI_HDOP_X100] >= 0:
+        fx[_FX_HDOP] = f32.ratio(fi[FI_HDOP_X100], 100)
+    else:
+        fx[_FX_HDOP] = aid[_AID_HDOP_MAX]
+    fx[_FX_SPEED] = -1.0
+    fx[_FX_COURSE] = -1.0
+    if fi[FI_SPEED_MM_S] >= 0:
+        fx[_FX_SPEED] = f32.ratio(fi[FI_SPEED_MM_S], 1000)
+        if fi[FI_COURSE_CDEG] >= 0:
+            fx[_FX_COURSE] = f32.f32(fi[FI_COURSE_CDEG]) * RAD_PER_CDEG
+    fx[_FX_SIG_H] = 0.0
+    fx[_FX_SIG_V] = 0.0
+
+
+def _fix_check_py(st, fx, x, aid):
+    """_FC_* bits of a fix whose quality is acceptable: HDOP acceptable (then its speed, if
+    known, into st), and the position (x[0:2], ins.X_P = 0) beyond the re-anchoring
+    distance."""
+    if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
+        return 0
+    r = _FC_USABLE
+    sp = fx[_FX_SPEED]
+    if sp >= 0.0:
+        st[_ST_SPEED] = sp
+        r |= _FC_SPEED
+    lim = aid[_AID_REANCHOR]
+    if x[0] > lim or x[0] < -lim or x[1] > lim or x[1] < -lim:
+        r |= _FC_REANCHOR
+    return r
+
+
 _prop_start = kern.pick("prop_start", None)
+fix_in = kern.pick("fix_in", _fix_in_py)
+fix_check = kern.pick("fix_check", _fix_check_py)
 imu_cal = kern.pick("imu_cal", _imu_cal_py)
 still = kern.pick("still", _still_py)
 ring_put = kern.pick("ring_put", _ring_put_py)

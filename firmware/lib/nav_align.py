@@ -107,10 +107,11 @@ class Alignment:
             return
         fx = self._fx
         if not self.frame.valid:
-            if not self.frame.set_origin(self._fix_lat, self._fix_lon, fx[_FX_H]):
+            if not self.frame.set_origin(self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,
+                                         fx[_FX_H]):  # fmt: skip
                 return
             self.ins.set_frame(self.frame)
-        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon, fx[_FX_H])
+        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac, fx)
         ins = self.ins
         for i in range(3):
             ins.p_n[i] = self._gp[i]

@@ -21,15 +21,19 @@ Raw-input record, type 0x92 (every tick when `raw_record`; what a bit-exact repl
      8 gyro data registers 6 bytes, 14 accel data registers 6 bytes (as read from the chip)
     20 flags u8: bit 0 saturated; 21 n GNSS bytes u8, 22 the n bytes fed to the parser
 
-Allocation: binascii.crc32 returns an int that is a long int on the board for three values in
-four, and the raw record slices a memoryview for its variable length: a few small objects
-per record, against hundreds of float boxes per tick. The extended frame's default rate is
-10 Hz; the raw record is a replay/debug mode.
+Allocation: the extended frame is one native kernel call (`ext_pack`, CRC included) that
+allocates nothing; its Python reference boxes floats and binascii.crc32's result (a long int
+on the board for three values in four). The raw record (a replay/debug mode) slices a
+memoryview for its variable length and takes the CRC in Python: a few small objects each.
 """
 
+import struct
+from array import array
 from binascii import crc32
 
 import frame
+import ins
+import kern
 from micropython import const
 
 import geo
@@ -40,13 +44,21 @@ EXT_PAYLOAD = const(124)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
 RAW_MAX_GNSS = const(232)  # the length byte counts 23 + n <= 255
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
-
-
-def copy_f32(buf, off, view, index, n):
-    """n float32 values from a byte view (f32.byte_view) starting at float `index`."""
-    b = 4 * index
-    for i in range(4 * n):
-        buf[off + i] = view[b + i]
+# The int fields of the extended frame (`ExtFrame.fields`; firmware/native/layout.h repeats them)
+EF_COUNTER = const(0)
+EF_HEALTH = const(1)
+EF_STATE = const(2)
+EF_CONFIG = const(3)
+EF_FLAGS = const(4)
+EF_WORST_US = const(5)
+EF_MEAN_US = const(6)
+EF_OVERRUNS = const(7)
+EF_GC_RUNS = const(8)
+EF_LAT0_E7 = const(9)
+EF_LON0_DEG = const(10)
+EF_LON0_FRAC = const(11)
+EF_TICK = const(12)
+NEF = const(13)
 
 
 def _head(buf, rtype, n, counter):
@@ -61,54 +73,44 @@ def seal(buf, mv, n):
     frame.put_i32(buf, n, crc32(mv) & 0xFFFFFFFF)
 
 
+def _ext_pack_py(d, fi, p, x, coef):
+    """The extended frame into d (EXT_LEN bytes) from its int fields fi (EF_*), the covariance
+    P (15 x 15), the navigation state x (ins.x) and the origin's coefficients; the reference
+    of the native kernel `ext_pack` (which also computes the CRC without allocating)."""
+    _head(d, EXT_TYPE, EXT_PAYLOAD + 1, fi[EF_COUNTER])
+    d[4] = fi[EF_HEALTH]
+    d[5] = fi[EF_STATE]
+    d[6] = fi[EF_CONFIG]
+    d[7] = fi[EF_FLAGS]
+    for k in range(4):
+        v = fi[EF_WORST_US + k]
+        frame.put_u16(d, 8 + 2 * k, v if v < 65535 else 65535)
+    for i in range(15):
+        struct.pack_into("<f", d, 16 + 4 * i, p[16 * i])  # P[i][i]
+    for i in range(3):
+        struct.pack_into("<f", d, 76 + 4 * i, x[ins.X_BG + i])
+        struct.pack_into("<f", d, 88 + 4 * i, x[ins.X_BA + i])
+        struct.pack_into("<f", d, 100 + 4 * i, x[ins.X_P + i])
+    frame.put_i32(d, 112, fi[EF_LAT0_E7])
+    frame.put_e7(d, 116, fi[EF_LON0_DEG], fi[EF_LON0_FRAC])
+    frame.put_i32(d, 120, fi[EF_TICK])
+    struct.pack_into("<f", d, 124, coef[geo.H0])
+    seal(d, memoryview(d)[0 : EXT_LEN - 4], EXT_LEN - 4)
+
+
+ext_pack = kern.pick("ext_pack", _ext_pack_py)
+
+
 class ExtFrame:
-    """Preallocated extended frame; `pack` fills it, `data` is what to send."""
+    """Preallocated extended frame: fill `fields` (EF_*), then `pack`; `data` is what to send.
+    The overflow counters wrap at 16 bits, the tick times saturate at 65535 us."""
 
     def __init__(self):
         self.data = bytearray(EXT_LEN)
-        self._mv = memoryview(self.data)[0 : EXT_LEN - 4]
+        self.fields = array("i", bytes(4 * NEF))
 
-    def pack(
-        self,
-        counter,
-        health,
-        state,
-        cfg_status,
-        flags,
-        worst_us,
-        mean_us,
-        overruns,
-        gc_runs,
-        p_view,
-        bg_view,
-        ba_view,
-        pos_view,
-        lat0_e7,
-        lon0_deg,
-        lon0_frac,
-        tick,
-        coef_view,
-    ):
-        d = self.data
-        _head(d, EXT_TYPE, EXT_PAYLOAD + 1, counter)
-        d[4] = health
-        d[5] = state
-        d[6] = cfg_status
-        d[7] = flags
-        frame.put_u16(d, 8, worst_us if worst_us < 65535 else 65535)
-        frame.put_u16(d, 10, mean_us if mean_us < 65535 else 65535)
-        frame.put_u16(d, 12, overruns)
-        frame.put_u16(d, 14, gc_runs)
-        for i in range(15):
-            copy_f32(d, 16 + 4 * i, p_view, 16 * i, 1)  # P[i][i]
-        copy_f32(d, 76, bg_view, 0, 3)
-        copy_f32(d, 88, ba_view, 0, 3)
-        copy_f32(d, 100, pos_view, 0, 3)
-        frame.put_i32(d, 112, lat0_e7)
-        frame.put_e7(d, 116, lon0_deg, lon0_frac)
-        frame.put_i32(d, 120, tick)
-        copy_f32(d, 124, coef_view, geo.H0, 1)
-        seal(d, self._mv, EXT_LEN - 4)
+    def pack(self, p, x, coef):
+        ext_pack(self.data, self.fields, p, x, coef)
 
 
 class RawRecord:

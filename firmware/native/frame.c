@@ -1,4 +1,5 @@
-/* The 52-byte output frame (firmware/lib/frame.py `pack` is the reference, field by field). */
+/* The 52-byte output frame (firmware/lib/frame.py `pack` is the reference, field by field) and
+ * the extended frame (firmware/lib/records.py `_ext_pack_py`). */
 #include <stdint.h>
 
 #include "layout.h"
@@ -89,4 +90,65 @@ void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro,
         sum += buf[i];
     }
     buf[51] = (uint8_t)(sum & 0xFF);
+}
+
+/* binascii.crc32 (reflected 0xEDB88320, initial and final complement), a nibble at a time:
+ * a 16-entry table on the stack (a native module has no static data it can write, and a
+ * const table costs a relocation). */
+static uint32_t crc32(const uint8_t *buf, int n) {
+    uint32_t table[16];
+    for (uint32_t i = 0; i < 16; i++) {
+        uint32_t c = i;
+        for (int k = 0; k < 4; k++) {
+            c = (c & 1u) ? (c >> 1) ^ 0xEDB88320u : c >> 1;
+        }
+        table[i] = c;
+    }
+    uint32_t crc = 0xFFFFFFFFu;
+    for (int i = 0; i < n; i++) {
+        crc ^= buf[i];
+        crc = (crc >> 4) ^ table[crc & 15u];
+        crc = (crc >> 4) ^ table[crc & 15u];
+    }
+    return ~crc;
+}
+
+static void put_f32(uint8_t *buf, int off, float x) {
+    union {
+        float f;
+        uint32_t u;
+    } b;
+    b.f = x;
+    put_i32(buf, off, (int32_t)b.u);
+}
+
+#define EXT_LEN 132
+
+void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x,
+    const float *coef) {
+    buf[0] = 0xEB;
+    buf[1] = 0x91;
+    buf[2] = EXT_LEN - 7; /* payload bytes after the head, the counter included */
+    buf[3] = (uint8_t)(fields[EF_COUNTER] & 0xFF);
+    buf[4] = (uint8_t)fields[EF_HEALTH];
+    buf[5] = (uint8_t)fields[EF_STATE];
+    buf[6] = (uint8_t)fields[EF_CONFIG];
+    buf[7] = (uint8_t)fields[EF_FLAGS];
+    for (int k = 0; k < 4; k++) {
+        int32_t v = fields[EF_WORST_US + k];
+        put_u16(buf, 8 + 2 * k, v < 65535 ? v : 65535);
+    }
+    for (int i = 0; i < 15; i++) {
+        put_f32(buf, 16 + 4 * i, p[16 * i]);
+    }
+    for (int i = 0; i < 3; i++) {
+        put_f32(buf, 76 + 4 * i, x[X_BG + i]);
+        put_f32(buf, 88 + 4 * i, x[X_BA + i]);
+        put_f32(buf, 100 + 4 * i, x[X_P + i]);
+    }
+    put_i32(buf, 112, fields[EF_LAT0_E7]);
+    put_e7(buf, 116, fields[EF_LON0_DEG], fields[EF_LON0_FRAC]);
+    put_i32(buf, 120, fields[EF_TICK]);
+    put_f32(buf, 124, coef[GEO_H0]);
+    put_i32(buf, EXT_LEN - 4, (int32_t)crc32(buf, EXT_LEN - 4));
 }

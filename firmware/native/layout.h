@@ -110,6 +110,37 @@
 #define F_HEIGHT_DM 6
 #define F_STATE 7
 #define NF 8
+/* records.py: the int fields of the extended frame, ExtFrame.fields */
+#define EF_COUNTER 0
+#define EF_HEALTH 1
+#define EF_STATE 2
+#define EF_CONFIG 3
+#define EF_FLAGS 4
+#define EF_WORST_US 5
+#define EF_MEAN_US 6
+#define EF_OVERRUNS 7
+#define EF_GC_RUNS 8
+#define EF_LAT0_E7 9
+#define EF_LON0_DEG 10
+#define EF_LON0_FRAC 11
+#define EF_TICK 12
+#define NEF 13
+/* drivers/bmi055.py: the counts that mean over range */
+#define BMI055_GYRO_SAT_HI 32766
+#define BMI055_GYRO_SAT_LO -32767
+#define BMI055_ACCEL_SAT_HI 2046
+#define BMI055_ACCEL_SAT_LO -2047
+/* geo.py: the origin's coefficients LocalFrame.coef */
+#define GEO_H0 0
+#define GEO_KE 1
+#define GEO_KN 2
+#define GEO_GE_N 3
+#define GEO_INV_RN 4
+#define GEO_GN_N 5
+#define GEO_INV_RM 6
+#define GEO_GN_E 7
+#define GEO_GU_N 8
+#define GEO_GU_E 9
 
 /* nav.py: the aiding parameters Navigator._aid */
 #define AID_UERE 0 /* m per HDOP */
@@ -119,7 +150,23 @@
 #define AID_ZUPT_SIGMA 4 /* m/s */
 #define AID_NHC_SIGMA 5 /* m/s */
 #define AID_LEVER 6 /* IMU -> antenna, body, m (3) */
-#define NAID 9
+#define AID_HDOP_MAX 9 /* worst HDOP accepted, assumed when unknown */
+#define AID_REANCHOR 10 /* re-anchoring distance, m */
+#define NAID 11
+/* nav.py: a fix in ints, Navigator.fix_in, and fix_check's result bits */
+#define FI_LAT_E7 0
+#define FI_LON_DEG 1
+#define FI_LON_FRAC 2
+#define FI_ALT_MM 3
+#define FI_QUALITY 4
+#define FI_HDOP_X100 5
+#define FI_SPEED_MM_S 6
+#define FI_COURSE_CDEG 7
+#define FI_TICK 8
+#define NFI 9
+#define FC_USABLE 1
+#define FC_SPEED 2
+#define FC_REANCHOR 4
 /* nav.py: the pending fix self._fx and the used fix self._used */
 #define FX_H 0
 #define FX_HDOP 1

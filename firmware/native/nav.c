@@ -115,3 +115,83 @@ void navk_inject(float *x, float *e, float *corr) {
 void navk_euler(float *ypr, const float *c_bn) {
     rot_dcm_to_euler(ypr, c_bn);
 }
+
+/* nav._fix_in_py: the receiver's integers as the fix's floats. */
+void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
+    union {
+        uint32_t u;
+        float f;
+    } rad_per_cdeg = {0x393702D3u}; /* nav.RAD_PER_CDEG: pi / 18000 */
+    fx[FX_H] = (float)fi[FI_ALT_MM] / 1000.0f;
+    fx[FX_HDOP] = fi[FI_HDOP_X100] >= 0 ? (float)fi[FI_HDOP_X100] / 100.0f : aid[AID_HDOP_MAX];
+    fx[FX_SPEED] = -1.0f;
+    fx[FX_COURSE] = -1.0f;
+    if (fi[FI_SPEED_MM_S] >= 0) {
+        fx[FX_SPEED] = (float)fi[FI_SPEED_MM_S] / 1000.0f;
+        if (fi[FI_COURSE_CDEG] >= 0) {
+            fx[FX_COURSE] = (float)fi[FI_COURSE_CDEG] * rad_per_cdeg.f;
+        }
+    }
+    fx[FX_SIG_H] = 0.0f;
+    fx[FX_SIG_V] = 0.0f;
+}
+
+/* nav._fix_check_py: FC_* bits of a fix whose quality is acceptable. */
+int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid) {
+    if (!(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {
+        return 0;
+    }
+    int32_t r = FC_USABLE;
+    float sp = fx[FX_SPEED];
+    if (sp >= 0.0f) {
+        st[ST_SPEED] = sp;
+        r |= FC_SPEED;
+    }
+    float lim = aid[AID_REANCHOR];
+    if (x[X_P] > lim || x[X_P] < -lim || x[X_P + 1] > lim || x[X_P + 1] < -lim) {
+        r |= FC_REANCHOR;
+    }
+    return r;
+}
+
+/* geo._enu_py: ENU metres of an integer offset from the origin, at the height h[0]. */
+void navk_geo_enu(float *enu, const float *coef, const float *h, int32_t dlat_e7,
+    int32_t dlon_e7) {
+    const float *c = coef;
+    float dh = h[0] - c[GEO_H0];
+    float n1 = (float)dlat_e7 * c[GEO_KN];
+    float e1 = (float)dlon_e7 * c[GEO_KE];
+    float ee = e1 * e1;
+    float nn = n1 * n1;
+    enu[0] = e1 + e1 * (dh * c[GEO_INV_RN] - n1 * c[GEO_GE_N]);
+    enu[1] = n1 + (n1 * (n1 * c[GEO_GN_N] + dh * c[GEO_INV_RM]) + ee * c[GEO_GN_E]);
+    enu[2] = dh - (nn * c[GEO_GU_N] + ee * c[GEO_GU_E]);
+}
+
+/* drivers/bmi055._decode_py: both dies' data registers into int16 counts; the over-range
+ * mask (bits 0-2 gyro, 3-5 accel) and the accel new_data bits (6-8). */
+int32_t navk_bmi055_decode(int16_t *gyro, int16_t *accel, const uint8_t *raw_gyro,
+    const uint8_t *raw_accel) {
+    int32_t m = 0;
+    for (int i = 0; i < 3; i++) {
+        int32_t v = raw_gyro[2 * i] | (raw_gyro[2 * i + 1] << 8);
+        if (v >= 0x8000) {
+            v -= 0x10000;
+        }
+        gyro[i] = (int16_t)v;
+        if (v >= BMI055_GYRO_SAT_HI || v <= BMI055_GYRO_SAT_LO) {
+            m |= 1 << i;
+        }
+        int32_t lsb = raw_accel[2 * i];
+        int32_t a = ((raw_accel[2 * i + 1] << 8) | lsb) >> 4;
+        if (a >= 0x800) {
+            a -= 0x1000;
+        }
+        accel[i] = (int16_t)a;
+        if (a >= BMI055_ACCEL_SAT_HI || a <= BMI055_ACCEL_SAT_LO) {
+            m |= 1 << (i + 3);
+        }
+        m |= (lsb & 1) << (i + 6);
+    }
+    return m;
+}

@@ -28,6 +28,7 @@ import navcfg  # noqa: E402
 from nav import NAVIGATING, Navigator  # noqa: E402
 
 import f32  # noqa: E402
+import geo  # noqa: E402
 
 
 @dataclass
@@ -66,10 +67,16 @@ def fix_args(fx, dt_s, velocity=True, pps=True):
     return args, int(round(fx.t_fix_s / dt_s)) if pps else -1
 
 
+def gnss_e7(nav, lat_e7, lon_e7, *args, **kwargs):
+    """The firmware navigator's `gnss` with the longitude in 1e-7 deg, as the model takes it
+    (the firmware carries it as (degrees, fraction): geo.split_e7)."""
+    nav.gnss(lat_e7, *geo.split_e7(lon_e7), *args, **kwargs)
+
+
 def deliver_fix(nav, fx, dt_s):
     """Hand one simulated fix to the navigator as the board's loop will (fix_args)."""
     args, fix_tick = fix_args(fx, dt_s)
-    nav.gnss(*args, fix_tick=fix_tick)
+    gnss_e7(nav, *args, fix_tick=fix_tick)
 
 
 def feed(nav, imu, gnss, k0, k1, on_tick=None):
@@ -106,7 +113,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
     rows = []
     align_t = None
     e7 = np.zeros(2, dtype=np.int32)
-    e7_buf = array.array("i", bytes(8))
+    e7_buf = array.array("i", bytes(12))
     pd = f32.zeros(15)
 
     def record(nav, k):
@@ -116,7 +123,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
             align_t = t
         if k % decimate == 0 and nav.state == NAVIGATING:
             h = nav.lat_lon(e7_buf)
-            e7[:] = e7_buf
+            e7[:] = e7_buf[0], geo.join_e7(e7_buf[1], e7_buf[2])
             nav.euler()
             nav.p_diag(pd)
             ins = nav.ins

@@ -35,8 +35,3 @@ def sqrt(x):
     if x < 0:
         raise ValueError("math domain error")
     return np.sqrt(x)
-
-
-def byte_view(buf):
-    """The bytes of a float32 buffer (little-endian), sharing its memory."""
-    return buf.view(np.uint8)

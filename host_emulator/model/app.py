@@ -54,6 +54,7 @@ from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
 
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
+import nav as fw_nav  # noqa: E402  (radians per centidegree of course)
 from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
 
 import geo as fw_geo  # noqa: E402  (the index of the origin height in the coefficients)
@@ -198,7 +199,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     if g.epoch_speed_mm_s >= 0:
         speed = F32(g.epoch_speed_mm_s) / F32(1000)
         if g.epoch_course_cdeg >= 0:
-            course = F32(g.epoch_course_cdeg) * fw_app._RAD_PER_CDEG
+            course = F32(g.epoch_course_cdeg) * fw_nav.RAD_PER_CDEG
     fix_tick = -1
     age_us = ticks_diff(now_us, g.epoch_pps_us)
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:

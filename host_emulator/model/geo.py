@@ -10,6 +10,9 @@ firmware_env.install()
 import geo as fw  # noqa: E402  (constants shared with the firmware, not retyped)
 
 F32 = np.float32
+# the longitude's wrap in 1e-7 deg (the firmware carries (degrees, fraction) pairs instead)
+HALF_TURN_E7 = 1_800_000_000
+FULL_TURN_E7 = 3_600_000_000
 
 
 def coefficients(lat0_e7, h0_m):
@@ -70,6 +73,6 @@ def to_e7(c, lat0_e7, lon0_e7, enu):
         n1 = (n - ee * c[fw.GN_E]) / (one + (n1 * c[fw.GN_N] + dh * c[fw.INV_RM]))
     lat = lat0_e7 + _round_half_away(n1 / c[fw.KN])
     lon = lon0_e7 + _round_half_away(e1 / c[fw.KE])
-    lon = np.where(lon >= fw.HALF_TURN_E7, lon - fw.FULL_TURN_E7, lon)
-    lon = np.where(lon < -fw.HALF_TURN_E7, lon + fw.FULL_TURN_E7, lon)
+    lon = np.where(lon >= HALF_TURN_E7, lon - FULL_TURN_E7, lon)
+    lon = np.where(lon < -HALF_TURN_E7, lon + FULL_TURN_E7, lon)
     return lat, lon, c[fw.H0] + dh

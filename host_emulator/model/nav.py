@@ -177,10 +177,10 @@ class NavModel(AlignmentModel, AidingModel):
 
     def _to_enu(self, lat_e7, lon_e7, h_m):
         dlon = lon_e7 - self.origin_lon_e7
-        if dlon > fw_geo.HALF_TURN_E7:
-            dlon -= fw_geo.FULL_TURN_E7
-        elif dlon < -fw_geo.HALF_TURN_E7:
-            dlon += fw_geo.FULL_TURN_E7
+        if dlon > ref_geo.HALF_TURN_E7:
+            dlon -= ref_geo.FULL_TURN_E7
+        elif dlon < -ref_geo.HALF_TURN_E7:
+            dlon += ref_geo.FULL_TURN_E7
         return ref_geo.offset_to_enu(self.coef, lat_e7 - self.origin_lat_e7, dlon, h_m)
 
     # ---- inputs ----

@@ -580,3 +580,26 @@ print(json.dumps(res))
     assert errs[2].startswith("BMI055 gyro die: expected chip ID 0x0F at register 0x00, read 0xFF")
     assert errs[3] == "BMI055 gyro range must be 125, 250, 500, 1000 or 2000 deg/s, got 200"
     print(json.dumps({"vm_us_per_read": out["us_per_read"]}))
+
+
+def test_the_native_decode_equals_the_python_reference():
+    """bmi055_decode (navk) against _decode_py on random registers and on every edge the
+    decoding has: sign, the over-range counts, the accel new_data bit."""
+    from array import array
+
+    import kern
+
+    assert kern.NATIVE and bmi055._decode is not bmi055._decode_py
+    rng = np.random.default_rng(5)
+    words = ((0xFE, 0x7F), (0xFF, 0x7F), (0x01, 0x80), (0x00, 0x80), (0x00, 0x00), (0xFF, 0xFF),
+             (0xE1, 0x7F), (0x10, 0x80), (0xF1, 0x7F))  # fmt: skip
+    edges = [bytes(w) for w in words]
+    cases = [bytes(rng.integers(0, 256, 6, dtype=np.uint8)) for _ in range(3000)]
+    cases += [a + b + c for a in edges for b in edges for c in edges[:3]]
+    for g_raw in cases[::7] + cases[-27:]:
+        for a_raw in cases[:40]:
+            want = [array("h", bytes(6)), array("h", bytes(6))]
+            got = [array("h", bytes(6)), array("h", bytes(6))]
+            m_want = bmi055._decode_py(*want, g_raw, a_raw)
+            m_got = bmi055._decode(*got, g_raw, a_raw)
+            assert (m_got, list(got[0]), list(got[1])) == (m_want, list(want[0]), list(want[1]))

@@ -129,7 +129,9 @@ def test_fixes_above_the_hdop_limit_are_not_used():
     before = nav.updates
     lat, lon = int(truth.lat_e7[-1]), int(truth.lon_e7[-1])
     for _ in range(3):
-        nav.gnss(lat, lon, f32.f32(truth.h_m[-1]), 1, f32.f32(2.5), f32.f32(10.0), f32.f32(1.0))
+        nav_runner.gnss_e7(
+            nav, lat, lon, f32.f32(truth.h_m[-1]), 1, f32.f32(2.5), f32.f32(10.0), f32.f32(1.0)
+        )
         for _ in range(200):
             nav.imu(f32.zeros(3) + F32(0.0), _gravity_up())
     assert nav.updates == before
@@ -149,8 +151,17 @@ def test_a_receiver_reporting_zero_sigma_cannot_make_r_singular():
     nav, truth, _, _ = navigating()
     lat, lon, h = int(truth.lat_e7[-1]), int(truth.lon_e7[-1]), f32.f32(truth.h_m[-1])
     for _ in range(10):
-        nav.gnss(
-            lat, lon, h, 1, f32.f32(0.0), f32.f32(0.0), f32.f32(-1.0), sigma_h_m=0.0, sigma_v_m=0.0
+        nav_runner.gnss_e7(
+            nav,
+            lat,
+            lon,
+            h,
+            1,
+            f32.f32(0.0),
+            f32.f32(0.0),
+            f32.f32(-1.0),
+            sigma_h_m=0.0,
+            sigma_v_m=0.0,
         )
         for _ in range(200):
             nav.imu(f32.zeros(3), _gravity_up())
@@ -255,7 +266,7 @@ def _feed_positions(nav, imu, gnss, k1, on_tick=None):
     for k in range(k1):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
             args, fix_tick = nav_runner.fix_args(fixes[fi], DT, velocity=False)
-            nav.gnss(*args, fix_tick=fix_tick)
+            nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick)
             fi += 1
         nav.imu_raw(gyro[k], accel[k])
         if on_tick:
@@ -382,7 +393,7 @@ def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
         lat, lon, h = int(truth.lat_e7[-1]), int(truth.lon_e7[-1]), f32.f32(truth.h_m[-1])
         seen_still = False
         for _ in range(3):
-            nav.gnss(lat, lon, h, 1, f32.f32(1.0), speed, -1.0)
+            nav_runner.gnss_e7(nav, lat, lon, h, 1, f32.f32(1.0), speed, -1.0)
             for _ in range(200):
                 nav.imu(f32.zeros(3), _gravity_up())
                 seen_still |= nav.still

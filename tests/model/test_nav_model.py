@@ -24,6 +24,7 @@ import pytest
 from nav import NAVIGATING, Navigator
 
 import f32
+import geo
 from host_emulator.bench import navigator as nav_runner
 from host_emulator.model.nav import NavModel
 from host_emulator.sim import gnss as sim_gnss
@@ -239,7 +240,7 @@ def firmware_snapshot(nav):
         "trk_set": nav._trk_set,
         "trk_tick": nav._trk_tick,
         "fix_lat_e7": nav._fix_lat,
-        "fix_lon_e7": nav._fix_lon,
+        "fix_lon_e7": geo.join_e7(nav._fix_lon_deg, nav._fix_lon_frac),
         "fix_quality": nav._fix_quality,
         "fix_tick": nav._fix_tick,
         "last_fix_tick": nav._last_fix_tick,
@@ -264,7 +265,7 @@ def firmware_snapshot(nav):
         "kf_rejected": kf.rejected,
         "kf_gate_mask": kf.gate_mask,
         "origin_lat_e7": fr.lat0_e7,
-        "origin_lon_e7": fr.lon0_e7,
+        "origin_lon_e7": geo.join_e7(fr.lon0_deg, fr.lon0_frac),
         "frame_valid": fr.valid,
     }
     return floats, {k: int(v) for k, v in ints.items()}
@@ -324,7 +325,7 @@ def observe(seen, nav, before):
     kf = nav.kf
     seen.health.add(nav.health)
     if nav.frame.valid:
-        seen.origins.add((nav.frame.lat0_e7, nav.frame.lon0_e7))
+        seen.origins.add((nav.frame.lat0_e7, geo.join_e7(nav.frame.lon0_deg, nav.frame.lon0_frac)))
     new_fix = nav._last_fix_tick == t and before["last_fix_tick"] != t
     if nav.state != NAVIGATING:
         seen.unusable_aligning += new_fix and not nav._fix_usable()
@@ -372,7 +373,7 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
     for k in range(n_ticks):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
             args, fix_tick = nav_runner.fix_args(fixes[fi], DT, pps=pps)
-            nav.gnss(*args, fix_tick=fix_tick)
+            nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick)
             model.gnss(*args, fix_tick=fix_tick)
             fi += 1
         before = {"last_fix_tick": nav._last_fix_tick, "job": nav._job}

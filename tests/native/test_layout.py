@@ -34,9 +34,16 @@ RULES = (
     ("AID_", "nav", "_AID_"),
     ("NAID", "nav", "_NAID"),
     ("FX_", "nav", "_FX_"),
+    ("FI_", "nav", "FI_"),
+    ("NFI", "nav", "NFI"),
+    ("FC_", "nav", "_FC_"),
     ("US_", "nav_aid", "_US_"),
     ("F_", "frame", "F_"),
     ("NF", "frame", "NF"),
+    ("EF_", "records", "EF_"),
+    ("NEF", "records", "NEF"),
+    ("GEO_", "geo", ""),
+    ("BMI055_", "drivers.bmi055", ""),
 )
 
 

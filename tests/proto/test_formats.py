@@ -6,6 +6,7 @@ side's (board/mpy/time.py)."""
 
 import importlib.util
 import re
+from array import array
 
 import crcmod.predefined
 import numpy as np
@@ -76,19 +77,24 @@ def test_a_frame_encodes_and_decodes_to_its_physical_values():
 
 def _firmware_ext(counter, tick):
     """The firmware's extended frame of a made-up navigator state (float32 bits kept)."""
+    import ins
     import records
 
     rng = np.random.default_rng(counter)
     p = f32.zeros(225)
     p[:] = rng.normal(size=225).astype(np.float32)
     p[16] = np.float32(np.nan)  # a NaN variance: its bits must survive
-    bg, ba, pos, coef = (f32.zeros(n) for n in (3, 3, 3, 12))
-    for b in (bg, ba, pos, coef):
+    x, coef = f32.zeros(ins.NX), f32.zeros(12)
+    for b in (x, coef):
         b[:] = rng.normal(size=len(b)).astype(np.float32)
     e = records.ExtFrame()
-    e.pack(counter, 1, 2, 3, 5, 70000, 1234, 65535, 7, f32.byte_view(p), f32.byte_view(bg),
-           f32.byte_view(ba), f32.byte_view(pos), -338688000, -151, -2093000, tick,
-           f32.byte_view(coef))  # fmt: skip
+    e.fields[:] = array("i", (counter, 1, 2, 3, 5, 70000, 1234, 65535, 7, -338688000, -151,
+                              -2093000, tick))  # fmt: skip
+    e.pack(p, x, coef)
+    ref = bytearray(records.EXT_LEN)  # the Python reference of the (native) kernel
+    records._ext_pack_py(ref, e.fields, p, x, coef)
+    assert ref == e.data
+    bg, ba, pos = (x[i : i + 3] for i in (ins.X_BG, ins.X_BA, ins.X_P))
     return bytes(e.data), p, bg, ba, pos, coef
 
 

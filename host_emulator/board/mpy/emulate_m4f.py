@@ -6,7 +6,7 @@ Frozen into that build with the firmware, machine.py, time.py and feed.py; the h
 through the raw REPL:
 
     import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR,
-                                         BOARD_HEAP, BUILD_HEAP[, NAVK])
+                                         BOARD_HEAP, BUILD_HEAP[, NAVK[, SETUP]])
 
 Host files go through ARM semihosting (the `m4f` module): the stimulus is read from byte
 OFFSET (its first record) of STIM, the configuration CONFIG is copied to /flash/ins.cfg on a
@@ -142,13 +142,16 @@ def exit_firmware_error(code):
 
 
 def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, build_heap,
-         navk_path=None):  # fmt: skip
+         navk_path=None, setup=None):  # fmt: skip
     m4f.init()
     icount = m4f.icount
     emu_total = m4f.emu_total
     emu_in = m4f.emu_in
     emu_out = m4f.emu_out
     mount_flash(config_path, navk_path)
+    # setup (the profiler's, bench/profile.py): runs once /flash is there and before the
+    # firmware is imported; what it returns is called at the end and its dict reported in S
+    report = setup() if setup else None
     gc.collect()
     system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
     usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region
@@ -257,5 +260,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             "platform": sys.platform,
         }
     )
+    if report:
+        stats["profile"] = report()
     print("S", json.dumps(stats))
     m4f.exit(0)

@@ -75,7 +75,15 @@ def _data_offset(path):
     return 12 + struct.unpack_from("<I", head, 8)[0]
 
 
-def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None, kernels=None):
+def run(
+    stim,
+    workdir,
+    config_overrides=None,
+    progress=None,
+    timeout_s=None,
+    kernels=None,
+    guest_setup=None,
+):
     """Run the firmware on the emulated Cortex-M4F over a whole stimulus; a FirmwareRun.
 
     stim: a `stimulus.Stimulus` (written to workdir/stimulus.bin) or a stimulus file's path.
@@ -85,6 +93,9 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None, ker
     kernels: "native" (the armv7emsp navk.mpy, built on demand, in the guest's /flash/lib as on
         a board), "python" (none: the firmware's Python kernels) or None (the default: native
         unless $INS_KERNELS says python).
+    guest_setup: (MicroPython source, name of the function it defines) run in the guest before
+        the firmware is imported; what it returns is called at the end and reported in
+        stats["profile"] (bench/profile.py).
 
     The FirmwareRun has `per_tick` (PER_TICK records) and stats from the guest (heap,
     start-up instructions, counters). FirmwareError if the firmware raises; EmulatorError if
@@ -110,10 +121,12 @@ def run(stim, workdir, config_overrides=None, progress=None, timeout_s=None, ker
     for name in ("out.bin", "ticks.bin"):
         (out_dir / name).unlink(missing_ok=True)
     n = len(stim)
+    source, setup = guest_setup or ("", "None")
     call = (
-        f"import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, {_data_offset(stim_path)}, "
-        f"{n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, {str(out_dir)!r}, "
-        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk!r})\r\n"
+        f"{source}import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, "
+        f"{_data_offset(stim_path)}, {n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, "
+        f"{str(out_dir)!r}, {m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk!r}, "
+        f"{setup})\r\n"
     )
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)

@@ -42,7 +42,7 @@ gc.disable()
 for k in range(N):
     while fi < len(fixes) and fixes[fi][0] <= k:
         x = fixes[fi]
-        n.gnss(x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8])
+        n.gnss(x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
         fi += 1
     b = 6 * k
     g[0] = counts[b]
@@ -79,6 +79,9 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
     n = min(len(imu.gyro_counts) - 1, int(round(duration_s / dt)))
     counts = np.concatenate([imu.gyro_counts[:n], imu.accel_counts[:n]], axis=1)
     fixes = []
+    from host_emulator.bench import navigator as nav_runner
+
+    divmod_e7 = nav_runner.geo.split_e7  # the firmware's (degrees, fraction) longitude
     for f in gnss:
         k = int(np.ceil(f.t_avail_s / dt - 1e-9))
         if k >= n:
@@ -88,7 +91,7 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
             [
                 k,
                 int(f.lat_e7),
-                int(f.lon_e7),
+                *divmod_e7(int(f.lon_e7)),
                 float(f.h_m),
                 int(f.quality),
                 float(f.hdop),
