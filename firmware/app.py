@@ -71,7 +71,7 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
-        self._events = 0  # the navigator's re-anchorings + resets when the heap was checked
+        self._events = -1  # re-anchorings + resets at the last heap check (-1: not navigating)
         self.t0_us = 0
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame()
@@ -183,11 +183,15 @@ class App:
         nav = self.nav
         if kern.NATIVE and nav.state == NAVIGATING:
             # a navigating tick allocates nothing (tests/runtimes: the allocation proof), so
-            # the heap only shrinks at a re-anchoring or a reset (Python, rare): check then
+            # the heap only shrinks at a re-anchoring or a reset (Python, rare): check then,
+            # and once when navigation starts (alignment allocated up to that tick); with
+            # automatic collection off an event must find the low-water reserve free
             events = nav.reanchors + nav.resets
             if events == self._events:
                 return
             self._events = events
+        else:
+            self._events = -1  # not navigating: every tick is checked
         if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
