@@ -33,10 +33,10 @@ from micropython import const
 from nav import NAVIGATING, Navigator
 
 import f32
+import geo
 
 _CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 _US_PER_TICK = const(5000)
-_E7 = const(10000000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
 # tick): with the native kernels it runs while navigating only after an event that allocates
@@ -232,9 +232,7 @@ class App:
             nav.gnss_fix()
             return
         lat = g.epoch_lat_e7
-        deg = lat // _E7 if lat >= 0 else -((-lat) // _E7)
-        self.lat[0] = deg
-        self.lat[1] = lat - deg * _E7
+        geo.split_into(self.lat, 0, lat)
         self.lon[0] = g.epoch_lon_deg
         self.lon[1] = g.epoch_lon_frac_e7
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0

@@ -55,10 +55,19 @@ COS_LAT = 11  # cos(phi0)
 NCOEF = 12
 
 
-def split_e7(x_e7):
-    """(whole degrees, 1e-7 deg fraction with the same sign) of an angle in 1e-7 deg."""
+def split_into(out, i, x_e7):
+    """out[i], out[i + 1] = whole degrees, 1e-7 deg fraction with the same sign, of an angle
+    in 1e-7 deg (a small int: a latitude, or a longitude on a host)."""
     d = x_e7 // _E7 if x_e7 >= 0 else -((-x_e7) // _E7)
-    return d, x_e7 - d * _E7
+    out[i] = d
+    out[i + 1] = x_e7 - d * _E7
+
+
+def split_e7(x_e7):
+    """(whole degrees, 1e-7 deg fraction with the same sign) of an angle in 1e-7 deg (hosts)."""
+    out = [0, 0]
+    split_into(out, 0, x_e7)
+    return out[0], out[1]
 
 
 def join_e7(deg, frac_e7):

@@ -264,7 +264,6 @@ class Navigator(Alignment, Aiding):
         self._fix_lat = 0
         self._fix_lon_deg = 0
         self._fix_lon_frac = 0
-        self._fix_flags = 0  # fix_check's result for the fix being screened
         self._fix_quality = 0
         self._fix_tick = 0
         self._last_fix_tick = -1000000
@@ -377,17 +376,15 @@ class Navigator(Alignment, Aiding):
         self.still = self._n_still >= self._ticks_still
 
     def _fix_usable(self):
-        """Quality and HDOP acceptable; a usable fix's speed, if it has one, also feeds
-        standstill detection (an unknown speed, < 0 or NaN, is no speed measurement). Leaves
-        fix_check's bits in self._fix_flags (re-anchoring: _nav_fix)."""
-        self._fix_flags = 0
+        """fix_check's bits, non-zero when quality and HDOP are acceptable (_FC_REANCHOR: see
+        _nav_fix); a usable fix's speed, if it has one, also feeds standstill detection (an
+        unknown speed, < 0 or NaN, is no speed measurement)."""
         if self._fix_quality < self.cfg.gnss_min_quality:
-            return False
+            return 0
         r = fix_check(self._st, self._fx, self.ins.x, self._aid)
-        self._fix_flags = r
         if r & _FC_SPEED:
             self._speed_tick = self.tick
-        return r & _FC_USABLE != 0
+        return r
 
     def _navigate(self):
         ins = self.ins
@@ -419,10 +416,11 @@ class Navigator(Alignment, Aiding):
     def _nav_fix(self):
         """A new fix while navigating: screen it, re-anchor if far, queue it for the filter."""
         self._last_fix_tick = self.tick
-        if not self._fix_usable():
+        usable = self._fix_usable()
+        if not usable:
             self._gated_until = self.tick + self._ticks_second
             return
-        if self._fix_flags & _FC_REANCHOR:
+        if usable & _FC_REANCHOR:
             self._reanchor()
         # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
         self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,

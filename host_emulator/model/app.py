@@ -57,7 +57,7 @@ import config  # noqa: E402  (firmware/lib/config.py: the board's configuration 
 import nav as fw_nav  # noqa: E402  (radians per centidegree of course)
 from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
 
-import geo as fw_geo  # noqa: E402  (the index of the origin height in the coefficients)
+import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
 
 F32 = np.float32
 _FRAME = frame_schema.numpy_dtype()
@@ -185,7 +185,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
         model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)  # a no-fix epoch
         return
     lat = g.epoch_lat_e7
-    lon = g.epoch_lon_deg * fw_app._E7 + g.epoch_lon_frac_e7
+    lon = fw_geo.join_e7(g.epoch_lon_deg, g.epoch_lon_frac_e7)
     fix.lat_e7 = lat
     fix.lon_e7 = lon
     msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0

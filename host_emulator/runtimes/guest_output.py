@@ -18,6 +18,7 @@ class GuestOutput:
         self.console = []
         self.other = []  # lines that are none of the known kinds (VM errors, stray prints)
         self.stats = None
+        self.reports = []  # "R" lines: (name, value) pairs of a guest setup's report
         self.error_tick = None  # "E k" seen
         self.error_lines = []
         self.last_tick = 0
@@ -45,6 +46,11 @@ class GuestOutput:
         elif kind == "S" and rest.startswith("{"):
             try:
                 self.stats = json.loads(rest)
+            except ValueError:
+                self.other.append(text)
+        elif kind == "R" and rest.startswith("["):
+            try:
+                self.reports.append(tuple(json.loads(rest)))
             except ValueError:
                 self.other.append(text)
         else:

@@ -150,7 +150,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     emu_out = m4f.emu_out
     mount_flash(config_path, navk_path)
     # setup (the profiler's, bench/profile.py): runs once /flash is there and before the
-    # firmware is imported; what it returns is called at the end and its dict reported in S
+    # firmware is imported; what it returns is called at the end for (name, value) pairs,
+    # each printed as an "R" line
     report = setup() if setup else None
     gc.collect()
     system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
@@ -260,7 +261,11 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             "platform": sys.platform,
         }
     )
-    if report:
-        stats["profile"] = report()
     print("S", json.dumps(stats))
+    if report:
+        # one "R" line per (name, value) pair: one long JSON string would need a contiguous
+        # block that the run's fragmented heap may not have (measured: 1.6 KB failed with 17 KB
+        # free)
+        for pair in report():
+            print("R", json.dumps(pair))
     m4f.exit(0)

@@ -94,8 +94,8 @@ def run(
         a board), "python" (none: the firmware's Python kernels) or None (the default: native
         unless $INS_KERNELS says python).
     guest_setup: (MicroPython source, name of the function it defines) run in the guest before
-        the firmware is imported; what it returns is called at the end and reported in
-        stats["profile"] (bench/profile.py).
+        the firmware is imported; what it returns is called at the end for (name, value) pairs,
+        which stats["report"] lists (bench/profile.py).
 
     The FirmwareRun has `per_tick` (PER_TICK records) and stats from the guest (heap,
     start-up instructions, counters). FirmwareError if the firmware raises; EmulatorError if
@@ -144,6 +144,8 @@ def run(
     stats = dict(out.stats)
     stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
     stats["kernels"] = kind
+    if guest_setup:
+        stats["report"] = out.reports
     for problem, what in (
         ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
         ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "
