@@ -30,18 +30,47 @@ import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
 from micropython import const
-from nav import NAVIGATING, Navigator
+from nav import NAVIGATING, Navigator, nav_frame
 
-import f32
 import geo
 
-_CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 _US_PER_TICK = const(5000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
 # tick): with the native kernels it runs while navigating only after an event that allocates
 # (see tick); otherwise (aligning, Python kernels) every tick.
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
+# Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
+# exists only in its own module; tests/test_app.py checks that the copies agree)
+_F_COUNTER = const(0)  # frame.F_*: the frame's int fields
+_F_GYRO_LSB_X10 = const(1)
+_F_ACCEL_LSB = const(2)
+_F_PPS = const(3)
+_F_GGA = const(4)
+_F_VALID = const(5)
+_F_HEIGHT_DM = const(6)
+_F_STATE = const(7)
+_F_LAT_DEG = const(8)  # the last fix's latitude and longitude, (degrees, 1e-7 deg fraction)
+_F_LAT_FRAC = const(9)
+_F_LON_DEG = const(10)
+_F_LON_FRAC = const(11)
+_EF_COUNTER = const(0)  # records.EF_*: the extended frame's int fields
+_EF_HEALTH = const(1)
+_EF_STATE = const(2)
+_EF_CONFIG = const(3)
+_EF_FLAGS = const(4)
+_EF_WORST_US = const(5)
+_EF_MEAN_US = const(6)
+_EF_OVERRUNS = const(7)
+_EF_GC_RUNS = const(8)
+_EF_LAT0_E7 = const(9)
+_EF_LON0_DEG = const(10)
+_EF_LON0_FRAC = const(11)
+_EF_TICK = const(12)
+_C_TICK = const(0)  # nav._C_*: the navigator's control state, Navigator.ctl
+_C_STATE = const(1)
+_C_HEALTH = const(2)
+_C_STILL = const(3)
 
 
 class App:
@@ -53,6 +82,9 @@ class App:
         self.cfg = cfg
         self.config_status = status
         self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)
+        self._gnss_uart = self.board.gnss_uart
+        self._out_uart = self.board.out_uart
+        self._wdt = None  # the board's watchdog once started
         self.nav = Navigator(cfg.nav_config())
         # a receiver configured for GGA only never sends the speed sentence that completes
         # an epoch by default: gnss_need_speed 0 completes it at the GGA (no speed, no course)
@@ -60,8 +92,6 @@ class App:
         self.rx = bytearray(_RX_LEN)
         self.out = bytearray(frame.FRAME_LEN)
         self._fields = array("i", bytes(4 * frame.NF))
-        self.lat = array("i", (0, 0))  # (degrees, 1e-7 deg fraction) of the last fix
-        self.lon = array("i", (0, 0))
         self.height_dm = 0
         self.gnss_valid = False
         self.counter = 0
@@ -96,6 +126,8 @@ class App:
                 accel_range_g=cfg.accel_range_g,
             )
             self.imu_error = None
+            self._fields[_F_GYRO_LSB_X10] = self.imu.gyro_lsb_per_dps_x10
+            self._fields[_F_ACCEL_LSB] = self.imu.accel_lsb_per_g
         except (Bmi055Error, OSError) as e:
             self.imu = None
             self.imu_error = str(e)
@@ -108,6 +140,7 @@ class App:
         b.on_pps(self.gnss.pps_isr)
         b.start_tick(self.isr_tick)
         b.start_watchdog()
+        self._wdt = b.wdt
         self.console(
             "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
         )
@@ -141,52 +174,61 @@ class App:
             self.due = 0
             self.tick()
 
+    # Every method below that runs per tick keeps its frame within the VM's on-stack limit of
+    # 11 words (locals, arguments and stack): a larger frame is allocated on the heap and freed
+    # at every call (py/objfun.c), a search of the heap that costs thousands of instructions
+    # depending on where the free blocks lie. tests/runtimes/test_frames.py checks them; so
+    # the tick is split where its locals would not fit.
+
     def tick(self):
         t0 = time.ticks_us()
         self.t0_us = t0
         self.ticks += 1
-        b = self.board
         imu = self.imu
         if imu is None:
             if self.ticks % 200 == 0:
                 self._start_imu()
-            b.wdt_feed()
+            self.board.wdt_feed()
             return
         imu.read()
-        self._gnss_poll()
-        nav = self.nav
-        nav.imu_counts(imu.gyro, imu.accel, imu.saturated)
+        # the GNSS bytes that arrived, into the parser; a completed epoch to the navigator
+        n = self._gnss_uart.any()
+        if n:
+            n = self._gnss_read(n)
+        self.rx_n = n
+        if self.gnss.epoch_ready:
+            self.gnss.epoch_ready = 0
+            self._deliver_fix()
+        self.nav.imu_counts(imu.gyro, imu.accel, imu.saturated)
+        self._outputs(imu, t0)
+
+    def _outputs(self, imu, t0):
+        """The frame, the extended frame and the raw record when due; the watchdog."""
+        state = self.nav.ctl[_C_STATE]
         cfg = self.cfg
         if self.ticks % cfg.output_every_ticks == 0:
-            self._send_frame(imu)
+            self._send_frame(imu, state)
         if cfg.ext_every_ticks and self.ticks % cfg.ext_every_ticks == 0:
             self._send_ext(imu)
         if cfg.raw_record:
-            raw = self.raw
-            raw.pack(
-                self.counter,
-                t0,
-                self.gnss.pps_us,
-                imu.raw_gyro,
-                imu.raw_accel,
-                imu.saturated,
-                self.rx,
-                self.rx_n,
-            )
-            b.out_uart.write(raw._mv[0 : raw.length])
-        b.wdt_feed()
+            self._send_raw(imu, t0)
+        if self._wdt is not None:
+            self._wdt.feed()
+        self._account(t0, state)
+
+    def _account(self, t0, state):
+        """Timing statistics; garbage collection when the heap runs low."""
         dt = time.ticks_diff(time.ticks_us(), t0)
         if dt > self.t_worst_us:
             self.t_worst_us = dt
         self.t_sum_us += dt
         self._period_ticks += 1
-        nav = self.nav
-        if kern.NATIVE and nav.state == NAVIGATING:
+        if kern.NATIVE and state == NAVIGATING:
             # a navigating tick allocates nothing (tests/runtimes: the allocation proof), so
             # the heap only shrinks at a re-anchoring or a reset (Python, rare): check then,
             # and once when navigation starts (alignment allocated up to that tick); with
             # automatic collection off an event must find the low-water reserve free
-            events = nav.reanchors + nav.resets
+            events = self.nav.reanchors + self.nav.resets
             if events == self._events:
                 return
             self._events = events
@@ -196,19 +238,19 @@ class App:
             gc.collect()
             self.gc_runs += 1
 
-    def _gnss_poll(self):
-        """Feed the bytes waiting on the GNSS UART to the parser; hand a completed fix to
-        the navigator."""
-        uart = self.board.gnss_uart
-        n = uart.any()
-        if n:
-            if n > _RX_LEN:
-                n = _RX_LEN
-            n = uart.readinto(self.rx, n) or 0
-            self.gnss.feed(self.rx, n)
-        self.rx_n = n
-        if self.gnss.epoch_take():
-            self._deliver_fix()
+    def _send_raw(self, imu, t0):
+        raw = self.raw
+        raw.pack(self.counter, t0, self.gnss.pps_us, imu.raw_gyro, imu.raw_accel, imu.saturated,
+                 self.rx, self.rx_n)  # fmt: skip
+        self._out_uart.write(raw._mv[0 : raw.length])
+
+    def _gnss_read(self, n):
+        """Up to _RX_LEN of the n bytes waiting on the GNSS UART into the parser; how many."""
+        if n > _RX_LEN:
+            n = _RX_LEN
+        n = self._gnss_uart.readinto(self.rx, n) or 0
+        self.gnss.feed(self.rx, n)
+        return n
 
     def _deliver_fix(self):
         """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
@@ -232,9 +274,10 @@ class App:
             nav.gnss_fix()
             return
         lat = g.epoch_lat_e7
-        geo.split_into(self.lat, 0, lat)
-        self.lon[0] = g.epoch_lon_deg
-        self.lon[1] = g.epoch_lon_frac_e7
+        ff = self._fields
+        geo.split_into(ff, _F_LAT_DEG, lat)
+        ff[_F_LON_DEG] = g.epoch_lon_deg
+        ff[_F_LON_FRAC] = g.epoch_lon_frac_e7
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
         self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
         fi[nav_mod.FI_LAT_E7] = lat
@@ -253,58 +296,53 @@ class App:
         fi[nav_mod.FI_TICK] = fix_tick
         nav.gnss_fix()
 
-    def _send_frame(self, imu):
-        nav = self.nav
-        ins = nav.ins
-        nav.euler()
-        g = self.gnss
+    def _send_frame(self, imu, state):
         fi = self._fields
-        fi[frame.F_COUNTER] = self.counter
-        fi[frame.F_GYRO_LSB_X10] = imu.gyro_lsb_per_dps_x10
-        fi[frame.F_ACCEL_LSB] = imu.accel_lsb_per_g
-        fi[frame.F_PPS] = 1 if g.pps_flag_take() else 0
-        fi[frame.F_GGA] = 1 if g.gga_flag_take() else 0
-        fi[frame.F_VALID] = 1 if self.gnss_valid else 0
-        fi[frame.F_HEIGHT_DM] = self.height_dm
-        fi[frame.F_STATE] = nav.state
-        frame.pack_fields(
-            self.out, fi, imu.gyro, imu.accel, self.lat, self.lon, nav.ypr, ins.v_n, ins.p_n,
-            _CDEG_PER_RAD,
-        )  # fmt: skip
+        g = self.gnss
+        fi[_F_COUNTER] = self.counter
+        fi[_F_PPS] = g.pps_flag  # read and cleared here (gnss.py: pps_flag_take)
+        g.pps_flag = 0
+        fi[_F_GGA] = g.gga_seen
+        g.gga_seen = 0
+        fi[_F_VALID] = 1 if self.gnss_valid else 0
+        fi[_F_HEIGHT_DM] = self.height_dm
+        fi[_F_STATE] = state
+        nav_frame(self.out, fi, imu.gyro, imu.accel, self.nav.mem)
         self.counter = (self.counter + 1) & 0xFF
-        self.board.out_uart.write(self.out)
-        navigating = nav.state == NAVIGATING
-        if navigating != self._led:
-            self._led = navigating
-            self.board.navigating_led(navigating)
+        self._out_uart.write(self.out)
+        if (state == NAVIGATING) != self._led:
+            self._led = state == NAVIGATING
+            self.board.navigating_led(self._led)
 
     def _send_ext(self, imu):
         """The extended frame: health, timing, covariance, biases, position and origin."""
-        nav = self.nav
-        health = nav.health
+        fi = self.ext.fields
+        c = self.nav.ctl
+        health = c[_C_HEALTH]
         if self.config_status != config.OK and health == 0:
             health = 1  # running on defaults is a warning
-        flags = (
-            (1 if self.gnss_valid else 0) | (2 if nav.still else 0) | (4 if imu.saturated else 0)
+        fi[_EF_COUNTER] = self.counter
+        fi[_EF_HEALTH] = health
+        fi[_EF_STATE] = c[_C_STATE]
+        fi[_EF_CONFIG] = self.config_status
+        fi[_EF_FLAGS] = (
+            (1 if self.gnss_valid else 0) | (2 if c[_C_STILL] else 0) | (4 if imu.saturated else 0)
         )
-        mean = self.t_sum_us // self._period_ticks if self._period_ticks else 0
+        fi[_EF_WORST_US] = self.t_worst_us
+        fi[_EF_MEAN_US] = self.t_sum_us // self._period_ticks if self._period_ticks else 0
+        fi[_EF_OVERRUNS] = self.overruns & 0xFFFF
+        fi[_EF_GC_RUNS] = self.gc_runs & 0xFFFF
+        fi[_EF_TICK] = c[_C_TICK] & 0x3FFFFFFF
+        self._send_ext_state(fi)
+
+    def _send_ext_state(self, fi):
+        """The extended frame's origin, covariance and state, packed and sent."""
+        nav = self.nav
         fr = nav.frame
-        ext = self.ext
-        fi = ext.fields
-        fi[records.EF_COUNTER] = self.counter
-        fi[records.EF_HEALTH] = health
-        fi[records.EF_STATE] = nav.state
-        fi[records.EF_CONFIG] = self.config_status
-        fi[records.EF_FLAGS] = flags
-        fi[records.EF_WORST_US] = self.t_worst_us
-        fi[records.EF_MEAN_US] = mean
-        fi[records.EF_OVERRUNS] = self.overruns & 0xFFFF
-        fi[records.EF_GC_RUNS] = self.gc_runs & 0xFFFF
-        fi[records.EF_LAT0_E7] = fr.lat0_e7
-        fi[records.EF_LON0_DEG] = fr.lon0_deg
-        fi[records.EF_LON0_FRAC] = fr.lon0_frac
-        fi[records.EF_TICK] = nav.tick & 0x3FFFFFFF
-        ext.pack(nav.kf.P, nav.ins.x, fr.coef)
-        self.board.out_uart.write(self.ext.data)
+        fi[_EF_LAT0_E7] = fr.lat0_e7
+        fi[_EF_LON0_DEG] = fr.lon0_deg
+        fi[_EF_LON0_FRAC] = fr.lon0_frac
+        self.ext.pack(nav.kf.P, nav.ins.x, fr.coef)
+        self._out_uart.write(self.ext.data)
         self.t_sum_us = 0
         self._period_ticks = 0

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from host_emulator import firmware_env
+from host_emulator.bench import navigator as nav_runner
 from host_emulator.proto import stimulus, stream
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
@@ -79,11 +80,29 @@ def field(f, fmt, off):
 
 
 def test_the_app_constants_are_the_correctly_rounded_values():
-    import app
     import nav
 
-    assert app._CDEG_PER_RAD == np.float32(18000 / np.pi)
+    assert nav.CDEG_PER_RAD == np.float32(18000 / np.pi)
     assert nav.RAD_PER_CDEG == np.float32(np.pi / 18000)
+
+
+def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():
+    import app
+    import frame
+    import nav
+    import records
+
+    frame_copies = {n for n in vars(app) if n.startswith("_F_")}
+    assert frame_copies == {"_" + n for n in vars(frame) if n.startswith("F_")}
+    ext_copies = {n for n in vars(app) if n.startswith("_EF_")}
+    assert ext_copies == {"_" + n for n in vars(records) if n.startswith("EF_")}
+    for name in frame_copies | ext_copies:
+        source = frame if name.startswith("_F_") else records
+        assert getattr(app, name) == getattr(source, name[1:]), name
+    ctl = {n for n in vars(app) if n.startswith("_C_")}
+    assert ctl
+    for name in ctl:
+        assert getattr(app, name) == getattr(nav, name), name
 
 
 def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
@@ -247,7 +266,7 @@ def test_the_navigator_is_told_whether_the_speed_is_known(tmp_path, fields, need
         assert speed == -1.0 if speed_mm_s is None else round(speed * 1000) == speed_mm_s
         assert course == -1.0 if course_e5 is None else round(course * 100000) == course_e5
     # the fixes were usable; only a known speed is a measurement for the standstill detector
-    tick = bench.app.nav._speed_tick
+    tick = nav_runner.control(bench.app.nav, "speed_tick")
     assert tick == -1000000 if speed_mm_s is None else tick > 0
 
 

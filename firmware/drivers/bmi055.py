@@ -177,7 +177,8 @@ class BMI055:
     accel: array('h', 3), accel counts x, y, z (-2048..2047; divide by accel_lsb_per_g).
     saturated: True if an axis is at (or within one count of) full scale; sat_mask: which.
     accel_new: bits 0-2 = the new_data bits of accel x, y, z (1: not read before).
-    raw_gyro, raw_accel: bytearray(6), the data registers as read (for raw logging/replay).
+    raw_gyro, raw_accel: 6 bytes (memoryviews), the data registers as read (for raw
+        logging/replay).
     """
 
     def __init__(
@@ -216,9 +217,14 @@ class BMI055:
         self._tx1 = bytearray(1)
         self._rx1 = bytearray(1)
         self._tx2 = bytearray(2)
-        self._addr_data = bytearray((_REG_DATA | _READ,))
-        self.raw_gyro = bytearray(6)
-        self.raw_accel = bytearray(6)
+        # a burst is one full-duplex transfer of 7 bytes: the address out, then 6 data bytes in
+        # (what comes back while the address goes out is not data)
+        self._burst_tx = bytearray(7)
+        self._burst_tx[0] = _REG_DATA | _READ
+        self._burst_g = bytearray(7)
+        self._burst_a = bytearray(7)
+        self.raw_gyro = memoryview(self._burst_g)[1:]
+        self.raw_accel = memoryview(self._burst_a)[1:]
         self.gyro = array("h", (0, 0, 0))
         self.accel = array("h", (0, 0, 0))
         self.saturated = False
@@ -303,21 +309,24 @@ class BMI055:
     def read(self):
         """Burst-read both dies' data registers and decode them into `gyro` and `accel`.
 
-        Returns `saturated`. Two SPI transactions of 1 + 6 bytes each; allocates nothing.
+        Returns `saturated`. Two SPI transactions of 1 + 6 bytes each, one full-duplex call
+        each (per call the board's SPI driver costs more than its bytes); allocates nothing.
         """
-        self._burst(self._cs_g, self.raw_gyro)
-        self._burst(self._cs_a, self.raw_accel)
+        spi = self._spi
+        tx = self._burst_tx
+        cs = self._cs_g
+        cs.value(0)
+        spi.write_readinto(tx, self._burst_g)
+        cs.value(1)
+        cs = self._cs_a
+        cs.value(0)
+        spi.write_readinto(tx, self._burst_a)
+        cs.value(1)
         m = _decode(self.gyro, self.accel, self.raw_gyro, self.raw_accel)
         self.sat_mask = m & 0x3F
         self.accel_new = m >> 6
         self.saturated = (m & 0x3F) != 0
         return self.saturated
-
-    def _burst(self, cs, buf):
-        cs.value(0)
-        self._spi.write(self._addr_data)
-        self._spi.readinto(buf, 0)
-        cs.value(1)
 
     def read_temperature(self):
         """Raw temperature (int8: 0.5 K per LSB, 0 = 23 degC); allocates nothing.

@@ -108,8 +108,10 @@ _diagonal_ok = kern.pick("eskf_diagonal_ok", None)
 
 
 class Eskf:
-    def __init__(self, earth_terms=True):
-        e = f32.zeros(NE)
+    def __init__(self, earth_terms=True, e=None):
+        """e: the NE-float buffer to use (a view into a larger one), or None for a new."""
+        if e is None:
+            e = f32.zeros(NE)
         self.e = e
         self.i = ii = array("i", bytes(4 * NI))
         ii[I_EARTH] = 1 if earth_terms else 0

@@ -42,7 +42,11 @@ F_GGA = const(4)
 F_VALID = const(5)
 F_HEIGHT_DM = const(6)
 F_STATE = const(7)
-NF = const(8)
+F_LAT_DEG = const(8)  # the fix's latitude and longitude as (degrees, 1e-7 deg fraction): read
+F_LAT_FRAC = const(9)  # by nav.nav_frame (`pack_fields` takes them as two arrays)
+F_LON_DEG = const(10)
+F_LON_FRAC = const(11)
+NF = const(12)
 _GYRO_FRAME_X100 = const(13107)  # 131.07 per deg/s, x100
 _ACCEL_FRAME = const(16383)  # per g
 

@@ -65,8 +65,10 @@ NX = const(52)
 class Ins:
     """Nominal navigation state and its mechanization."""
 
-    def __init__(self, dt_s, earth_terms=True, coning=True):
-        x = f32.zeros(NX)
+    def __init__(self, dt_s, earth_terms=True, coning=True, x=None):
+        """x: the NX-float state buffer to use (a view into a larger one), or None for a new."""
+        if x is None:
+            x = f32.zeros(NX)
         self.x = x
         x[X_DT] = f32.f32(dt_s)
         x[X_HDT] = x[X_DT] * 0.5

@@ -39,6 +39,7 @@ detected and reset, non-finite IMU input) held for one second.
 from array import array
 
 import eskf
+import frame
 import ins as ins_mod
 import kern
 from ins import Ins
@@ -55,7 +56,7 @@ NAVIGATING = const(2)
 RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz): the fix
 # latency plus the wait for the filter (a propagation is 31 ticks at one slice per tick)
 
-# Filter jobs (self._job). Private consts are inlined and cost no global on the board; the
+# Filter jobs (self.ctl[_C_JOB]). Private consts are inlined and cost no global on the board; the
 # NumPy model reads these names through CPython, where they are plain module attributes.
 _JOB_NONE = const(0)
 _JOB_GNSS = const(1)
@@ -125,6 +126,66 @@ _FC_USABLE = const(1)  # HDOP acceptable
 _FC_SPEED = const(2)  # ... and the fix has a speed (now in self._st)
 _FC_REANCHOR = const(4)  # the position is beyond reanchor_m from the origin
 RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
+CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
+# self.ctl: the per-tick control state and the integer configuration it needs, one int buffer
+# so that the native `nav_tick` runs a whole navigating tick (layout.h C_* repeats it)
+_C_TICK = const(0)  # ticks since start
+_C_STATE = const(1)  # ALIGNING, NAVIGATING
+_C_HEALTH = const(2)
+_C_STILL = const(3)  # 1: standing still (zero-velocity updates)
+_C_N_STILL = const(4)  # ticks the standstill detector has been quiet
+_C_SAT_UNTIL = const(5)  # health 1 until this tick (IMU saturated)
+_C_FAULT_UNTIL = const(6)  # health 2 until this tick
+_C_GATED_UNTIL = const(7)  # health 1 until this tick (a fix gated out or rejected)
+_C_SPEED_TICK = const(8)  # tick of the last usable fix with a speed (its speed: self._st)
+_C_ACCEPT_TICK = const(9)  # tick of the last accepted GNSS update
+_C_REJECTS = const(10)  # GNSS updates rejected in a row
+_C_SINCE_PROP = const(11)  # ticks since the last propagation started
+_C_SINCE_ZUPT = const(12)
+_C_SINCE_NHC = const(13)
+_C_JOB = const(14)  # _JOB_*: what the running filter job is for
+_C_FIX_PENDING = const(15)  # 1: a fix arrived, not screened yet
+_C_FIX_QUEUED = const(16)  # 1: a usable fix waits for the filter
+_C_PHASE = const(17)  # nav_tick: where the tick resumes after an event (0: a new tick)
+_C_BUSY = const(18)  # nav_tick: the filter had a job before this tick's slices
+_C_T_SECOND = const(19)  # configuration in ticks (from here on: set once)
+_C_T_STILL = const(20)
+_C_T_TIMEOUT = const(21)
+_C_T_PROP = const(22)
+_C_T_ZUPT = const(23)
+_C_T_NHC = const(24)
+_C_SLICES = const(25)  # filter slices per tick
+_C_RESET_AFTER = const(26)  # reset to GNSS after this many rejected updates in a row
+_C_OPTS = const(27)  # _OPT_* bits
+_C_CAL_FLAGS = const(28)  # 1: gyro matrix, 2: accel matrix
+_C_SAT = const(29)  # 1: the IMU was saturated this tick (nav_tick's input)
+_NC = const(30)
+_OPT_ZUPT = const(1)
+_OPT_NHC = const(2)
+_OPT_CONING = const(4)
+# self.mem: every float buffer a tick touches, in one (layout.h M_*), so that the native
+# `nav_tick` takes few arguments: a call of many arguments makes its caller's frame too large
+# for the C stack, and MicroPython then allocates the frame on the heap at every call
+_M_X = const(0)  # Ins.x (ins.NX)
+_M_E = const(52)  # Eskf.e (eskf.NE)
+_M_YPR = const(766)  # yaw, pitch, roll (3)
+_M_W = const(769)  # calibrated body rate, rad/s (3)
+_M_F = const(772)  # calibrated specific force, m/s^2 (3)
+_M_CAL = const(775)  # the calibration (_NCAL)
+_M_ST = const(801)  # the standstill detector (6)
+_M_STP = const(807)  # its parameters (_NSTP)
+_M_CORR = const(812)  # cumulative injected corrections of p and v (6)
+_M_RING_P = const(818)  # the delay ring: positions (3 * RING)
+_M_RING_V = const(1202)  # ... and velocities (3 * RING)
+_NM = const(1586)
+# nav_tick's results: what Python must do before calling it again (0: the tick is done)
+_EV_ALIGN = const(1)  # aligning: run _align
+_EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
+_EV_GNSS = const(3)  # start the GNSS update of the queued fix
+_EV_ZUPT = const(4)  # start a zero-velocity update
+_EV_NHC = const(5)  # start a non-holonomic constraint update
+_EV_RESET = const(6)  # the filter kept rejecting GNSS: _reset_to_gnss
+_EV_FAULT = const(7)  # non-finite state or covariance: _fault_reset
 
 
 def _ticks(seconds, dt):
@@ -135,39 +196,46 @@ class Navigator(Alignment, Aiding):
     def __init__(self, cfg):
         self.cfg = cfg
         dt = cfg.dt_s
-        self.ins = Ins(dt, cfg.earth_terms, cfg.coning)
-        self.kf = eskf.Eskf(cfg.earth_terms)
+        self.mem = m = f32.zeros(_NM)
+        self.ins = Ins(dt, cfg.earth_terms, cfg.coning, f32.view(m, _M_X, ins_mod.NX))
+        self.kf = eskf.Eskf(cfg.earth_terms, f32.view(m, _M_E, eskf.NE))
         self.frame = geo.LocalFrame()
-        self.state = ALIGNING
-        self.health = 0
-        self.tick = 0
-        self.ypr = f32.zeros(3)
-        self._w = f32.zeros(3)  # calibrated body rate, rad/s
-        self._f = f32.zeros(3)  # calibrated specific force, m/s^2
+        self.ctl = c = array("i", bytes(4 * _NC))
+        c[_C_STATE] = ALIGNING
+        self.ypr = f32.view(m, _M_YPR, 3)
+        self._w = f32.view(m, _M_W, 3)
+        self._f = f32.view(m, _M_F, 3)
         self._tmp3 = f32.zeros(3)
         self._tmp4 = f32.zeros(4)
         self._e7 = array("i", bytes(12))  # lat, lon degrees, lon fraction
         self._h = f32.zeros(1)  # a height (m) for geo.to_enu
         self.fix_in = array("i", bytes(4 * NFI))
-        self._ring_p = f32.zeros(3 * RING)
-        self._ring_v = f32.zeros(3 * RING)
-        self._corr = f32.zeros(6)  # cumulative injected corrections of p and v
+        self._ring_p = f32.view(m, _M_RING_P, 3 * RING)
+        self._ring_v = f32.view(m, _M_RING_V, 3 * RING)
+        self._corr = f32.view(m, _M_CORR, 6)
         self._gp = f32.zeros(3)  # GNSS antenna position in the frame, m
         self._fx = f32.zeros(6)
         self._used = f32.zeros(7)
-        self._st = f32.zeros(6)
+        self._st = f32.view(m, _M_ST, 6)
         self._lvl = f32.zeros(6)  # sums of f and w while levelling
         self._init = f32.zeros(eskf.N)  # initial P diagonal
         self._trk = f32.zeros(3)
         # configuration derived once
-        self._ticks_prop = _ticks(cfg.prop_period_s, dt)
-        self._ticks_zupt = _ticks(cfg.zupt_period_s, dt)
-        self._ticks_nhc = _ticks(cfg.nhc_period_s, dt)
+        c[_C_T_PROP] = self._ticks_prop = _ticks(cfg.prop_period_s, dt)
+        c[_C_T_ZUPT] = _ticks(cfg.zupt_period_s, dt)
+        c[_C_T_NHC] = _ticks(cfg.nhc_period_s, dt)
+        c[_C_T_STILL] = _ticks(cfg.still_s, dt)
+        c[_C_T_TIMEOUT] = _ticks(cfg.gnss_timeout_s, dt)
+        c[_C_T_SECOND] = self._ticks_second = _ticks(f32.f32(1), dt)
+        c[_C_SLICES] = cfg.slices_per_tick
+        c[_C_RESET_AFTER] = cfg.reset_after_rejects
+        c[_C_OPTS] = (
+            (_OPT_ZUPT if cfg.zupt else 0)
+            | (_OPT_NHC if cfg.nhc else 0)
+            | (_OPT_CONING if self.ins.coning else 0)
+        )
         self._ticks_level = _ticks(cfg.level_s, dt)
-        self._ticks_still = _ticks(cfg.still_s, dt)
-        self._ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
         self._ticks_latency = _ticks(cfg.gnss_latency_s, dt)
-        self._ticks_second = _ticks(f32.f32(1), dt)
         self._ticks_track = _ticks(cfg.track_s, dt)
         if self._ticks_track < 1:
             self._ticks_track = 1
@@ -213,7 +281,7 @@ class Navigator(Alignment, Aiding):
         kf.set_gate(cfg.gate_sigma, 1.0 / cfg.gyro_bias_tau_s, 1.0 / cfg.accel_bias_tau_s)
 
     def _set_calibration(self, cfg):
-        cal = f32.zeros(_NCAL)
+        cal = f32.view(self.mem, _M_CAL, _NCAL)
         self._cal = cal
         cal[_CAL_G] = cfg.gyro_counts_per_rad_s
         cal[_CAL_A] = cfg.accel_counts_per_m_s2
@@ -229,10 +297,10 @@ class Navigator(Alignment, Aiding):
             flags |= 2
             for i in range(9):
                 cal[_CAL_AM + i] = cfg.accel_matrix[i]
-        self._cal_flags = flags
+        self.ctl[_C_CAL_FLAGS] = flags
         self._counts_g = array("h", bytes(6))
         self._counts_a = array("h", bytes(6))
-        stp = f32.zeros(_NSTP)
+        stp = f32.view(self.mem, _M_STP, _NSTP)
         self._stp = stp
         stp[_STP_ALPHA] = STILL_ALPHA
         stp[_STP_ACCEL] = cfg.still_accel
@@ -253,13 +321,14 @@ class Navigator(Alignment, Aiding):
         aid[_AID_REANCHOR] = cfg.reanchor_m
 
     def _reset_counters(self):
+        c = self.ctl
+        for i in range(_C_T_SECOND):
+            c[i] = 0
+        c[_C_STATE] = ALIGNING
+        c[_C_SPEED_TICK] = -1000000
         self.leveled = False
-        self.still = False
         self._n_level = 0
-        self._n_still = 0
         self._n_stable = 0
-        self._fix_pending = False  # a fix arrived, not screened yet
-        self._fix_queued = False  # a usable fix waits for the filter
         self._used_tick = 0  # measurement tick of the fix in self._used
         self._fix_lat = 0
         self._fix_lon_deg = 0
@@ -267,21 +336,40 @@ class Navigator(Alignment, Aiding):
         self._fix_quality = 0
         self._fix_tick = 0
         self._last_fix_tick = -1000000
-        self._speed_tick = -1000000  # tick of the last usable fix (its speed: self._st)
         self._trk_set = False  # a track anchor is held (self._trk, self._trk_tick)
         self._trk_tick = 0  # measurement tick of the anchor fix
-        self._last_accept_tick = 0
-        self._rejects = 0
-        self._gated_until = 0
-        self._fault_until = 0
-        self._sat_until = 0
-        self._since_prop = 0
-        self._since_zupt = 0
-        self._since_nhc = 0
-        self._job = _JOB_NONE
         self.updates = 0  # GNSS updates run (for reports)
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
         self.reanchors = 0  # origin moves
+
+    # the control state by name (the per-tick code reads self.ctl)
+    @property
+    def tick(self):
+        return self.ctl[_C_TICK]
+
+    @tick.setter
+    def tick(self, value):
+        self.ctl[_C_TICK] = value
+
+    @property
+    def state(self):
+        return self.ctl[_C_STATE]
+
+    @state.setter
+    def state(self, value):
+        self.ctl[_C_STATE] = value
+
+    @property
+    def health(self):
+        return self.ctl[_C_HEALTH]
+
+    @property
+    def still(self):
+        return self.ctl[_C_STILL] != 0
+
+    @still.setter
+    def still(self, value):
+        self.ctl[_C_STILL] = 1 if value else 0
 
     # ---- inputs --------------------------------------------------------------------------
 
@@ -295,25 +383,59 @@ class Navigator(Alignment, Aiding):
         self.imu_counts(cg, ca, saturated)
 
     def imu_counts(self, gyro_h, accel_h, saturated=False):
-        """imu_raw for counts already in array('h') buffers (the BMI055 driver's): no copy."""
-        finite = imu_cal(self._w, self._f, gyro_h, accel_h, self._cal, self._cal_flags)
+        """imu_raw for counts already in array('h') buffers (the BMI055 driver's): no copy.
+
+        With the native kernels the whole tick is one call of `nav_tick`, which mirrors `_tick`
+        below (the reference) on the same buffers (self.mem, self.ctl). It returns at each step
+        that runs in Python (alignment, a fix, the rows of an aiding update, a reset: _EV_*)
+        and is called again to resume after it. This method's frame stays within the VM's
+        on-stack limit (tests/runtimes/test_frames.py): keep its locals and arguments few."""
+        if _nav_tick is None:
+            self._imu_counts_py(gyro_h, accel_h, saturated)
+            return
+        self.ctl[_C_SAT] = 1 if saturated else 0
+        ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
+        while ev:
+            self._event(ev)
+            ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
+
+    def _imu_counts_py(self, gyro_h, accel_h, saturated):
+        finite = imu_cal(self._w, self._f, gyro_h, accel_h, self._cal, self.ctl[_C_CAL_FLAGS])
         self._tick(finite, saturated)
+
+    def _event(self, ev):
+        """What nav_tick asks Python to do (_EV_*) before it resumes."""
+        if ev == _EV_ALIGN:
+            self._align()
+        elif ev == _EV_FIX:
+            self._nav_fix()
+        elif ev == _EV_GNSS:
+            self._start_queued_fix()
+        elif ev == _EV_ZUPT:
+            self._start_zupt()
+        elif ev == _EV_NHC:
+            self._start_nhc()
+        elif ev == _EV_RESET:
+            self._reset_to_gnss()
+        else:
+            self._fault_reset()
 
     def imu(self, w_in, f_in, saturated=False):
         """One tick: sensor-axes rate (rad/s) and specific force (m/s^2)."""
         self._tick(self._calibrate(w_in, f_in), saturated)
 
     def _tick(self, finite, saturated):
-        self.tick += 1
+        c = self.ctl
+        c[_C_TICK] += 1
         if saturated:
-            self._sat_until = self.tick + self._ticks_second
+            c[_C_SAT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         if not finite:
-            self._fault_until = self.tick + self._ticks_second
+            c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             self._update_health()
             return
-        if self.tick & 3 == 0:
+        if c[_C_TICK] & 3 == 0:
             self._still_update()
-        if self.state == NAVIGATING:
+        if c[_C_STATE] == NAVIGATING:
             self._navigate()
         else:
             self._align()
@@ -350,30 +472,31 @@ class Navigator(Alignment, Aiding):
         self._fix_lon_frac = lon_frac
         self._fix_quality = quality
         if fix_tick < 0:
-            fix_tick = self.tick - self._ticks_latency
+            fix_tick = self.ctl[_C_TICK] - self._ticks_latency
         self._fix_tick = fix_tick
-        self._fix_pending = True
+        self.ctl[_C_FIX_PENDING] = 1
 
     # ---- per tick ------------------------------------------------------------------------
 
     def _calibrate(self, w_in, f_in):
-        return _cal_si(self._w, self._f, w_in, f_in, self._cal, self._cal_flags)
+        return _cal_si(self._w, self._f, w_in, f_in, self._cal, self.ctl[_C_CAL_FLAGS])
 
     def _still_update(self):
         """Standstill detector at 50 Hz: low-passed specific-force changes and rotation rate
         (the float work: `still`, below)."""
+        c = self.ctl
         flags = 0
-        if self.tick == 4:
+        if c[_C_TICK] == 4:
             flags = _STILL_FIRST  # start the low-pass at the first sample, not at zero
-        if self.tick - self._speed_tick < self._ticks_second:
+        if c[_C_TICK] - c[_C_SPEED_TICK] < c[_C_T_SECOND]:
             flags |= _STILL_GNSS_SPEED
-        if self.state == NAVIGATING:
+        if c[_C_STATE] == NAVIGATING:
             flags |= _STILL_NAVIGATING
         if still(self._st, self._f, self._w, self.ins.x, self._stp, flags):
-            self._n_still += 4
+            c[_C_N_STILL] += 4
         else:
-            self._n_still = 0
-        self.still = self._n_still >= self._ticks_still
+            c[_C_N_STILL] = 0
+        c[_C_STILL] = 1 if c[_C_N_STILL] >= c[_C_T_STILL] else 0
 
     def _fix_usable(self):
         """fix_check's bits, non-zero when quality and HDOP are acceptable (_FC_REANCHOR: see
@@ -383,27 +506,28 @@ class Navigator(Alignment, Aiding):
             return 0
         r = fix_check(self._st, self._fx, self.ins.x, self._aid)
         if r & _FC_SPEED:
-            self._speed_tick = self.tick
+            self.ctl[_C_SPEED_TICK] = self.ctl[_C_TICK]
         return r
 
     def _navigate(self):
         ins = self.ins
         x = ins.x
+        c = self.ctl
         ins_step(x, self._w, self._f, ins.coning)
         # ring of state history, minus the corrections injected so far
-        ring_put(self._ring_p, self._ring_v, x, self._corr, (self.tick % RING) * 3)
-        self._since_prop += 1
-        self._since_zupt += 1
-        self._since_nhc += 1
-        if self._fix_pending:
-            self._fix_pending = False
+        ring_put(self._ring_p, self._ring_v, x, self._corr, (c[_C_TICK] % RING) * 3)
+        c[_C_SINCE_PROP] += 1
+        c[_C_SINCE_ZUPT] += 1
+        c[_C_SINCE_NHC] += 1
+        if c[_C_FIX_PENDING]:
+            c[_C_FIX_PENDING] = 0
             self._nav_fix()
         kf = self.kf
         ki = kf.i
         if ki[eskf.I_JOB] == eskf.IDLE and not ki[eskf.I_READY]:
             self._schedule()
         busy = ki[eskf.I_JOB] != eskf.IDLE
-        kf.work(self.cfg.slices_per_tick)
+        kf.work(c[_C_SLICES])
         if ki[eskf.I_READY]:
             self._inject()
         # P changes only when a job finishes: check it then, not every tick
@@ -415,17 +539,18 @@ class Navigator(Alignment, Aiding):
 
     def _nav_fix(self):
         """A new fix while navigating: screen it, re-anchor if far, queue it for the filter."""
-        self._last_fix_tick = self.tick
+        c = self.ctl
+        self._last_fix_tick = c[_C_TICK]
         usable = self._fix_usable()
         if not usable:
-            self._gated_until = self.tick + self._ticks_second
+            c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             return
         if usable & _FC_REANCHOR:
             self._reanchor()
         # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
         self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,
                           self._fx)  # fmt: skip
-        self._fix_queued = True  # until the filter is free (see _schedule)
+        c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
 
     def _reanchor(self):
         """New integer origin at the current position; state re-expressed in the new frame."""
@@ -456,58 +581,66 @@ class Navigator(Alignment, Aiding):
         """Start the next filter job (the filter is idle): a queued fix (unless propagation is
         overdue), else propagation, else a zero-velocity update at standstill, else the
         non-holonomic constraint (the measurement rows: nav_aid.py)."""
-        cfg = self.cfg
+        c = self.ctl
         kf = self.kf
-        overdue = self._since_prop >= 2 * self._ticks_prop
-        if self._fix_queued and not overdue:
-            self._fix_queued = False
-            # the state at the fix's measurement time: the ring holds the last RING ticks
-            age = self.tick - self._fix_tick
-            if age < 0:
-                age = 0
-            elif age > RING - 1:
-                age = RING - 1
-            self._start_gnss_update(((self.tick - age) % RING) * 3)
-            self._job = _JOB_GNSS
-            self.updates += 1
-        elif self._since_prop >= self._ticks_prop:
+        overdue = c[_C_SINCE_PROP] >= 2 * c[_C_T_PROP]
+        if c[_C_FIX_QUEUED] and not overdue:
+            self._start_queued_fix()
+        elif c[_C_SINCE_PROP] >= c[_C_T_PROP]:
             ins = self.ins
             if _prop_start is not None:
-                _prop_start(ins.x, kf.e, kf.i, self._since_prop)
+                _prop_start(ins.x, kf.e, kf.i, c[_C_SINCE_PROP])
             else:
-                t = f32.f32(self._since_prop) * cfg.dt_s
+                t = f32.f32(c[_C_SINCE_PROP]) * self.cfg.dt_s
                 ins.take_dvn(self._tmp3)
                 ins.slow_update(t)
                 kf.start_propagation(self._tmp3, t, ins.c_bn, ins.w_ie_n)
-            self._since_prop = 0
-        elif cfg.zupt and self.still and self._since_zupt >= self._ticks_zupt:
-            self._since_zupt = 0
+            c[_C_SINCE_PROP] = 0
+        elif c[_C_OPTS] & _OPT_ZUPT and c[_C_STILL] and c[_C_SINCE_ZUPT] >= c[_C_T_ZUPT]:
+            c[_C_SINCE_ZUPT] = 0
+            c[_C_JOB] = _JOB_AID
             self._start_zupt()
-            self._job = _JOB_AID
-        elif cfg.nhc and not self.still and self._since_nhc >= self._ticks_nhc:
-            self._since_nhc = 0
+        elif c[_C_OPTS] & _OPT_NHC and not c[_C_STILL] and c[_C_SINCE_NHC] >= c[_C_T_NHC]:
+            c[_C_SINCE_NHC] = 0
+            c[_C_JOB] = _JOB_AID
             self._start_nhc()
-            self._job = _JOB_AID
+
+    def _start_queued_fix(self):
+        """The GNSS update of the queued fix, against the state at its measurement time (the
+        ring holds the last RING ticks)."""
+        c = self.ctl
+        c[_C_FIX_QUEUED] = 0
+        age = c[_C_TICK] - self._fix_tick
+        if age < 0:
+            age = 0
+        elif age > RING - 1:
+            age = RING - 1
+        c[_C_JOB] = _JOB_GNSS
+        self.updates += 1
+        self._start_gnss_update(((c[_C_TICK] - age) % RING) * 3)
 
     def _inject(self):
         """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
         kf = self.kf
+        c = self.ctl
         inject(self.ins.x, kf.e, self._corr)
         kf.i[eskf.I_READY] = 0
-        if self._job == _JOB_GNSS:
+        job = c[_C_JOB]
+        c[_C_JOB] = _JOB_NONE
+        if job == _JOB_GNSS:
             # a fix whose east or north was gated out counts as rejected: one axis drifting
             # away while the others are accepted must still end in a reset
-            if kf.gate_mask & 3:
-                self._rejects += 1
-                self._gated_until = self.tick + self._ticks_second
-                if self._rejects >= self.cfg.reset_after_rejects:
+            mask = kf.i[eskf.I_GATE_MASK]
+            if mask & 3:
+                c[_C_REJECTS] += 1
+                c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+                if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
                     self._reset_to_gnss()
             else:
-                self._rejects = 0
-                self._last_accept_tick = self.tick
-                if kf.gate_mask:
-                    self._gated_until = self.tick + self._ticks_second
-        self._job = _JOB_NONE
+                c[_C_REJECTS] = 0
+                c[_C_ACCEPT_TICK] = c[_C_TICK]
+                if mask:
+                    c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
 
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
@@ -537,7 +670,8 @@ class Navigator(Alignment, Aiding):
     def _fault_reset(self):
         """Non-finite state or covariance: back to a safe state and re-align."""
         ins = self.ins
-        self.state = ALIGNING
+        c = self.ctl
+        c[_C_STATE] = ALIGNING
         rot.q_identity(ins.q_bn)
         rot.q_to_dcm(ins.c_bn, ins.q_bn)
         z = self._tmp3
@@ -552,22 +686,23 @@ class Navigator(Alignment, Aiding):
             self._corr[i] = 0.0
         self._n_level = 0
         self._n_stable = 0
-        self._fix_queued = False
+        c[_C_FIX_QUEUED] = 0
         self._trk_set = False
         self.leveled = False
-        self._fault_until = self.tick + self._ticks_second
+        c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
 
     def _update_health(self):
-        t = self.tick
-        if t < self._fault_until:
-            self.health = 2
-        elif t < self._sat_until or t < self._gated_until:
-            self.health = 1
-        elif self.state == NAVIGATING and t - self._last_accept_tick > self._ticks_timeout:
-            self.health = 1
+        c = self.ctl
+        t = c[_C_TICK]
+        if t < c[_C_FAULT_UNTIL]:
+            c[_C_HEALTH] = 2
+        elif t < c[_C_SAT_UNTIL] or t < c[_C_GATED_UNTIL]:
+            c[_C_HEALTH] = 1
+        elif c[_C_STATE] == NAVIGATING and t - c[_C_ACCEPT_TICK] > c[_C_T_TIMEOUT]:
+            c[_C_HEALTH] = 1
         else:
-            self.health = 0
+            c[_C_HEALTH] = 0
 
     # ---- outputs -------------------------------------------------------------------------
 
@@ -740,7 +875,20 @@ def _fix_check_py(st, fx, x, aid):
     return r
 
 
+def _nav_frame_py(buf, fields, gyro, accel, mem):
+    """The output frame (frame.pack_fields) of the navigator's state in mem (Navigator.mem):
+    the attitude as yaw, pitch, roll into mem's ypr, the velocity and position; the fix's
+    latitude and longitude are in fields (frame.F_LAT_DEG ... F_LON_FRAC)."""
+    ypr = f32.view(mem, _M_YPR, 3)
+    euler(ypr, f32.view(mem, _M_X + ins_mod.X_C, 9))
+    lat = array("i", (fields[frame.F_LAT_DEG], fields[frame.F_LAT_FRAC]))
+    lon = array("i", (fields[frame.F_LON_DEG], fields[frame.F_LON_FRAC]))
+    frame.pack_fields(buf, fields, gyro, accel, lat, lon, ypr, f32.view(mem, _M_X + ins_mod.X_V, 3),
+                      f32.view(mem, _M_X + ins_mod.X_P, 3), CDEG_PER_RAD)  # fmt: skip
+
+
 _prop_start = kern.pick("prop_start", None)
+_nav_tick = kern.pick("nav_tick", None)  # the reference: Navigator._tick and its callees
 fix_in = kern.pick("fix_in", _fix_in_py)
 fix_check = kern.pick("fix_check", _fix_check_py)
 imu_cal = kern.pick("imu_cal", _imu_cal_py)
@@ -749,3 +897,4 @@ ring_put = kern.pick("ring_put", _ring_put_py)
 ins_finite = kern.pick("ins_finite", _ins_finite_py)
 inject = kern.pick("inject", _inject_py)
 euler = kern.pick("euler", rot.dcm_to_euler)
+nav_frame = kern.pick("nav_frame", _nav_frame_py)

@@ -30,6 +30,8 @@ _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
+_C_TICK = const(0)  # self.ctl: the control state
+_C_REJECTS = const(10)
 
 # The native kernels of the three rows (the methods below are their reference)
 _gnss_rows = kern.pick("gnss_rows", None)
@@ -209,6 +211,6 @@ class Aiding:
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
             sigma_vel = self.cfg.track_vel_sigma
-        self._restart(used, v, self.tick - self._used_tick, sh, sv, sigma_vel)
-        self._rejects = 0
+        self._restart(used, v, self.ctl[_C_TICK] - self._used_tick, sh, sv, sigma_vel)
+        self.ctl[_C_REJECTS] = 0
         self.resets += 1

@@ -26,6 +26,12 @@ from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
 # Indices into the Navigator's buffers, as nav.py defines them (an underscore const is inlined
 # and exists only in its own module; tests/lib/test_nav.py checks that the copies agree).
 _NAVIGATING = const(2)  # nav.NAVIGATING
+_C_TICK = const(0)  # self.ctl: the control state
+_C_STATE = const(1)
+_C_STILL = const(3)
+_C_ACCEPT_TICK = const(9)
+_C_SINCE_PROP = const(11)
+_C_FIX_PENDING = const(15)
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
@@ -45,14 +51,15 @@ class Alignment:
         w = self._w
         f = self._f
         lv = self._lvl
-        if self.still or not self.leveled:
+        still = self.ctl[_C_STILL]
+        if still or not self.leveled:
             for i in range(3):
                 lv[i] = lv[i] + f[i]
                 lv[3 + i] = lv[3 + i] + w[i]
             self._n_level += 1
             if self._n_level >= self._ticks_level:
                 self._level()
-        if self.leveled and not self.still:
+        if self.leveled and not still:
             # keep roll and pitch current while waiting for a heading
             th = self._tmp3
             dt = cfg.dt_s
@@ -61,8 +68,8 @@ class Alignment:
                 th[i] = (w[i] - bg[i]) * dt
             rot.q_update(ins.q_bn, th)
             rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self._fix_pending:
-            self._fix_pending = False
+        if self.ctl[_C_FIX_PENDING]:
+            self.ctl[_C_FIX_PENDING] = 0
             self._align_fix()
 
     def _level(self):
@@ -87,7 +94,7 @@ class Alignment:
         ypr[rot.ROLL] = atan2(-fx, fz)
         rot.euler_to_q(ins.q_bn, ypr)
         rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self.still:
+        if self.ctl[_C_STILL]:
             for i in range(3):
                 ins.bg[i] = lv[3 + i] / n
         for i in range(6):
@@ -97,7 +104,7 @@ class Alignment:
 
     def _align_fix(self):
         cfg = self.cfg
-        self._last_fix_tick = self.tick
+        self._last_fix_tick = self.ctl[_C_TICK]
         if not self._fix_usable():
             self._n_stable = 0
             self._trk_set = False
@@ -184,9 +191,10 @@ class Alignment:
         v[1] = sp * cos(course)
         v[2] = 0.0
         sh = self._sigma_h()
-        self._restart(self._gp, v, self.tick - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
+        c = self.ctl
+        self._restart(self._gp, v, c[_C_TICK] - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
         ins.take_dvn(self._tmp3)
         ins.slow_update(f32.f32(0))
-        self._since_prop = 0
-        self._last_accept_tick = self.tick
-        self.state = _NAVIGATING
+        c[_C_SINCE_PROP] = 0
+        c[_C_ACCEPT_TICK] = c[_C_TICK]
+        c[_C_STATE] = _NAVIGATING

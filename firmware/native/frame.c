@@ -152,3 +152,19 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     put_f32(buf, 124, coef[GEO_H0]);
     put_i32(buf, EXT_LEN - 4, (int32_t)crc32(buf, EXT_LEN - 4));
 }
+
+/* nav._nav_frame_py: the frame of the navigator's state in m (Navigator.mem), the attitude as
+ * yaw, pitch, roll into m's ypr first; the fix's latitude and longitude from fields. */
+void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro,
+    const int16_t *accel, float *m) {
+    /* nav.CDEG_PER_RAD, 18000 / pi as float32: the same bits as the Python constant */
+    union {
+        uint32_t u;
+        float f;
+    } cdeg_per_rad = { 0x45B30CA0u };
+    int32_t lat[2] = { fields[F_LAT_DEG], fields[F_LAT_FRAC] };
+    int32_t lon[2] = { fields[F_LON_DEG], fields[F_LON_FRAC] };
+    navk_euler(m + M_YPR, m + M_X + X_C);
+    navk_frame_pack(buf, fields, gyro, accel, lat, lon, m + M_YPR, m + M_X + X_V, m + M_X + X_P,
+        cdeg_per_rad.f);
+}

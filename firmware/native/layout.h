@@ -109,7 +109,11 @@
 #define F_VALID 5
 #define F_HEIGHT_DM 6
 #define F_STATE 7
-#define NF 8
+#define F_LAT_DEG 8
+#define F_LAT_FRAC 9
+#define F_LON_DEG 10
+#define F_LON_FRAC 11
+#define NF 12
 /* records.py: the int fields of the extended frame, ExtFrame.fields */
 #define EF_COUNTER 0
 #define EF_HEALTH 1
@@ -179,5 +183,68 @@
 #define US_COURSE 4
 #define US_SIG_H 5
 #define US_SIG_V 6
+
+/* nav.py: the control state Navigator._c (ints), its option bits, the filter jobs, nav_tick's
+ * results, and the states */
+#define C_TICK 0
+#define C_STATE 1
+#define C_HEALTH 2
+#define C_STILL 3
+#define C_N_STILL 4
+#define C_SAT_UNTIL 5
+#define C_FAULT_UNTIL 6
+#define C_GATED_UNTIL 7
+#define C_SPEED_TICK 8
+#define C_ACCEPT_TICK 9
+#define C_REJECTS 10
+#define C_SINCE_PROP 11
+#define C_SINCE_ZUPT 12
+#define C_SINCE_NHC 13
+#define C_JOB 14
+#define C_FIX_PENDING 15
+#define C_FIX_QUEUED 16
+#define C_PHASE 17
+#define C_BUSY 18
+#define C_T_SECOND 19
+#define C_T_STILL 20
+#define C_T_TIMEOUT 21
+#define C_T_PROP 22
+#define C_T_ZUPT 23
+#define C_T_NHC 24
+#define C_SLICES 25
+#define C_RESET_AFTER 26
+#define C_OPTS 27
+#define C_CAL_FLAGS 28
+#define C_SAT 29
+#define NC 30
+/* nav.py: the navigator's float buffers in one, Navigator.mem */
+#define M_X 0
+#define M_E 52
+#define M_YPR 766
+#define M_W 769
+#define M_F 772
+#define M_CAL 775
+#define M_ST 801
+#define M_STP 807
+#define M_CORR 812
+#define M_RING_P 818
+#define M_RING_V 1202
+#define NM 1586
+#define OPT_ZUPT 1
+#define OPT_NHC 2
+#define OPT_CONING 4
+#define JOB_NONE 0
+#define JOB_GNSS 1
+#define JOB_AID 2
+#define EV_ALIGN 1
+#define EV_FIX 2
+#define EV_GNSS 3
+#define EV_ZUPT 4
+#define EV_NHC 5
+#define EV_RESET 6
+#define EV_FAULT 7
+#define ALIGNING 1
+#define NAVIGATING 2
+#define RING 128
 
 #endif

@@ -23,6 +23,7 @@ int32_t navk_ins_finite(const float *x);
 void navk_inject(float *x, float *e, float *corr);
 void navk_euler(float *ypr, const float *c_bn);
 void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, const int32_t *lat, const int32_t *lon, const float *ypr, const float *v_n, const float *p_n, float ypr_cdeg_scale);
+void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, float *m);
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x, const float *coef);
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid);
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid);
@@ -32,6 +33,7 @@ void navk_prop_start(float *x, float *e, int32_t *ii, int32_t ticks);
 void navk_zupt_rows(float *e, int32_t *ii, const float *x, const float *aid);
 void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid);
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, const float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b);
+int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro, const int16_t *accel);
 
 /* ---- fmath32 (vectorised, for the exhaustive tests) ---- */
 void navk_sin_n(float *out, const float *x, int32_t n);

@@ -33,7 +33,9 @@ VARIANTS = (
     ("default (coning off, 1 slice per tick)", {}),
     ("coning on, 2 slices per tick", {"coning": 1, "slices_per_tick": 2}),
 )
-BUDGET = {"p99": 50_000, "max": 100_000}  # DESIGN.md 4, a whole app tick once navigating
+# A whole app tick once navigating: p99 and max from DESIGN.md 4, the mean and no overrun at
+# the high CPI from issue 15 (0.6 ms mean at CPI 2.05 and 100 MHz)
+BUDGET = {"mean": 30_000, "p99": 50_000, "max": 100_000}
 DEFAULT_OUT = REPO_DIR / "docs" / "benchmarks" / "board.md"
 
 
@@ -131,14 +133,16 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
         f"{scenario} ({duration:g} s, seed 0), with the board's heap.",
         "",
         "Firmware instructions per tick exclude the emulated peripherals (Python standing in "
-        "for the board's C drivers and hardware; their own count is shown). Time per tick "
+        "for the board's C drivers and hardware; their own count is shown); the firmware's "
+        "calls into them are counted at the cost of a C method call (it holds each through "
+        "`m4f.Periph`, docs/emulator.md). Time per tick "
         f"= instructions x CPI / 100 MHz, CPI {low:g} / {central:g} / {high:g} ({source}); "
         "a tick overruns when that exceeds 5 ms. Not counted, so the times are a floor: "
         "interrupt entry and exit, the C drivers of SPI and the UARTs, DMA.",
         "",
-        f"Design budget (DESIGN.md 4), a whole app tick once navigating: p99 <= "
-        f"{BUDGET['p99']:,}, max <= {BUDGET['max']:,} instructions, no gc.collect() while "
-        "navigating.",
+        f"Budget, a whole app tick once navigating: mean <= {BUDGET['mean']:,} (issue 15), "
+        f"p99 <= {BUDGET['p99']:,}, max <= {BUDGET['max']:,} instructions (DESIGN.md 4), no "
+        f"gc.collect() while navigating, and no tick overrunning at CPI {high:g}.",
         "",
         "| configuration | phase | ticks | mean | p50 | p99 | max | emulation mean | "
         "gc.collect | one collect | ms mean / p99 at CPI "
@@ -173,15 +177,28 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
     lines += ["", "![instructions per tick](board_ticks.png)", "", "## Against the budget", ""]
     if nav:
         fi = nav["firmware_instr"]
+        over = nav["time_ms"][f"{high:g}"]["overrun_share"]
+        met = [
+            fi["mean"] <= BUDGET["mean"],
+            fi["p99"] <= BUDGET["p99"],
+            fi["max"] <= BUDGET["max"],
+            nav["gc_collections"] == 0,
+            over == 0,
+        ]
         lines.append(
-            f"Default configuration, navigating: p99 {fi['p99']:,.0f} instructions "
-            f"({fi['p99'] / BUDGET['p99']:.1f}x the budget), max {fi['max']:,} "
+            f"Default configuration, navigating: mean {fi['mean']:,.0f} instructions "
+            f"({fi['mean'] / BUDGET['mean']:.1f}x the budget), p99 {fi['p99']:,.0f} "
+            f"({fi['p99'] / BUDGET['p99']:.1f}x), max {fi['max']:,} "
             f"({fi['max'] / BUDGET['max']:.1f}x), {nav['gc_collections']} gc.collect() in "
-            f"{nav['ticks']} navigating ticks (budget 0); mean allocation "
+            f"{nav['ticks']} navigating ticks (budget 0), {100 * over:.1f} % of the ticks "
+            f"overrunning at CPI {high:g} (budget 0); mean allocation "
             f"{nav['alloc_bytes_per_tick']['mean']:,.0f} bytes per tick "
             f"({nav['alloc_bytes_per_tick']['mean'] / 16:,.0f} blocks of 16 bytes). "
-            "The budget is not met; issue 15 (native float32 kernels, an allocation-free tick) "
-            "takes its targets from these figures."
+            + (
+                "The budget is met."
+                if all(met)
+                else f"The budget is not met ({len(met) - sum(met)} of {len(met)} figures)."
+            )
         )
     else:
         lines.append("The firmware never navigated in this run: no navigating figures.")

@@ -24,6 +24,7 @@ from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()
 
+import nav as nav_mod  # noqa: E402
 import navcfg  # noqa: E402
 from nav import NAVIGATING, Navigator  # noqa: E402
 
@@ -65,6 +66,12 @@ def fix_args(fx, dt_s, velocity=True, pps=True):
         speed, course,
     )  # fmt: skip
     return args, int(round(fx.t_fix_s / dt_s)) if pps else -1
+
+
+def control(nav, name):
+    """The counter `name` of the navigator's control state (nav.py's _C_* layout, lower case
+    without the prefix: "since_prop", "speed_tick", "t_timeout")."""
+    return nav.ctl[getattr(nav_mod, "_C_" + name.upper())]
 
 
 def gnss_e7(nav, lat_e7, lon_e7, *args, **kwargs):

@@ -23,12 +23,13 @@ from host_emulator.errors import EmulatorError
 
 # (module, class or None, attribute names): what is wrapped, besides every navk function
 TARGETS = (
-    ("app", "App", ("tick", "_gnss_poll", "_deliver_fix", "_send_frame", "_send_ext")),
+    ("app", "App", ("tick", "_gnss_read", "_deliver_fix", "_send_frame", "_send_ext")),
     ("drivers.bmi055", "BMI055", ("read",)),
-    ("drivers.gnss", "Nmea", ("feed", "epoch_take")),
-    ("nav", "Navigator", ("imu_counts", "_tick", "gnss", "euler", "_navigate", "_nav_fix",
-                          "_schedule", "_inject", "_still_update", "_fix_usable", "_reanchor",
-                          "_update_health", "_fault_reset", "_restart")),
+    ("drivers.gnss", "Nmea", ("feed",)),
+    ("nav", "Navigator", ("imu_counts", "_tick", "gnss", "_navigate", "_nav_fix",
+                          "_schedule", "_start_queued_fix", "_inject", "_align",
+                          "_still_update", "_fix_usable", "_reanchor", "_update_health",
+                          "_fault_reset", "_restart")),
     ("nav_aid", "Aiding", ("_start_gnss_update", "_start_zupt", "_start_nhc", "_reset_to_gnss",
                            "_lever_n", "_sigma_h", "_sigma_v")),
     ("eskf", "Eskf", ("work", "diagonal_ok", "start_propagation", "start_update", "add_scalar")),
@@ -36,6 +37,7 @@ TARGETS = (
     ("records", "ExtFrame", ("pack",)),
     ("records", "RawRecord", ("pack",)),
     ("frame", None, ("pack_fields",)),
+    ("nav", None, ("nav_frame",)),
     ("geo", "LocalFrame", ("to_enu", "to_e7", "set_origin")),
 )  # fmt: skip
 

@@ -8,7 +8,8 @@ has arrays:
     float * / const float *         numpy.float32 array
     int32_t * / const int32_t *     numpy.int32 array
     int16_t * / const int16_t *     numpy.int16 array
-    uint8_t * / const uint8_t *     numpy.uint8 array or bytearray (bytes for const)
+    uint8_t * / const uint8_t *     numpy.uint8 array, bytearray, byte memoryview (or bytes,
+                                    const)
     int32_t, float                  int, float (or NumPy scalars)
 
 A buffer must have exactly that dtype (native byte order), be C-contiguous and not empty, and be
@@ -54,8 +55,10 @@ def _converter(ffi, base, const, where):
     cache = {}
     raw = (bytearray, bytes) if (base == "uint8_t" and const) else (bytearray,)
     raw = raw if base == "uint8_t" else ()
+    views = base == "uint8_t"  # a byte memoryview (the BMI055 driver's raw registers)
     codes = tuple(t for t in b.typecodes if isinstance(t, str))
     want = f"a numpy {b.dtype} array, {b.python}" + (" or bytearray" if raw else "")
+    want += ", or a byte memoryview" if views else ""
 
     def slow(a):
         if isinstance(a, np.ndarray):
@@ -68,6 +71,11 @@ def _converter(ffi, base, const, where):
             if a.size < 1:
                 raise ValueError(f"{where}: empty buffer")
         elif isinstance(a, raw):
+            if len(a) < 1:
+                raise ValueError(f"{where}: empty buffer")
+        elif views and isinstance(a, memoryview):
+            if a.format != "B" or not a.contiguous or (a.readonly and not const):
+                raise TypeError(f"{where}: expected {want}, got a memoryview that is not")
             if len(a) < 1:
                 raise ValueError(f"{where}: empty buffer")
         elif isinstance(a, array.array):  # the firmware's int buffers (array('i'), array('h'))

@@ -115,7 +115,7 @@ def frame_bytes(t, cfg):
     gyro = np.clip(_round_div(t["gyro"] * fw_frame._GYRO_FRAME_X100, 10 * lsb_x10), -32768, 32767)
     accel = np.clip(_round_div(t["accel"] * fw_frame._ACCEL_FRAME, lsb_g), -32768, 32767)
     ypr = ref_rot.dcm_to_euler(t["c_bn"])  # (F, 3) yaw, pitch, roll, rad
-    ypr = _round_clamp(ypr * fw_app._CDEG_PER_RAD, -32768, 32767)
+    ypr = _round_clamp(ypr * fw_nav.CDEG_PER_RAD, -32768, 32767)
     vel = _round_clamp(t["v_n"] * F32(100), -32768, 32767)
     for i, (xyz, enu) in enumerate(zip("xyz", "enu", strict=True)):
         fr[f"gyro_{xyz}"] = gyro[:, i]

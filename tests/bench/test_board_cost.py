@@ -68,7 +68,8 @@ def test_the_board_benchmark_page_states_the_figures_and_the_budget(monkeypatch)
     text = board.markdown([result], "urban_drive", 600.0, ["code region ..."], None, "cmd")
     assert "| default | navigating | 200 | 540,000 | 500,000 |" in text
     assert "20 (every 10 ticks) | 400,000 |" in text
-    assert "p99 900,000 instructions (18.0x the budget)" in text
+    assert "mean 540,000 instructions (18.0x the budget), p99 900,000 (18.0x)" in text
+    assert "The budget is not met (5 of 5 figures)." in text
     assert "Live after start-up: 30,652 bytes of the firmware's own" in text
     assert "code region ..." in text
     assert board.main(["--jobs", "0"]) == 2

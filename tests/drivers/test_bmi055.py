@@ -478,6 +478,14 @@ class Bus:
         for i in range(len(buf)):
             buf[i] = r[p + i]
         self.pos = p + len(buf)
+    def write_readinto(self, wbuf, rbuf):
+        self.probe()
+        r = self.regs[self.sel]
+        self.pos = wbuf[0] & 0x7F
+        rbuf[0] = 0xFF
+        for i in range(1, len(wbuf)):
+            rbuf[i] = r[self.pos + i - 1]
+        self.pos += len(wbuf) - 1
 class Cs:
     def __init__(self, bus, d):
         self.bus = bus

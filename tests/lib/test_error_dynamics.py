@@ -479,9 +479,10 @@ def test_zero_velocity_rows_are_the_derivative_of_the_velocity():
     dx = small_error(rng)
     dx[VEL] = nominal.v_n  # the truth stands still
     nav.still = True
-    nav._since_prop = 0
-    nav._since_zupt = nav._ticks_zupt
-    nav._fix_queued = False
+    c = nav.ctl
+    c[nav_mod._C_SINCE_PROP] = 0
+    c[nav_mod._C_SINCE_ZUPT] = c[nav_mod._C_T_ZUPT]
+    c[nav_mod._C_FIX_QUEUED] = 0
 
     # when
     nav._schedule()

@@ -54,6 +54,12 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
         for name in names:
             assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
     assert nav_align._NAVIGATING == fw_nav.NAVIGATING
+    ctl = {n for n in vars(fw_nav) if n.startswith("_C_")}
+    for module in (nav_align, nav_aid):
+        names = {n for n in vars(module) if n.startswith("_C_")}
+        assert names and names <= ctl, module.__name__
+        for name in names:
+            assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
     # every layout index a mixin defines is one of these copies or a buffer it owns
     owned = {nav_align: "_TR_", nav_aid: "_US_"}
     for module, names in copies.items():
@@ -300,7 +306,7 @@ class _Start:
         v = np.asarray(nav.ins.v_n, float)
         self.vel_err = float(np.hypot(*(v[:2] - self.truth.v_n[i, :2])))
         self.p_vel = np.asarray(nav.kf.P, float).reshape(15, 15)[3, 3]
-        self.speed_tick = nav._speed_tick
+        self.speed_tick = nav_runner.control(nav, "speed_tick")
 
 
 def test_position_only_straight_drive_starts_from_the_track():
@@ -389,7 +395,7 @@ def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
         nav, truth, _, _ = navigating()
         v = np.asarray(nav.ins.v_n, float)
         assert np.hypot(v[0], v[1]) > 1.0
-        before = nav._speed_tick
+        before = nav_runner.control(nav, "speed_tick")
         lat, lon, h = int(truth.lat_e7[-1]), int(truth.lon_e7[-1]), f32.f32(truth.h_m[-1])
         seen_still = False
         for _ in range(3):
@@ -399,6 +405,6 @@ def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
                 seen_still |= nav.still
         assert seen_still == still
         if speed < 0:
-            assert nav._speed_tick == before
+            assert nav_runner.control(nav, "speed_tick") == before
         else:
-            assert nav._speed_tick > before
+            assert nav_runner.control(nav, "speed_tick") > before

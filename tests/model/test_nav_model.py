@@ -231,12 +231,12 @@ def firmware_snapshot(nav):
         "leveled": nav.leveled,
         "still": nav.still,
         "n_level": nav._n_level,
-        "n_still": nav._n_still,
+        "n_still": nav_runner.control(nav, "n_still"),
         "n_stable": nav._n_stable,
-        "fix_pending": nav._fix_pending,
-        "fix_queued": nav._fix_queued,
+        "fix_pending": nav_runner.control(nav, "fix_pending"),
+        "fix_queued": nav_runner.control(nav, "fix_queued"),
         "used_tick": nav._used_tick,
-        "speed_tick": nav._speed_tick,
+        "speed_tick": nav_runner.control(nav, "speed_tick"),
         "trk_set": nav._trk_set,
         "trk_tick": nav._trk_tick,
         "fix_lat_e7": nav._fix_lat,
@@ -244,15 +244,15 @@ def firmware_snapshot(nav):
         "fix_quality": nav._fix_quality,
         "fix_tick": nav._fix_tick,
         "last_fix_tick": nav._last_fix_tick,
-        "last_accept_tick": nav._last_accept_tick,
-        "rejects": nav._rejects,
-        "gated_until": nav._gated_until,
-        "fault_until": nav._fault_until,
-        "sat_until": nav._sat_until,
-        "since_prop": nav._since_prop,
-        "since_zupt": nav._since_zupt,
-        "since_nhc": nav._since_nhc,
-        "job": nav._job,
+        "last_accept_tick": nav_runner.control(nav, "accept_tick"),
+        "rejects": nav_runner.control(nav, "rejects"),
+        "gated_until": nav_runner.control(nav, "gated_until"),
+        "fault_until": nav_runner.control(nav, "fault_until"),
+        "sat_until": nav_runner.control(nav, "sat_until"),
+        "since_prop": nav_runner.control(nav, "since_prop"),
+        "since_zupt": nav_runner.control(nav, "since_zupt"),
+        "since_nhc": nav_runner.control(nav, "since_nhc"),
+        "job": nav_runner.control(nav, "job"),
         "updates": nav.updates,
         "resets": nav.resets,
         "reanchors": nav.reanchors,
@@ -334,17 +334,18 @@ def observe(seen, nav, before):
         seen.nav_tick = t
     seen.nav_ticks += 1
     seen.still_ticks += nav.still
-    seen.zupts += nav._since_zupt == 0 and nav.still  # started this tick
-    seen.nhcs += nav._since_nhc == 0
-    seen.propagations += nav._since_prop == 0 and kf.job == 1
+    seen.zupts += nav_runner.control(nav, "since_zupt") == 0 and nav.still  # started this tick
+    seen.nhcs += nav_runner.control(nav, "since_nhc") == 0
+    seen.propagations += nav_runner.control(nav, "since_prop") == 0 and kf.job == 1
     seen.unusable_fixes += new_fix and not nav._fix_usable()
-    injected_gnss = before["job"] == 1 and nav._job == 0
+    injected_gnss = before["job"] == 1 and nav_runner.control(nav, "job") == 0
     if injected_gnss and kf.gate_mask & 7 == 7:
         seen.rejected_gnss += 1
     elif injected_gnss:
         seen.accepted_gnss.append(t)
         seen.partly_gated += kf.gate_mask != 0
-    if nav.health == 1 and t - nav._last_accept_tick > nav._ticks_timeout:
+    quiet_ticks = t - nav_runner.control(nav, "accept_tick")
+    if nav.health == 1 and quiet_ticks > nav_runner.control(nav, "t_timeout"):
         seen.timeout_ticks.append(t)
     d = np.diagonal(np.asarray(kf.P).reshape(15, 15))
     seen.floored += bool(np.any(d == kf.p_floor))
@@ -376,7 +377,7 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
             nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick)
             model.gnss(*args, fix_tick=fix_tick)
             fi += 1
-        before = {"last_fix_tick": nav._last_fix_tick, "job": nav._job}
+        before = {"last_fix_tick": nav._last_fix_tick, "job": nav_runner.control(nav, "job")}
         if k in hooks:
             hooks[k](nav, model, k)
         else:
@@ -521,6 +522,6 @@ def test_model_of_the_start_from_the_gnss_track():
     assert anchors == [4, 8, 14, 18, 28], anchors
     assert 32.0 < seen.nav_tick * DT < 32.5, seen.nav_tick  # the 28-32 s window
     assert start_p_vel == [float(cfg.track_vel_sigma) ** 2]
-    assert nav._speed_tick == -1000000  # no fix had a speed
+    assert nav_runner.control(nav, "speed_tick") == -1000000  # no fix had a speed
     assert len(seen.accepted_gnss) >= 15 and seen.zupts >= 3 and seen.still_ticks >= 400
     assert nav.resets == 0 and nav.state == NAVIGATING

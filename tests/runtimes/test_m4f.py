@@ -54,6 +54,38 @@ def test_the_counter_counts_every_instruction():
     assert 200_000 < a < 201_000  # the call itself costs a few hundred instructions
 
 
+def test_a_peripheral_call_costs_a_c_method_call():
+    """The firmware holds the emulated parts through m4f.Periph (C): `pin.value(0)` is counted
+    at about what a built-in method of one argument costs (`d.get(0)`), well below calling the
+    Python part itself (its call is counted before its own bracket opens). Printed with -s."""
+    out = guest.run(
+        "import m4f, machine\n"
+        "p = machine.Pin('X1', machine.Pin.OUT)\n"
+        "q = machine.pin('X1')\n"  # the emulated part behind p
+        "d = {}\n"
+        "def cost(g):\n"
+        "    g()\n"  # the first call fills the look-up caches
+        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
+        "    g()\n"
+        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
+        "def empty():\n"
+        "    pass\n"
+        "def periph():\n"
+        "    p.value(0)\n"
+        "def builtin():\n"
+        "    d.get(0)\n"
+        "def python():\n"
+        "    q.value(0)\n"
+        "print('R', type(p).__name__, *[cost(g) for g in (empty, periph, builtin, python)])\n"
+    )
+    kind, empty, periph, builtin, python = out.split("R ")[1].split()[:5]
+    periph, builtin, python = (int(x) - int(empty) for x in (periph, builtin, python))
+    print(f"counted per call: Periph {periph}, built-in method {builtin}, Python part {python}")
+    assert kind == "Periph"
+    assert builtin <= periph <= builtin + 200
+    assert periph < python
+
+
 def test_floats_are_the_boards_float32():
     """The VM's float is IEEE single precision with round-to-nearest on the FPU: products,
     quotients, sums and sqrt equal NumPy's float32 bit for bit (the unix VM's are doubles)."""
@@ -159,6 +191,39 @@ def test_runs_are_deterministic(tmp_path):
     for name in instr:
         d = a.per_tick[name].astype(np.int64) - b.per_tick[name]
         assert np.abs(d).max() <= 40 and np.abs(np.cumsum(d)).max() <= 40
+
+
+PADDING_SETUP = """
+def _padding_setup():
+    pad = bytearray({n})
+    def report():
+        return [("padding", len(pad))]
+    return report
+"""
+
+
+def test_a_navigating_tick_costs_the_same_wherever_the_heap_put_things(tmp_path):
+    """What the heap held before the firmware started (here a bytearray of 16 or 2,000 bytes,
+    kept) moves every object the firmware makes. A per-tick Python frame too large for the C
+    stack is allocated on the heap at each call, and that search costs what the heap's layout
+    says (tests/runtimes/test_frames.py); with none, a plain navigating tick (no fix, no
+    extended frame: the median) costs the same to the counter's step, and the mean barely
+    moves (the rare event ticks still run Python that allocates). Left out: the tick that
+    starts navigation, where the app scans the heap and may collect (a cost that is the
+    heap's by nature)."""
+    stim = board_input.simulate("quick_start", 16.0, seed=0).stimulus
+    costs = []
+    for n in (16, 2000):
+        src = PADDING_SETUP.format(n=n).replace("\n", "\r\n")
+        r = m4f.run(stim, tmp_path / str(n), guest_setup=(src, "_padding_setup"))
+        assert dict(r.stats["report"])["padding"] == n
+        t = r.per_tick
+        nav = np.flatnonzero(t["state"] == 2)[1:]  # the first checks the heap (app.py)
+        assert len(nav) > 400
+        costs.append((t["instr"] - t["emu_instr"])[nav].astype(np.int64))
+    a, b = costs
+    assert abs(np.median(a) - np.median(b)) <= 80
+    assert abs(a.mean() - b.mean()) < 0.02 * a.mean()
 
 
 def test_the_runs_metrics_carry_the_board_cost(quick):

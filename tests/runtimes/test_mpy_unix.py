@@ -141,8 +141,8 @@ def test_a_firmware_exception_gives_the_tick_and_the_vm_traceback(tmp_path, monk
     (tick index 136); the VM runs that copy (mpy_unix.FIRMWARE_DIR patched)."""
     fw = _faulty_firmware(
         tmp_path,
-        "        self._gnss_poll()\n",
-        "        self._gnss_poll()\n        self.ticks // (self.ticks - 137)\n",
+        "        imu.read()\n",
+        "        imu.read()\n        self.ticks // (self.ticks - 137)\n",
     )
     monkeypatch.setattr(mpy_unix, "FIRMWARE_DIR", fw)
     stim = board_input.simulate("static", 1.0, seed=0).stimulus

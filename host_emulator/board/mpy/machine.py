@@ -40,7 +40,10 @@ Emulation is not firmware: on the emulated Cortex-M4F (runtimes/m4f) every metho
 calls per tick runs between `_emu_in()` and `_emu_out()`, the `m4f` module's counter of the
 instructions spent emulating (subtracted from the firmware's count); an interrupt handler the
 emulator fires runs outside such a bracket, since it is the firmware's code. Elsewhere (no `m4f`
-module) the two are empty functions.
+module) the two are empty functions. What the firmware holds on the emulated Cortex-M4F is not
+the part but its `m4f.Periph` (`_handle`): calling a method then costs a C method call, as the
+board's machine classes have, and the Python method runs inside a bracket opened in C, so that
+its call (a frame of more than 11 words is allocated on the heap: py/objfun.c) is emulation too.
 
 Time: `time.now_us()` of board/mpy/time.py (us since power-on). Allocation: everything the
 firmware calls per tick (Pin.value, SPI write/readinto, UART any/readinto/write, WDT.feed)
@@ -51,9 +54,11 @@ bound methods; tests prove it under micropython.heap_lock(). Construction alloca
 import time
 
 try:
+    from m4f import Periph as _Periph
     from m4f import emu_in as _emu_in
     from m4f import emu_out as _emu_out
 except ImportError:
+    _Periph = None
 
     def _emu_in():
         pass
@@ -91,6 +96,16 @@ def power_on(t_us=0):
     _timers = []
     watchdog = None
     time.set_us(t_us)
+
+
+def _handle(part, args, kwargs):
+    """What the firmware's constructor call returns: the emulated part itself or, on the emulated
+    Cortex-M4F, its C handle (`m4f.Periph`: its methods are C, as the board's are); the part is
+    then initialised here, since Python calls __init__ only for an instance of the class."""
+    if _Periph is None:
+        return part
+    part.__init__(*args, **kwargs)
+    return _Periph(part)
 
 
 def pin(name):
@@ -148,7 +163,7 @@ class Pin:
     IRQ_FALLING = 2
 
     def __new__(cls, id, *args, **kwargs):
-        return pin(id)
+        return _handle(pin(id), (id,) + args, kwargs)
 
     def __init__(self, id, mode=-1, pull=-1, value=None, **kwargs):
         self.init(mode, pull, value)
@@ -236,7 +251,7 @@ class SPI:
     LSB = 1
 
     def __new__(cls, id, *args, **kwargs):
-        return spi_bus(id)
+        return _handle(spi_bus(id), (id,) + args, kwargs)
 
     def __init__(self, id, baudrate=1000000, polarity=0, phase=0, bits=8, firstbit=0, **kw):
         self.init(baudrate, polarity, phase, bits, firstbit)
@@ -324,14 +339,18 @@ class SPI:
         _emu_out()
 
     def write_readinto(self, write_buf, read_buf):
+        _emu_in()
+        self._write_readinto(write_buf, read_buf)
+        _emu_out()
+
+    def _write_readinto(self, write_buf, read_buf):
         n = len(write_buf)
         if n != len(read_buf):
+            _emu_out()  # the caller's bracket: the error ends it
             raise ValueError("buffers must be the same length")
-        _emu_in()
         dev = self._device()
         for i in range(n):
             read_buf[i] = self._x(dev, write_buf[i])
-        _emu_out()
 
     def read(self, nbytes, write=0):
         buf = bytearray(nbytes)
@@ -546,7 +565,7 @@ class UART:
     """machine.UART(id, baudrate, rxbuf=..., ...): the emulated port `id`."""
 
     def __new__(cls, id, *args, **kwargs):
-        return uart(id)
+        return _handle(uart(id), (id,) + args, kwargs)
 
     def __init__(self, id, baudrate=9600, bits=8, parity=None, stop=1, **kwargs):
         self.init(baudrate, bits, parity, stop, **kwargs)
@@ -609,13 +628,17 @@ class UART:
         """Up to nbytes (default len(buf)) received bytes into buf; the count, or None when
         nothing has arrived (the stm32 port with timeout=0)."""
         _emu_in()
+        n = self._readinto(buf, nbytes)
+        _emu_out()
+        return n
+
+    def _readinto(self, buf, nbytes):
         n = len(buf)
         if 0 <= nbytes < n:
             n = nbytes
         if n > self._count:
             n = self._count
         if n <= 0:
-            _emu_out()
             return None
         ring = self._ring
         size = self.rxbuf
@@ -627,7 +650,6 @@ class UART:
                 r = 0
         self._head = r
         self._count -= n
-        _emu_out()
         return n
 
     def read(self, nbytes=-1):
@@ -642,6 +664,11 @@ class UART:
     def write(self, buf):
         """Append buf to the transmit buffer; returns the bytes accepted."""
         _emu_in()
+        m = self._write(buf)
+        _emu_out()
+        return m
+
+    def _write(self, buf):
         m = len(buf)
         tx = self.tx
         n = self.tx_n
@@ -652,7 +679,6 @@ class UART:
         for i in range(m):
             tx[n + i] = buf[i]
         self.tx_n = n + m
-        _emu_out()
         return m
 
 
@@ -685,6 +711,9 @@ class Timer:
 
 class WDT:
     """machine.WDT(timeout=ms): counts feeds and remembers the last one (virtual us)."""
+
+    def __new__(cls, *args, **kwargs):
+        return _handle(object.__new__(cls), args, kwargs)
 
     def __init__(self, id=0, timeout=5000):
         global watchdog

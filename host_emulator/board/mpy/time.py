@@ -117,3 +117,16 @@ def sleep(s):
 def time():
     """Seconds since power-on (int), for code that only wants a coarse clock."""
     return _now // 1000000
+
+
+# On the emulated Cortex-M4F the firmware's tick functions are C callables, as on the board:
+# calling one costs a C call, the Python above runs inside an emulation bracket (machine.py).
+try:
+    from m4f import Periph as _Periph
+except ImportError:
+    _Periph = None
+if _Periph is not None:
+    ticks_us = _Periph(ticks_us)
+    ticks_ms = _Periph(ticks_ms)
+    ticks_diff = _Periph(ticks_diff)
+    ticks_add = _Periph(ticks_add)

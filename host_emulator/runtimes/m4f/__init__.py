@@ -26,7 +26,9 @@ What it gives besides the frames:
 What it cannot give: cycles. A Cortex-M4 at 0 wait states would run about one instruction per
 cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2
 (docs/benchmarks/cpi.md gives the calibration: `python -m host_emulator cpi`). Interrupt
-entry/exit and the real peripherals' C drivers are not counted.
+entry/exit and the real peripherals' C drivers are not counted; the firmware's calls into them
+are, at a C method call's cost (the firmware holds each emulated part through m4f.Periph, a C
+handle: board/mpy/machine.py).
 """
 
 import os
@@ -65,6 +67,18 @@ def qemu_command(elf):
 def _default_timeout_s(stim):
     """Generous: the emulated board runs about 3-5x faster than real time here (measured)."""
     return 120.0 + 2.0 * stim.duration_s
+
+
+def _in_workdir(workdir, path, name):
+    """`path` as a name relative to workdir: its own if it is in workdir, else a symbolic link
+    `name` to it (semihosting opens it through the link)."""
+    path = pathlib.Path(path).resolve()
+    if path.parent == workdir:
+        return path.name
+    link = workdir / name
+    link.unlink(missing_ok=True)
+    link.symlink_to(path)
+    return name
 
 
 def _data_offset(path):
@@ -122,11 +136,16 @@ def run(
         (out_dir / name).unlink(missing_ok=True)
     n = len(stim)
     source, setup = guest_setup or ("", "None")
+    # The guest opens its files relative to QEMU's working directory (workdir), by names that
+    # do not depend on where the host keeps them: the command it compiles, and so its heap,
+    # are the same for the same stimulus wherever the run happens (counts are comparable).
+    stim_rel = _in_workdir(workdir, stim_path, "stim.bin")
+    navk_rel = _in_workdir(workdir, navk, "navk.mpy") if navk else None
     call = (
-        f"{source}import emulate_m4f\r\nemulate_m4f.main({str(stim_path)!r}, "
-        f"{_data_offset(stim_path)}, {n}, {stim.tick_us}, {str(cfg_path.resolve())!r}, "
-        f"{str(out_dir)!r}, {m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk!r}, "
-        f"{setup})\r\n"
+        f"{source}import emulate_m4f\r\nemulate_m4f.main({stim_rel!r}, "
+        f"{_data_offset(stim_path)}, {n}, {stim.tick_us}, "
+        f"{cfg_path.resolve().relative_to(workdir).as_posix()!r}, {out_dir.name!r}, "
+        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk_rel!r}, {setup})\r\n"
     )
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)

@@ -8,7 +8,13 @@
 //   differences are taken modulo 2**30 as time.ticks_diff does.
 // - Time spent in emulation, not firmware: emu_in()/emu_out() bracket the emulated
 //   peripherals' Python code (host_emulator/board/mpy/machine.py); the instructions between
-//   them are summed here, emu_total() returns the sum modulo 2**30.
+//   them are summed here, emu_total() returns the sum modulo 2**30. Brackets nest: only the
+//   outermost one counts.
+// - Periph(obj): the firmware's handle on an emulated peripheral or clock function. On a board
+//   machine.Pin/SPI/UART/WDT methods and time.ticks_us are C: calling one costs a C method call.
+//   A Periph's methods (PERIPH_METHODS) and its call are C as well: the firmware's call costs
+//   what it costs on the board, and the Python code behind it runs inside a bracket. Other
+//   attributes are the object's own (read and written through).
 // - Host files through ARM semihosting (QEMU -semihosting): open/readinto/write/close, paths
 //   relative to QEMU's working directory. The stimulus comes in and the output goes out here.
 // - A RAM disk outside the MicroPython heap, so that a FAT /flash can hold ins.cfg as on the
@@ -45,8 +51,9 @@
 #define M4F_RAMDISK_BYTES (64 * 1024)
 #endif
 
-static uint32_t emu_start;  // timer value at emu_in()
+static uint32_t emu_start;  // timer value at the outermost emu_in()
 static uint32_t emu_sum;  // timer counts spent in emulation
+static uint32_t emu_depth;  // brackets open
 static uint8_t ramdisk_buf[M4F_RAMDISK_BYTES] __attribute__((aligned(4)));
 
 static uint32_t semihost(uint32_t op, const void *arg) {
@@ -71,6 +78,7 @@ static mp_obj_t m4f_init(void) {
     TIMER_VALUE = 0xffffffffu;
     TIMER_CTRL = 1;  // enable, no interrupt
     emu_sum = 0;
+    emu_depth = 0;
     return mp_const_none;
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_init_obj, m4f_init);
@@ -80,14 +88,26 @@ static mp_obj_t m4f_icount(void) {
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_icount_obj, m4f_icount);
 
+static void emu_enter(void) {
+    if (emu_depth++ == 0) {
+        emu_start = counts();
+    }
+}
+
+static void emu_leave(void) {
+    if (emu_depth > 0 && --emu_depth == 0) {
+        emu_sum += counts() - emu_start;
+    }
+}
+
 static mp_obj_t m4f_emu_in(void) {
-    emu_start = counts();
+    emu_enter();
     return mp_const_none;
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_emu_in_obj, m4f_emu_in);
 
 static mp_obj_t m4f_emu_out(void) {
-    emu_sum += counts() - emu_start;
+    emu_leave();
     return mp_const_none;
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_emu_out_obj, m4f_emu_out);
@@ -96,6 +116,141 @@ static mp_obj_t m4f_emu_total(void) {
     return MP_OBJ_NEW_SMALL_INT((emu_sum * INSTR_PER_COUNT) & COUNT_MASK);
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_emu_total_obj, m4f_emu_total);
+
+// ---- Periph --------------------------------------------------------------------------------
+
+typedef struct {
+    mp_obj_base_t base;
+    mp_obj_t obj;  // the emulated peripheral (or function), Python
+} periph_obj_t;
+
+#define PERIPH_MAX_ARGS (6)  // positional arguments plus two per keyword argument
+
+// obj.name(*args, **kw) (or obj(...) when name is MP_QSTRnull) inside an emulation bracket,
+// which an exception also closes; args holds n_args positional arguments then n_kw key/value
+// pairs.
+static mp_obj_t periph_forward(mp_obj_t obj, qstr name, size_t n_args, size_t n_kw,
+    const mp_obj_t *args) {
+    emu_enter();
+    nlr_buf_t nlr;
+    if (nlr_push(&nlr) == 0) {
+        mp_obj_t r;
+        if (name == MP_QSTRnull) {
+            r = mp_call_function_n_kw(obj, n_args, n_kw, args);
+        } else {
+            mp_obj_t dest[2 + PERIPH_MAX_ARGS];
+            mp_load_method(obj, name, dest);
+            for (size_t i = 0; i < n_args + 2 * n_kw; i++) {
+                dest[2 + i] = args[i];
+            }
+            r = mp_call_method_n_kw(n_args, n_kw, dest);
+        }
+        nlr_pop();
+        emu_leave();
+        return r;
+    }
+    emu_leave();
+    nlr_jump(nlr.ret_val);
+}
+
+static mp_obj_t periph_make_new(const mp_obj_type_t *type, size_t n_args, size_t n_kw,
+    const mp_obj_t *args) {
+    mp_arg_check_num(n_args, n_kw, 1, 1, false);
+    periph_obj_t *self = mp_obj_malloc(periph_obj_t, type);
+    self->obj = args[0];
+    return MP_OBJ_FROM_PTR(self);
+}
+
+static mp_obj_t periph_call(mp_obj_t self_in, size_t n_args, size_t n_kw, const mp_obj_t *args) {
+    if (n_args + 2 * n_kw > PERIPH_MAX_ARGS) {
+        mp_raise_TypeError(MP_ERROR_TEXT("Periph: too many arguments"));
+    }
+    periph_obj_t *self = MP_OBJ_TO_PTR(self_in);
+    return periph_forward(self->obj, MP_QSTRnull, n_args, n_kw, args);
+}
+
+// The methods a board's machine classes have in C and the firmware calls per tick.
+static mp_obj_t periph_method(qstr name, size_t n_args, const mp_obj_t *args, mp_map_t *kw) {
+    periph_obj_t *self = MP_OBJ_TO_PTR(args[0]);
+    size_t n_kw = kw->used;
+    if (n_kw == 0) {
+        return periph_forward(self->obj, name, n_args - 1, 0, args + 1);
+    }
+    mp_obj_t all[PERIPH_MAX_ARGS];
+    if (n_args - 1 + 2 * n_kw > PERIPH_MAX_ARGS) {
+        mp_raise_TypeError(MP_ERROR_TEXT("Periph: too many arguments"));
+    }
+    size_t k = 0;
+    for (size_t i = 1; i < n_args; i++) {
+        all[k++] = args[i];
+    }
+    for (size_t i = 0; i < kw->alloc; i++) {
+        if (mp_map_slot_is_filled(kw, i)) {
+            all[k++] = kw->table[i].key;
+            all[k++] = kw->table[i].value;
+        }
+    }
+    return periph_forward(self->obj, name, n_args - 1, n_kw, all);
+}
+
+#define PERIPH_METHOD(name) \
+    static mp_obj_t periph_##name(size_t n_args, const mp_obj_t *args, mp_map_t *kw) { \
+        return periph_method(MP_QSTR_##name, n_args, args, kw); \
+    } \
+    static MP_DEFINE_CONST_FUN_OBJ_KW(periph_##name##_obj, 1, periph_##name);
+PERIPH_METHOD(value)
+PERIPH_METHOD(on)
+PERIPH_METHOD(off)
+PERIPH_METHOD(irq)
+PERIPH_METHOD(write)
+PERIPH_METHOD(read)
+PERIPH_METHOD(readinto)
+PERIPH_METHOD(write_readinto)
+PERIPH_METHOD(any)
+PERIPH_METHOD(feed)
+PERIPH_METHOD(deinit)
+
+static const mp_rom_map_elem_t periph_locals_table[] = {
+    { MP_ROM_QSTR(MP_QSTR_value), MP_ROM_PTR(&periph_value_obj) },
+    { MP_ROM_QSTR(MP_QSTR_on), MP_ROM_PTR(&periph_on_obj) },
+    { MP_ROM_QSTR(MP_QSTR_off), MP_ROM_PTR(&periph_off_obj) },
+    { MP_ROM_QSTR(MP_QSTR_irq), MP_ROM_PTR(&periph_irq_obj) },
+    { MP_ROM_QSTR(MP_QSTR_write), MP_ROM_PTR(&periph_write_obj) },
+    { MP_ROM_QSTR(MP_QSTR_read), MP_ROM_PTR(&periph_read_obj) },
+    { MP_ROM_QSTR(MP_QSTR_readinto), MP_ROM_PTR(&periph_readinto_obj) },
+    { MP_ROM_QSTR(MP_QSTR_write_readinto), MP_ROM_PTR(&periph_write_readinto_obj) },
+    { MP_ROM_QSTR(MP_QSTR_any), MP_ROM_PTR(&periph_any_obj) },
+    { MP_ROM_QSTR(MP_QSTR_feed), MP_ROM_PTR(&periph_feed_obj) },
+    { MP_ROM_QSTR(MP_QSTR_deinit), MP_ROM_PTR(&periph_deinit_obj) },
+};
+static MP_DEFINE_CONST_DICT(periph_locals_dict, periph_locals_table);
+
+// Any other attribute is the object's own: loaded (a method as a bound method) or stored.
+static void periph_attr(mp_obj_t self_in, qstr attr, mp_obj_t *dest) {
+    periph_obj_t *self = MP_OBJ_TO_PTR(self_in);
+    if (dest[0] == MP_OBJ_NULL) {
+        mp_map_elem_t *elem = mp_map_lookup((mp_map_t *)&periph_locals_dict.map,
+            MP_OBJ_NEW_QSTR(attr), MP_MAP_LOOKUP);
+        if (elem != NULL) {
+            dest[0] = elem->value;
+            dest[1] = self_in;
+            return;
+        }
+        mp_load_method_maybe(self->obj, attr, dest);
+    } else if (dest[1] != MP_OBJ_NULL) {
+        mp_store_attr(self->obj, attr, dest[1]);
+        dest[0] = MP_OBJ_NULL;
+    }
+}
+
+static MP_DEFINE_CONST_OBJ_TYPE(
+    periph_type,
+    MP_QSTR_Periph,
+    MP_TYPE_FLAG_NONE,
+    make_new, periph_make_new,
+    call, periph_call,
+    attr, periph_attr
+    );
 
 // open(path, mode): mode as ARM semihosting's (0 "r", 1 "rb", 4 "w", 5 "wb", 8 "a").
 static mp_obj_t m4f_open(mp_obj_t path_in, mp_obj_t mode_in) {
@@ -190,6 +345,7 @@ static const mp_rom_map_elem_t m4f_globals_table[] = {
     { MP_ROM_QSTR(MP_QSTR_emu_in), MP_ROM_PTR(&m4f_emu_in_obj) },
     { MP_ROM_QSTR(MP_QSTR_emu_out), MP_ROM_PTR(&m4f_emu_out_obj) },
     { MP_ROM_QSTR(MP_QSTR_emu_total), MP_ROM_PTR(&m4f_emu_total_obj) },
+    { MP_ROM_QSTR(MP_QSTR_Periph), MP_ROM_PTR(&periph_type) },
     { MP_ROM_QSTR(MP_QSTR_open), MP_ROM_PTR(&m4f_open_obj) },
     { MP_ROM_QSTR(MP_QSTR_close), MP_ROM_PTR(&m4f_close_obj) },
     { MP_ROM_QSTR(MP_QSTR_readinto), MP_ROM_PTR(&m4f_readinto_obj) },

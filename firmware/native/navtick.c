@@ -1,0 +1,172 @@
+/* A whole navigator tick in one call: Navigator._tick and its callees (firmware/lib/nav.py,
+ * the reference: _still_update, _navigate, _schedule, _inject, _update_health), with the
+ * control state in the int buffer c (C_*), the floats in m (Navigator.mem, M_*) and the float
+ * work in the other kernels. Few arguments on purpose: see nav.py's self.mem.
+ *
+ * What stays in Python returns an event (EV_*) with c[C_PHASE] saying where the tick resumes:
+ * the app runs the event's method (alignment, a fix's screening, an aiding update's rows, a
+ * reset: all rare, or before navigation) and calls again with the same arguments. The order
+ * of every step is the reference's, so a tick's results are the same bit for bit. */
+#include <stdint.h>
+
+#include "layout.h"
+#include "navk.h"
+
+#define PH_START 0 /* a new tick */
+#define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
+#define PH_WORK 2 /* after a job was started (EV_GNSS, EV_ZUPT, EV_NHC) */
+#define PH_CHECK 3 /* after a reset to GNSS (EV_RESET) */
+#define PH_HEALTH 4 /* after alignment or a fault reset (EV_ALIGN, EV_FAULT) */
+
+/* _update_health */
+static void update_health(int32_t *c) {
+    int32_t t = c[C_TICK];
+    if (t < c[C_FAULT_UNTIL]) {
+        c[C_HEALTH] = 2;
+    } else if (t < c[C_SAT_UNTIL] || t < c[C_GATED_UNTIL]) {
+        c[C_HEALTH] = 1;
+    } else if (c[C_STATE] == NAVIGATING && t - c[C_ACCEPT_TICK] > c[C_T_TIMEOUT]) {
+        c[C_HEALTH] = 1;
+    } else {
+        c[C_HEALTH] = 0;
+    }
+}
+
+/* _still_update */
+static void still_update(int32_t *c, float *st, const float *f, const float *w, const float *x,
+    const float *stp) {
+    int32_t flags = 0;
+    if (c[C_TICK] == 4) {
+        flags = STILL_FIRST;
+    }
+    if (c[C_TICK] - c[C_SPEED_TICK] < c[C_T_SECOND]) {
+        flags |= STILL_GNSS_SPEED;
+    }
+    if (c[C_STATE] == NAVIGATING) {
+        flags |= STILL_NAVIGATING;
+    }
+    if (navk_still(st, f, w, x, stp, flags)) {
+        c[C_N_STILL] += 4;
+    } else {
+        c[C_N_STILL] = 0;
+    }
+    c[C_STILL] = c[C_N_STILL] >= c[C_T_STILL] ? 1 : 0;
+}
+
+/* _schedule (the filter is idle): 0, or the event that starts a job in Python */
+static int32_t schedule(int32_t *c, float *x, float *e, int32_t *ki) {
+    int32_t overdue = c[C_SINCE_PROP] >= 2 * c[C_T_PROP];
+    if (c[C_FIX_QUEUED] && !overdue) {
+        return EV_GNSS; /* _start_queued_fix */
+    }
+    if (c[C_SINCE_PROP] >= c[C_T_PROP]) {
+        navk_prop_start(x, e, ki, c[C_SINCE_PROP]);
+        c[C_SINCE_PROP] = 0;
+        return 0;
+    }
+    if ((c[C_OPTS] & OPT_ZUPT) && c[C_STILL] && c[C_SINCE_ZUPT] >= c[C_T_ZUPT]) {
+        c[C_SINCE_ZUPT] = 0;
+        c[C_JOB] = JOB_AID;
+        return EV_ZUPT;
+    }
+    if ((c[C_OPTS] & OPT_NHC) && !c[C_STILL] && c[C_SINCE_NHC] >= c[C_T_NHC]) {
+        c[C_SINCE_NHC] = 0;
+        c[C_JOB] = JOB_AID;
+        return EV_NHC;
+    }
+    return 0;
+}
+
+/* _inject (dx is ready): 1 when the rejects call for a reset to GNSS */
+static int32_t inject(int32_t *c, int32_t *ki, float *x, float *e, float *corr) {
+    navk_inject(x, e, corr);
+    ki[I_READY] = 0;
+    int32_t job = c[C_JOB];
+    c[C_JOB] = JOB_NONE;
+    if (job != JOB_GNSS) {
+        return 0;
+    }
+    int32_t mask = ki[I_GATE_MASK];
+    if (mask & 3) {
+        c[C_REJECTS] += 1;
+        c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+        return c[C_REJECTS] >= c[C_RESET_AFTER];
+    }
+    c[C_REJECTS] = 0;
+    c[C_ACCEPT_TICK] = c[C_TICK];
+    if (mask) {
+        c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+    }
+    return 0;
+}
+
+static int32_t stop(int32_t *c, int32_t phase, int32_t ev) {
+    c[C_PHASE] = phase;
+    return ev;
+}
+
+int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
+    const int16_t *accel) {
+    float *x = m + M_X;
+    float *e = m + M_E;
+    float *w = m + M_W;
+    float *f = m + M_F;
+    float *st = m + M_ST;
+    float *corr = m + M_CORR;
+    switch (c[C_PHASE]) {
+        case PH_START: {
+            int32_t finite = navk_imu_cal(w, f, gyro, accel, m + M_CAL, c[C_CAL_FLAGS]);
+            c[C_TICK] += 1;
+            if (c[C_SAT]) {
+                c[C_SAT_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+            }
+            if (!finite) {
+                c[C_FAULT_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+                update_health(c);
+                return 0;
+            }
+            if ((c[C_TICK] & 3) == 0) {
+                still_update(c, st, f, w, x, m + M_STP);
+            }
+            if (c[C_STATE] != NAVIGATING) {
+                return stop(c, PH_HEALTH, EV_ALIGN);
+            }
+            navk_ins_step(x, w, f, (c[C_OPTS] & OPT_CONING) ? 1 : 0);
+            navk_ring_put(m + M_RING_P, m + M_RING_V, x, corr, (c[C_TICK] % RING) * 3);
+            c[C_SINCE_PROP] += 1;
+            c[C_SINCE_ZUPT] += 1;
+            c[C_SINCE_NHC] += 1;
+            if (c[C_FIX_PENDING]) {
+                c[C_FIX_PENDING] = 0;
+                return stop(c, PH_SCHEDULE, EV_FIX);
+            }
+        }
+        /* fall through */
+        case PH_SCHEDULE:
+            if (ki[I_JOB] == IDLE && !ki[I_READY]) {
+                int32_t ev = schedule(c, x, e, ki);
+                if (ev) {
+                    return stop(c, PH_WORK, ev);
+                }
+            }
+        /* fall through */
+        case PH_WORK:
+            c[C_BUSY] = ki[I_JOB] != IDLE;
+            navk_eskf_work(e, ki, c[C_SLICES]);
+            if (ki[I_READY] && inject(c, ki, x, e, corr)) {
+                return stop(c, PH_CHECK, EV_RESET);
+            }
+        /* fall through */
+        case PH_CHECK:
+            /* P changes only when a job finishes: check it then, not every tick */
+            if ((c[C_BUSY] && ki[I_JOB] == IDLE && !navk_eskf_diagonal_ok(e))
+                || !navk_ins_finite(x)) {
+                return stop(c, PH_HEALTH, EV_FAULT);
+            }
+        /* fall through */
+        default: /* PH_HEALTH */
+            update_health(c);
+            c[C_PHASE] = PH_START;
+            return 0;
+    }
+}

