@@ -1,8 +1,11 @@
 """The navigator: alignment, strapdown INS and the 15-state ESKF, driven tick by tick.
 
-The loop calls `imu(w_b, f_b)` (SI, or `imu_raw` with BMI055 counts) every tick and `gnss(...)`
-when a fix completes. Between calls everything lives in buffers made at start-up; a tick
-allocates only float results.
+The loop calls `imu(w_b, f_b)` (SI, or `imu_raw`/`imu_counts` with BMI055 counts) every tick and
+`gnss(...)`/`gnss_fix()` when a fix completes. Between calls everything lives in buffers made at
+start-up: the control state in `ctl` (ints), every float a tick touches in `mem` (Ins.x and
+Eskf.e are views into it). With the native kernels `imu_counts` is one call of `nav_tick` (events
+it cannot handle come back to Python: `_event`) and allocates nothing; with the Python kernels
+every float result is a heap object.
 
 One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits its Ekf class):
 - nav.py (here): inputs, calibration, the standstill detector, the per-tick flow, fix
