@@ -224,12 +224,12 @@ class Navigator(Alignment, Aiding):
         self._init = f32.zeros(eskf.N)  # initial P diagonal
         self._trk = f32.zeros(3)
         # configuration derived once
-        c[_C_T_PROP] = self._ticks_prop = _ticks(cfg.prop_period_s, dt)
+        c[_C_T_PROP] = _ticks(cfg.prop_period_s, dt)
         c[_C_T_ZUPT] = _ticks(cfg.zupt_period_s, dt)
         c[_C_T_NHC] = _ticks(cfg.nhc_period_s, dt)
         c[_C_T_STILL] = _ticks(cfg.still_s, dt)
         c[_C_T_TIMEOUT] = _ticks(cfg.gnss_timeout_s, dt)
-        c[_C_T_SECOND] = self._ticks_second = _ticks(f32.f32(1), dt)
+        c[_C_T_SECOND] = _ticks(f32.f32(1), dt)
         c[_C_SLICES] = cfg.slices_per_tick
         c[_C_RESET_AFTER] = cfg.reset_after_rejects
         c[_C_OPTS] = (

@@ -6,8 +6,8 @@ words, plus its exception stack) on the C stack up to VM_MAX_STATE_ON_STACK = 11
 left allocated, so the allocation proofs cannot see it, and `micropython.heap_lock()` makes the
 VM fall back to the C stack silently; but every such call searches the heap for free blocks, a
 cost of thousands of instructions that depends on where the free blocks lie: on the emulated
-Cortex-M4F the same navigating tick cost up to half as much again depending on what the heap
-held before the firmware started (docs/native.md). So every function of the default
+Cortex-M4F the same navigating tick then cost more or less depending on what the heap held
+before the firmware started (docs/native.md). So every function of the default
 configuration's navigating tick is held to 11 words here, read from what mpy-cross compiles for
 the board (mpy-tool's prelude).
 """
@@ -53,13 +53,13 @@ def _mpy_tool():
     return tool
 
 
-def frame_words(path, tmp_path):
-    """{qualified name: frame words} of every function in a firmware file, as compiled for the
-    board (armv7emsp)."""
-    out = tmp_path / (path.replace("/", "_") + ".mpy")
+def frame_words(source, tmp_path):
+    """{qualified name: frame words} of every function in a source file (a path under
+    firmware/, or any path), as compiled for the board (armv7emsp)."""
+    source = FIRMWARE_DIR / source
+    out = tmp_path / (source.stem + ".mpy")
     subprocess.run(
-        [str(toolchain.mpy_cross()), "-march=armv7emsp", "-o", str(out), str(FIRMWARE_DIR / path)],
-        check=True,
+        [str(toolchain.mpy_cross()), "-march=armv7emsp", "-o", str(out), str(source)], check=True
     )
     tool = _mpy_tool()
     words = {}
@@ -92,8 +92,22 @@ def test_a_per_tick_function_keeps_its_frame_on_the_c_stack(compiled, path, name
     )
 
 
-def test_the_check_sees_a_large_frame(tmp_path):
-    """The reading is real: the parser's byte loop keeps 19 words (it is called in a fifth of
-    the ticks; docs/native.md lists it as what is left)."""
-    words = frame_words("drivers/gnss.py", tmp_path)
-    assert words["Nmea.feed"] > VM_MAX_STATE_ON_STACK_WORDS
+def test_the_reading_counts_locals_stack_and_exception_handlers(tmp_path):
+    """Frames of known size: n_state is the locals (arguments included) plus the deepest value
+    stack; a try block adds an exception-stack entry."""
+    src = tmp_path / "sizes.py"
+    src.write_text(
+        "def small(a):\n"
+        "    return a\n"
+        "def many(a, b, c, d, e, f, g, h, i, j, k, l):\n"
+        "    return a\n"
+        "def guarded(a):\n"
+        "    try:\n"
+        "        return a\n"
+        "    except ValueError:\n"
+        "        return None\n"
+    )
+    words = frame_words(src, tmp_path)
+    assert words["small"] <= 2
+    assert words["many"] >= 13 > VM_MAX_STATE_ON_STACK_WORDS
+    assert words["guarded"] >= words["small"] + EXC_STACK_WORDS

@@ -339,18 +339,14 @@ class SPI:
         _emu_out()
 
     def write_readinto(self, write_buf, read_buf):
-        _emu_in()
-        self._write_readinto(write_buf, read_buf)
-        _emu_out()
-
-    def _write_readinto(self, write_buf, read_buf):
         n = len(write_buf)
         if n != len(read_buf):
-            _emu_out()  # the caller's bracket: the error ends it
             raise ValueError("buffers must be the same length")
+        _emu_in()
         dev = self._device()
         for i in range(n):
             read_buf[i] = self._x(dev, write_buf[i])
+        _emu_out()
 
     def read(self, nbytes, write=0):
         buf = bytearray(nbytes)
@@ -628,17 +624,13 @@ class UART:
         """Up to nbytes (default len(buf)) received bytes into buf; the count, or None when
         nothing has arrived (the stm32 port with timeout=0)."""
         _emu_in()
-        n = self._readinto(buf, nbytes)
-        _emu_out()
-        return n
-
-    def _readinto(self, buf, nbytes):
         n = len(buf)
         if 0 <= nbytes < n:
             n = nbytes
         if n > self._count:
             n = self._count
         if n <= 0:
+            _emu_out()
             return None
         ring = self._ring
         size = self.rxbuf
@@ -650,6 +642,7 @@ class UART:
                 r = 0
         self._head = r
         self._count -= n
+        _emu_out()
         return n
 
     def read(self, nbytes=-1):
@@ -664,11 +657,6 @@ class UART:
     def write(self, buf):
         """Append buf to the transmit buffer; returns the bytes accepted."""
         _emu_in()
-        m = self._write(buf)
-        _emu_out()
-        return m
-
-    def _write(self, buf):
         m = len(buf)
         tx = self.tx
         n = self.tx_n
@@ -679,6 +667,7 @@ class UART:
         for i in range(m):
             tx[n + i] = buf[i]
         self.tx_n = n + m
+        _emu_out()
         return m
 
 
