@@ -103,7 +103,9 @@ is some tens of times slower (no board measurement yet), i.e. well under 1 ms pe
 """
 
 import time
+from array import array
 
+import kern
 from micropython import const
 
 MAXLEN = const(100)  # characters between '$' and CR; NMEA-0183 allows 79 (82 with $ CR LF)
@@ -113,6 +115,41 @@ GGA = const(1)
 RMC = const(2)
 VTG = const(3)
 GSA = const(4)
+
+# self._s, the parser's int buffer (firmware/native/layout.h NS_* repeats it): the framing
+# state between feeds, then the fields of the sentence that ended last
+_NS_I = const(0)  # next byte of the input
+_NS_K = const(1)  # characters in the line; -1 outside a sentence
+_NS_X = const(2)  # running XOR checksum
+_NS_STAR = const(3)  # index of '*' in the line; -1 before it
+_NS_NF = const(4)  # fields found so far
+_NS_LEN = const(5)  # length of the line that ended last
+_NS_TALKER = const(6)
+_NS_UTC = const(7)  # GGA, RMC: ms of day
+_NS_POS = const(8)  # GGA, RMC: _pos's 1 / 0 and its lat, lon degrees and fraction
+_NS_LAT = const(9)
+_NS_DEG = const(10)
+_NS_FRAC = const(11)
+_NS_A = const(12)  # GGA quality, RMC status, GSA fix
+_NS_B = const(13)  # GGA satellites, RMC and VTG speed (mm/s), GSA satellites listed
+_NS_C = const(14)  # GGA HDOP, RMC and VTG course, GSA HDOP
+_NS_D = const(15)  # GGA altitude, RMC date, GSA PDOP
+_NS_E = const(16)  # GGA separation, RMC and VTG mode, GSA mode
+_NS_F = const(17)  # GSA VDOP
+_NS_N = const(18)
+_FS = const(MAXLEN)  # where the comma table starts in the line buffer
+# What a scan reports (GGA..GSA: that sentence, parsed into self._s)
+_NR_GGA = const(1)
+_NR_RMC = const(2)
+_NR_VTG = const(3)
+_NR_GSA = const(4)
+_NR_IGNORED = const(5)
+_NR_BAD_FIELD = const(6)
+_NR_NO_CSUM = const(7)
+_NR_MALFORMED = const(8)
+_NR_BAD_CSUM = const(9)
+_NR_OVERLONG = const(10)
+_NR_COLLIDED = const(11)
 
 _EMPTY = const(-0x3FFFFFFE)  # _num(): empty field
 _BAD = const(-0x3FFFFFFF)  # _num(): syntax error (both below any value, inside small ints)
@@ -290,16 +327,11 @@ def _char(line, a, b):
 class Nmea:
     def __init__(self, need_speed=True):
         self.need_speed = need_speed
-        self._line = bytearray(MAXLEN)
-        self._fs = bytearray(_MAXF + 1)  # fs[i]: start of field i in _line; fs[nf] = '*' + 1
-        self._k = -1  # characters in _line; -1 outside a sentence
-        self._x = 0  # running XOR checksum
-        self._star = -1  # index of '*' in _line
-        self._nf = 0  # fields found so far
-        # scratch of _pos()
-        self._p_lat = 0
-        self._p_deg = 0
-        self._p_frac = 0
+        # the line and, after its MAXLEN bytes, the comma table: fs[i] = lb[_FS + i] is the
+        # start of field i in the line, fs[nf] = '*' + 1
+        self._line = bytearray(_FS + _MAXF + 1)
+        self._s = array("i", bytes(4 * _NS_N))  # framing state and a sentence's fields (_NS_*)
+        self._s[_NS_K] = -1  # outside a sentence
         # counters
         self.n_gga = 0
         self.n_rmc = 0
@@ -436,189 +468,74 @@ class Nmea:
     # ---- byte stream -------------------------------------------------------------------
 
     def feed(self, buf, n):
-        """Consume buf[0:n] (bytes from the UART, any chunking)."""
-        line = self._line
-        fs = self._fs
-        k = self._k
-        x = self._x
-        star = self._star
-        nf = self._nf
-        for i in range(n):
-            b = buf[i]
-            if b == 36:  # '$': a new sentence, whatever came before
-                if k >= 0:
-                    self.n_collided = (self.n_collided + 1) & _WRAP
-                k = 0
-                x = 0
-                star = -1
-                nf = 1
-                fs[0] = 0
-            elif k < 0:
-                pass  # outside a sentence: skip
-            elif b == 13 or b == 10:
-                self._end(k, x, star, nf)
-                k = -1
-            elif b < 32 or b > 126:
-                self.n_malformed = (self.n_malformed + 1) & _WRAP
-                k = -1
-            elif k >= MAXLEN:
-                self.n_overlong = (self.n_overlong + 1) & _WRAP
-                k = -1
+        """Consume buf[0:n] (bytes from the UART, any chunking). The byte loop, the line
+        checks and the field parsing are one kernel (`nmea_scan`, reference `_scan_py`) that
+        returns at each line end or rejection; `_end` books it."""
+        if n <= 0:
+            return
+        if n > len(buf):
+            raise ValueError("feed: n is beyond the buffer")
+        s = self._s
+        s[_NS_I] = 0
+        r = _scan(s, self._line, buf, n)
+        while r:
+            self._end(r)
+            r = _scan(s, self._line, buf, n)
+
+    def _end(self, r):
+        """What the scan reported (_NR_*): a parsed sentence, an ignored one, or a rejection."""
+        if r <= GSA:
+            if r == GGA:
+                self._gga()
+            elif r == RMC:
+                self._rmc()
+            elif r == VTG:
+                self._vtg()
             else:
-                line[k] = b
-                if star < 0:
-                    if b == 42:  # '*'
-                        star = k
-                    else:
-                        x ^= b
-                        if b == 44 and nf < _MAXF:  # ','
-                            fs[nf] = k + 1
-                            nf += 1
-                k += 1
-        self._k = k
-        self._x = x
-        self._star = star
-        self._nf = nf
-
-    def _end(self, k, x, star, nf):
-        """A line line[0:k] ended by CR/LF: check, classify, parse."""
-        line = self._line
-        if star < 0:
-            self.n_no_csum = (self.n_no_csum + 1) & _WRAP
-            return
-        if k != star + 3:
-            self.n_malformed = (self.n_malformed + 1) & _WRAP
-            return
-        h = _hex(line[star + 1])
-        lo = _hex(line[star + 2])
-        if h < 0 or lo < 0:
-            self.n_malformed = (self.n_malformed + 1) & _WRAP
-            return
-        if h * 16 + lo != x:
-            self.n_bad_csum = (self.n_bad_csum + 1) & _WRAP
-            return
-        fs = self._fs
-        fs[nf] = star + 1
-        kind = 0
-        if fs[1] == 6:  # a five-letter address
-            t = (line[0] << 8) | line[1]
-            if t in _TALKERS:
-                f = (line[2] << 16) | (line[3] << 8) | line[4]
-                if f == _F_GGA:
-                    kind = GGA
-                elif f == _F_RMC:
-                    kind = RMC
-                elif f == _F_VTG:
-                    kind = VTG
-                elif f == _F_GSA:
-                    kind = GSA
-        if kind == 0:
+                self._gsa()
+            self.seq = (self.seq + 1) & _WRAP
+            self.last = r
+            self.talker = self._s[_NS_TALKER]
+        elif r == _NR_IGNORED:
             self.n_ignored = (self.n_ignored + 1) & _WRAP
-            return
-        if nf >= _MAXF:
-            ok = False
-        elif kind == GGA:
-            ok = self._gga(line, fs, nf)
-        elif kind == RMC:
-            ok = self._rmc(line, fs, nf)
-        elif kind == VTG:
-            ok = self._vtg(line, fs, nf)
-        else:
-            ok = self._gsa(line, fs, nf)
-        if not ok:
+        elif r == _NR_BAD_FIELD:
             self.n_bad_field = (self.n_bad_field + 1) & _WRAP
-            return
-        self.seq = (self.seq + 1) & _WRAP
-        self.last = kind
-        self.talker = t
+        elif r == _NR_NO_CSUM:
+            self.n_no_csum = (self.n_no_csum + 1) & _WRAP
+        elif r == _NR_MALFORMED:
+            self.n_malformed = (self.n_malformed + 1) & _WRAP
+        elif r == _NR_BAD_CSUM:
+            self.n_bad_csum = (self.n_bad_csum + 1) & _WRAP
+        elif r == _NR_OVERLONG:
+            self.n_overlong = (self.n_overlong + 1) & _WRAP
+        else:
+            self.n_collided = (self.n_collided + 1) & _WRAP
 
-    # ---- sentence parsers: locals first, attributes only once the sentence is good -------
+    def line_length(self):
+        """Characters of the line that ended last (self._line[0:n], between '$' and CR)."""
+        return self._s[_NS_LEN]
 
-    def _pos(self, line, fs, i):
-        """Fields i..i+3 (lat, N/S, lon, E/W) into the _p_* scratch: 1 valid, 0 empty or out
-        of range, -1 syntax error."""
-        a = fs[i]
-        b = fs[i + 1] - 1
-        c = fs[i + 2] - 1
-        d = fs[i + 3] - 1
-        e = fs[i + 4] - 1
-        if a == b and c + 1 == d:
-            return 0  # both empty (the hemisphere letters may be there or not)
-        p = _mins(line, a, b)
-        if p < 0:
-            return -1
-        deg = _uint(line, a, p)
-        fr = _min_e7(line, p, b)
-        if deg < 0 or fr < 0:
-            return -1
-        ok = 1
-        if deg > 90 or fr > 10000000:
-            ok = 0
-            deg = 0
-        lat = deg * 10000000 + fr  # <= 9.1e8
-        p = _mins(line, c + 1, d)
-        if p < 0:
-            return -1
-        deg = _uint(line, c + 1, p)
-        fr = _min_e7(line, p, d)
-        if deg < 0 or fr < 0:
-            return -1
-        if fr > 10000000:  # more than 60 minutes
-            ok = 0
-        elif fr == 10000000:  # 59.99999995.. or 60 minutes round up to the next degree
-            deg += 1
-            fr = 0
-        if lat > 900000000 or deg > 180 or deg == 180 and fr > 0:
-            ok = 0
-        ns = _char(line, b + 1, c)
-        ew = _char(line, d + 1, e)
-        if ns == 83:  # 'S'
-            lat = -lat
-        elif ns != 78:  # not 'N'
-            ok = 0
-        if ew == 87:  # 'W'
-            deg = -deg
-            fr = -fr
-        elif ew != 69:  # not 'E'
-            ok = 0
-        self._p_lat = lat
-        self._p_deg = deg
-        self._p_frac = fr
-        return ok
+    # ---- accepted sentences: the scan's fields (self._s) into the attributes ---------------
 
-    def _gga(self, line, fs, nf):
-        # GGA,time,lat,N,lon,E,quality,nsat,hdop,alt[,M,sep,M,age,station]: up to alt needed
-        if nf < 10:
-            return False
-        utc = _utc_ms(line, fs[1], fs[2] - 1)
-        pos = self._pos(line, fs, 2)
-        q = _nn(_num(line, fs[6], fs[7] - 1, 0))
-        ns = _nn(_num(line, fs[7], fs[8] - 1, 0))
-        hd = _nn(_num(line, fs[8], fs[9] - 1, 2))
-        alt = _num(line, fs[9], fs[10] - 1, 3)
-        sep = _EMPTY
-        if nf >= 12:
-            sep = _num(line, fs[11], fs[12] - 1, 3)
-        if utc == _BAD or pos < 0 or q == _BAD or ns == _BAD or hd == _BAD:
-            return False
-        if alt == _BAD or sep == _BAD:
-            return False
+    def _gga(self):
+        s = self._s
+        utc = s[_NS_UTC]
         self.gga_utc_ms = utc
-        self.gga_pos_ok = pos
-        if pos:
-            self.gga_lat_e7 = self._p_lat
-            self.gga_lon_deg = self._p_deg
-            self.gga_lon_frac_e7 = self._p_frac
-        self.gga_quality = q
-        self.gga_nsat = ns
-        self.gga_hdop_x100 = hd
+        self.gga_pos_ok = s[_NS_POS]
+        if s[_NS_POS]:
+            self.gga_lat_e7 = s[_NS_LAT]
+            self.gga_lon_deg = s[_NS_DEG]
+            self.gga_lon_frac_e7 = s[_NS_FRAC]
+        self.gga_quality = s[_NS_A]
+        self.gga_nsat = s[_NS_B]
+        self.gga_hdop_x100 = s[_NS_C]
         self.gga_alt_ok = 0
-        if alt != _EMPTY:
-            self.gga_alt_mm = alt
+        if s[_NS_D] != _EMPTY:
+            self.gga_alt_mm = s[_NS_D]
             self.gga_alt_ok = 1
         self.gga_sep_ok = 0
-        if sep != _EMPTY:
-            self.gga_sep_mm = sep
+        if s[_NS_E] != _EMPTY:
+            self.gga_sep_mm = s[_NS_E]
             self.gga_sep_ok = 1
         self.gga_seen = 1
         self.n_gga = (self.n_gga + 1) & _WRAP
@@ -627,110 +544,47 @@ class Nmea:
             self._ep_gga = 1
             if self._ep_spd or not self.need_speed:
                 self._complete()
-        return True
 
-    def _rmc(self, line, fs, nf):
-        # RMC,time,status,lat,N,lon,E,knots,course,ddmmyy[,magvar,E[,mode[,navstatus]]]
-        if nf < 10:
-            return False
-        utc = _utc_ms(line, fs[1], fs[2] - 1)
-        st = _char(line, fs[2], fs[3] - 1)
-        pos = self._pos(line, fs, 3)
-        kn = _nn(_num(line, fs[7], fs[8] - 1, 4))
-        crs = _nn(_num(line, fs[8], fs[9] - 1, 2))
-        a = fs[9]
-        b = fs[10] - 1
-        date = -1
-        if b - a == 6:
-            date = _uint(line, a, b)
-            if date < 0:
-                return False
-            d = date // 10000
-            m = date // 100 % 100
-            date = (date % 100) * 10000 + m * 100 + d
-            if d < 1 or d > 31 or m < 1 or m > 12:
-                date = -1
-        elif a != b:
-            return False
-        mode = 0
-        if nf > 12:
-            mode = _char(line, fs[12], fs[13] - 1)
-        if utc == _BAD or st < 0 or pos < 0 or mode < 0:
-            return False
-        if kn == _BAD or crs == _BAD:
-            return False
-        spd = -1
-        if kn >= 0:  # 1e-4 kn -> mm/s: * 1852e3 / 3600e4 = * 463 / 9000, in two parts
-            spd = kn // 9000 * 463 + (kn % 9000 * 463 + 4500) // 9000
-        self.rmc_utc_ms = utc
-        self.rmc_status = st
-        self.rmc_pos_ok = pos
-        if pos:
-            self.rmc_lat_e7 = self._p_lat
-            self.rmc_lon_deg = self._p_deg
-            self.rmc_lon_frac_e7 = self._p_frac
-        self.rmc_speed_mm_s = spd
-        self.rmc_course_cdeg = crs
-        self.rmc_date = date
-        self.rmc_mode = mode
+    def _rmc(self):
+        s = self._s
+        self.rmc_utc_ms = s[_NS_UTC]
+        self.rmc_status = s[_NS_A]
+        self.rmc_pos_ok = s[_NS_POS]
+        if s[_NS_POS]:
+            self.rmc_lat_e7 = s[_NS_LAT]
+            self.rmc_lon_deg = s[_NS_DEG]
+            self.rmc_lon_frac_e7 = s[_NS_FRAC]
+        self.rmc_speed_mm_s = s[_NS_B]
+        self.rmc_course_cdeg = s[_NS_C]
+        self.rmc_date = s[_NS_D]
+        self.rmc_mode = s[_NS_E]
         self.n_rmc = (self.n_rmc + 1) & _WRAP
-        self._epoch_time(utc)
-        if st == 65:  # 'A'
-            self._speed(spd, self.rmc_course_cdeg)
+        self._epoch_time(s[_NS_UTC])
+        if s[_NS_A] == 65:  # 'A'
+            self._speed(s[_NS_B], s[_NS_C])
         else:
             self._speed(-1, -1)
-        return True
 
-    def _vtg(self, line, fs, nf):
-        # VTG,course,T,course_mag,M,knots,N,kmh,K[,mode]
-        if nf < 9:
-            return False
-        crs = _nn(_num(line, fs[1], fs[2] - 1, 2))
-        kn = _nn(_num(line, fs[5], fs[6] - 1, 4))
-        kmh = _nn(_num(line, fs[7], fs[8] - 1, 4))
-        mode = 0
-        if nf > 9:
-            mode = _char(line, fs[9], fs[10] - 1)
-        if crs == _BAD or kn == _BAD or kmh == _BAD or mode < 0:
-            return False
-        spd = -1
-        if kmh >= 0:  # 1e-4 km/h -> mm/s: / 36
-            spd = (kmh + 18) // 36
-        elif kn >= 0:
-            spd = kn // 9000 * 463 + (kn % 9000 * 463 + 4500) // 9000
-        self.vtg_course_cdeg = crs
-        self.vtg_speed_mm_s = spd
-        self.vtg_mode = mode
+    def _vtg(self):
+        s = self._s
+        self.vtg_course_cdeg = s[_NS_C]
+        self.vtg_speed_mm_s = s[_NS_B]
+        self.vtg_mode = s[_NS_E]
         self.n_vtg = (self.n_vtg + 1) & _WRAP
-        if mode == 78:  # 'N': data not valid
+        if s[_NS_E] == 78:  # 'N': data not valid
             self._speed(-1, -1)
         else:
-            self._speed(spd, self.vtg_course_cdeg)
-        return True
+            self._speed(s[_NS_B], s[_NS_C])
 
-    def _gsa(self, line, fs, nf):
-        # GSA,mode,fix,12 x sv,pdop,hdop,vdop[,system]
-        if nf < 18:
-            return False
-        mode = _char(line, fs[1], fs[2] - 1)
-        fix = _nn(_num(line, fs[2], fs[3] - 1, 0))
-        pd = _nn(_num(line, fs[15], fs[16] - 1, 2))
-        hd = _nn(_num(line, fs[16], fs[17] - 1, 2))
-        vd = _nn(_num(line, fs[17], fs[18] - 1, 2))
-        if mode < 0 or fix == _BAD or pd == _BAD or hd == _BAD or vd == _BAD:
-            return False
-        nsv = 0
-        for i in range(3, 15):
-            if fs[i + 1] - 1 > fs[i]:
-                nsv += 1
-        self.gsa_mode = mode
-        self.gsa_fix = fix
-        self.gsa_nsv = nsv
-        self.gsa_pdop_x100 = pd
-        self.gsa_hdop_x100 = hd
-        self.gsa_vdop_x100 = vd
+    def _gsa(self):
+        s = self._s
+        self.gsa_mode = s[_NS_E]
+        self.gsa_fix = s[_NS_A]
+        self.gsa_nsv = s[_NS_B]
+        self.gsa_pdop_x100 = s[_NS_D]
+        self.gsa_hdop_x100 = s[_NS_C]
+        self.gsa_vdop_x100 = s[_NS_F]
         self.n_gsa = (self.n_gsa + 1) & _WRAP
-        return True
 
     # ---- epochs ------------------------------------------------------------------------
 
@@ -790,3 +644,282 @@ def _hex(c):
     if 97 <= c <= 102:
         return c - 87
     return -1
+
+
+# ---- the scan: framing, line checks, field parsing (the reference of navk's nmea_scan) -----
+# Module functions over the buffers only: the line buffer lb holds the line at lb[0:MAXLEN] and
+# the comma table after it, field i starting at lb[_FS + i]. Results go to the int buffer s.
+
+
+def _pos_py(s, lb, i):
+    """Fields i..i+3 (lat, N/S, lon, E/W) into s[_NS_LAT.._NS_FRAC]: 1 valid, 0 empty or
+    out of range, -1 syntax error."""
+    a = lb[_FS + i]
+    b = lb[_FS + i + 1] - 1
+    c = lb[_FS + i + 2] - 1
+    d = lb[_FS + i + 3] - 1
+    e = lb[_FS + i + 4] - 1
+    if a == b and c + 1 == d:
+        return 0  # both empty (the hemisphere letters may be there or not)
+    p = _mins(lb, a, b)
+    if p < 0:
+        return -1
+    deg = _uint(lb, a, p)
+    fr = _min_e7(lb, p, b)
+    if deg < 0 or fr < 0:
+        return -1
+    ok = 1
+    if deg > 90 or fr > 10000000:
+        ok = 0
+        deg = 0
+    lat = deg * 10000000 + fr  # <= 9.1e8
+    p = _mins(lb, c + 1, d)
+    if p < 0:
+        return -1
+    deg = _uint(lb, c + 1, p)
+    fr = _min_e7(lb, p, d)
+    if deg < 0 or fr < 0:
+        return -1
+    if fr > 10000000:  # more than 60 minutes
+        ok = 0
+    elif fr == 10000000:  # 59.99999995.. or 60 minutes round up to the next degree
+        deg += 1
+        fr = 0
+    if lat > 900000000 or deg > 180 or deg == 180 and fr > 0:
+        ok = 0
+    ns = _char(lb, b + 1, c)
+    ew = _char(lb, d + 1, e)
+    if ns == 83:  # 'S'
+        lat = -lat
+    elif ns != 78:  # not 'N'
+        ok = 0
+    if ew == 87:  # 'W'
+        deg = -deg
+        fr = -fr
+    elif ew != 69:  # not 'E'
+        ok = 0
+    s[_NS_LAT] = lat
+    s[_NS_DEG] = deg
+    s[_NS_FRAC] = fr
+    return ok
+
+
+def _field(lb, i, k):
+    """Field i as a number times 10**k (_num)."""
+    return _num(lb, lb[_FS + i], lb[_FS + i + 1] - 1, k)
+
+
+def _knots_mm_s(kn):
+    """1e-4 kn -> mm/s: * 1852e3 / 3600e4 = * 463 / 9000, in two parts."""
+    return kn // 9000 * 463 + (kn % 9000 * 463 + 4500) // 9000
+
+
+def _gga_py(s, lb, nf):
+    # GGA,time,lat,N,lon,E,quality,nsat,hdop,alt[,M,sep,M,age,station]: up to alt needed
+    if nf < 10:
+        return False
+    utc = _utc_ms(lb, lb[_FS + 1], lb[_FS + 2] - 1)
+    pos = _pos_py(s, lb, 2)
+    q = _nn(_field(lb, 6, 0))
+    ns = _nn(_field(lb, 7, 0))
+    hd = _nn(_field(lb, 8, 2))
+    alt = _field(lb, 9, 3)
+    sep = _EMPTY
+    if nf >= 12:
+        sep = _field(lb, 11, 3)
+    if utc == _BAD or pos < 0 or q == _BAD or ns == _BAD or hd == _BAD:
+        return False
+    if alt == _BAD or sep == _BAD:
+        return False
+    s[_NS_UTC] = utc
+    s[_NS_POS] = pos
+    s[_NS_A] = q
+    s[_NS_B] = ns
+    s[_NS_C] = hd
+    s[_NS_D] = alt
+    s[_NS_E] = sep
+    return True
+
+
+def _rmc_py(s, lb, nf):
+    # RMC,time,status,lat,N,lon,E,knots,course,ddmmyy[,magvar,E[,mode[,navstatus]]]
+    if nf < 10:
+        return False
+    utc = _utc_ms(lb, lb[_FS + 1], lb[_FS + 2] - 1)
+    st = _char(lb, lb[_FS + 2], lb[_FS + 3] - 1)
+    pos = _pos_py(s, lb, 3)
+    kn = _nn(_field(lb, 7, 4))
+    crs = _nn(_field(lb, 8, 2))
+    a = lb[_FS + 9]
+    b = lb[_FS + 10] - 1
+    date = -1
+    if b - a == 6:
+        date = _uint(lb, a, b)
+        if date < 0:
+            return False
+        d = date // 10000
+        m = date // 100 % 100
+        date = (date % 100) * 10000 + m * 100 + d
+        if d < 1 or d > 31 or m < 1 or m > 12:
+            date = -1
+    elif a != b:
+        return False
+    mode = 0
+    if nf > 12:
+        mode = _char(lb, lb[_FS + 12], lb[_FS + 13] - 1)
+    if utc == _BAD or st < 0 or pos < 0 or mode < 0:
+        return False
+    if kn == _BAD or crs == _BAD:
+        return False
+    s[_NS_UTC] = utc
+    s[_NS_POS] = pos
+    s[_NS_A] = st
+    s[_NS_B] = _knots_mm_s(kn) if kn >= 0 else -1
+    s[_NS_C] = crs
+    s[_NS_D] = date
+    s[_NS_E] = mode
+    return True
+
+
+def _vtg_py(s, lb, nf):
+    # VTG,course,T,course_mag,M,knots,N,kmh,K[,mode]
+    if nf < 9:
+        return False
+    crs = _nn(_field(lb, 1, 2))
+    kn = _nn(_field(lb, 5, 4))
+    kmh = _nn(_field(lb, 7, 4))
+    mode = 0
+    if nf > 9:
+        mode = _char(lb, lb[_FS + 9], lb[_FS + 10] - 1)
+    if crs == _BAD or kn == _BAD or kmh == _BAD or mode < 0:
+        return False
+    spd = -1
+    if kmh >= 0:  # 1e-4 km/h -> mm/s: / 36
+        spd = (kmh + 18) // 36
+    elif kn >= 0:
+        spd = _knots_mm_s(kn)
+    s[_NS_B] = spd
+    s[_NS_C] = crs
+    s[_NS_E] = mode
+    return True
+
+
+def _gsa_py(s, lb, nf):
+    # GSA,mode,fix,12 x sv,pdop,hdop,vdop[,system]
+    if nf < 18:
+        return False
+    mode = _char(lb, lb[_FS + 1], lb[_FS + 2] - 1)
+    fix = _nn(_field(lb, 2, 0))
+    pd = _nn(_field(lb, 15, 2))
+    hd = _nn(_field(lb, 16, 2))
+    vd = _nn(_field(lb, 17, 2))
+    if mode < 0 or fix == _BAD or pd == _BAD or hd == _BAD or vd == _BAD:
+        return False
+    nsv = 0
+    for i in range(_FS + 3, _FS + 15):
+        if lb[i + 1] - 1 > lb[i]:
+            nsv += 1
+    s[_NS_A] = fix
+    s[_NS_B] = nsv
+    s[_NS_C] = hd
+    s[_NS_D] = pd
+    s[_NS_E] = mode
+    s[_NS_F] = vd
+    return True
+
+
+def _line_py(s, lb, k, x, star, nf):
+    """A line lb[0:k] ended by CR/LF: check, classify, parse; what the scan reports."""
+    s[_NS_LEN] = k
+    if star < 0:
+        return _NR_NO_CSUM
+    if k != star + 3:
+        return _NR_MALFORMED
+    h = _hex(lb[star + 1])
+    lo = _hex(lb[star + 2])
+    if h < 0 or lo < 0:
+        return _NR_MALFORMED
+    if h * 16 + lo != x:
+        return _NR_BAD_CSUM
+    lb[_FS + nf] = star + 1
+    kind = 0
+    if lb[_FS + 1] == 6:  # a five-letter address
+        t = (lb[0] << 8) | lb[1]
+        if t in _TALKERS:
+            f = (lb[2] << 16) | (lb[3] << 8) | lb[4]
+            if f == _F_GGA:
+                kind = GGA
+            elif f == _F_RMC:
+                kind = RMC
+            elif f == _F_VTG:
+                kind = VTG
+            elif f == _F_GSA:
+                kind = GSA
+            s[_NS_TALKER] = t
+    if kind == 0:
+        return _NR_IGNORED
+    if nf >= _MAXF:
+        ok = False
+    elif kind == GGA:
+        ok = _gga_py(s, lb, nf)
+    elif kind == RMC:
+        ok = _rmc_py(s, lb, nf)
+    elif kind == VTG:
+        ok = _vtg_py(s, lb, nf)
+    else:
+        ok = _gsa_py(s, lb, nf)
+    return kind if ok else _NR_BAD_FIELD
+
+
+def _scan_py(s, lb, buf, n):
+    """Consume buf[s[_NS_I]:n] up to the first thing to report (a line's end: _line_py's
+    result; a collision, a malformed or overlong line); 0 once all n bytes are consumed. The
+    framing state stays in s between calls."""
+    k = s[_NS_K]
+    x = s[_NS_X]
+    star = s[_NS_STAR]
+    nf = s[_NS_NF]
+    r = 0
+    i = s[_NS_I]
+    while i < n and r == 0:
+        b = buf[i]
+        i += 1
+        if b == 36:  # '$': a new sentence, whatever came before
+            if k >= 0:
+                r = _NR_COLLIDED
+            k = 0
+            x = 0
+            star = -1
+            nf = 1
+            lb[_FS] = 0
+        elif k < 0:
+            pass  # outside a sentence: skip
+        elif b == 13 or b == 10:
+            r = _line_py(s, lb, k, x, star, nf)
+            k = -1
+        elif b < 32 or b > 126:
+            r = _NR_MALFORMED
+            k = -1
+        elif k >= MAXLEN:
+            r = _NR_OVERLONG
+            k = -1
+        else:
+            lb[k] = b
+            if star < 0:
+                if b == 42:  # '*'
+                    star = k
+                else:
+                    x ^= b
+                    if b == 44 and nf < _MAXF:  # ','
+                        lb[_FS + nf] = k + 1
+                        nf += 1
+            k += 1
+    s[_NS_I] = i
+    s[_NS_K] = k
+    s[_NS_X] = x
+    s[_NS_STAR] = star
+    s[_NS_NF] = nf
+    return r
+
+
+_scan = kern.pick("nmea_scan", _scan_py)

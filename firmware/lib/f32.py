@@ -28,8 +28,11 @@ if sys.implementation.name == "micropython":
     f32 = float
 
     def zeros(n):
-        """A new float32 buffer of n zeros (allocate at start-up only)."""
-        return array("f", bytes(4 * n))
+        """A new float32 buffer of n zeros (allocate at start-up only). Filled from n zero
+        bytes through an iterator, not copied from 4n raw ones: the temporary is a quarter
+        of the buffer instead of as large (Navigator.mem, 6 kB, failed to find the room for
+        twice its size in a fuller heap)."""
+        return array("f", memoryview(bytes(n)))
 
     def view(buf, start, n):
         """Elements start .. start+n-1 of a float32 buffer as a buffer of their own, sharing

@@ -151,18 +151,21 @@ _C_FIX_PENDING = const(15)  # 1: a fix arrived, not screened yet
 _C_FIX_QUEUED = const(16)  # 1: a usable fix waits for the filter
 _C_PHASE = const(17)  # nav_tick: where the tick resumes after an event (0: a new tick)
 _C_BUSY = const(18)  # nav_tick: the filter had a job before this tick's slices
-_C_T_SECOND = const(19)  # configuration in ticks (from here on: set once)
-_C_T_STILL = const(20)
-_C_T_TIMEOUT = const(21)
-_C_T_PROP = const(22)
-_C_T_ZUPT = const(23)
-_C_T_NHC = const(24)
-_C_SLICES = const(25)  # filter slices per tick
-_C_RESET_AFTER = const(26)  # reset to GNSS after this many rejected updates in a row
-_C_OPTS = const(27)  # _OPT_* bits
-_C_CAL_FLAGS = const(28)  # 1: gyro matrix, 2: accel matrix
-_C_SAT = const(29)  # 1: the IMU was saturated this tick (nav_tick's input)
-_NC = const(30)
+_C_FIX_TICK = const(19)  # measurement tick of the pending or queued fix
+_C_USED_TICK = const(20)  # measurement tick of the fix in self._used
+_C_UPDATES = const(21)  # GNSS updates started (reports: self.updates)
+_C_T_SECOND = const(22)  # configuration in ticks (from here on: set once)
+_C_T_STILL = const(23)
+_C_T_TIMEOUT = const(24)
+_C_T_PROP = const(25)
+_C_T_ZUPT = const(26)
+_C_T_NHC = const(27)
+_C_SLICES = const(28)  # filter slices per tick
+_C_RESET_AFTER = const(29)  # reset to GNSS after this many rejected updates in a row
+_C_OPTS = const(30)  # _OPT_* bits
+_C_CAL_FLAGS = const(31)  # 1: gyro matrix, 2: accel matrix
+_C_SAT = const(32)  # 1: the IMU was saturated this tick (nav_tick's input)
+_NC = const(33)
 _OPT_ZUPT = const(1)
 _OPT_NHC = const(2)
 _OPT_CONING = const(4)
@@ -180,15 +183,16 @@ _M_STP = const(807)  # its parameters (_NSTP)
 _M_CORR = const(812)  # cumulative injected corrections of p and v (6)
 _M_RING_P = const(818)  # the delay ring: positions (3 * RING)
 _M_RING_V = const(1202)  # ... and velocities (3 * RING)
-_NM = const(1586)
+_M_GP = const(1586)  # the fix's antenna position in the frame, m (3): self._gp
+_M_FX = const(1589)  # the pending fix's floats (_FX_*, 6): self._fx
+_M_US = const(1595)  # the fix of the running GNSS update (nav_aid.py, 7): self._used
+_M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
+_NM = const(1613)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # aligning: run _align
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
-_EV_GNSS = const(3)  # start the GNSS update of the queued fix
-_EV_ZUPT = const(4)  # start a zero-velocity update
-_EV_NHC = const(5)  # start a non-holonomic constraint update
-_EV_RESET = const(6)  # the filter kept rejecting GNSS: _reset_to_gnss
-_EV_FAULT = const(7)  # non-finite state or covariance: _fault_reset
+_EV_RESET = const(3)  # the filter kept rejecting GNSS: _reset_to_gnss
+_EV_FAULT = const(4)  # non-finite state or covariance: _fault_reset
 
 
 def _ticks(seconds, dt):
@@ -216,9 +220,9 @@ class Navigator(Alignment, Aiding):
         self._ring_p = f32.view(m, _M_RING_P, 3 * RING)
         self._ring_v = f32.view(m, _M_RING_V, 3 * RING)
         self._corr = f32.view(m, _M_CORR, 6)
-        self._gp = f32.zeros(3)  # GNSS antenna position in the frame, m
-        self._fx = f32.zeros(6)
-        self._used = f32.zeros(7)
+        self._gp = f32.view(m, _M_GP, 3)  # GNSS antenna position in the frame, m
+        self._fx = f32.view(m, _M_FX, 6)
+        self._used = f32.view(m, _M_US, 7)
         self._st = f32.view(m, _M_ST, 6)
         self._lvl = f32.zeros(6)  # sums of f and w while levelling
         self._init = f32.zeros(eskf.N)  # initial P diagonal
@@ -310,7 +314,7 @@ class Navigator(Alignment, Aiding):
         stp[_STP_GYRO] = cfg.still_gyro
         stp[_STP_GNSS_SPEED] = cfg.still_gnss_speed
         stp[_STP_MAX_SPEED] = cfg.still_max_speed
-        aid = f32.zeros(_NAID)
+        aid = f32.view(self.mem, _M_AID, _NAID)
         self._aid = aid
         aid[_AID_UERE] = cfg.gnss_uere_m
         aid[_AID_FLOOR] = cfg.gnss_sigma_floor_m
@@ -332,16 +336,13 @@ class Navigator(Alignment, Aiding):
         self.leveled = False
         self._n_level = 0
         self._n_stable = 0
-        self._used_tick = 0  # measurement tick of the fix in self._used
         self._fix_lat = 0
         self._fix_lon_deg = 0
         self._fix_lon_frac = 0
         self._fix_quality = 0
-        self._fix_tick = 0
         self._last_fix_tick = -1000000
         self._trk_set = False  # a track anchor is held (self._trk, self._trk_tick)
         self._trk_tick = 0  # measurement tick of the anchor fix
-        self.updates = 0  # GNSS updates run (for reports)
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
         self.reanchors = 0  # origin moves
 
@@ -365,6 +366,11 @@ class Navigator(Alignment, Aiding):
     @property
     def health(self):
         return self.ctl[_C_HEALTH]
+
+    @property
+    def updates(self):
+        """GNSS updates started since the start (reports)."""
+        return self.ctl[_C_UPDATES]
 
     @property
     def still(self):
@@ -412,12 +418,6 @@ class Navigator(Alignment, Aiding):
             self._align()
         elif ev == _EV_FIX:
             self._nav_fix()
-        elif ev == _EV_GNSS:
-            self._start_queued_fix()
-        elif ev == _EV_ZUPT:
-            self._start_zupt()
-        elif ev == _EV_NHC:
-            self._start_nhc()
         elif ev == _EV_RESET:
             self._reset_to_gnss()
         else:
@@ -476,7 +476,7 @@ class Navigator(Alignment, Aiding):
         self._fix_quality = quality
         if fix_tick < 0:
             fix_tick = self.ctl[_C_TICK] - self._ticks_latency
-        self._fix_tick = fix_tick
+        self.ctl[_C_FIX_TICK] = fix_tick
         self.ctl[_C_FIX_PENDING] = 1
 
     # ---- per tick ------------------------------------------------------------------------
@@ -613,13 +613,13 @@ class Navigator(Alignment, Aiding):
         ring holds the last RING ticks)."""
         c = self.ctl
         c[_C_FIX_QUEUED] = 0
-        age = c[_C_TICK] - self._fix_tick
+        age = c[_C_TICK] - c[_C_FIX_TICK]
         if age < 0:
             age = 0
         elif age > RING - 1:
             age = RING - 1
         c[_C_JOB] = _JOB_GNSS
-        self.updates += 1
+        c[_C_UPDATES] += 1
         self._start_gnss_update(((c[_C_TICK] - age) % RING) * 3)
 
     def _inject(self):

@@ -18,7 +18,6 @@ started; the filter works them off over the next ticks.
 """
 
 import eskf
-import kern
 from micropython import const
 
 from fmath import cos, sin
@@ -32,11 +31,8 @@ _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
 _C_TICK = const(0)  # self.ctl: the control state
 _C_REJECTS = const(10)
-
-# The native kernels of the three rows (the methods below are their reference)
-_gnss_rows = kern.pick("gnss_rows", None)
-_zupt_rows = kern.pick("zupt_rows", None)
-_nhc_rows = kern.pick("nhc_rows", None)
+_C_FIX_TICK = const(19)
+_C_USED_TICK = const(20)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
 # used only here
@@ -81,14 +77,7 @@ class Aiding:
     def _start_gnss_update(self, b):
         """The fix in self._gp against the state at its measurement time, at offset b of the
         delay ring (self._ring_p, self._ring_v) plus the corrections injected since."""
-        self._used_tick = self._fix_tick
-        if _gnss_rows is not None:
-            kf = self.kf
-            _gnss_rows(
-                kf.e, kf.i, self.ins.x, self._ring_p, self._ring_v, self._corr, self._gp,
-                self._fx, self._used, self._w, self._aid, b,
-            )  # fmt: skip
-            return
+        self.ctl[_C_USED_TICK] = self.ctl[_C_FIX_TICK]
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
@@ -147,9 +136,6 @@ class Aiding:
 
     def _start_zupt(self):
         """Zero-velocity update: z = v_n[i] = dv_i + noise, i = E, N, U."""
-        if _zupt_rows is not None:
-            _zupt_rows(self.kf.e, self.kf.i, self.ins.x, self._aid)
-            return
         cfg = self.cfg
         kf = self.kf
         r = cfg.zupt_sigma * cfg.zupt_sigma
@@ -161,9 +147,6 @@ class Aiding:
     def _start_nhc(self):
         """Body lateral (x) and vertical (z) velocity are zero for a car: z = (C_bn^T v)_k,
         h = [0, c_k^T, (v x c_k)^T, 0, 0] with c_k the k-th column of C_bn."""
-        if _nhc_rows is not None:
-            _nhc_rows(self.kf.e, self.kf.i, self.ins.x, self._aid)
-            return
         kf = self.kf
         ins = self.ins
         c = ins.c_bn
@@ -211,6 +194,6 @@ class Aiding:
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
             sigma_vel = self.cfg.track_vel_sigma
-        self._restart(used, v, self.ctl[_C_TICK] - self._used_tick, sh, sv, sigma_vel)
+        self._restart(used, v, self.ctl[_C_TICK] - self.ctl[_C_USED_TICK], sh, sv, sigma_vel)
         self.ctl[_C_REJECTS] = 0
         self.resets += 1

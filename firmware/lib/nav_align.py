@@ -32,6 +32,7 @@ _C_STILL = const(3)
 _C_ACCEPT_TICK = const(9)
 _C_SINCE_PROP = const(11)
 _C_FIX_PENDING = const(15)
+_C_FIX_TICK = const(19)
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
@@ -154,7 +155,7 @@ class Alignment:
         c = self.ins.c_bn
         yaw = atan2(-c[1], c[4])  # rot.dcm_to_euler's yaw
         if self._trk_set:
-            n = self._fix_tick - self._trk_tick
+            n = self.ctl[_C_FIX_TICK] - self._trk_tick
             if n < self._ticks_track:
                 return  # window not long enough yet: keep the anchor
             if n <= 2 * self._ticks_track:
@@ -174,7 +175,7 @@ class Alignment:
         trk[_TR_E] = gp[0]
         trk[_TR_N] = gp[1]
         trk[_TR_YAW] = yaw
-        self._trk_tick = self._fix_tick
+        self._trk_tick = self.ctl[_C_FIX_TICK]
         self._trk_set = True
 
     def _start_navigation(self, course, sp, sigma_vel):
@@ -192,7 +193,7 @@ class Alignment:
         v[2] = 0.0
         sh = self._sigma_h()
         c = self.ctl
-        self._restart(self._gp, v, c[_C_TICK] - self._fix_tick, sh, self._sigma_v(sh), sigma_vel)
+        self._restart(self._gp, v, c[_C_TICK] - c[_C_FIX_TICK], sh, self._sigma_v(sh), sigma_vel)
         ins.take_dvn(self._tmp3)
         ins.slow_update(f32.f32(0))
         c[_C_SINCE_PROP] = 0

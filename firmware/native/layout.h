@@ -205,18 +205,21 @@
 #define C_FIX_QUEUED 16
 #define C_PHASE 17
 #define C_BUSY 18
-#define C_T_SECOND 19
-#define C_T_STILL 20
-#define C_T_TIMEOUT 21
-#define C_T_PROP 22
-#define C_T_ZUPT 23
-#define C_T_NHC 24
-#define C_SLICES 25
-#define C_RESET_AFTER 26
-#define C_OPTS 27
-#define C_CAL_FLAGS 28
-#define C_SAT 29
-#define NC 30
+#define C_FIX_TICK 19
+#define C_USED_TICK 20
+#define C_UPDATES 21
+#define C_T_SECOND 22
+#define C_T_STILL 23
+#define C_T_TIMEOUT 24
+#define C_T_PROP 25
+#define C_T_ZUPT 26
+#define C_T_NHC 27
+#define C_SLICES 28
+#define C_RESET_AFTER 29
+#define C_OPTS 30
+#define C_CAL_FLAGS 31
+#define C_SAT 32
+#define NC 33
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52
@@ -229,7 +232,11 @@
 #define M_CORR 812
 #define M_RING_P 818
 #define M_RING_V 1202
-#define NM 1586
+#define M_GP 1586
+#define M_FX 1589
+#define M_US 1595
+#define M_AID 1602
+#define NM 1613
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
@@ -238,13 +245,45 @@
 #define JOB_AID 2
 #define EV_ALIGN 1
 #define EV_FIX 2
-#define EV_GNSS 3
-#define EV_ZUPT 4
-#define EV_NHC 5
-#define EV_RESET 6
-#define EV_FAULT 7
+#define EV_RESET 3
+#define EV_FAULT 4
 #define ALIGNING 1
 #define NAVIGATING 2
 #define RING 128
+
+/* drivers/gnss.py: the NMEA parser's int buffer Nmea._s (framing state, the sentence's fields:
+ * NS_A..NS_F per type, as gnss.py lists) and nmea_scan's results */
+#define NMEA_MAXLEN 100 /* line bytes; the comma table follows them in the byte buffer */
+#define NMEA_MAXF 40
+#define NS_I 0 /* next byte of the input */
+#define NS_K 1 /* characters in the line, -1 outside a sentence */
+#define NS_X 2 /* running XOR */
+#define NS_STAR 3 /* index of '*', -1 before it */
+#define NS_NF 4 /* fields found */
+#define NS_LEN 5 /* length of the line that ended last */
+#define NS_TALKER 6
+#define NS_UTC 7
+#define NS_POS 8
+#define NS_LAT 9
+#define NS_DEG 10
+#define NS_FRAC 11
+#define NS_A 12
+#define NS_B 13
+#define NS_C 14
+#define NS_D 15
+#define NS_E 16
+#define NS_F 17
+#define NS_N 18
+#define NR_GGA 1
+#define NR_RMC 2
+#define NR_VTG 3
+#define NR_GSA 4
+#define NR_IGNORED 5
+#define NR_BAD_FIELD 6
+#define NR_NO_CSUM 7
+#define NR_MALFORMED 8
+#define NR_BAD_CSUM 9
+#define NR_OVERLONG 10
+#define NR_COLLIDED 11
 
 #endif

@@ -4,8 +4,9 @@
  * work in the other kernels. Few arguments on purpose: see nav.py's self.mem.
  *
  * What stays in Python returns an event (EV_*) with c[C_PHASE] saying where the tick resumes:
- * the app runs the event's method (alignment, a fix's screening, an aiding update's rows, a
- * reset: all rare, or before navigation) and calls again with the same arguments. The order
+ * the app runs the event's method (alignment, a fix's screening and re-anchoring, a reset:
+ * once a second at most, or before navigation) and calls again with the same arguments. The
+ * filter's jobs start here, their rows included (aid.c). The order
  * of every step is the reference's, so a tick's results are the same bit for bit. */
 #include <stdint.h>
 
@@ -14,9 +15,8 @@
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
-#define PH_WORK 2 /* after a job was started (EV_GNSS, EV_ZUPT, EV_NHC) */
-#define PH_CHECK 3 /* after a reset to GNSS (EV_RESET) */
-#define PH_HEALTH 4 /* after alignment or a fault reset (EV_ALIGN, EV_FAULT) */
+#define PH_CHECK 2 /* after a reset to GNSS (EV_RESET) */
+#define PH_HEALTH 3 /* after alignment or a fault reset (EV_ALIGN, EV_FAULT) */
 
 /* _update_health */
 static void update_health(int32_t *c) {
@@ -53,28 +53,42 @@ static void still_update(int32_t *c, float *st, const float *f, const float *w, 
     c[C_STILL] = c[C_N_STILL] >= c[C_T_STILL] ? 1 : 0;
 }
 
-/* _schedule (the filter is idle): 0, or the event that starts a job in Python */
-static int32_t schedule(int32_t *c, float *x, float *e, int32_t *ki) {
+/* _start_queued_fix and nav_aid._start_gnss_update: the GNSS update of the queued fix,
+ * against the state at its measurement time (the delay ring holds the last RING ticks) */
+static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
+    c[C_FIX_QUEUED] = 0;
+    int32_t age = c[C_TICK] - c[C_FIX_TICK];
+    if (age < 0) {
+        age = 0;
+    } else if (age > RING - 1) {
+        age = RING - 1;
+    }
+    c[C_JOB] = JOB_GNSS;
+    c[C_UPDATES] += 1;
+    c[C_USED_TICK] = c[C_FIX_TICK];
+    navk_gnss_rows(m + M_E, ki, m + M_X, m + M_RING_P, m + M_RING_V, m + M_CORR, m + M_GP,
+        m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3);
+}
+
+/* _schedule (the filter is idle): start the next job, if one is due */
+static void schedule(int32_t *c, int32_t *ki, float *m) {
+    float *x = m + M_X;
+    float *e = m + M_E;
     int32_t overdue = c[C_SINCE_PROP] >= 2 * c[C_T_PROP];
     if (c[C_FIX_QUEUED] && !overdue) {
-        return EV_GNSS; /* _start_queued_fix */
-    }
-    if (c[C_SINCE_PROP] >= c[C_T_PROP]) {
+        start_queued_fix(c, ki, m);
+    } else if (c[C_SINCE_PROP] >= c[C_T_PROP]) {
         navk_prop_start(x, e, ki, c[C_SINCE_PROP]);
         c[C_SINCE_PROP] = 0;
-        return 0;
-    }
-    if ((c[C_OPTS] & OPT_ZUPT) && c[C_STILL] && c[C_SINCE_ZUPT] >= c[C_T_ZUPT]) {
+    } else if ((c[C_OPTS] & OPT_ZUPT) && c[C_STILL] && c[C_SINCE_ZUPT] >= c[C_T_ZUPT]) {
         c[C_SINCE_ZUPT] = 0;
         c[C_JOB] = JOB_AID;
-        return EV_ZUPT;
-    }
-    if ((c[C_OPTS] & OPT_NHC) && !c[C_STILL] && c[C_SINCE_NHC] >= c[C_T_NHC]) {
+        navk_zupt_rows(e, ki, x, m + M_AID); /* nav_aid._start_zupt */
+    } else if ((c[C_OPTS] & OPT_NHC) && !c[C_STILL] && c[C_SINCE_NHC] >= c[C_T_NHC]) {
         c[C_SINCE_NHC] = 0;
         c[C_JOB] = JOB_AID;
-        return EV_NHC;
+        navk_nhc_rows(e, ki, x, m + M_AID); /* nav_aid._start_nhc */
     }
-    return 0;
 }
 
 /* _inject (dx is ready): 1 when the rejects call for a reset to GNSS */
@@ -144,13 +158,8 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
         /* fall through */
         case PH_SCHEDULE:
             if (ki[I_JOB] == IDLE && !ki[I_READY]) {
-                int32_t ev = schedule(c, x, e, ki);
-                if (ev) {
-                    return stop(c, PH_WORK, ev);
-                }
+                schedule(c, ki, m);
             }
-        /* fall through */
-        case PH_WORK:
             c[C_BUSY] = ki[I_JOB] != IDLE;
             navk_eskf_work(e, ki, c[C_SLICES]);
             if (ki[I_READY] && inject(c, ki, x, e, corr)) {

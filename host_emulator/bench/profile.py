@@ -41,6 +41,11 @@ TARGETS = (
     ("geo", "LocalFrame", ("to_enu", "to_e7", "set_origin")),
 )  # fmt: skip
 
+# The kernels the firmware calls from Python when they are native (the others run inside
+# nav_tick, where no wrapper sees them; a wrapper costs ~140 bytes of the board's heap)
+KERNELS = ("nav_tick", "nav_frame", "ext_pack", "fix_in", "fix_check", "geo_enu",
+           "bmi055_decode", "gnss_rows", "zupt_rows", "nhc_rows", "nmea_scan")  # fmt: skip
+
 # The guest's setup (emulate_m4f.main's SETUP): wraps, then returns the report function.
 GUEST = r"""
 def _profile_setup():
@@ -48,22 +53,26 @@ def _profile_setup():
     import m4f
     ic = m4f.icount
     em = m4f.emu_total
-    acc = {}
+    keys = []
+    cnt = [0] * 256  # instructions, calls of wrapper j at 2j, 2j + 1: one list, not one each
     on = [ALL_TICKS]
     ticks = [0]
 
     def wrap(owner, name, key):
+        # collected first, so the wrappers pack at the bottom of the heap instead of being
+        # spread over it by the garbage in between (the firmware then lacks a large block)
+        gc.collect()
         f = getattr(owner, name)  # a name that is gone stops the profile (AttributeError)
-        a = [0, 0]
-        acc[key] = a
+        j = 2 * len(keys)
+        keys.append(key)
 
         def w(*args):
             if on[0]:
                 c0 = ic()
                 e0 = em()
                 r = f(*args)
-                a[0] += ((ic() - c0) & 0x3FFFFFFF) - ((em() - e0) & 0x3FFFFFFF)
-                a[1] += 1
+                cnt[j] += ((ic() - c0) & 0x3FFFFFFF) - ((em() - e0) & 0x3FFFFFFF)
+                cnt[j + 1] += 1
                 return r
             return f(*args)
 
@@ -71,9 +80,8 @@ def _profile_setup():
 
     try:
         import navk
-        for name in dir(navk):
-            if not name.startswith("_") and name != "abi":
-                wrap(navk, name, "navk." + name)
+        for name in KERNELS:
+            wrap(navk, name, "navk." + name)
     except ImportError:
         pass
     for mod, cls, names in TARGETS:
@@ -109,7 +117,8 @@ def _profile_setup():
     c2 = ic()
     calib[0] = (((c2 - c1) & 0x3FFFFFFF) - ((c1 - c0) & 0x3FFFFFFF)) // 50
     on[0] = on0
-    del acc["_probe"]
+    keys.pop()
+    cnt[2 * len(keys)] = cnt[2 * len(keys) + 1] = 0
 
     def counted_tick(self):
         if not ALL_TICKS:
@@ -127,9 +136,11 @@ def _profile_setup():
     def report():
         yield "ticks", ticks[0]
         yield "wrapper_instr", calib[0]
-        for key in acc:
-            yield key, acc[key]
+        for j, key in enumerate(keys):
+            yield key, [cnt[2 * j], cnt[2 * j + 1]]
 
+    gc.collect()
+    gc.collect()
     return report
 """
 
@@ -138,7 +149,9 @@ def guest_setup(all_ticks):
     """MicroPython source defining `_profile_setup` for emulate_m4f.main's SETUP."""
     targets = repr(tuple((m, c, tuple(n)) for m, c, n in TARGETS))
     return (
-        f"TARGETS = {targets}\nALL_TICKS = {bool(all_ticks)}\n" + GUEST.strip("\n") + "\n"
+        f"TARGETS = {targets}\nKERNELS = {KERNELS!r}\nALL_TICKS = {bool(all_ticks)}\n"
+        + GUEST.strip("\n")
+        + "\n"
     ).replace("\n", "\r\n")
 
 

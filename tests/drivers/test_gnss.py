@@ -72,11 +72,11 @@ class Recorder(gnss.Nmea):
         self.rec_epochs = []  # ({epoch attr: value}, line that completed it)
         self.rec_events = []  # [kind, values...] of sentences and [0, values...] of epochs
 
-    def _end(self, k, x, star, nf):
+    def _end(self, r):
         seq, ign, ep = self.seq, self.n_ignored, self.n_epochs
-        super()._end(k, x, star, nf)
+        super()._end(r)
         check_small_ints(self)
-        line = bytes(self._line[:k])
+        line = bytes(self._line[: self.line_length()])
         if self.seq != seq:
             snap = {a: getattr(self, a) for a in ATTRS[self.last]}
             self.rec_accepted.append((self.last, line, snap))
@@ -810,11 +810,13 @@ def test_counters_wrap_as_small_ints():
     assert p.n_gga == 0 and p.seq == 0
 
 
-def test_stored_ints_stay_small_through_every_function_on_real_logs():
+def test_stored_ints_stay_small_through_every_function_on_real_logs(monkeypatch):
     """Run-time proof of the 31-bit bound for intermediates too: trace every line of the
-    driver's parsing functions (sys.settrace) over the logs with the widest numbers and the
-    most damage, and check every int local. feed() is checked at its return (its locals are
-    indices and bytes)."""
+    driver's parsing functions (sys.settrace; the Python reference scan, which the native one
+    equals: test_the_native_scan_equals_the_python_reference) over the logs with the widest
+    numbers and the most damage, and check every int local. The scan's byte loop is checked at
+    its return (its locals are indices and bytes)."""
+    monkeypatch.setattr(gnss, "_scan", gnss._scan_py)
     mod = gnss.__file__
     seen = collections.Counter()
 
@@ -830,7 +832,7 @@ def test_stored_ints_stay_small_through_every_function_on_real_logs():
     def tracer(frame, event, arg):
         if frame.f_code.co_filename != mod:
             return None
-        if frame.f_code.co_name == "feed":
+        if frame.f_code.co_name == "_scan_py":
             frame.f_trace_lines = False
         return local
 
@@ -846,6 +848,66 @@ def test_stored_ints_stay_small_through_every_function_on_real_logs():
     assert seen["ints"] > 100_000
 
 
+# ---- the native scan (navk.nmea_scan) against its Python reference ------------------------
+
+
+def _mutated(data, seed, n):
+    """n damaged copies of pieces of data: flipped, dropped and inserted bytes, with the
+    characters the framing and the fields care about inserted most often."""
+    rng = random.Random(seed)
+    special = b"$*,.\r\n-+0123456789NSEWAVK\x00\xff"
+    out = []
+    for _ in range(n):
+        a = rng.randrange(len(data))
+        piece = bytearray(data[a : a + rng.randint(20, 600)])
+        for _ in range(rng.randint(1, 8)):
+            j = rng.randrange(len(piece) + 1)
+            op = rng.random()
+            if op < 0.4:
+                piece.insert(j, rng.choice(special))
+            elif op < 0.7 and j < len(piece):
+                del piece[j]
+            elif j < len(piece):
+                piece[j] = rng.randrange(256)
+        out.append(bytes(piece))
+    return out
+
+
+def _state(p):
+    return (
+        p.rec_events,
+        [bytes(x) for x in p.rec_good],
+        {a: v for a, v in vars(p).items() if a[0] != "_" and not a.startswith("rec_")},
+        list(p._s),
+        bytes(p._line),
+    )
+
+
+@needs_logs
+def test_the_native_scan_equals_the_python_reference(monkeypatch):
+    """Every log and 3,000 damaged pieces of them (bytes flipped, dropped, inserted), fed in
+    the same random chunks through the native scan and through _scan_py: the same sentences,
+    epochs, counters and attributes, and the same parser buffers, byte for byte."""
+    import kern
+
+    assert kern.NATIVE and gnss._scan is not gnss._scan_py
+    native = gnss._scan
+    data = b"".join(log_bytes(n) for n in LOGS)
+    cases = [log_bytes(n) for n in LOGS] + _mutated(data, 11, 3000)
+    sentences = 0
+    seen = collections.Counter()
+    for i, case in enumerate(cases):
+        got = []
+        for scan in (native, gnss._scan_py):
+            monkeypatch.setattr(gnss, "_scan", scan)
+            got.append(_state(feed_chunks(Recorder(), case, seed=i, check=False)))
+        assert got[0] == got[1], i
+        sentences += len(got[0][1])
+        seen.update({c: got[0][2][c] for c in COUNTERS})
+    assert sentences > 10_000
+    assert min(seen.values()) > 0, seen  # every outcome of a line happened
+
+
 # ---- MicroPython VM ---------------------------------------------------------------------
 
 _VM_RECORDER = """
@@ -857,10 +919,10 @@ class R(gnss.Nmea):
     def __init__(self):
         super().__init__()
         self.out = []
-    def _end(self, k, x, star, nf):
+    def _end(self, r):
         s = self.seq
         e = self.n_epochs
-        super()._end(k, x, star, nf)
+        super()._end(r)
         if self.seq != s:
             self.out.append([self.last] + [getattr(self, a) for a in A[str(self.last)]])
         if self.n_epochs != e:
@@ -881,7 +943,8 @@ def host_records(data):
 
 
 @needs_logs
-def test_vm_parses_real_sentences_like_cpython():
+@pytest.mark.parametrize("kernels", ["native", "python"])
+def test_vm_parses_real_sentences_like_cpython(kernels):
     data = vm_sample()
     want, p = host_records(data)
     assert len(want) == 451  # 360 sentences and 91 epochs
@@ -896,7 +959,8 @@ def test_vm_parses_real_sentences_like_cpython():
         + "    p.feed(buf, n)\n"
         + "    i += n\n"
         + "    step = step % 97 + 7\n"
-        + f"print(json.dumps([p.out, [getattr(p, c) for c in {COUNTERS!r}]]))\n"
+        + f"print(json.dumps([p.out, [getattr(p, c) for c in {COUNTERS!r}]]))\n",
+        kernels=kernels,
     )
     assert got[0] == want
     assert got[1] == [getattr(p, c) for c in COUNTERS]
@@ -923,7 +987,8 @@ _LOCKED_CASES = {
 }
 
 
-def test_vm_feed_allocates_nothing():
+@pytest.mark.parametrize("kernels", ["native", "python"])
+def test_vm_feed_allocates_nothing(kernels):
     """Under micropython.heap_lock() every case runs without MemoryError (_locked) and
     gc.mem_alloc() does not move (_blocks == 0); also a split sentence, a complete epoch
     handed over (GGA after RMC) and the PPS interrupt handler."""
@@ -950,7 +1015,7 @@ def test_vm_feed_allocates_nothing():
         "res['counts'] = [p.n_gga, p.n_rmc, p.n_vtg, p.n_gsa, p.n_epochs, p.rejected()]",
         "print(json.dumps(res))",
     ]
-    res = mpvm.run_json("\n".join(body))
+    res = mpvm.run_json("\n".join(body), kernels=kernels)
     counts = res.pop("counts")
     assert res == {name: [True, 0] for name in [*_LOCKED_CASES, "split", "pps"]}
     # each case ran 3 times; GGA in gga, south_west, empty_fields, split; RMC in
@@ -965,11 +1030,12 @@ def test_vm_catches_an_allocation():
     out = mpvm.run_json(
         "import json\nfrom drivers import gnss\n"
         "class Leaky(gnss.Nmea):\n"
-        "    def _end(self, k, x, star, nf):\n"
-        "        self.copy = bytes(self._line[0:k])\n"
-        "        super()._end(k, x, star, nf)\n"
+        "    def _end(self, r):\n"
+        "        self.copy = bytes(self._line[0:self.line_length()])\n"
+        "        super()._end(r)\n"
         "p = Leaky()\np.copy = None\n"
         f"d = {sentence(GGA_BODY)!r}\n"
-        "print(json.dumps([_locked(lambda: p.feed(d, len(d))), _blocks(lambda: p.feed(d, 1))]))"
+        "e = d[1:2]\n"
+        "print(json.dumps([_locked(lambda: p.feed(d, len(d))), _blocks(lambda: p.feed(e, 1))]))"
     )
-    assert out == [False, 0]  # the lone '$' of the second call allocates nothing
+    assert out == [False, 0]  # a byte outside a sentence reaches no _end: nothing allocated

@@ -31,12 +31,12 @@ class Recorder(gnss.Nmea):
         super().__init__()
         self.rec_accepted = []
 
-    def _end(self, k, x, star, nf):
+    def _end(self, r):
         seq = self.seq
-        super()._end(k, x, star, nf)
+        super()._end(r)
         if self.seq != seq:
             snap = {a: getattr(self, a) for a in ATTRS[self.last].split()}
-            self.rec_accepted.append((self.last, bytes(self._line[:k]), snap))
+            self.rec_accepted.append((self.last, bytes(self._line[: self.line_length()]), snap))
 
 
 def driver_records(name):

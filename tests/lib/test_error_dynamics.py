@@ -436,7 +436,7 @@ def test_gnss_rows_are_the_derivative_of_the_antenna_prediction():
     true = true_from(nominal, dx)
     p_fix, v_fix = antenna_p(true), antenna_v(true)
     nav.tick = 1000
-    nav._fix_tick = nav.tick
+    nav.ctl[nav_mod._C_FIX_TICK] = nav.tick
     b = (nav.tick % nav_mod.RING) * 3
     for i in range(3):
         nav._ring_p[b + i] = nominal.p_n[i]

@@ -54,6 +54,10 @@ RULES = (
     ("NEF", "records", "NEF"),
     ("GEO_", "geo", ""),
     ("BMI055_", "drivers.bmi055", ""),
+    ("NMEA_MAXLEN", "drivers.gnss", "MAXLEN"),
+    ("NMEA_MAXF", "drivers.gnss", "_MAXF"),
+    ("NS_", "drivers.gnss", "_NS_"),
+    ("NR_", "drivers.gnss", "_NR_"),
 )
 
 

@@ -37,6 +37,15 @@ PER_TICK = (
     ("lib/nav.py", "Navigator.imu_counts"),
     ("lib/records.py", "ExtFrame.pack"),
     ("drivers/bmi055.py", "BMI055.read"),
+    ("drivers/gnss.py", "Nmea.feed"),
+    ("drivers/gnss.py", "Nmea._end"),
+    ("drivers/gnss.py", "Nmea._gga"),
+    ("drivers/gnss.py", "Nmea._rmc"),
+    ("drivers/gnss.py", "Nmea._vtg"),
+    ("drivers/gnss.py", "Nmea._gsa"),
+    ("drivers/gnss.py", "Nmea._epoch_time"),
+    ("drivers/gnss.py", "Nmea._speed"),
+    ("drivers/gnss.py", "Nmea._complete"),
 )
 
 
