@@ -25,7 +25,6 @@ from array import array
 import config
 import frame
 import kern
-import nav as nav_mod
 import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
@@ -36,6 +35,9 @@ import geo
 
 _US_PER_TICK = const(5000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
+# What one aligning tick may allocate (native kernels; measured: tests/runtimes/test_m4f.py):
+# while aligning, the heap is checked every other tick against the low water plus this
+_ALIGN_TICK_BYTES = const(6 * 1024)
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
 # tick): with the native kernels it runs while navigating only after an event that allocates
 # (see tick); otherwise (aligning, Python kernels) every tick.
@@ -67,6 +69,16 @@ _EF_LAT0_E7 = const(9)
 _EF_LON0_DEG = const(10)
 _EF_LON0_FRAC = const(11)
 _EF_TICK = const(12)
+_FI_LAT_E7 = const(0)  # nav.FI_*: a fix in ints, Navigator.fix_in
+_FI_LON_DEG = const(1)
+_FI_LON_FRAC = const(2)
+_FI_ALT_MM = const(3)
+_FI_QUALITY = const(4)
+_FI_HDOP_X100 = const(5)
+_FI_SPEED_MM_S = const(6)
+_FI_COURSE_CDEG = const(7)
+_FI_TICK = const(8)
+_NFI = const(9)
 _C_TICK = const(0)  # nav._C_*: the navigator's control state, Navigator.ctl
 _C_STATE = const(1)
 _C_HEALTH = const(2)
@@ -223,18 +235,24 @@ class App:
             self.t_worst_us = dt
         self.t_sum_us += dt
         self._period_ticks += 1
-        if kern.NATIVE and state == NAVIGATING:
-            # a navigating tick allocates nothing (tests/runtimes: the allocation proof), so
-            # the heap only shrinks at a re-anchoring or a reset (Python, rare): check then,
-            # and once when navigation starts (alignment allocated up to that tick); with
-            # automatic collection off an event must find the low-water reserve free
-            events = self.nav.reanchors + self.nav.resets
-            if events == self._events:
-                return
-            self._events = events
-        else:
-            self._events = -1  # not navigating: every tick is checked
-        if gc.mem_free() < _GC_LOW_WATER:
+        low = _GC_LOW_WATER
+        if kern.NATIVE:
+            # gc.mem_free() scans the heap: ~250,000 instructions on the board
+            if state == NAVIGATING:
+                # a navigating tick allocates nothing (tests/runtimes: the allocation proof),
+                # so the heap only shrinks at a re-anchoring or a reset (Python, rare): check
+                # then, and once when navigation starts (the transition allocates); with
+                # automatic collection off an event must find the low-water reserve free
+                events = self.nav.reanchors + self.nav.resets
+                if events == self._events:
+                    return
+                self._events = events
+            else:
+                self._events = -1
+                if self.ticks & 1:
+                    return  # the last check left room for this tick too
+                low = _GC_LOW_WATER + _ALIGN_TICK_BYTES
+        if gc.mem_free() < low:
             gc.collect()
             self.gc_runs += 1
 
@@ -254,47 +272,52 @@ class App:
 
     def _deliver_fix(self):
         """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
-        the navigator's input. The measurement tick is the PPS edge's when the edge came less
-        than a second before the epoch's first sentence, else the configured latency is used
-        (fix_tick -1). An epoch without speed (empty RMC/VTG fields, a GGA-only receiver)
-        passes speed -1 and course -1: unknown, unlike a standing receiver's speed 0.00 with
-        an empty course."""
+        the navigator's input. A no-fix epoch counts as lost."""
         g = self.gnss
-        nav = self.nav
-        fi = nav.fix_in
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         self.gnss_valid = ok
-        if not ok:  # a no-fix epoch (counts as lost)
-            for i in range(nav_mod.NFI):
-                fi[i] = 0
-            fi[nav_mod.FI_HDOP_X100] = 9900
-            fi[nav_mod.FI_SPEED_MM_S] = -1
-            fi[nav_mod.FI_COURSE_CDEG] = -1
-            fi[nav_mod.FI_TICK] = -1
-            nav.gnss_fix()
-            return
-        lat = g.epoch_lat_e7
+        if ok:
+            self._fix_fields(g, self.nav.fix_in)
+        else:
+            self._no_fix(self.nav.fix_in)
+        self.nav.gnss_fix()
+
+    def _no_fix(self, fi):
+        for i in range(_NFI):
+            fi[i] = 0
+        fi[_FI_HDOP_X100] = 9900
+        fi[_FI_SPEED_MM_S] = -1
+        fi[_FI_COURSE_CDEG] = -1
+        fi[_FI_TICK] = -1
+
+    def _fix_fields(self, g, fi):
+        """The epoch's fix into the frame's fields and the navigator's fix_in. An epoch without
+        speed (empty RMC/VTG fields, a GGA-only receiver) passes speed -1 and course -1:
+        unknown, unlike a standing receiver's speed 0.00 with an empty course."""
         ff = self._fields
-        geo.split_into(ff, _F_LAT_DEG, lat)
+        geo.split_into(ff, _F_LAT_DEG, g.epoch_lat_e7)
         ff[_F_LON_DEG] = g.epoch_lon_deg
         ff[_F_LON_FRAC] = g.epoch_lon_frac_e7
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
         self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
-        fi[nav_mod.FI_LAT_E7] = lat
-        fi[nav_mod.FI_LON_DEG] = g.epoch_lon_deg
-        fi[nav_mod.FI_LON_FRAC] = g.epoch_lon_frac_e7
-        fi[nav_mod.FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
-        fi[nav_mod.FI_QUALITY] = g.epoch_quality
-        fi[nav_mod.FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted
-        speed = g.epoch_speed_mm_s  # < 0: unknown
-        fi[nav_mod.FI_SPEED_MM_S] = speed
-        fi[nav_mod.FI_COURSE_CDEG] = g.epoch_course_cdeg if speed >= 0 else -1
-        fix_tick = -1
-        age_us = time.ticks_diff(time.ticks_us(), g.epoch_pps_us)
-        if g.epoch_pps_us and 0 <= age_us < 1000000:
-            fix_tick = nav.tick - age_us // _US_PER_TICK
-        fi[nav_mod.FI_TICK] = fix_tick
-        nav.gnss_fix()
+        fi[_FI_LAT_E7] = g.epoch_lat_e7
+        fi[_FI_LON_DEG] = g.epoch_lon_deg
+        fi[_FI_LON_FRAC] = g.epoch_lon_frac_e7
+        fi[_FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
+        fi[_FI_QUALITY] = g.epoch_quality
+        fi[_FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted
+        fi[_FI_SPEED_MM_S] = g.epoch_speed_mm_s  # < 0: unknown
+        fi[_FI_COURSE_CDEG] = g.epoch_course_cdeg if g.epoch_speed_mm_s >= 0 else -1
+        fi[_FI_TICK] = self._fix_tick(g.epoch_pps_us)
+
+    def _fix_tick(self, pps_us):
+        """The fix's measurement tick: the PPS edge's when the edge came less than a second
+        before the epoch's first sentence, else -1 (the navigator applies the configured
+        latency)."""
+        age_us = time.ticks_diff(time.ticks_us(), pps_us)
+        if pps_us and 0 <= age_us < 1000000:
+            return self.nav.ctl[_C_TICK] - age_us // _US_PER_TICK
+        return -1
 
     def _send_frame(self, imu, state):
         fi = self._fields

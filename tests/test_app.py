@@ -103,6 +103,10 @@ def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():
     assert ctl
     for name in ctl:
         assert getattr(app, name) == getattr(nav, name), name
+    fix_in = {n for n in vars(app) if n.startswith("_FI_")} | {"_NFI"}
+    assert fix_in == {"_" + n for n in vars(nav) if n.startswith("FI_")} | {"_NFI"}
+    for name in fix_in:
+        assert getattr(app, name) == getattr(nav, name[1:]), name
 
 
 def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):

@@ -25,6 +25,8 @@ kernel call (`geo_enu`) and allocates nothing; `set_origin` and `to_e7` (alignme
 re-anchoring, not per fix) compute in Python.
 """
 
+from array import array
+
 import kern
 from micropython import const
 
@@ -104,14 +106,14 @@ def _normalize(out, i, deg, frac):
     out[i + 1] = frac
 
 
-def _enu_py(enu, coef, h, dlat_e7, dlon_e7):
-    """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin of the
-    coefficients coef, at the height h[0] (m) above the ellipsoid; the reference of the native
-    kernel `geo_enu`."""
+def _enu_py(enu, coef, h, d_e7):
+    """enu[0:3] (m) of the point d_e7[0], d_e7[1] (lat and lon offsets in 1e-7 deg, ints,
+    |d| < 2**24) from the origin of the coefficients coef, at the height h[0] (m) above the
+    ellipsoid; the reference of the native kernel `geo_enu`."""
     c = coef
     dh = h[0] - c[H0]
-    n1 = f32.f32(dlat_e7) * c[KN]
-    e1 = f32.f32(dlon_e7) * c[KE]
+    n1 = f32.f32(d_e7[0]) * c[KN]
+    e1 = f32.f32(d_e7[1]) * c[KE]
     ee = e1 * e1
     nn = n1 * n1
     enu[0] = e1 + e1 * (dh * c[INV_RN] - n1 * c[GE_N])
@@ -138,6 +140,7 @@ class LocalFrame:
         self.lon0_frac = 0
         self.valid = False
         self.coef = f32.zeros(NCOEF)
+        self._d_e7 = array("i", bytes(8))  # an offset from the origin for the kernel
 
     def set_origin(self, lat0_e7, lon0_deg, lon0_frac, h0_m):
         """(Re-)anchor the frame at lat0_e7, the longitude lon0_deg + lon0_frac * 1e-7 deg and
@@ -177,18 +180,22 @@ class LocalFrame:
     def offset_to_enu(self, enu, dlat_e7, dlon_e7, h):
         """enu[0:3] (m) of the point dlat_e7, dlon_e7 (ints, |d| < 2**24) from the origin, at
         the height h[0] (a float32 buffer: m above the ellipsoid)."""
-        _enu(enu, self.coef, h, dlat_e7, dlon_e7)
+        self._d_e7[0] = dlat_e7
+        self._d_e7[1] = dlon_e7
+        _enu(enu, self.coef, h, self._d_e7)
 
     def to_enu(self, enu, lat_e7, lon_deg, lon_frac, h):
         """enu[0:3] (m) of an absolute integer position at the height h[0] (a float32 buffer);
         longitude wraps across +-180 deg. Allocates nothing."""
-        dd = lon_deg - self.lon0_deg
-        if dd > 180:
-            dd -= 360
-        elif dd < -180:
-            dd += 360
-        dlon = dd * _E7 + (lon_frac - self.lon0_frac)  # a small int near the origin
-        _enu(enu, self.coef, h, lat_e7 - self.lat0_e7, dlon)
+        # the arguments are reused as the offsets: this frame stays on the C stack
+        lon_deg -= self.lon0_deg
+        if lon_deg > 180:
+            lon_deg -= 360
+        elif lon_deg < -180:
+            lon_deg += 360
+        self._d_e7[0] = lat_e7 - self.lat0_e7
+        self._d_e7[1] = lon_deg * _E7 + (lon_frac - self.lon0_frac)  # small near the origin
+        _enu(enu, self.coef, h, self._d_e7)
 
     def to_e7(self, out, enu):
         """Inverse of to_enu: out[0] = lat (1e-7 deg), out[1], out[2] = the longitude as

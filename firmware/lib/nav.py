@@ -154,18 +154,26 @@ _C_BUSY = const(18)  # nav_tick: the filter had a job before this tick's slices
 _C_FIX_TICK = const(19)  # measurement tick of the pending or queued fix
 _C_USED_TICK = const(20)  # measurement tick of the fix in self._used
 _C_UPDATES = const(21)  # GNSS updates started (reports: self.updates)
-_C_T_SECOND = const(22)  # configuration in ticks (from here on: set once)
-_C_T_STILL = const(23)
-_C_T_TIMEOUT = const(24)
-_C_T_PROP = const(25)
-_C_T_ZUPT = const(26)
-_C_T_NHC = const(27)
-_C_SLICES = const(28)  # filter slices per tick
-_C_RESET_AFTER = const(29)  # reset to GNSS after this many rejected updates in a row
-_C_OPTS = const(30)  # _OPT_* bits
-_C_CAL_FLAGS = const(31)  # 1: gyro matrix, 2: accel matrix
-_C_SAT = const(32)  # 1: the IMU was saturated this tick (nav_tick's input)
-_NC = const(33)
+_C_FIX_LAT = const(22)  # the pending fix: lat (1e-7 deg), lon (degrees, 1e-7 deg fraction)
+_C_FIX_LON_DEG = const(23)
+_C_FIX_LON_FRAC = const(24)
+_C_FIX_QUALITY = const(25)
+_C_LAST_FIX_TICK = const(26)  # tick a fix last arrived
+_C_T_SECOND = const(27)  # configuration in ticks (from here on: set once)
+_C_T_STILL = const(28)
+_C_T_TIMEOUT = const(29)
+_C_T_PROP = const(30)
+_C_T_ZUPT = const(31)
+_C_T_NHC = const(32)
+_C_SLICES = const(33)  # filter slices per tick
+_C_RESET_AFTER = const(34)  # reset to GNSS after this many rejected updates in a row
+_C_OPTS = const(35)  # _OPT_* bits
+_C_CAL_FLAGS = const(36)  # 1: gyro matrix, 2: accel matrix
+_C_MIN_QUALITY = const(37)  # least GGA fix quality used
+_C_SAT = const(38)  # 1: the IMU was saturated this tick (nav_tick's input)
+_NC = const(39)
+# (the ints live here, not in attributes, also because a store into an attribute of a class
+# with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
 _OPT_NHC = const(2)
 _OPT_CONING = const(4)
@@ -236,6 +244,7 @@ class Navigator(Alignment, Aiding):
         c[_C_T_SECOND] = _ticks(f32.f32(1), dt)
         c[_C_SLICES] = cfg.slices_per_tick
         c[_C_RESET_AFTER] = cfg.reset_after_rejects
+        c[_C_MIN_QUALITY] = cfg.gnss_min_quality
         c[_C_OPTS] = (
             (_OPT_ZUPT if cfg.zupt else 0)
             | (_OPT_NHC if cfg.nhc else 0)
@@ -336,11 +345,7 @@ class Navigator(Alignment, Aiding):
         self.leveled = False
         self._n_level = 0
         self._n_stable = 0
-        self._fix_lat = 0
-        self._fix_lon_deg = 0
-        self._fix_lon_frac = 0
-        self._fix_quality = 0
-        self._last_fix_tick = -1000000
+        c[_C_LAST_FIX_TICK] = -1000000
         self._trk_set = False  # a track anchor is held (self._trk, self._trk_tick)
         self._trk_tick = 0  # measurement tick of the anchor fix
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
@@ -470,14 +475,15 @@ class Navigator(Alignment, Aiding):
                        fi[FI_TICK])  # fmt: skip
 
     def _take_fix(self, lat_e7, lon_deg, lon_frac, quality, fix_tick):
-        self._fix_lat = lat_e7
-        self._fix_lon_deg = lon_deg
-        self._fix_lon_frac = lon_frac
-        self._fix_quality = quality
+        c = self.ctl
+        c[_C_FIX_LAT] = lat_e7
+        c[_C_FIX_LON_DEG] = lon_deg
+        c[_C_FIX_LON_FRAC] = lon_frac
+        c[_C_FIX_QUALITY] = quality
         if fix_tick < 0:
-            fix_tick = self.ctl[_C_TICK] - self._ticks_latency
-        self.ctl[_C_FIX_TICK] = fix_tick
-        self.ctl[_C_FIX_PENDING] = 1
+            fix_tick = c[_C_TICK] - self._ticks_latency
+        c[_C_FIX_TICK] = fix_tick
+        c[_C_FIX_PENDING] = 1
 
     # ---- per tick ------------------------------------------------------------------------
 
@@ -505,7 +511,7 @@ class Navigator(Alignment, Aiding):
         """fix_check's bits, non-zero when quality and HDOP are acceptable (_FC_REANCHOR: see
         _nav_fix); a usable fix's speed, if it has one, also feeds standstill detection (an
         unknown speed, < 0 or NaN, is no speed measurement)."""
-        if self._fix_quality < self.cfg.gnss_min_quality:
+        if self.ctl[_C_FIX_QUALITY] < self.ctl[_C_MIN_QUALITY]:
             return 0
         r = fix_check(self._st, self._fx, self.ins.x, self._aid)
         if r & _FC_SPEED:
@@ -543,7 +549,7 @@ class Navigator(Alignment, Aiding):
     def _nav_fix(self):
         """A new fix while navigating: screen it, re-anchor if far, queue it for the filter."""
         c = self.ctl
-        self._last_fix_tick = c[_C_TICK]
+        c[_C_LAST_FIX_TICK] = c[_C_TICK]
         usable = self._fix_usable()
         if not usable:
             c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
@@ -551,7 +557,7 @@ class Navigator(Alignment, Aiding):
         if usable & _FC_REANCHOR:
             self._reanchor()
         # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
-        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,
+        self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
                           self._fx)  # fmt: skip
         c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
 

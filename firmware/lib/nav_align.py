@@ -33,6 +33,10 @@ _C_ACCEPT_TICK = const(9)
 _C_SINCE_PROP = const(11)
 _C_FIX_PENDING = const(15)
 _C_FIX_TICK = const(19)
+_C_FIX_LAT = const(22)
+_C_FIX_LON_DEG = const(23)
+_C_FIX_LON_FRAC = const(24)
+_C_LAST_FIX_TICK = const(26)
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
@@ -105,7 +109,8 @@ class Alignment:
 
     def _align_fix(self):
         cfg = self.cfg
-        self._last_fix_tick = self.ctl[_C_TICK]
+        c = self.ctl
+        c[_C_LAST_FIX_TICK] = c[_C_TICK]
         if not self._fix_usable():
             self._n_stable = 0
             self._trk_set = False
@@ -115,11 +120,11 @@ class Alignment:
             return
         fx = self._fx
         if not self.frame.valid:
-            if not self.frame.set_origin(self._fix_lat, self._fix_lon_deg, self._fix_lon_frac,
+            if not self.frame.set_origin(c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
                                          fx[_FX_H]):  # fmt: skip
                 return
             self.ins.set_frame(self.frame)
-        self.frame.to_enu(self._gp, self._fix_lat, self._fix_lon_deg, self._fix_lon_frac, fx)
+        self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC], fx)
         ins = self.ins
         for i in range(3):
             ins.p_n[i] = self._gp[i]

@@ -154,13 +154,13 @@ int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *
     return r;
 }
 
-/* geo._enu_py: ENU metres of an integer offset from the origin, at the height h[0]. */
-void navk_geo_enu(float *enu, const float *coef, const float *h, int32_t dlat_e7,
-    int32_t dlon_e7) {
+/* geo._enu_py: ENU metres of an integer offset d_e7 (lat, lon) from the origin, at the height
+ * h[0]. */
+void navk_geo_enu(float *enu, const float *coef, const float *h, const int32_t *d_e7) {
     const float *c = coef;
     float dh = h[0] - c[GEO_H0];
-    float n1 = (float)dlat_e7 * c[GEO_KN];
-    float e1 = (float)dlon_e7 * c[GEO_KE];
+    float n1 = (float)d_e7[0] * c[GEO_KN];
+    float e1 = (float)d_e7[1] * c[GEO_KE];
     float ee = e1 * e1;
     float nn = n1 * n1;
     enu[0] = e1 + e1 * (dh * c[GEO_INV_RN] - n1 * c[GEO_GE_N]);

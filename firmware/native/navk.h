@@ -27,7 +27,7 @@ void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro, co
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x, const float *coef);
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid);
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid);
-void navk_geo_enu(float *enu, const float *coef, const float *h, int32_t dlat_e7, int32_t dlon_e7);
+void navk_geo_enu(float *enu, const float *coef, const float *h, const int32_t *d_e7);
 int32_t navk_bmi055_decode(int16_t *gyro, int16_t *accel, const uint8_t *raw_gyro, const uint8_t *raw_accel);
 void navk_prop_start(float *x, float *e, int32_t *ii, int32_t ticks);
 void navk_zupt_rows(float *e, int32_t *ii, const float *x, const float *aid);

@@ -239,11 +239,13 @@ def firmware_snapshot(nav):
         "speed_tick": nav_runner.control(nav, "speed_tick"),
         "trk_set": nav._trk_set,
         "trk_tick": nav._trk_tick,
-        "fix_lat_e7": nav._fix_lat,
-        "fix_lon_e7": geo.join_e7(nav._fix_lon_deg, nav._fix_lon_frac),
-        "fix_quality": nav._fix_quality,
+        "fix_lat_e7": nav_runner.control(nav, "fix_lat"),
+        "fix_lon_e7": geo.join_e7(
+            nav_runner.control(nav, "fix_lon_deg"), nav_runner.control(nav, "fix_lon_frac")
+        ),
+        "fix_quality": nav_runner.control(nav, "fix_quality"),
         "fix_tick": nav_runner.control(nav, "fix_tick"),
-        "last_fix_tick": nav._last_fix_tick,
+        "last_fix_tick": nav_runner.control(nav, "last_fix_tick"),
         "last_accept_tick": nav_runner.control(nav, "accept_tick"),
         "rejects": nav_runner.control(nav, "rejects"),
         "gated_until": nav_runner.control(nav, "gated_until"),
@@ -326,7 +328,7 @@ def observe(seen, nav, before):
     seen.health.add(nav.health)
     if nav.frame.valid:
         seen.origins.add((nav.frame.lat0_e7, geo.join_e7(nav.frame.lon0_deg, nav.frame.lon0_frac)))
-    new_fix = nav._last_fix_tick == t and before["last_fix_tick"] != t
+    new_fix = nav_runner.control(nav, "last_fix_tick") == t and before["last_fix_tick"] != t
     if nav.state != NAVIGATING:
         seen.unusable_aligning += new_fix and not nav._fix_usable()
         return
@@ -377,7 +379,10 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
             nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick)
             model.gnss(*args, fix_tick=fix_tick)
             fi += 1
-        before = {"last_fix_tick": nav._last_fix_tick, "job": nav_runner.control(nav, "job")}
+        before = {
+            "last_fix_tick": nav_runner.control(nav, "last_fix_tick"),
+            "job": nav_runner.control(nav, "job"),
+        }
         if k in hooks:
             hooks[k](nav, model, k)
         else:

@@ -24,7 +24,8 @@ from tools import toolchain
 VM_MAX_STATE_ON_STACK_WORDS = 11  # py/objfun.c: sizeof(mp_uint_t) * 11
 EXC_STACK_WORDS = 3  # mp_exc_stack_t: handler, val_sp, prev_exc
 
-# (file under firmware/, qualified name): what a navigating tick calls in Python, kernels native
+# (file under firmware/, qualified name): what a navigating tick calls in Python, kernels
+# native (re-anchoring and resets, rarer than once a minute, are left out)
 PER_TICK = (
     ("app.py", "App.service"),
     ("app.py", "App.tick"),
@@ -37,6 +38,17 @@ PER_TICK = (
     ("lib/nav.py", "Navigator.imu_counts"),
     ("lib/records.py", "ExtFrame.pack"),
     ("drivers/bmi055.py", "BMI055.read"),
+    # the fix path, once a second: the epoch's sentence, its delivery and screening
+    ("app.py", "App._deliver_fix"),
+    ("app.py", "App._fix_fields"),
+    ("app.py", "App._no_fix"),
+    ("app.py", "App._fix_tick"),
+    ("lib/nav.py", "Navigator.gnss_fix"),
+    ("lib/nav.py", "Navigator._take_fix"),
+    ("lib/nav.py", "Navigator._event"),
+    ("lib/nav.py", "Navigator._nav_fix"),
+    ("lib/nav.py", "Navigator._fix_usable"),
+    ("lib/geo.py", "LocalFrame.to_enu"),
     ("drivers/gnss.py", "Nmea.feed"),
     ("drivers/gnss.py", "Nmea._end"),
     ("drivers/gnss.py", "Nmea._gga"),

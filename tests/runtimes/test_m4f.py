@@ -148,6 +148,18 @@ def test_every_tick_is_counted_and_the_emulation_is_set_apart(quick):
     assert (t["alloc_bytes"][~collecting] >= 0).all()
 
 
+def test_an_aligning_tick_allocates_less_than_the_app_assumes(quick):
+    """The app checks the heap every other aligning tick, leaving room for one more tick of
+    _ALIGN_TICK_BYTES (app.py): every aligning tick that did not collect stays below it."""
+    from host_emulator.firmware_env import import_module
+
+    t = quick[1].firmware_run.per_tick
+    aligning = (t["state"] == 1) & (t["collected"] == 0)
+    assert aligning.sum() > 1000
+    worst = int(t["alloc_bytes"][aligning].max())
+    assert 1000 < worst < import_module("app")._ALIGN_TICK_BYTES, worst
+
+
 def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
     """The allocation proof on the emulated Cortex-M4F with the armv7emsp native kernels: the
     bytes every tick allocated (gc.mem_alloc before and after, exact to the byte when no
