@@ -212,10 +212,7 @@ class App:
             self.gnss.epoch_ready = 0
             self._deliver_fix()
         self.nav.imu_counts(imu.gyro, imu.accel, imu.saturated)
-        self._outputs(imu, t0)
-
-    def _outputs(self, imu, t0):
-        """The frame, the extended frame and the raw record when due; the watchdog."""
+        # the frame, the extended frame and the raw record when due; the watchdog
         state = self.nav.ctl[_C_STATE]
         cfg = self.cfg
         if self.ticks % cfg.output_every_ticks == 0:

@@ -33,6 +33,13 @@ VARIANTS = (
     ("default (coning off, 1 slice per tick)", {}),
     ("coning on, 2 slices per tick", {"coning": 1, "slices_per_tick": 2}),
 )
+# each variant's configuration in `make bench-nav` (docs/benchmarks/navigation.json), whose
+# accuracy the report sets beside the cost
+NAV_PROFILES = {
+    "default (coning off, 1 slice per tick)": "car",
+    "coning on, 2 slices per tick": "car, coning on, 2 slices per tick",
+}
+NAV_JSON = REPO_DIR / "docs" / "benchmarks" / "navigation.json"
 # A whole app tick once navigating: p99 and max from DESIGN.md 4, the mean and no overrun at
 # the high CPI from issue 15 (0.6 ms mean at CPI 2.05 and 100 MHz)
 BUDGET = {"mean": 30_000, "p99": 50_000, "max": 100_000}
@@ -120,7 +127,59 @@ def _plot(results, path):
     plt.close(fig)
 
 
-def markdown(results, scenario, duration, budget, budget_why, cmd):
+def accuracy(nav_json, profile, scenario="urban_drive", gnss="white"):
+    """Mean accuracy of `profile` over the seeds of `make bench-nav`'s runs in nav_json (a
+    path): {"seeds", "horiz_rms_m", "vel_rms_m_s", "yaw_rms_deg", "outage_end_m": [...]}, or
+    None when the file or the profile's runs are missing."""
+    try:
+        runs = json.loads(pathlib.Path(nav_json).read_text())["runs"]
+    except (OSError, ValueError, KeyError):
+        return None
+    rows = [r for k, r in runs.items() if k.split("/", 3)[::2] == [scenario, gnss]
+            and k.split("/", 3)[3] == profile]  # fmt: skip
+    if not rows:
+        return None
+    out = {k: float(np.mean([r[k] for r in rows]))
+           for k in ("horiz_rms_m", "vel_rms_m_s", "yaw_rms_deg")}  # fmt: skip
+    out["seeds"] = len(rows)
+    out["outage_end_m"] = np.mean([[o["horiz_err_end_m"] for o in r["outages"]] for r in rows],
+                                  axis=0).tolist()  # fmt: skip
+    return out
+
+
+def accuracy_cost_lines(results, nav_json):
+    """The section setting each variant's accuracy (bench-nav) beside its navigating cost."""
+    lines = ["", "## What the options buy: accuracy against cost", ""]
+    rows = []
+    for r in results:
+        acc = accuracy(nav_json, NAV_PROFILES.get(r["label"], ""))
+        nav = r["cost"]["phases"].get("navigating")
+        if acc is None or nav is None:
+            continue
+        fi = nav["firmware_instr"]
+        outs = " / ".join(f"{v:.2f}" for v in acc["outage_end_m"])
+        rows.append(f"| {r['label']} | {acc['horiz_rms_m']:.2f} | {acc['vel_rms_m_s']:.3f} | "
+                    f"{acc['yaw_rms_deg']:.2f} | {outs} | {fi['mean']:,.0f} / "
+                    f"{fi['p99']:,.0f} |")  # fmt: skip
+    if not rows:
+        return lines + [f"No accuracy figures for these configurations in {nav_json} "
+                        "(`make bench-nav` writes them)."]  # fmt: skip
+    return lines + [
+        "Accuracy: `make bench-nav` (docs/benchmarks/navigation.md: urban_drive, white GNSS, "
+        f"mean of {acc['seeds']} seeds, the firmware's float32 navigator on CPython, the board's "
+        "bits); cost: navigating instructions per tick of this run.",
+        "",
+        "| configuration | horiz RMS m | vel RMS m/s | yaw RMS deg | end of outages m | "
+        "mean / p99 instructions |",
+        "|---|---|---|---|---|---|",
+        *rows,
+        "",
+        "A faster GNSS update is the receiver's rate (1 Hz in the scenarios), not a setting "
+        "of the firmware: not measured here.",
+    ]
+
+
+def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_JSON):
     low, central, high, source = board_cost.cpi_range()
     lines = [
         "# What a tick costs the board",
@@ -202,6 +261,7 @@ def markdown(results, scenario, duration, budget, budget_why, cmd):
         )
     else:
         lines.append("The firmware never navigated in this run: no navigating figures.")
+    lines += accuracy_cost_lines(results, nav_json)
     h = results[0]["heap"]
     own_live = h["live_after_start"] - h["emulator_bytes"] - h["ballast_bytes"] - h["system_bytes"]
     lines += [

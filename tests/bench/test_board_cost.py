@@ -1,6 +1,8 @@
 """bench/board_cost.py: the cost figures of an m4f run, checked on per-tick records made up
 so that every figure is known."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -74,3 +76,40 @@ def test_the_board_benchmark_page_states_the_figures_and_the_budget(monkeypatch)
     assert "code region ..." in text
     assert board.main(["--jobs", "0"]) == 2
     assert board.main(["--scenario", "nowhere"]) == 2
+
+
+def test_the_page_sets_each_configuration_s_accuracy_beside_its_cost(tmp_path, monkeypatch):
+    from host_emulator.bench import board
+
+    monkeypatch.setattr(board_cost, "cpi_range", lambda: (1.5, 2.0, 2.5, "test"))
+
+    def run(horiz, outs):
+        return {"horiz_rms_m": horiz, "vel_rms_m_s": 0.05, "yaw_rms_deg": 0.2,
+                "outages": [{"horiz_err_end_m": o} for o in outs]}  # fmt: skip
+
+    runs = {
+        "urban_drive/0/white/car": run(0.6, [0.5, 3.0]),
+        "urban_drive/1/white/car": run(0.8, [0.7, 4.0]),
+        "urban_drive/0/realistic/car": run(9.0, [9.0, 9.0]),  # another GNSS model: left out
+        "highway_outage/0/white/car": run(9.0, [9.0]),  # another scenario: left out
+    }
+    nav_json = tmp_path / "navigation.json"
+    nav_json.write_text(json.dumps({"runs": runs}))
+    acc = board.accuracy(nav_json, "car")
+    assert acc["seeds"] == 2 and acc["horiz_rms_m"] == pytest.approx(0.7)
+    assert acc["outage_end_m"] == pytest.approx([0.6, 3.5])
+    assert board.accuracy(nav_json, "handheld") is None
+    assert board.accuracy(tmp_path / "missing.json", "car") is None
+    result = {
+        "label": "default (coning off, 1 slice per tick)",
+        "cost": board_cost.summary(_ticks()),
+    }
+    text = "\n".join(board.accuracy_cost_lines([result], nav_json))
+    assert (
+        "| default (coning off, 1 slice per tick) | 0.70 | 0.050 | 0.20 | 0.60 / 3.50 | "
+        "540,000 / 900,000 |" in text
+    )
+    assert "mean of 2 seeds" in text
+    assert "`make bench-nav` writes them" in "\n".join(
+        board.accuracy_cost_lines([result], tmp_path / "x")
+    )

@@ -30,7 +30,6 @@ PER_TICK = (
     ("app.py", "App.service"),
     ("app.py", "App.tick"),
     ("app.py", "App._gnss_read"),
-    ("app.py", "App._outputs"),
     ("app.py", "App._send_frame"),
     ("app.py", "App._send_ext"),
     ("app.py", "App._send_ext_state"),

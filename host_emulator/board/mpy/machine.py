@@ -511,7 +511,6 @@ class _Die:
         self.write_reg(reg, mosi)
         return -1
 
-
     def transfer(self, wbuf, rbuf, fill, n, idle):
         """n bytes clocked while selected, exactly as n calls of `exchange`: MOSI from wbuf
         (None: the byte fill), MISO into rbuf (None: dropped; idle where the die leaves MISO
