@@ -11,7 +11,7 @@ Use (the app's 5 ms loop; `buf = bytearray(64)` made once at start-up):
     if gps.epoch_take():
         ... hand epoch_* to the navigator (see "Epochs")
 
-`feed(buf, n)` consumes `n` bytes of any indexable byte buffer (bytearray, bytes, memoryview).
+`feed(buf, n)` consumes `n` bytes of a byte buffer (bytearray, bytes, memoryview).
 A sentence may be split over any number of calls; every finished sentence is parsed inside the
 call that delivers its CR or LF. Nothing in `feed`, the parsers or `pps_isr` allocates: bytes
 are collected into a preallocated 100-byte line buffer, fields are located by a preallocated
@@ -95,11 +95,11 @@ PPS: `pps_isr(pin)` only stores time.ticks_us() in pps_us and sets pps_flag = 1 
 safe: no allocation, no float). The app reads and clears the flags with `pps_flag_take()`,
 `gga_flag_take()` and `epoch_take()` (each returns 0 or 1; no allocation).
 
-Cost: the per-byte loop is a handful of bytecodes (the checksum and the comma table are built
-while bytes arrive); a GGA is parsed at its CR in about 80 digit steps. Measured on the
-desktop MicroPython VM: ~0.45 us per byte of framing, ~9 us per GGA parse; an F411 at 96 MHz
-is some tens of times slower (no board measurement yet), i.e. well under 1 ms per tick at
-115200 baud.
+Cost: the byte loop, the line checks and the field parsing are one native kernel
+(`nmea_scan`, firmware/native/nmea.c; `_scan_py` below is its reference, bit for bit on every
+log and on damaged input: tests/drivers/test_gnss.py) that returns at each line end; Python
+then only books the result into the attributes and the epoch (what a tick costs the board:
+docs/benchmarks/board.md).
 """
 
 import time

@@ -401,7 +401,7 @@ class Navigator(Alignment, Aiding):
 
         With the native kernels the whole tick is one call of `nav_tick`, which mirrors `_tick`
         below (the reference) on the same buffers (self.mem, self.ctl). It returns at each step
-        that runs in Python (alignment, a fix, the rows of an aiding update, a reset: _EV_*)
+        that runs in Python (alignment, a fix's screening, a reset: _EV_*)
         and is called again to resume after it. This method's frame stays within the VM's
         on-stack limit (tests/runtimes/test_frames.py): keep its locals and arguments few."""
         if _nav_tick is None:

@@ -127,6 +127,10 @@ def _plot(results, path):
     plt.close(fig)
 
 
+def _ticks(n):
+    return f"{n} tick" if n == 1 else f"{n} ticks"
+
+
 def accuracy(nav_json, profile, scenario="urban_drive", gnss="white"):
     """Mean accuracy of `profile` over the seeds of `make bench-nav`'s runs in nav_json (a
     path): {"seeds", "horiz_rms_m", "vel_rms_m_s", "yaw_rms_deg", "outage_end_m": [...]}, or
@@ -244,12 +248,16 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
             nav["gc_collections"] == 0,
             over == 0,
         ]
+        n_over = nav["time_ms"][f"{high:g}"]["overrun_ticks"]
+        beyond = nav["ticks_over"]
         lines.append(
             f"Default configuration, navigating: mean {fi['mean']:,.0f} instructions "
-            f"({fi['mean'] / BUDGET['mean']:.1f}x the budget), p99 {fi['p99']:,.0f} "
-            f"({fi['p99'] / BUDGET['p99']:.1f}x), max {fi['max']:,} "
-            f"({fi['max'] / BUDGET['max']:.1f}x), {nav['gc_collections']} gc.collect() in "
-            f"{nav['ticks']} navigating ticks (budget 0), {100 * over:.1f} % of the ticks "
+            f"({fi['mean'] / BUDGET['mean']:.2f}x the budget), p99 {fi['p99']:,.0f} "
+            f"({fi['p99'] / BUDGET['p99']:.2f}x), max {fi['max']:,} "
+            f"({fi['max'] / BUDGET['max']:.1f}x; {_ticks(beyond[str(BUDGET['max'])])} over "
+            f"{BUDGET['max']:,}, {beyond[str(BUDGET['p99'])]} over {BUDGET['p99']:,}), "
+            f"{nav['gc_collections']} gc.collect() in "
+            f"{nav['ticks']} navigating ticks (budget 0), {_ticks(n_over)} ({100 * over:.3f} %) "
             f"overrunning at CPI {high:g} (budget 0); mean allocation "
             f"{nav['alloc_bytes_per_tick']['mean']:,.0f} bytes per tick "
             f"({nav['alloc_bytes_per_tick']['mean'] / 16:,.0f} blocks of 16 bytes). "

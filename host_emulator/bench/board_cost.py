@@ -43,6 +43,9 @@ def cpi_range():
     return c["cpi_low"], c["cpi_central"], c["cpi_high"], c["source"]
 
 
+OVER_LINES = (50_000, 100_000)  # instructions: DESIGN.md 4's p99 and max per tick
+
+
 def _stats(x):
     if not len(x):
         return None
@@ -84,6 +87,8 @@ def summary(per_tick, tick_us=5000, clock_hz=CLOCK_HZ):
             if c.any() and len(quiet)
             else None,
             "alloc_bytes_per_tick": _stats(per_tick["alloc_bytes"][m][~c]),
+            # ticks beyond the p99 and max budget lines (DESIGN.md 4)
+            "ticks_over": {f"{t}": int(np.sum(f > t)) for t in OVER_LINES},
             "time_ms": {},
         }
         for cpi in (low, central, high):
@@ -93,6 +98,7 @@ def summary(per_tick, tick_us=5000, clock_hz=CLOCK_HZ):
                 "p99": ph["firmware_instr"]["p99"] * to_ms,
                 "max": ph["firmware_instr"]["max"] * to_ms,
                 "overrun_share": float(np.mean(f > budget_instr[cpi])),
+                "overrun_ticks": int(np.sum(f > budget_instr[cpi])),
             }
         out["phases"][name] = ph
     return out

@@ -38,6 +38,11 @@ def test_the_figures_of_known_ticks(monkeypatch):
     assert al["emulation_instr"]["mean"] == 50_000
     assert nav["ticks"] == 200 and nav["gc_collections"] == 20
     assert nav["ticks_per_collection"] == 10
+    mixed = _ticks()
+    mixed["instr"][100:150] = 130_000  # 30,000 of firmware: under both lines
+    mixed["instr"][150:160] = 170_000  # 70,000: over the p99 line only
+    over = board_cost.summary(mixed)["phases"]["navigating"]["ticks_over"]
+    assert over == {"50000": 150, "100000": 140}
     assert nav["gc_collect_instr"] == pytest.approx(400_000)
     assert nav["firmware_instr"]["mean"] == pytest.approx(540_000)
     assert nav["firmware_instr_without_gc"]["max"] == 500_000
@@ -70,7 +75,9 @@ def test_the_board_benchmark_page_states_the_figures_and_the_budget(monkeypatch)
     text = board.markdown([result], "urban_drive", 600.0, ["code region ..."], None, "cmd")
     assert "| default | navigating | 200 | 540,000 | 500,000 |" in text
     assert "20 (every 10 ticks) | 400,000 |" in text
-    assert "mean 540,000 instructions (18.0x the budget), p99 900,000 (18.0x)" in text
+    assert "mean 540,000 instructions (18.00x the budget), p99 900,000 (18.00x)" in text
+    assert "200 ticks over 100,000, 200 over 50,000)" in text
+    assert "200 ticks (100.000 %) overrunning at CPI 2.5" in text
     assert "The budget is not met (5 of 5 figures)." in text
     assert "Live after start-up: 30,652 bytes of the firmware's own" in text
     assert "code region ..." in text

@@ -86,6 +86,43 @@ def test_a_peripheral_call_costs_a_c_method_call():
     assert periph < python
 
 
+def test_an_attribute_store_on_the_navigator_searches_its_class():
+    """Navigator has properties, so MicroPython looks for a setter in the class and its bases
+    before it stores any attribute of an instance (py/objtype.c); an instance of a class
+    without properties stores directly, and `ctl[i] = v` is a subscript of a loaded attribute.
+    Why the navigator's per-tick and per-fix ints live in ctl (docs/native.md). Printed with
+    -s."""
+    out = guest.run(
+        "import m4f, nav, navcfg\n"
+        "n = nav.Navigator(navcfg.NavConfig())\n"
+        "n._probe = 0\n"
+        "class Plain:\n"
+        "    pass\n"
+        "o = Plain()\n"
+        "o.x = 0\n"
+        "def cost(g):\n"
+        "    g()\n"
+        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
+        "    g()\n"
+        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
+        "def empty():\n"
+        "    pass\n"
+        "def on_nav():\n"
+        "    n._probe = 1\n"
+        "def on_plain():\n"
+        "    o.x = 1\n"
+        "def in_ctl():\n"
+        "    n.ctl[38] = 0\n"  # _C_SAT, an input flag
+        "print('R', *[cost(g) for g in (empty, on_nav, on_plain, in_ctl)])\n"
+    )
+    empty, on_nav, on_plain, in_ctl = (int(x) for x in out.split("R ")[1].split()[:4])
+    on_nav, on_plain, in_ctl = on_nav - empty, on_plain - empty, in_ctl - empty
+    print(
+        f"counted per store: Navigator attribute {on_nav}, plain instance {on_plain}, ctl {in_ctl}"
+    )
+    assert on_nav > 4 * on_plain and on_nav > 4 * in_ctl
+
+
 def test_floats_are_the_boards_float32():
     """The VM's float is IEEE single precision with round-to-nearest on the FPU: products,
     quotients, sums and sqrt equal NumPy's float32 bit for bit (the unix VM's are doubles)."""
