@@ -195,7 +195,9 @@ _M_GP = const(1586)  # the fix's antenna position in the frame, m (3): self._gp
 _M_FX = const(1589)  # the pending fix's floats (_FX_*, 6): self._fx
 _M_US = const(1595)  # the fix of the running GNSS update (nav_aid.py, 7): self._used
 _M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
-_NM = const(1613)
+_M_INIT = const(1613)  # the initial P diagonal (eskf.N): self._init
+_M_NS = const(1628)  # nav_start's course, speed and velocity sigma (3): self._ns
+_NM = const(1631)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # aligning: run _align
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
@@ -233,7 +235,8 @@ class Navigator(Alignment, Aiding):
         self._used = f32.view(m, _M_US, 7)
         self._st = f32.view(m, _M_ST, 6)
         self._lvl = f32.zeros(6)  # sums of f and w while levelling
-        self._init = f32.zeros(eskf.N)  # initial P diagonal
+        self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
+        self._ns = f32.view(m, _M_NS, 3)
         self._trk = f32.zeros(3)
         # configuration derived once
         c[_C_T_PROP] = _ticks(cfg.prop_period_s, dt)

@@ -17,6 +17,7 @@ north, course over ground clockwise from north (so yaw = -course); rad, m, m/s, 
 Runs only while aligning and at fix ticks; nothing here runs in a navigating tick.
 """
 
+import kern
 from micropython import const
 
 import f32
@@ -47,6 +48,9 @@ _TR_N = const(1)
 _TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
 
 MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
+
+
+_nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation
 
 
 class Alignment:
@@ -185,7 +189,15 @@ class Alignment:
 
     def _start_navigation(self, course, sp, sigma_vel):
         """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
-        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity."""
+        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity. Natively
+        one kernel (`nav_start`), which mirrors the code below and `_restart`."""
+        if _nav_start is not None:
+            s = self._ns
+            s[0] = course
+            s[1] = sp
+            s[2] = sigma_vel
+            _nav_start(self.ctl, self.kf.i, self.mem)
+            return
         ins = self.ins
         ypr = self.ypr
         rot.dcm_to_euler(ypr, ins.c_bn)

@@ -204,3 +204,108 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     }
     start_update(ii);
 }
+
+/* rot.euler_to_q: q_bn = q_z(yaw) (x) q_x(pitch) (x) q_y(roll), stored with w >= 0 */
+static void euler_to_q(float *q, const float *ypr) {
+    float hy = 0.5f * ypr[0];
+    float hp = 0.5f * ypr[1];
+    float hr = 0.5f * ypr[2];
+    float sz = f32_sin(hy);
+    float cz = f32_cos(hy);
+    float sx = f32_sin(hp);
+    float cx = f32_cos(hp);
+    float sr = f32_sin(hr);
+    float cr = f32_cos(hr);
+    float czcx = cz * cx;
+    float szsx = sz * sx;
+    float czsx = cz * sx;
+    float szcx = sz * cx;
+    float w = czcx * cr - szsx * sr;
+    float x = czsx * cr - szcx * sr;
+    float y = czcx * sr + szsx * cr;
+    float z = szcx * cr + czsx * sr;
+    if (w < 0.0f) {
+        w = -w;
+        x = -x;
+        y = -y;
+        z = -z;
+    }
+    q[0] = w;
+    q[1] = x;
+    q[2] = y;
+    q[3] = z;
+}
+
+/* nav_align._start_navigation and Navigator._restart: navigation starts at the fix in m
+ * (M_GP, M_FX): heading from the course m[M_NS] (rad clockwise from north), horizontal
+ * velocity m[M_NS + 1] along it with the 1-sigma m[M_NS + 2], position carried over the
+ * fix's age, the covariance reset to the initial diagonal m[M_INIT..] with the fix's sigmas. */
+void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
+    float *x = m + M_X;
+    float *e = m + M_E;
+    float *ypr = m + M_YPR;
+    float *cb = x + X_C;
+    const float *aid = m + M_AID;
+    const float *lv = aid + AID_LEVER;
+    float course = m[M_NS];
+    float sp = m[M_NS + 1];
+    float sigma_vel = m[M_NS + 2];
+    rot_dcm_to_euler(ypr, cb);
+    ypr[0] = -course;
+    euler_to_q(x + X_Q, ypr);
+    rot_q_to_dcm(cb, x + X_Q);
+    float v[3];
+    v[0] = sp * f32_sin(course);
+    v[1] = sp * f32_cos(course);
+    v[2] = 0.0f;
+    float sh = sigma_h(m + M_FX, aid);
+    float sv = sigma_v(m + M_FX, aid, sh);
+    /* _restart */
+    float p[3];
+    p[0] = cb[0] * lv[0] + cb[1] * lv[1] + cb[2] * lv[2]; /* nav_aid._lever_n */
+    p[1] = cb[3] * lv[0] + cb[4] * lv[1] + cb[5] * lv[2];
+    p[2] = cb[6] * lv[0] + cb[7] * lv[1] + cb[8] * lv[2];
+    int32_t age = c[C_TICK] - c[C_FIX_TICK];
+    if (age < 0) {
+        age = 0;
+    }
+    float t = (float)age * x[X_DT];
+    const float *gp = m + M_GP;
+    for (int i = 0; i < 3; i++) {
+        p[i] = (gp[i] - p[i]) + v[i] * t;
+    }
+    for (int i = 0; i < 3; i++) { /* ins.reset_kinematics */
+        x[X_P + i] = p[i];
+        x[X_V + i] = v[i];
+        x[X_PK + i] = 0.0f;
+        x[X_THP + i] = 0.0f;
+        x[X_DVP + i] = 0.0f;
+    }
+    float *ini = m + M_INIT;
+    ini[0] = sh * sh;
+    ini[1] = sh * sh;
+    ini[2] = sv * sv;
+    float vv = sigma_vel * sigma_vel;
+    ini[IX_VEL] = vv;
+    ini[IX_VEL + 1] = vv;
+    for (int i = 0; i < N * N; i++) { /* eskf.reset_p */
+        e[E_P + i] = 0.0f;
+    }
+    for (int i = 0; i < N; i++) {
+        e[E_P + i * (N + 1)] = ini[i];
+        e[E_DX + i] = 0.0f;
+    }
+    ii[I_JOB] = IDLE;
+    ii[I_READY] = 0;
+    ii[I_NSCAL] = 0;
+    for (int i = 0; i < 6; i++) {
+        m[M_CORR + i] = 0.0f;
+    }
+    for (int i = 0; i < 3; i++) { /* ins.take_dvn */
+        x[X_DVS + i] = 0.0f;
+    }
+    slow_update(x, 0.0f, ii[I_EARTH]);
+    c[C_SINCE_PROP] = 0;
+    c[C_ACCEPT_TICK] = c[C_TICK];
+    c[C_STATE] = NAVIGATING;
+}

@@ -242,7 +242,9 @@
 #define M_FX 1589
 #define M_US 1595
 #define M_AID 1602
-#define NM 1613
+#define M_INIT 1613
+#define M_NS 1628
+#define NM 1631
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
