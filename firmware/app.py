@@ -114,7 +114,7 @@ class App:
         self.t_sum_us = 0
         self.gc_runs = 0
         self._events = -1  # re-anchorings + resets at the last heap check (-1: not navigating)
-        self.t0_us = 0
+        self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame()
         self.raw = records.RawRecord()
@@ -177,24 +177,22 @@ class App:
         while True:
             self.service()
 
-    def service(self):
-        """One pass of the loop: run the tick if one is due; every further tick the timer
-        signalled meanwhile is an overrun (its IMU sample is lost)."""
-        if self.due:
-            if self.due > 1:
-                self.overruns += self.due - 1
-            self.due = 0
-            self.tick()
-
     # Every method below that runs per tick keeps its frame within the VM's on-stack limit of
     # 11 words (locals, arguments and stack): a larger frame is allocated on the heap and freed
     # at every call (py/objfun.c), a search of the heap that costs thousands of instructions
     # depending on where the free blocks lie. tests/runtimes/test_frames.py checks them; so
-    # the tick is split where its locals would not fit.
+    # the tick is split where its locals would not fit (and not elsewhere: a Python call costs
+    # about a thousand instructions on the board).
 
-    def tick(self):
+    def service(self):
+        """One pass of the loop: the tick, if one is due; every further tick the timer
+        signalled meanwhile is an overrun (its IMU sample is lost)."""
+        if not self.due:
+            return
+        if self.due > 1:
+            self.overruns += self.due - 1
+        self.due = 0
         t0 = time.ticks_us()
-        self.t0_us = t0
         self.ticks += 1
         imu = self.imu
         if imu is None:
@@ -233,7 +231,7 @@ class App:
         self.t_sum_us += dt
         self._period_ticks += 1
         low = _GC_LOW_WATER
-        if kern.NATIVE:
+        if self._native:
             # gc.mem_free() scans the heap: ~250,000 instructions on the board
             if state == NAVIGATING:
                 # a navigating tick allocates nothing (tests/runtimes: the allocation proof),
@@ -242,7 +240,7 @@ class App:
                 # automatic collection off an event must find the low-water reserve free.
                 # (Leaving that reserve from the aligning checks instead needs a threshold
                 # that, with this heap, collects every few aligning ticks: measured worse.)
-                events = self.nav.reanchors + self.nav.resets
+                events = self.nav.events
                 if events == self._events:
                     return
                 self._events = events
@@ -275,6 +273,7 @@ class App:
         g = self.gnss
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         self.gnss_valid = ok
+        self._fields[_F_VALID] = 1 if ok else 0  # the frame's fix fields change only here
         if ok:
             self._fix_fields(g, self.nav.fix_in)
         else:
@@ -299,6 +298,7 @@ class App:
         ff[_F_LON_FRAC] = g.epoch_lon_frac_e7
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
         self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
+        ff[_F_HEIGHT_DM] = self.height_dm
         fi[_FI_LAT_E7] = g.epoch_lat_e7
         fi[_FI_LON_DEG] = g.epoch_lon_deg
         fi[_FI_LON_FRAC] = g.epoch_lon_frac_e7
@@ -326,8 +326,6 @@ class App:
         g.pps_flag = 0
         fi[_F_GGA] = g.gga_seen
         g.gga_seen = 0
-        fi[_F_VALID] = 1 if self.gnss_valid else 0
-        fi[_F_HEIGHT_DM] = self.height_dm
         fi[_F_STATE] = state
         nav_frame(self.out, fi, imu.gyro, imu.accel, self.nav.mem)
         self.counter = (self.counter + 1) & 0xFF

@@ -353,6 +353,7 @@ class Navigator(Alignment, Aiding):
         self._trk_tick = 0  # measurement tick of the anchor fix
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
         self.reanchors = 0  # origin moves
+        self.events = 0  # resets + reanchors: the steps that allocate while navigating
 
     # the control state by name (the per-tick code reads self.ctl)
     @property
@@ -586,6 +587,7 @@ class Navigator(Alignment, Aiding):
         fr.set_origin(e7[0], e7[1], e7[2], hb[0])
         ins.set_frame(fr)
         self.reanchors += 1
+        self.events += 1
 
     # ---- filter jobs, injection, resets ----------------------------------------------------
 
@@ -703,6 +705,7 @@ class Navigator(Alignment, Aiding):
         self.leveled = False
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
+        self.events += 1
 
     def _update_health(self):
         c = self.ctl

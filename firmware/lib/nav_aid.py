@@ -197,3 +197,4 @@ class Aiding:
         self._restart(used, v, self.ctl[_C_TICK] - self.ctl[_C_USED_TICK], sh, sv, sigma_vel)
         self.ctl[_C_REJECTS] = 0
         self.resets += 1
+        self.events += 1

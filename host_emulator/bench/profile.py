@@ -23,7 +23,7 @@ from host_emulator.errors import EmulatorError
 
 # (module, class or None, attribute names): what is wrapped, besides every navk function
 TARGETS = (
-    ("app", "App", ("tick", "_gnss_read", "_deliver_fix", "_send_frame", "_send_ext")),
+    ("app", "App", ("service", "_gnss_read", "_deliver_fix", "_send_frame", "_send_ext")),
     ("drivers.bmi055", "BMI055", ("read",)),
     ("drivers.gnss", "Nmea", ("feed",)),
     ("nav", "Navigator", ("imu_counts", "_tick", "gnss", "_navigate", "_nav_fix",
@@ -93,7 +93,7 @@ def _profile_setup():
             wrap(owner, n, (cls or mod) + "." + n)
     import app
     import nav
-    tick = app.App.tick
+    service = app.App.service
     calib = [0, 0]
 
     # what a wrapper adds to its caller: a wrapped no-op call less a plain one
@@ -120,18 +120,18 @@ def _profile_setup():
     keys.pop()
     cnt[2 * len(keys)] = cnt[2 * len(keys) + 1] = 0
 
-    def counted_tick(self):
+    def counted_service(self):
         if not ALL_TICKS:
             on[0] = self.nav.state == nav.NAVIGATING
         if on[0]:
             ticks[0] += 1
-        tick(self)
+        service(self)
         # the wrappers' argument tuples are garbage the app does not expect (it checks the
         # heap once a second while navigating): collected here, outside every count
         if gc.mem_free() < 16384:
             gc.collect()
 
-    app.App.tick = counted_tick
+    app.App.service = counted_service
 
     def report():
         yield "ticks", ticks[0]

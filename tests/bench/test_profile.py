@@ -9,9 +9,9 @@ def test_a_short_profile_counts_every_tick_and_the_kernels(capsys):
     lines = out.splitlines()
     rows = {ln.split()[0]: ln.split()[1:] for ln in lines[3:] if ln[:1].isalpha()}
     assert out.splitlines()[1].startswith("400 ticks counted")
-    assert rows["App.tick"][0] == "1.000" and rows["BMI055.read"][0] == "1.000"
+    assert rows["App.service"][0] == "1.000" and rows["BMI055.read"][0] == "1.000"
     assert rows["navk.bmi055_decode"][0] == "1.000"  # the native kernels are wrapped too
-    tick = int(rows["App.tick"][2].replace(",", ""))
+    tick = int(rows["App.service"][2].replace(",", ""))
     assert tick > int(rows["BMI055.read"][2].replace(",", "")) > 0
 
 

@@ -28,7 +28,6 @@ EXC_STACK_WORDS = 3  # mp_exc_stack_t: handler, val_sp, prev_exc
 # native (re-anchoring and resets, rarer than once a minute, are left out)
 PER_TICK = (
     ("app.py", "App.service"),
-    ("app.py", "App.tick"),
     ("app.py", "App._gnss_read"),
     ("app.py", "App._send_frame"),
     ("app.py", "App._send_ext"),
