@@ -39,8 +39,8 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # while aligning, the heap is checked every other tick against the low water plus this
 _ALIGN_TICK_BYTES = const(6 * 1024)
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
-# tick): with the native kernels it runs while navigating only after an event that allocates
-# (see tick); otherwise (aligning, Python kernels) every tick.
+# tick): with the native kernels it runs while navigating only before a step that allocates
+# (_heap_room), while aligning every other tick; with the Python kernels every tick.
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -98,6 +98,7 @@ class App:
         self._out_uart = self.board.out_uart
         self._wdt = None  # the board's watchdog once started
         self.nav = Navigator(cfg.nav_config())
+        self.nav.heap_check = self._heap_room
         # a receiver configured for GGA only never sends the speed sentence that completes
         # an epoch by default: gnss_need_speed 0 completes it at the GGA (no speed, no course)
         self.gnss = Nmea(need_speed=cfg.gnss_need_speed != 0)
@@ -113,7 +114,6 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
-        self._events = -1  # re-anchorings + resets at the last heap check (-1: not navigating)
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame()
@@ -234,22 +234,21 @@ class App:
         if self._native:
             # gc.mem_free() scans the heap: ~250,000 instructions on the board
             if state == NAVIGATING:
-                # a navigating tick allocates nothing (tests/runtimes: the allocation proof),
-                # so the heap only shrinks at a re-anchoring or a reset (Python, rare): check
-                # then, and once when navigation starts (the transition allocates); with
-                # automatic collection off an event must find the low-water reserve free.
-                # (Leaving that reserve from the aligning checks instead needs a threshold
-                # that, with this heap, collects every few aligning ticks: measured worse.)
-                events = self.nav.events
-                if events == self._events:
-                    return
-                self._events = events
-            else:
-                self._events = -1
-                if self.ticks & 1:
-                    return  # the last check left room for this tick too
-                low = _GC_LOW_WATER + _ALIGN_TICK_BYTES
+                # a navigating tick allocates nothing (tests/runtimes: the allocation proof);
+                # the steps that do (re-anchoring, a reset: Python, rare) ask for room first
+                # (_heap_room); so nothing is checked here, not even when navigation starts
+                return
+            if self.ticks & 1:
+                return  # the last check left room for this tick too
+            low = _GC_LOW_WATER + _ALIGN_TICK_BYTES
         if gc.mem_free() < low:
+            gc.collect()
+            self.gc_runs += 1
+
+    def _heap_room(self):
+        """The navigator's heap_check: before a navigating step that allocates, the low-water
+        reserve free (automatic collection is off)."""
+        if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
 

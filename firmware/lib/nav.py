@@ -258,6 +258,9 @@ class Navigator(Alignment, Aiding):
         self._ticks_track = _ticks(cfg.track_s, dt)
         if self._ticks_track < 1:
             self._ticks_track = 1
+        # called before a step that allocates while navigating (re-anchoring, a reset): the
+        # app makes room on the heap then (it checks nothing while navigating otherwise)
+        self.heap_check = None
         self._set_calibration(cfg)
         self._set_noise(cfg)
         self._reset_counters()
@@ -353,7 +356,6 @@ class Navigator(Alignment, Aiding):
         self._trk_tick = 0  # measurement tick of the anchor fix
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
         self.reanchors = 0  # origin moves
-        self.events = 0  # resets + reanchors: the steps that allocate while navigating
 
     # the control state by name (the per-tick code reads self.ctl)
     @property
@@ -565,8 +567,14 @@ class Navigator(Alignment, Aiding):
                           self._fx)  # fmt: skip
         c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
 
+    def _room(self):
+        """Before a step that allocates: the app's heap check, if it gave one."""
+        if self.heap_check is not None:
+            self.heap_check()
+
     def _reanchor(self):
         """New integer origin at the current position; state re-expressed in the new frame."""
+        self._room()
         fr = self.frame
         ins = self.ins
         e7 = self._e7
@@ -587,7 +595,6 @@ class Navigator(Alignment, Aiding):
         fr.set_origin(e7[0], e7[1], e7[2], hb[0])
         ins.set_frame(fr)
         self.reanchors += 1
-        self.events += 1
 
     # ---- filter jobs, injection, resets ----------------------------------------------------
 
@@ -683,6 +690,7 @@ class Navigator(Alignment, Aiding):
 
     def _fault_reset(self):
         """Non-finite state or covariance: back to a safe state and re-align."""
+        self._room()
         ins = self.ins
         c = self.ctl
         c[_C_STATE] = ALIGNING
@@ -705,7 +713,6 @@ class Navigator(Alignment, Aiding):
         self.leveled = False
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
-        self.events += 1
 
     def _update_health(self):
         c = self.ctl

@@ -177,6 +177,7 @@ class Aiding:
         and horizontal velocity from the fix it last rejected (the navigator's own velocity,
         with the track start's wider sigma, when the fix has no course), a fresh covariance;
         attitude and biases are kept."""
+        self._room()
         ins = self.ins
         used = self._used
         v = self._tmp3
@@ -197,4 +198,3 @@ class Aiding:
         self._restart(used, v, self.ctl[_C_TICK] - self.ctl[_C_USED_TICK], sh, sv, sigma_vel)
         self.ctl[_C_REJECTS] = 0
         self.resets += 1
-        self.events += 1

@@ -189,9 +189,12 @@ def test_non_finite_imu_input_is_a_fault_not_a_crash():
 
 def test_a_non_finite_state_is_reset_and_never_reaches_the_output():
     nav, *_ = navigating()
+    asked = []
+    nav.heap_check = lambda: asked.append(nav.state)  # the app's room on the heap
     nav.ins.v_n[0] = F32(np.inf)
     nav.imu(f32.zeros(3), _gravity_up())
     assert nav.state == ALIGNING and nav.health == 2 and nav.resets == 1
+    assert asked == [NAVIGATING]  # asked once, before the reset allocated
     assert state_is_finite(nav)
     assert np.all(np.isfinite(np.asarray(nav.euler(), float)))
 
