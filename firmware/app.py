@@ -35,12 +35,14 @@ import geo
 
 _US_PER_TICK = const(5000)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
-# What one aligning tick may allocate (native kernels; measured: tests/runtimes/test_m4f.py):
-# while aligning, the heap is checked every other tick against the low water plus this
-_ALIGN_TICK_BYTES = const(6 * 1024)
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
-# tick): with the native kernels it runs while navigating only before a step that allocates
-# (_heap_room), while aligning every other tick; with the Python kernels every tick.
+# tick). With the native kernels an aligning tick allocates only when a fix is screened
+# (nav_align._align_fix, Python floats; measured: tests/runtimes/test_m4f.py), so while
+# aligning the heap is checked in the tick after a fix's, at most once every _HEAP_TICKS,
+# against the low water plus what the fixes until the next check may allocate; while
+# navigating only before a step that allocates (_heap_room). The Python kernels: every tick.
+_ALIGN_BYTES = const(6 * 1024)
+_HEAP_TICKS = const(200)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -83,6 +85,7 @@ _C_TICK = const(0)  # nav._C_*: the navigator's control state, Navigator.ctl
 _C_STATE = const(1)
 _C_HEALTH = const(2)
 _C_STILL = const(3)
+_C_LAST_FIX_TICK = const(26)
 
 
 class App:
@@ -114,6 +117,7 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
+        self._heap_tick = 0  # the navigator's tick at the last aligning heap check
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame()
@@ -238,9 +242,12 @@ class App:
                 # the steps that do (re-anchoring, a reset: Python, rare) ask for room first
                 # (_heap_room); so nothing is checked here, not even when navigation starts
                 return
-            if self.ticks & 1:
-                return  # the last check left room for this tick too
-            low = _GC_LOW_WATER + _ALIGN_TICK_BYTES
+            c = self.nav.ctl
+            t = c[_C_TICK]
+            if t - 1 != c[_C_LAST_FIX_TICK] or t - self._heap_tick < _HEAP_TICKS:
+                return  # the last check left room for the fixes until this one
+            self._heap_tick = t
+            low = _GC_LOW_WATER + _ALIGN_BYTES
         if gc.mem_free() < low:
             gc.collect()
             self.gc_runs += 1

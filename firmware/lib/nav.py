@@ -159,19 +159,27 @@ _C_FIX_LON_DEG = const(23)
 _C_FIX_LON_FRAC = const(24)
 _C_FIX_QUALITY = const(25)
 _C_LAST_FIX_TICK = const(26)  # tick a fix last arrived
-_C_T_SECOND = const(27)  # configuration in ticks (from here on: set once)
-_C_T_STILL = const(28)
-_C_T_TIMEOUT = const(29)
-_C_T_PROP = const(30)
-_C_T_ZUPT = const(31)
-_C_T_NHC = const(32)
-_C_SLICES = const(33)  # filter slices per tick
-_C_RESET_AFTER = const(34)  # reset to GNSS after this many rejected updates in a row
-_C_OPTS = const(35)  # _OPT_* bits
-_C_CAL_FLAGS = const(36)  # 1: gyro matrix, 2: accel matrix
-_C_MIN_QUALITY = const(37)  # least GGA fix quality used
-_C_SAT = const(38)  # 1: the IMU was saturated this tick (nav_tick's input)
-_NC = const(39)
+_C_N_LEVEL = const(27)  # ticks summed in self._lvl (levelling)
+_C_LEVELED = const(28)  # 1: roll and pitch levelled
+_C_N_STABLE = const(29)  # usable fixes in a row (aligning)
+_C_TRK_SET = const(30)  # 1: a track anchor is held (self._trk; nav_align._track)
+_C_TRK_TICK = const(31)  # measurement tick of the anchor fix
+_C_T_SECOND = const(32)  # configuration in ticks (from here on: set once)
+_C_T_STILL = const(33)
+_C_T_TIMEOUT = const(34)
+_C_T_PROP = const(35)
+_C_T_ZUPT = const(36)
+_C_T_NHC = const(37)
+_C_T_LEVEL = const(38)  # levelling sums this many ticks
+_C_T_TRACK = const(39)  # the track window, ticks (at least 1)
+_C_T_LATENCY = const(40)  # a fix without a PPS edge was measured this long before arrival
+_C_SLICES = const(41)  # filter slices per tick
+_C_RESET_AFTER = const(42)  # reset to GNSS after this many rejected updates in a row
+_C_OPTS = const(43)  # _OPT_* bits
+_C_CAL_FLAGS = const(44)  # 1: gyro matrix, 2: accel matrix
+_C_MIN_QUALITY = const(45)  # least GGA fix quality used
+_C_SAT = const(46)  # 1: the IMU was saturated this tick (nav_tick's input)
+_NC = const(47)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -197,9 +205,10 @@ _M_US = const(1595)  # the fix of the running GNSS update (nav_aid.py, 7): self.
 _M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
 _M_INIT = const(1613)  # the initial P diagonal (eskf.N): self._init
 _M_NS = const(1628)  # nav_start's course, speed and velocity sigma (3): self._ns
-_NM = const(1631)
+_M_LVL = const(1631)  # sums of f and w while levelling (6): self._lvl
+_NM = const(1637)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
-_EV_ALIGN = const(1)  # aligning: run _align
+_EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
 _EV_RESET = const(3)  # the filter kept rejecting GNSS: _reset_to_gnss
 _EV_FAULT = const(4)  # non-finite state or covariance: _fault_reset
@@ -234,7 +243,7 @@ class Navigator(Alignment, Aiding):
         self._fx = f32.view(m, _M_FX, 6)
         self._used = f32.view(m, _M_US, 7)
         self._st = f32.view(m, _M_ST, 6)
-        self._lvl = f32.zeros(6)  # sums of f and w while levelling
+        self._lvl = f32.view(m, _M_LVL, 6)  # sums of f and w while levelling
         self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
         self._ns = f32.view(m, _M_NS, 3)
         self._trk = f32.zeros(3)
@@ -243,6 +252,7 @@ class Navigator(Alignment, Aiding):
         c[_C_T_ZUPT] = _ticks(cfg.zupt_period_s, dt)
         c[_C_T_NHC] = _ticks(cfg.nhc_period_s, dt)
         c[_C_T_STILL] = _ticks(cfg.still_s, dt)
+        c[_C_T_LEVEL] = _ticks(cfg.level_s, dt)
         c[_C_T_TIMEOUT] = _ticks(cfg.gnss_timeout_s, dt)
         c[_C_T_SECOND] = _ticks(f32.f32(1), dt)
         c[_C_SLICES] = cfg.slices_per_tick
@@ -253,11 +263,8 @@ class Navigator(Alignment, Aiding):
             | (_OPT_NHC if cfg.nhc else 0)
             | (_OPT_CONING if self.ins.coning else 0)
         )
-        self._ticks_level = _ticks(cfg.level_s, dt)
-        self._ticks_latency = _ticks(cfg.gnss_latency_s, dt)
-        self._ticks_track = _ticks(cfg.track_s, dt)
-        if self._ticks_track < 1:
-            self._ticks_track = 1
+        c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
+        c[_C_T_TRACK] = max(1, _ticks(cfg.track_s, dt))
         # called before a step that allocates while navigating (re-anchoring, a reset): the
         # app makes room on the heap then (it checks nothing while navigating otherwise)
         self.heap_check = None
@@ -348,12 +355,7 @@ class Navigator(Alignment, Aiding):
             c[i] = 0
         c[_C_STATE] = ALIGNING
         c[_C_SPEED_TICK] = -1000000
-        self.leveled = False
-        self._n_level = 0
-        self._n_stable = 0
         c[_C_LAST_FIX_TICK] = -1000000
-        self._trk_set = False  # a track anchor is held (self._trk, self._trk_tick)
-        self._trk_tick = 0  # measurement tick of the anchor fix
         self.resets = 0  # recoveries: reset to GNSS after rejects, or after a fault
         self.reanchors = 0  # origin moves
 
@@ -382,6 +384,11 @@ class Navigator(Alignment, Aiding):
     def updates(self):
         """GNSS updates started since the start (reports)."""
         return self.ctl[_C_UPDATES]
+
+    @property
+    def leveled(self):
+        """Roll and pitch levelled (aligning)."""
+        return self.ctl[_C_LEVELED] != 0
 
     @property
     def still(self):
@@ -416,7 +423,13 @@ class Navigator(Alignment, Aiding):
         self.ctl[_C_SAT] = 1 if saturated else 0
         ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
         while ev:
-            self._event(ev)
+            # _event, inlined: a Python call less in every tick with a fix
+            if ev == _EV_ALIGN:
+                self._align_fix()
+            elif ev == _EV_FIX:
+                self._nav_fix()
+            else:
+                self._event(ev)
             ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
 
     def _imu_counts_py(self, gyro_h, accel_h, saturated):
@@ -426,7 +439,7 @@ class Navigator(Alignment, Aiding):
     def _event(self, ev):
         """What nav_tick asks Python to do (_EV_*) before it resumes."""
         if ev == _EV_ALIGN:
-            self._align()
+            self._align_fix()
         elif ev == _EV_FIX:
             self._nav_fix()
         elif ev == _EV_RESET:
@@ -474,7 +487,11 @@ class Navigator(Alignment, Aiding):
 
     def gnss_fix(self):
         """The fix in self.fix_in (FI_*: the receiver's integers) as `gnss` takes it; the
-        conversion to floats is one kernel (`fix_in`), so nothing is allocated."""
+        conversion to floats is one kernel (`fix_in`), so nothing is allocated. Natively the
+        whole method is one kernel (`gnss_fix`: fix_in and _take_fix)."""
+        if _gnss_fix is not None:
+            _gnss_fix(self.ctl, self.mem, self.fix_in)
+            return
         fi = self.fix_in
         fix_in(self._fx, fi, self._aid)
         self._take_fix(fi[FI_LAT_E7], fi[FI_LON_DEG], fi[FI_LON_FRAC], fi[FI_QUALITY],
@@ -487,7 +504,7 @@ class Navigator(Alignment, Aiding):
         c[_C_FIX_LON_FRAC] = lon_frac
         c[_C_FIX_QUALITY] = quality
         if fix_tick < 0:
-            fix_tick = c[_C_TICK] - self._ticks_latency
+            fix_tick = c[_C_TICK] - c[_C_T_LATENCY]
         c[_C_FIX_TICK] = fix_tick
         c[_C_FIX_PENDING] = 1
 
@@ -706,11 +723,11 @@ class Navigator(Alignment, Aiding):
         for i in range(6):
             self._lvl[i] = 0.0
             self._corr[i] = 0.0
-        self._n_level = 0
-        self._n_stable = 0
+        c[_C_N_LEVEL] = 0
+        c[_C_N_STABLE] = 0
         c[_C_FIX_QUEUED] = 0
-        self._trk_set = False
-        self.leveled = False
+        c[_C_TRK_SET] = 0
+        c[_C_LEVELED] = 0
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
 
@@ -912,6 +929,7 @@ def _nav_frame_py(buf, fields, gyro, accel, mem):
 _prop_start = kern.pick("prop_start", None)
 _nav_tick = kern.pick("nav_tick", None)  # the reference: Navigator._tick and its callees
 fix_in = kern.pick("fix_in", _fix_in_py)
+_gnss_fix = kern.pick("gnss_fix", None)  # the reference: Navigator.gnss_fix
 fix_check = kern.pick("fix_check", _fix_check_py)
 imu_cal = kern.pick("imu_cal", _imu_cal_py)
 still = kern.pick("still", _still_py)

@@ -3,6 +3,8 @@
 A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in nav.py):
 - `_align` every tick while aligning: sums specific force and rate while levelling, keeps roll
   and pitch current with the gyros once levelled, and takes a pending fix (`_align_fix`);
+  natively all but the fix is in nav_tick (navtick.c `align_step`, which mirrors `_align`
+  and `_level`), so an aligning tick calls Python only when a fix arrived;
 - `_level`: roll and pitch from the mean specific force (it points up at rest), the gyro bias
   from the mean rate when standing still; the heading is kept;
 - `_align_fix`: a usable fix (`gnss_stable_fixes` in a row) places the origin and the
@@ -14,7 +16,7 @@ A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in 
 
 Frames and units as everywhere (rot.py): ENU navigation frame, yaw counter-clockwise from
 north, course over ground clockwise from north (so yaw = -course); rad, m, m/s, ticks.
-Runs only while aligning and at fix ticks; nothing here runs in a navigating tick.
+Runs only while aligning (natively: at fix ticks only); nothing here runs in a navigating tick.
 """
 
 import kern
@@ -38,6 +40,13 @@ _C_FIX_LAT = const(22)
 _C_FIX_LON_DEG = const(23)
 _C_FIX_LON_FRAC = const(24)
 _C_LAST_FIX_TICK = const(26)
+_C_N_LEVEL = const(27)
+_C_LEVELED = const(28)
+_C_N_STABLE = const(29)
+_C_TRK_SET = const(30)
+_C_TRK_TICK = const(31)
+_C_T_LEVEL = const(38)
+_C_T_TRACK = const(39)
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
@@ -51,24 +60,28 @@ MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this can
 
 
 _nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation
+_euler = kern.pick("euler", rot.dcm_to_euler)
 
 
 class Alignment:
     def _align(self):
+        """An aligning tick: the reference of nav_tick's aligning step (firmware/native/
+        navtick.c, align_step) and then the pending fix, which is Python's part there."""
         cfg = self.cfg
         ins = self.ins
         w = self._w
         f = self._f
         lv = self._lvl
-        still = self.ctl[_C_STILL]
-        if still or not self.leveled:
+        c = self.ctl
+        still = c[_C_STILL]
+        if still or not c[_C_LEVELED]:
             for i in range(3):
                 lv[i] = lv[i] + f[i]
                 lv[3 + i] = lv[3 + i] + w[i]
-            self._n_level += 1
-            if self._n_level >= self._ticks_level:
+            c[_C_N_LEVEL] += 1
+            if c[_C_N_LEVEL] >= c[_C_T_LEVEL]:
                 self._level()
-        if self.leveled and not still:
+        if c[_C_LEVELED] and not still:
             # keep roll and pitch current while waiting for a heading
             th = self._tmp3
             dt = cfg.dt_s
@@ -77,8 +90,8 @@ class Alignment:
                 th[i] = (w[i] - bg[i]) * dt
             rot.q_update(ins.q_bn, th)
             rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self.ctl[_C_FIX_PENDING]:
-            self.ctl[_C_FIX_PENDING] = 0
+        if c[_C_FIX_PENDING]:
+            c[_C_FIX_PENDING] = 0
             self._align_fix()
 
     def _level(self):
@@ -86,7 +99,8 @@ class Alignment:
         the mean rate when static; the heading is kept (zero until the GNSS course gives it)."""
         ins = self.ins
         lv = self._lvl
-        n = f32.f32(self._n_level)
+        c = self.ctl
+        n = f32.f32(c[_C_N_LEVEL])
         fx = lv[0] / n
         fy = lv[1] / n
         fz = lv[2] / n
@@ -94,7 +108,7 @@ class Alignment:
         if not g > MIN_LEVEL_F:  # a dead accelerometer or free fall: nothing to level on
             for i in range(6):
                 lv[i] = 0.0
-            self._n_level = 0
+            c[_C_N_LEVEL] = 0
             return
         ypr = self.ypr
         rot.dcm_to_euler(ypr, ins.c_bn)
@@ -103,24 +117,24 @@ class Alignment:
         ypr[rot.ROLL] = atan2(-fx, fz)
         rot.euler_to_q(ins.q_bn, ypr)
         rot.q_to_dcm(ins.c_bn, ins.q_bn)
-        if self.ctl[_C_STILL]:
+        if c[_C_STILL]:
             for i in range(3):
                 ins.bg[i] = lv[3 + i] / n
         for i in range(6):
             lv[i] = 0.0
-        self._n_level = 0
-        self.leveled = True
+        c[_C_N_LEVEL] = 0
+        c[_C_LEVELED] = 1
 
     def _align_fix(self):
         cfg = self.cfg
         c = self.ctl
         c[_C_LAST_FIX_TICK] = c[_C_TICK]
         if not self._fix_usable():
-            self._n_stable = 0
-            self._trk_set = False
+            c[_C_N_STABLE] = 0
+            c[_C_TRK_SET] = 0
             return
-        self._n_stable += 1
-        if self._n_stable < cfg.gnss_stable_fixes:
+        c[_C_N_STABLE] += 1
+        if c[_C_N_STABLE] < cfg.gnss_stable_fixes:
             return
         fx = self._fx
         if not self.frame.valid:
@@ -130,14 +144,13 @@ class Alignment:
             self.ins.set_frame(self.frame)
         self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC], fx)
         ins = self.ins
-        for i in range(3):
-            ins.p_n[i] = self._gp[i]
-        if not self.leveled:
-            self._trk_set = False
+        ins.p_n[0:3] = self._gp  # a copy of the buffer: no float is boxed
+        if not c[_C_LEVELED]:
+            c[_C_TRK_SET] = 0
             return
         course = fx[_FX_COURSE]
         if course >= 0.0:
-            self._trk_set = False
+            c[_C_TRK_SET] = 0
             sp = fx[_FX_SPEED]
             if sp >= cfg.heading_speed_m_s:
                 self._start_navigation(course, sp, cfg.init_vel_sigma)
@@ -161,13 +174,15 @@ class Alignment:
         cfg = self.cfg
         trk = self._trk
         gp = self._gp
-        c = self.ins.c_bn
-        yaw = atan2(-c[1], c[4])  # rot.dcm_to_euler's yaw
-        if self._trk_set:
-            n = self.ctl[_C_FIX_TICK] - self._trk_tick
-            if n < self._ticks_track:
+        c = self.ctl
+        ypr = self._tmp3  # scratch
+        _euler(ypr, self.ins.c_bn)
+        yaw = ypr[rot.YAW]
+        if c[_C_TRK_SET]:
+            n = c[_C_FIX_TICK] - c[_C_TRK_TICK]
+            if n < c[_C_T_TRACK]:
                 return  # window not long enough yet: keep the anchor
-            if n <= 2 * self._ticks_track:
+            if n <= 2 * c[_C_T_TRACK]:
                 de = gp[0] - trk[_TR_E]
                 dn = gp[1] - trk[_TR_N]
                 sp = sqrt(de * de + dn * dn) / (f32.f32(n) * cfg.dt_s)
@@ -178,14 +193,14 @@ class Alignment:
                     dyaw = dyaw + TWO_PI
                 lim = cfg.track_turn_max
                 if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
-                    self._trk_set = False
+                    c[_C_TRK_SET] = 0
                     self._start_navigation(atan2(de, dn) - dyaw * 0.5, sp, cfg.track_vel_sigma)
                     return
         trk[_TR_E] = gp[0]
         trk[_TR_N] = gp[1]
         trk[_TR_YAW] = yaw
-        self._trk_tick = self.ctl[_C_FIX_TICK]
-        self._trk_set = True
+        c[_C_TRK_TICK] = c[_C_FIX_TICK]
+        c[_C_TRK_SET] = 1
 
     def _start_navigation(self, course, sp, sigma_vel):
         """Heading from course (rad clockwise from north), horizontal velocity sp along it, at

@@ -205,37 +205,6 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     start_update(ii);
 }
 
-/* rot.euler_to_q: q_bn = q_z(yaw) (x) q_x(pitch) (x) q_y(roll), stored with w >= 0 */
-static void euler_to_q(float *q, const float *ypr) {
-    float hy = 0.5f * ypr[0];
-    float hp = 0.5f * ypr[1];
-    float hr = 0.5f * ypr[2];
-    float sz = f32_sin(hy);
-    float cz = f32_cos(hy);
-    float sx = f32_sin(hp);
-    float cx = f32_cos(hp);
-    float sr = f32_sin(hr);
-    float cr = f32_cos(hr);
-    float czcx = cz * cx;
-    float szsx = sz * sx;
-    float czsx = cz * sx;
-    float szcx = sz * cx;
-    float w = czcx * cr - szsx * sr;
-    float x = czsx * cr - szcx * sr;
-    float y = czcx * sr + szsx * cr;
-    float z = szcx * cr + czsx * sr;
-    if (w < 0.0f) {
-        w = -w;
-        x = -x;
-        y = -y;
-        z = -z;
-    }
-    q[0] = w;
-    q[1] = x;
-    q[2] = y;
-    q[3] = z;
-}
-
 /* nav_align._start_navigation and Navigator._restart: navigation starts at the fix in m
  * (M_GP, M_FX): heading from the course m[M_NS] (rad clockwise from north), horizontal
  * velocity m[M_NS + 1] along it with the 1-sigma m[M_NS + 2], position carried over the
@@ -252,7 +221,7 @@ void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
     float sigma_vel = m[M_NS + 2];
     rot_dcm_to_euler(ypr, cb);
     ypr[0] = -course;
-    euler_to_q(x + X_Q, ypr);
+    rot_euler_to_q(x + X_Q, ypr);
     rot_q_to_dcm(cb, x + X_Q);
     float v[3];
     v[0] = sp * f32_sin(course);

@@ -136,6 +136,22 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
     fx[FX_SIG_V] = 0.0f;
 }
 
+/* Navigator.gnss_fix: the fix in fi (FI_*) into the pending fix (m[M_FX], c[C_FIX_*]), its
+ * measurement tick from fi or, when unknown (< 0), the arrival less the latency (_take_fix) */
+void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
+    navk_fix_in(m + M_FX, fi, m + M_AID);
+    c[C_FIX_LAT] = fi[FI_LAT_E7];
+    c[C_FIX_LON_DEG] = fi[FI_LON_DEG];
+    c[C_FIX_LON_FRAC] = fi[FI_LON_FRAC];
+    c[C_FIX_QUALITY] = fi[FI_QUALITY];
+    int32_t fix_tick = fi[FI_TICK];
+    if (fix_tick < 0) {
+        fix_tick = c[C_TICK] - c[C_T_LATENCY];
+    }
+    c[C_FIX_TICK] = fix_tick;
+    c[C_FIX_PENDING] = 1;
+}
+
 /* nav._fix_check_py: FC_* bits of a fix whose quality is acceptable. */
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid) {
     if (!(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {

@@ -4,14 +4,18 @@
  * work in the other kernels. Few arguments on purpose: see nav.py's self.mem.
  *
  * What stays in Python returns an event (EV_*) with c[C_PHASE] saying where the tick resumes:
- * the app runs the event's method (alignment, a fix's screening and re-anchoring, a reset:
- * once a second at most, or before navigation) and calls again with the same arguments. The
+ * the app runs the event's method (a fix's screening, with re-anchoring or the start of
+ * navigation, a reset: once a second at most) and calls again with the same arguments. The
  * filter's jobs start here, their rows included (aid.c). The order
  * of every step is the reference's, so a tick's results are the same bit for bit. */
 #include <stdint.h>
 
+#include "fmath32.h"
 #include "layout.h"
 #include "navk.h"
+#include "rot32.h"
+
+#define MIN_LEVEL_F (49.0f / 10.0f) /* nav_align.MIN_LEVEL_F, m/s^2 */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -29,6 +33,70 @@ static void update_health(int32_t *c) {
         c[C_HEALTH] = 1;
     } else {
         c[C_HEALTH] = 0;
+    }
+}
+
+/* nav_align._level: roll and pitch from the mean specific force, the gyro bias from the
+ * mean rate when standing still; the heading is kept */
+static void level(int32_t *c, float *m) {
+    float *x = m + M_X;
+    float *lv = m + M_LVL;
+    float *ypr = m + M_YPR;
+    float n = (float)c[C_N_LEVEL];
+    float fx = lv[0] / n;
+    float fy = lv[1] / n;
+    float fz = lv[2] / n;
+    float g = __builtin_sqrtf(fx * fx + fy * fy + fz * fz);
+    if (!(g > MIN_LEVEL_F)) { /* a dead accelerometer or free fall */
+        for (int i = 0; i < 6; i++) {
+            lv[i] = 0.0f;
+        }
+        c[C_N_LEVEL] = 0;
+        return;
+    }
+    rot_dcm_to_euler(ypr, x + X_C);
+    ypr[1] = f32_asin(fy / g);
+    ypr[2] = f32_atan2(-fx, fz);
+    rot_euler_to_q(x + X_Q, ypr);
+    rot_q_to_dcm(x + X_C, x + X_Q);
+    if (c[C_STILL]) {
+        for (int i = 0; i < 3; i++) {
+            x[X_BG + i] = lv[3 + i] / n;
+        }
+    }
+    for (int i = 0; i < 6; i++) {
+        lv[i] = 0.0f;
+    }
+    c[C_N_LEVEL] = 0;
+    c[C_LEVELED] = 1;
+}
+
+/* nav_align._align up to the pending fix: the levelling sums, levelling, and roll and pitch
+ * kept current with the gyros once levelled */
+static void align_step(int32_t *c, float *m) {
+    float *x = m + M_X;
+    const float *w = m + M_W;
+    const float *f = m + M_F;
+    float *lv = m + M_LVL;
+    int32_t still = c[C_STILL];
+    if (still || !c[C_LEVELED]) {
+        for (int i = 0; i < 3; i++) {
+            lv[i] = lv[i] + f[i];
+            lv[3 + i] = lv[3 + i] + w[i];
+        }
+        c[C_N_LEVEL] += 1;
+        if (c[C_N_LEVEL] >= c[C_T_LEVEL]) {
+            level(c, m);
+        }
+    }
+    if (c[C_LEVELED] && !still) {
+        float th[3];
+        float dt = x[X_DT];
+        for (int i = 0; i < 3; i++) {
+            th[i] = (w[i] - x[X_BG + i]) * dt;
+        }
+        rot_q_update(x + X_Q, th);
+        rot_q_to_dcm(x + X_C, x + X_Q);
     }
 }
 
@@ -143,7 +211,13 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
                 still_update(c, st, f, w, x, m + M_STP);
             }
             if (c[C_STATE] != NAVIGATING) {
-                return stop(c, PH_HEALTH, EV_ALIGN);
+                align_step(c, m);
+                if (c[C_FIX_PENDING]) {
+                    c[C_FIX_PENDING] = 0;
+                    return stop(c, PH_HEALTH, EV_ALIGN);
+                }
+                update_health(c);
+                return 0;
             }
             navk_ins_step(x, w, f, (c[C_OPTS] & OPT_CONING) ? 1 : 0);
             navk_ring_put(m + M_RING_P, m + M_RING_V, x, corr, (c[C_TICK] % RING) * 3);

@@ -118,4 +118,35 @@ static inline void rot_dcm_to_euler(float *ypr, const float *c) {
     ypr[0] = f32_atan2(-c[1], c[4]);
 }
 
+/* rot.euler_to_q: q_bn = q_z(yaw) (x) q_x(pitch) (x) q_y(roll), stored with w >= 0 */
+static inline void rot_euler_to_q(float *q, const float *ypr) {
+    float hy = 0.5f * ypr[0];
+    float hp = 0.5f * ypr[1];
+    float hr = 0.5f * ypr[2];
+    float sz = f32_sin(hy);
+    float cz = f32_cos(hy);
+    float sx = f32_sin(hp);
+    float cx = f32_cos(hp);
+    float sr = f32_sin(hr);
+    float cr = f32_cos(hr);
+    float czcx = cz * cx;
+    float szsx = sz * sx;
+    float czsx = cz * sx;
+    float szcx = sz * cx;
+    float w = czcx * cr - szsx * sr;
+    float x = czsx * cr - szcx * sr;
+    float y = czcx * sr + szsx * cr;
+    float z = szcx * cr + czsx * sr;
+    if (w < 0.0f) {
+        w = -w;
+        x = -x;
+        y = -y;
+        z = -z;
+    }
+    q[0] = w;
+    q[1] = x;
+    q[2] = y;
+    q[3] = z;
+}
+
 #endif

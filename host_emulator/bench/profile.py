@@ -9,8 +9,9 @@ callees'). By default only navigating ticks count; --all-ticks counts every tick
 
 A profile, not the benchmark: each wrapped call costs the wrapper's own instructions (measured
 in the guest and printed; a caller's figure holds them once per wrapped callee) and allocates
-its argument tuple (collected after the tick, outside the counts). `make bench-board`
-gives the unprofiled figures.
+its argument tuple (collected after the tick, outside the counts); the wrappers live in room
+the board does not have (a build with WRAPPER_HEAP_BYTES more heap), so the firmware keeps the
+board's heap. `make bench-board` gives the unprofiled figures.
 """
 
 import argparse
@@ -23,10 +24,13 @@ from host_emulator.errors import EmulatorError
 
 # (module, class or None, attribute names): what is wrapped, besides every navk function
 TARGETS = (
-    ("app", "App", ("service", "_gnss_read", "_deliver_fix", "_send_frame", "_send_ext")),
+    ("app", "App", ("service", "_gnss_read", "_deliver_fix", "_fix_fields", "_fix_tick",
+                    "_send_frame", "_send_ext")),
     ("drivers.bmi055", "BMI055", ("read",)),
-    ("drivers.gnss", "Nmea", ("feed",)),
-    ("nav", "Navigator", ("imu_counts", "_tick", "gnss", "_navigate", "_nav_fix",
+    ("drivers.gnss", "Nmea", ("feed", "_end")),
+    ("nav_align", "Alignment", ("_align_fix", "_level", "_track", "_start_navigation")),
+    ("nav", "Navigator", ("imu_counts", "_event", "gnss_fix", "_take_fix", "_tick", "gnss",
+                          "_navigate", "_nav_fix",
                           "_schedule", "_start_queued_fix", "_inject", "_align",
                           "_still_update", "_fix_usable", "_reanchor", "_update_health",
                           "_fault_reset", "_restart")),
@@ -43,8 +47,13 @@ TARGETS = (
 
 # The kernels the firmware calls from Python when they are native (the others run inside
 # nav_tick, where no wrapper sees them; a wrapper costs ~140 bytes of the board's heap)
-KERNELS = ("nav_tick", "nav_frame", "ext_pack", "fix_in", "fix_check", "geo_enu",
-           "bmi055_decode", "gnss_rows", "zupt_rows", "nhc_rows", "nmea_scan")  # fmt: skip
+KERNELS = ("nav_tick", "nav_frame", "ext_pack", "gnss_fix", "fix_check", "geo_enu", "euler",
+           "nav_start", "bmi055_decode", "gnss_rows", "zupt_rows", "nhc_rows",
+           "nmea_scan")  # fmt: skip
+
+# The wrappers' room: the profile runs on a build whose GC heap is this much larger, so the
+# firmware still gets the board's heap (the wrappers took the room of its largest buffer)
+WRAPPER_HEAP_BYTES = 16 * 1024
 
 # The guest's setup (emulate_m4f.main's SETUP): wraps, then returns the report function.
 GUEST = r"""
@@ -193,6 +202,7 @@ def main(argv=None):
     p.add_argument("--all-ticks", action="store_true", help="count aligning ticks too")
     a = p.parse_args(argv)
     from host_emulator.runtimes import m4f
+    from host_emulator.runtimes.m4f import build as m4f_build
     from host_emulator.sim import board_input
 
     try:
@@ -202,7 +212,8 @@ def main(argv=None):
         stim = board_input.simulate(a.scenario, a.duration, 0).stimulus
         with tempfile.TemporaryDirectory(prefix="profile-") as d:
             fw = m4f.run(stim, pathlib.Path(d), None, None, kernels=a.kernels,
-                         guest_setup=(guest_setup(a.all_ticks), "_profile_setup"))  # fmt: skip
+                         guest_setup=(guest_setup(a.all_ticks), "_profile_setup"),
+                         gc_heap_bytes=m4f_build.GC_HEAP_BYTES + WRAPPER_HEAP_BYTES)  # fmt: skip
     except (EmulatorError, cli_args.UsageError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

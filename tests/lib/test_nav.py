@@ -304,7 +304,7 @@ class _Start:
         de = float(nav._gp[0] - nav._trk[0])
         dn = float(nav._gp[1] - nav._trk[1])
         self.chord_err_deg = _wrap_deg(-np.arctan2(de, dn) - self.truth.ypr[i, 0])
-        self.anchor_tick = nav._trk_tick
+        self.anchor_tick = nav_runner.control(nav, "trk_tick")
         self.fix_tick = nav_runner.control(nav, "fix_tick")
         v = np.asarray(nav.ins.v_n, float)
         self.vel_err = float(np.hypot(*(v[:2] - self.truth.v_n[i, :2])))

@@ -230,15 +230,15 @@ def firmware_snapshot(nav):
         "health": nav.health,
         "leveled": nav.leveled,
         "still": nav.still,
-        "n_level": nav._n_level,
+        "n_level": nav_runner.control(nav, "n_level"),
         "n_still": nav_runner.control(nav, "n_still"),
-        "n_stable": nav._n_stable,
+        "n_stable": nav_runner.control(nav, "n_stable"),
         "fix_pending": nav_runner.control(nav, "fix_pending"),
         "fix_queued": nav_runner.control(nav, "fix_queued"),
         "used_tick": nav_runner.control(nav, "used_tick"),
         "speed_tick": nav_runner.control(nav, "speed_tick"),
-        "trk_set": nav._trk_set,
-        "trk_tick": nav._trk_tick,
+        "trk_set": nav_runner.control(nav, "trk_set"),
+        "trk_tick": nav_runner.control(nav, "trk_tick"),
         "fix_lat_e7": nav_runner.control(nav, "fix_lat"),
         "fix_lon_e7": geo.join_e7(
             nav_runner.control(nav, "fix_lon_deg"), nav_runner.control(nav, "fix_lon_frac")
@@ -511,13 +511,16 @@ def test_model_of_the_start_from_the_gnss_track():
     anchors = []  # the anchor fix's time (s) whenever an anchor is set anew
     start_p_vel = []
 
+    def anchor(nav):
+        return nav_runner.control(nav, "trk_set"), nav_runner.control(nav, "trk_tick")
+
     def tick(nav, model, k):
-        held = nav._trk_set, nav._trk_tick
+        held = anchor(nav)
         was = nav.state
         nav.imu_raw(drive.gyro[k], drive.accel[k])
         model.imu_raw(drive.gyro[k], drive.accel[k])
-        if nav._trk_set and (nav._trk_set, nav._trk_tick) != held:
-            anchors.append(round(nav._trk_tick * DT))
+        if anchor(nav)[0] and anchor(nav) != held:
+            anchors.append(round(anchor(nav)[1] * DT))
         if was != NAVIGATING and nav.state == NAVIGATING:
             start_p_vel.append(float(nav.kf.P[3 * 16]))
 

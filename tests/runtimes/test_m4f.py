@@ -163,9 +163,8 @@ def test_frames_and_extended_frames_equal_the_model_byte_for_byte(quick):
     assert r.frame.counts == (6000, 6000) and r.ext.counts == (300, 300)
     assert r.identical, r.summary()
     fw = r.firmware_run
-    # not vacuous: the firmware navigated for more than half the run and collected garbage
+    # not vacuous: the firmware navigated for more than half the run
     assert np.sum(fw.per_tick["state"] == 2) > 3000
-    assert fw.stats["app_gc_runs"] > 5  # while aligning (native kernels; Python ones: over 500)
     # ...and only the run-time counters differ in the raw streams
     assert stream.without_run_time(fw.out) == r.out_firmware
     assert "PARITY: identical" in r.summary() and "gc_runs" in r.summary()
@@ -185,16 +184,23 @@ def test_every_tick_is_counted_and_the_emulation_is_set_apart(quick):
     assert (t["alloc_bytes"][~collecting] >= 0).all()
 
 
-def test_an_aligning_tick_allocates_less_than_the_app_assumes(quick):
-    """The app checks the heap every other aligning tick, leaving room for one more tick of
-    _ALIGN_TICK_BYTES (app.py): every aligning tick that did not collect stays below it."""
+def test_alignment_allocates_only_at_fixes_and_less_than_the_app_assumes(quick):
+    """With the native kernels an aligning tick runs Python only when a fix is screened, so
+    at most one aligning tick a second allocates (quick_start's receiver: 1 Hz). The app
+    checks the heap once a second at most, in the tick after a fix (app.py), leaving room for
+    _ALIGN_BYTES: what any 2 s of alignment allocated stays below it."""
     from host_emulator.firmware_env import import_module
 
     t = quick[1].firmware_run.per_tick
-    aligning = (t["state"] == 1) & (t["collected"] == 0)
-    assert aligning.sum() > 1000
-    worst = int(t["alloc_bytes"][aligning].max())
-    assert 1000 < worst < import_module("app")._ALIGN_TICK_BYTES, worst
+    aligning = t["state"] == 1
+    assert aligning.sum() > 2000
+    alloc = np.where(aligning & (t["collected"] == 0), t["alloc_bytes"], 0).astype(np.int64)
+    allocating = np.nonzero(alloc)[0]
+    seconds = aligning.sum() / 200
+    assert 5 < len(allocating) <= seconds + 1, allocating  # the fixes, not every tick
+    window = np.convolve(alloc, np.ones(400, np.int64))  # 2 s
+    worst = int(window.max())
+    assert 1000 < worst < import_module("app")._ALIGN_BYTES, worst
 
 
 def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
@@ -258,8 +264,7 @@ def test_a_navigating_tick_costs_the_same_wherever_the_heap_put_things(tmp_path)
     says (tests/runtimes/test_frames.py); with none, a plain navigating tick (no fix, no
     extended frame: the median) costs the same to the counter's step, and the mean barely
     moves (the rare event ticks still run Python that allocates). Left out: the tick that
-    starts navigation, where the app scans the heap and may collect (a cost that is the
-    heap's by nature)."""
+    starts navigation (the alignment's last Python, which allocates)."""
     stim = board_input.simulate("quick_start", 16.0, seed=0).stimulus
     costs = []
     for n in (16, 2000):
@@ -267,7 +272,7 @@ def test_a_navigating_tick_costs_the_same_wherever_the_heap_put_things(tmp_path)
         r = m4f.run(stim, tmp_path / str(n), guest_setup=(src, "_padding_setup"))
         assert dict(r.stats["report"])["padding"] == n
         t = r.per_tick
-        nav = np.flatnonzero(t["state"] == 2)[1:]  # the first checks the heap (app.py)
+        nav = np.flatnonzero(t["state"] == 2)[1:]  # the first starts navigation
         assert len(nav) > 400
         costs.append((t["instr"] - t["emu_instr"])[nav].astype(np.int64))
     a, b = costs

@@ -105,9 +105,12 @@ def test_blocks_per_tick_are_counted(urban, runs):
     by = s["blocks_by_state"]
     nav, align = by["navigating"], by["aligning"]
     assert nav["ticks"] > 500 and nav["ticks"] + align["ticks"] == len(urban)
-    # alignment computes in Python; navigating ticks allocate nothing (the proof below)
-    assert nav["mean"] < 1 and 10 < align["mean"] < 1500
-    assert nav["max"] < 4000 and np.isfinite(s["blocks_p99"])
+    # navigating ticks allocate nothing (the proof below); an aligning tick only when a fix
+    # is screened (Python), once a second: some blocks then, nothing otherwise
+    assert nav["mean"] < 1 and 0 < align["mean"] < 1
+    assert 0 < align["max"] < 4000 and nav["max"] < 4000 and np.isfinite(s["blocks_p99"])
+    aligning = vm.nav_state == 1
+    assert np.count_nonzero(b[aligning]) <= aligning.sum() / 200 + 1
     assert s["blocks_max"] == b.max() and s["blocks_mean"] == pytest.approx(b.mean())
 
 

@@ -149,12 +149,13 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     emu_in = m4f.emu_in
     emu_out = m4f.emu_out
     mount_flash(config_path, navk_path)
-    # setup (the profiler's, bench/profile.py): runs once /flash is there and before the
-    # firmware is imported; what it returns is called at the end for (name, value) pairs,
-    # each printed as an "R" line
-    report = setup() if setup else None
     gc.collect()
     system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
+    # setup (the profiler's, bench/profile.py): runs once /flash is there and before the
+    # firmware is imported; what it returns is called at the end for (name, value) pairs,
+    # each printed as an "R" line. What it keeps counts as the emulator's, not the board's:
+    # the firmware still gets the board's heap when the build's heap has room for both
+    report = setup() if setup else None
     usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region
     import machine
     from feed import (

@@ -97,6 +97,7 @@ def run(
     timeout_s=None,
     kernels=None,
     guest_setup=None,
+    gc_heap_bytes=None,
 ):
     """Run the firmware on the emulated Cortex-M4F over a whole stimulus; a FirmwareRun.
 
@@ -110,6 +111,9 @@ def run(
     guest_setup: (MicroPython source, name of the function it defines) run in the guest before
         the firmware is imported; what it returns is called at the end for (name, value) pairs,
         which stats["report"] lists (bench/profile.py).
+    gc_heap_bytes: a build whose GC heap is this large instead of build.GC_HEAP_BYTES (room
+        for a guest_setup's objects: the firmware still gets the board's heap, the rest is a
+        ballast the collector scans).
 
     The FirmwareRun has `per_tick` (PER_TICK records) and stats from the guest (heap,
     start-up instructions, counters). FirmwareError if the firmware raises; EmulatorError if
@@ -128,7 +132,11 @@ def run(
         )
     kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
     navk = str(runtimes.native_module("armv7emsp")) if kind == "native" else None
-    elf = m4f_build.build(progress=(lambda msg: print(msg, flush=True)) if progress else None)
+    elf = m4f_build.build(
+        progress=(lambda msg: print(msg, flush=True)) if progress else None,
+        gc_heap_bytes=gc_heap_bytes,
+    )
+    build_heap = m4f_build.GC_HEAP_BYTES if gc_heap_bytes is None else int(gc_heap_bytes)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "m4f"
     out_dir.mkdir(exist_ok=True)
@@ -145,7 +153,7 @@ def run(
         f"{source}import emulate_m4f\r\nemulate_m4f.main({stim_rel!r}, "
         f"{_data_offset(stim_path)}, {n}, {stim.tick_us}, "
         f"{cfg_path.resolve().relative_to(workdir).as_posix()!r}, {out_dir.name!r}, "
-        f"{m4f_build.BOARD_HEAP_BYTES}, {m4f_build.GC_HEAP_BYTES}, {navk_rel!r}, {setup})\r\n"
+        f"{m4f_build.BOARD_HEAP_BYTES}, {build_heap}, {navk_rel!r}, {setup})\r\n"
     )
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)
