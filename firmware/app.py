@@ -31,9 +31,8 @@ from drivers.gnss import Nmea
 from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
 
-import geo
-
 _US_PER_TICK = const(5000)
+_E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
 # tick). With the native kernels an aligning tick allocates only when a fix is screened
@@ -299,15 +298,23 @@ class App:
         speed (empty RMC/VTG fields, a GGA-only receiver) passes speed -1 and course -1:
         unknown, unlike a standing receiver's speed 0.00 with an empty course."""
         ff = self._fields
-        geo.split_into(ff, _F_LAT_DEG, g.epoch_lat_e7)
-        ff[_F_LON_DEG] = g.epoch_lon_deg
-        ff[_F_LON_FRAC] = g.epoch_lon_frac_e7
+        # geo.split_into and frame.round_div written out: a Python call less for each
+        v = g.epoch_lat_e7
+        fi[_FI_LAT_E7] = v
+        d = v // _E7 if v >= 0 else -((-v) // _E7)
+        ff[_F_LAT_DEG] = d
+        ff[_F_LAT_FRAC] = v - d * _E7
+        v = g.epoch_lon_deg
+        ff[_F_LON_DEG] = v
+        fi[_FI_LON_DEG] = v
+        v = g.epoch_lon_frac_e7
+        ff[_F_LON_FRAC] = v
+        fi[_FI_LON_FRAC] = v
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
-        self.height_dm = frame.round_div(msl_mm, 100)  # the frame carries the GGA altitude
-        ff[_F_HEIGHT_DM] = self.height_dm
-        fi[_FI_LAT_E7] = g.epoch_lat_e7
-        fi[_FI_LON_DEG] = g.epoch_lon_deg
-        fi[_FI_LON_FRAC] = g.epoch_lon_frac_e7
+        # the frame carries the GGA altitude, in dm rounded half away from zero
+        d = (2 * msl_mm + 100) // 200 if msl_mm >= 0 else -((100 - 2 * msl_mm) // 200)
+        self.height_dm = d
+        ff[_F_HEIGHT_DM] = d
         fi[_FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
         fi[_FI_QUALITY] = g.epoch_quality
         fi[_FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted

@@ -103,10 +103,36 @@ def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():
     assert ctl
     for name in ctl:
         assert getattr(app, name) == getattr(nav, name), name
+    import geo
+
+    assert app._E7 == geo._E7
     fix_in = {n for n in vars(app) if n.startswith("_FI_")} | {"_NFI"}
     assert fix_in == {"_" + n for n in vars(nav) if n.startswith("FI_")} | {"_NFI"}
     for name in fix_in:
         assert getattr(app, name) == getattr(nav, name[1:]), name
+
+
+def test_the_fix_fields_split_and_round_as_geo_and_frame_do(tmp_path):
+    """App._fix_fields writes out geo.split_into (latitude) and frame.round_div (height in dm,
+    half away from zero): the same integers on both sides of zero and at the halves."""
+    import frame
+    import nav
+
+    import geo
+
+    bench = Bench(tmp_path)
+    a = bench.app
+    for lat_e7, alt_mm in [(-338688000, -120050), (-5, -50), (0, 49), (5, 50), (899999999, 151),
+                           (-10000000, -149), (10000000, 250), (-1, -250)]:  # fmt: skip
+        g = a.gnss
+        g.epoch_lat_e7, g.epoch_alt_mm, g.epoch_alt_ok = lat_e7, alt_mm, True
+        a._fix_fields(g, a.nav.fix_in)
+        want = [0, 0]
+        geo.split_into(want, 0, lat_e7)
+        ff = a._fields
+        assert [ff[frame.F_LAT_DEG], ff[frame.F_LAT_FRAC]] == want
+        assert ff[frame.F_HEIGHT_DM] == a.height_dm == frame.round_div(alt_mm, 100)
+        assert a.nav.fix_in[nav.FI_LAT_E7] == lat_e7
 
 
 def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):

@@ -533,7 +533,8 @@ class Navigator(Alignment, Aiding):
     def _fix_usable(self):
         """fix_check's bits, non-zero when quality and HDOP are acceptable (_FC_REANCHOR: see
         _nav_fix); a usable fix's speed, if it has one, also feeds standstill detection (an
-        unknown speed, < 0 or NaN, is no speed measurement)."""
+        unknown speed, < 0 or NaN, is no speed measurement). Natively one kernel
+        (`fix_usable`), which the callers call instead."""
         if self.ctl[_C_FIX_QUALITY] < self.ctl[_C_MIN_QUALITY]:
             return 0
         r = fix_check(self._st, self._fx, self.ins.x, self._aid)
@@ -573,7 +574,7 @@ class Navigator(Alignment, Aiding):
         """A new fix while navigating: screen it, re-anchor if far, queue it for the filter."""
         c = self.ctl
         c[_C_LAST_FIX_TICK] = c[_C_TICK]
-        usable = self._fix_usable()
+        usable = self._fix_usable() if _fix_usable is None else _fix_usable(c, self.mem)
         if not usable:
             c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             return
@@ -930,6 +931,7 @@ _prop_start = kern.pick("prop_start", None)
 _nav_tick = kern.pick("nav_tick", None)  # the reference: Navigator._tick and its callees
 fix_in = kern.pick("fix_in", _fix_in_py)
 _gnss_fix = kern.pick("gnss_fix", None)  # the reference: Navigator.gnss_fix
+_fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
 fix_check = kern.pick("fix_check", _fix_check_py)
 imu_cal = kern.pick("imu_cal", _imu_cal_py)
 still = kern.pick("still", _still_py)

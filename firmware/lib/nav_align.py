@@ -61,6 +61,7 @@ MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this can
 
 _nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation
 _euler = kern.pick("euler", rot.dcm_to_euler)
+_fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
 
 
 class Alignment:
@@ -129,7 +130,7 @@ class Alignment:
         cfg = self.cfg
         c = self.ctl
         c[_C_LAST_FIX_TICK] = c[_C_TICK]
-        if not self._fix_usable():
+        if not (self._fix_usable() if _fix_usable is None else _fix_usable(c, self.mem)):
             c[_C_N_STABLE] = 0
             c[_C_TRK_SET] = 0
             return

@@ -136,6 +136,19 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
     fx[FX_SIG_V] = 0.0f;
 }
 
+/* Navigator._fix_usable: fix_check's bits when the quality is acceptable, and the tick of a
+ * usable fix's speed */
+int32_t navk_fix_usable(int32_t *c, float *m) {
+    if (c[C_FIX_QUALITY] < c[C_MIN_QUALITY]) {
+        return 0;
+    }
+    int32_t r = navk_fix_check(m + M_ST, m + M_FX, m + M_X, m + M_AID);
+    if (r & FC_SPEED) {
+        c[C_SPEED_TICK] = c[C_TICK];
+    }
+    return r;
+}
+
 /* Navigator.gnss_fix: the fix in fi (FI_*) into the pending fix (m[M_FX], c[C_FIX_*]), its
  * measurement tick from fi or, when unknown (< 0), the arrival less the latency (_take_fix) */
 void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {

@@ -47,7 +47,7 @@ TARGETS = (
 
 # The kernels the firmware calls from Python when they are native (the others run inside
 # nav_tick, where no wrapper sees them; a wrapper costs ~140 bytes of the board's heap)
-KERNELS = ("nav_tick", "nav_frame", "ext_pack", "gnss_fix", "fix_check", "geo_enu", "euler",
+KERNELS = ("nav_tick", "nav_frame", "ext_pack", "gnss_fix", "fix_usable", "geo_enu", "euler",
            "nav_start", "bmi055_decode", "gnss_rows", "zupt_rows", "nhc_rows",
            "nmea_scan")  # fmt: skip
 

@@ -514,23 +514,31 @@ class _Die:
     def transfer(self, wbuf, rbuf, fill, n, idle):
         """n bytes clocked while selected, exactly as n calls of `exchange`: MOSI from wbuf
         (None: the byte fill), MISO into rbuf (None: dropped; idle where the die leaves MISO
-        floating)."""
+        floating). No time passes within a transfer, so whether the die answers is decided
+        once; the state lives in locals meanwhile (the emulator's hot path)."""
+        if not self.responds or (self._ready_at >= 0 and self.busy()):
+            if rbuf is not None:
+                for i in range(n):
+                    rbuf[i] = idle
+            return
+        reg = self._addr
+        is_read = self._is_read
         for i in range(n):
             mosi = fill if wbuf is None else wbuf[i]
-            v = -1
-            if self.responds and not (self._ready_at >= 0 and self.busy()):
-                reg = self._addr
-                if reg < 0:  # the address byte
-                    self._is_read = (mosi & 0x80) != 0
-                    self._addr = mosi & 0x7F
+            v = idle
+            if reg < 0:  # the address byte
+                is_read = (mosi & 0x80) != 0
+                reg = mosi & 0x7F
+            else:
+                if is_read:
+                    v = self.read_reg(reg)
                 else:
-                    self._addr = (reg + 1) & 0x7F
-                    if self._is_read:
-                        v = self.read_reg(reg)
-                    else:
-                        self.write_reg(reg, mosi)
+                    self.write_reg(reg, mosi)
+                reg = (reg + 1) & 0x7F
             if rbuf is not None:
-                rbuf[i] = idle if v < 0 else v & 0xFF
+                rbuf[i] = v
+        self._addr = reg
+        self._is_read = is_read
 
 
 class GyroDie(_Die):
@@ -702,8 +710,10 @@ class UART:
         if m > room:
             self.tx_overflow += m - room
             m = room
-        for i in range(m):
-            tx[n + i] = buf[i]
+            for i in range(m):
+                tx[n + i] = buf[i]
+        else:
+            tx[n : n + m] = buf  # no allocation on MicroPython either (a stack slice)
         self.tx_n = n + m
         _emu_out()
         return m
