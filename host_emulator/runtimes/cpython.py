@@ -109,13 +109,16 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         out = bytearray()
         regs = np.concatenate((stim.gyro_regs, stim.accel_regs), axis=1).tobytes()  # 12 B a tick
         temp = stim.temp_raw.tolist()
+        temp_set = None
         pps_before = stim.pps_before_us.tolist()
         offs = stim.uart_offsets.tolist()
         ub = stim.uart_bytes
         n = len(stim)
         for k in range(n):
             imu.set_registers(regs, 12 * k, 12 * k + 6)
-            imu.set_temperature_raw(temp[k])
+            if temp[k] != temp_set:  # the register holds it until it changes
+                temp_set = temp[k]
+                imu.set_temperature_raw(temp_set)
             if offs[k + 1] > offs[k]:
                 gnss_uart.feed(ub[offs[k] : offs[k + 1]])
             t_k = t0_us + k * tick_us
