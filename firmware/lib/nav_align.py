@@ -59,7 +59,7 @@ _TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
 MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this cannot be gravity
 
 
-_nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation
+_nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation_py
 _euler = kern.pick("euler", rot.dcm_to_euler)
 _fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
 
@@ -127,7 +127,9 @@ class Alignment:
         c[_C_LEVELED] = 1
 
     def _align_fix(self):
-        cfg = self.cfg
+        """A fix while aligning: stable fixes place the origin and the position; once
+        levelled, the heading from the course or the track starts navigation. Its frame stays
+        within the VM's on-stack limit (tests/runtimes/test_frames.py): few locals."""
         c = self.ctl
         c[_C_LAST_FIX_TICK] = c[_C_TICK]
         if not (self._fix_usable() if _fix_usable is None else _fix_usable(c, self.mem)):
@@ -135,28 +137,34 @@ class Alignment:
             c[_C_TRK_SET] = 0
             return
         c[_C_N_STABLE] += 1
-        if c[_C_N_STABLE] < cfg.gnss_stable_fixes:
+        if c[_C_N_STABLE] < self.cfg.gnss_stable_fixes:
+            return
+        if not self.frame.valid and not self._set_origin():
             return
         fx = self._fx
-        if not self.frame.valid:
-            if not self.frame.set_origin(c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
-                                         fx[_FX_H]):  # fmt: skip
-                return
-            self.ins.set_frame(self.frame)
         self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC], fx)
-        ins = self.ins
-        ins.p_n[0:3] = self._gp  # a copy of the buffer: no float is boxed
+        self.ins.p_n[0:3] = self._gp  # a copy of the buffer: no float is boxed
         if not c[_C_LEVELED]:
             c[_C_TRK_SET] = 0
             return
         course = fx[_FX_COURSE]
         if course >= 0.0:
             c[_C_TRK_SET] = 0
-            sp = fx[_FX_SPEED]
-            if sp >= cfg.heading_speed_m_s:
-                self._start_navigation(course, sp, cfg.init_vel_sigma)
+            if fx[_FX_SPEED] >= self.cfg.heading_speed_m_s:
+                self._start_navigation(course, fx[_FX_SPEED], self.cfg.init_vel_sigma)
         else:
             self._track()
+
+    def _set_origin(self):
+        """The first stable fix becomes the origin of the navigation frame; False if it cannot
+        (geo.LocalFrame.set_origin)."""
+        c = self.ctl
+        fr = self.frame
+        if not fr.set_origin(c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
+                             self._fx[_FX_H]):  # fmt: skip
+            return False
+        self.ins.set_frame(fr)
+        return True
 
     def _track(self):
         """Heading and velocity from the track of a receiver that reports no course.
@@ -206,14 +214,18 @@ class Alignment:
     def _start_navigation(self, course, sp, sigma_vel):
         """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
         the current fix's position; sigma_vel: 1-sigma of the horizontal velocity. Natively
-        one kernel (`nav_start`), which mirrors the code below and `_restart`."""
-        if _nav_start is not None:
-            s = self._ns
-            s[0] = course
-            s[1] = sp
-            s[2] = sigma_vel
-            _nav_start(self.ctl, self.kf.i, self.mem)
+        one kernel (`nav_start`), which mirrors `_start_navigation_py` and `_restart`."""
+        if _nav_start is None:
+            self._start_navigation_py(course, sp, sigma_vel)
             return
+        s = self._ns
+        s[0] = course
+        s[1] = sp
+        s[2] = sigma_vel
+        _nav_start(self.ctl, self.kf.i, self.mem)
+
+    def _start_navigation_py(self, course, sp, sigma_vel):
+        """_start_navigation with the Python kernels (the reference of `nav_start`)."""
         ins = self.ins
         ypr = self.ypr
         rot.dcm_to_euler(ypr, ins.c_bn)
