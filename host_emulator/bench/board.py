@@ -183,6 +183,13 @@ def accuracy_cost_lines(results, nav_json):
     ]
 
 
+def _overruns(t):
+    """A table cell: the overrunning ticks at one CPI and their share ("0" when none: a rare
+    one, like a collection's tick, is not hidden by rounding)."""
+    n = t["overrun_ticks"]
+    return f"{n} ({100 * t['overrun_share']:.3g} %)" if n else "0"
+
+
 def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_JSON):
     low, central, high, source = board_cost.cpi_range()
     lines = [
@@ -224,8 +231,7 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
                 else "0"
             )
             one = f"{ph['gc_collect_instr']:,.0f}" if ph["gc_collect_instr"] is not None else "-"
-            shares = " / ".join(f"{100 * t[f'{c:g}']['overrun_share']:.0f} %"
-                                for c in (low, central, high))  # fmt: skip
+            shares = " / ".join(_overruns(t[f"{c:g}"]) for c in (low, central, high))
             lines.append(
                 f"| {r['label']} | {phase} | {ph['ticks']} | {fi['mean']:,.0f} | "
                 f"{fi['p50']:,.0f} | {fi['p99']:,.0f} | {fi['max']:,} | "

@@ -74,6 +74,10 @@ def test_the_board_benchmark_page_states_the_figures_and_the_budget(monkeypatch)
     }  # fmt: skip
     text = board.markdown([result], "urban_drive", 600.0, ["code region ..."], None, "cmd")
     assert "| default | navigating | 200 | 540,000 | 500,000 |" in text
+    # overrunning ticks as counts: aligning (250,000 each) fits at CPI 1.5 and 2, not at 2.5
+    assert (
+        "| 0 / 0 / 100 (100 %) |" in text and "| 200 (100 %) / 200 (100 %) / 200 (100 %) |" in text
+    )
     assert "20 (every 10 ticks) | 400,000 |" in text
     assert "mean 540,000 instructions (18.00x the budget), p99 900,000 (18.00x)" in text
     assert "200 ticks over 100,000, 200 over 50,000)" in text
