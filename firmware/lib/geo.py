@@ -21,8 +21,8 @@ Allocation: a longitude beyond +-107.37 deg in 1e-7 deg is a long int on the boa
 (MicroPython's small ints are 31-bit), so longitudes travel as (whole degrees, fraction in
 1e-7 deg with the degrees' sign), as the NMEA parser delivers them (`split_e7`/`join_e7`
 convert on a host); every difference formed here is a small int. `to_enu` is one native
-kernel call (`geo_enu`) and allocates nothing; `set_origin` and `to_e7` (alignment and
-re-anchoring, not per fix) compute in Python.
+kernel call (`geo_enu`) and allocates nothing; `set_origin`'s coefficients are one kernel
+(`geo_coef`); `to_e7` (re-anchoring, not per fix) computes in Python.
 """
 
 from array import array
@@ -124,6 +124,36 @@ def _enu_py(enu, coef, h, d_e7):
 _enu = kern.pick("geo_enu", _enu_py)
 
 
+def _coef_py(c, lat0_e7):
+    """The coefficients of the origin at lat0_e7 (1e-7 deg) and the height c[H0] (m) into
+    c (the layout above); the reference of the native kernel `geo_coef`."""
+    phi0 = f32.f32(lat0_e7) * RAD_PER_E7
+    s = sin(phi0)
+    co = cos(phi0)
+    w2 = 1.0 - E2 * s * s
+    rn = A_M / sqrt(w2)
+    rm = rn * (1.0 - E2) / w2
+    drm = f32.f32(3) * rm * E2 * s * co / w2
+    h0 = c[H0]
+    rn_h = rn + h0
+    rm_h = rm + h0
+    tan = s / co
+    c[KE] = RAD_PER_E7 * rn_h * co
+    c[KN] = RAD_PER_E7 * rm_h
+    c[GE_N] = rm * tan / (rm_h * rn_h)
+    c[INV_RN] = 1.0 / rn_h
+    c[GN_N] = 0.5 * drm / (rm_h * rm_h)
+    c[INV_RM] = 1.0 / rm_h
+    c[GN_E] = 0.5 * tan / rn_h
+    c[GU_N] = 0.5 / rm_h
+    c[GU_E] = 0.5 / rn_h
+    c[SIN_LAT] = s
+    c[COS_LAT] = co
+
+
+_coef = kern.pick("geo_coef", _coef_py)
+
+
 def _round_half_away(x):
     """Nearest int of a float32, halves away from zero."""
     if x >= 0.0:
@@ -148,29 +178,8 @@ class LocalFrame:
         if lat0_e7 > MAX_LAT_E7 or lat0_e7 < -MAX_LAT_E7:
             return False
         c = self.coef
-        phi0 = f32.f32(lat0_e7) * RAD_PER_E7
-        s = sin(phi0)
-        co = cos(phi0)
-        w2 = 1.0 - E2 * s * s
-        rn = A_M / sqrt(w2)
-        rm = rn * (1.0 - E2) / w2
-        drm = f32.f32(3) * rm * E2 * s * co / w2
-        h0 = f32.f32(h0_m)
-        rn_h = rn + h0
-        rm_h = rm + h0
-        tan = s / co
-        c[H0] = h0
-        c[KE] = RAD_PER_E7 * rn_h * co
-        c[KN] = RAD_PER_E7 * rm_h
-        c[GE_N] = rm * tan / (rm_h * rn_h)
-        c[INV_RN] = 1.0 / rn_h
-        c[GN_N] = 0.5 * drm / (rm_h * rm_h)
-        c[INV_RM] = 1.0 / rm_h
-        c[GN_E] = 0.5 * tan / rn_h
-        c[GU_N] = 0.5 / rm_h
-        c[GU_E] = 0.5 / rn_h
-        c[SIN_LAT] = s
-        c[COS_LAT] = co
+        c[H0] = h0_m  # rounded to float32 by the buffer
+        _coef(c, lat0_e7)
         self.lat0_e7 = lat0_e7
         self.lon0_deg = lon0_deg
         self.lon0_frac = lon0_frac

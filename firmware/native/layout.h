@@ -145,6 +145,9 @@
 #define GEO_GN_E 7
 #define GEO_GU_N 8
 #define GEO_GU_E 9
+#define GEO_SIN_LAT 10
+#define GEO_COS_LAT 11
+#define GEO_NCOEF 12
 
 /* nav.py: the aiding parameters Navigator._aid */
 #define AID_UERE 0 /* m per HDOP */

@@ -197,6 +197,35 @@ void navk_geo_enu(float *enu, const float *coef, const float *h, const int32_t *
     enu[2] = dh - (nn * c[GEO_GU_N] + ee * c[GEO_GU_E]);
 }
 
+/* geo._coef_py: the coefficients of the origin at lat0_e7 and the height c[GEO_H0] */
+void navk_geo_coef(float *c, int32_t lat0_e7) {
+    const float a_m = 6378137.0f; /* geo.A_M */
+    const float e2 = F32_BITS(0x3BDB5C88); /* geo.E2 */
+    const float rad_per_e7 = F32_BITS(0x30EFE050); /* geo.RAD_PER_E7 */
+    float phi0 = (float)lat0_e7 * rad_per_e7;
+    float s = f32_sin(phi0);
+    float co = f32_cos(phi0);
+    float w2 = 1.0f - e2 * s * s;
+    float rn = a_m / __builtin_sqrtf(w2);
+    float rm = rn * (1.0f - e2) / w2;
+    float drm = 3.0f * rm * e2 * s * co / w2;
+    float h0 = c[GEO_H0];
+    float rn_h = rn + h0;
+    float rm_h = rm + h0;
+    float tan = s / co;
+    c[GEO_KE] = rad_per_e7 * rn_h * co;
+    c[GEO_KN] = rad_per_e7 * rm_h;
+    c[GEO_GE_N] = rm * tan / (rm_h * rn_h);
+    c[GEO_INV_RN] = 1.0f / rn_h;
+    c[GEO_GN_N] = 0.5f * drm / (rm_h * rm_h);
+    c[GEO_INV_RM] = 1.0f / rm_h;
+    c[GEO_GN_E] = 0.5f * tan / rn_h;
+    c[GEO_GU_N] = 0.5f / rm_h;
+    c[GEO_GU_E] = 0.5f / rn_h;
+    c[GEO_SIN_LAT] = s;
+    c[GEO_COS_LAT] = co;
+}
+
 /* drivers/bmi055._decode_py: both dies' data registers into int16 counts; the over-range
  * mask (bits 0-2 gyro, 3-5 accel) and the accel new_data bits (6-8). */
 int32_t navk_bmi055_decode(int16_t *gyro, int16_t *accel, const uint8_t *raw_gyro,

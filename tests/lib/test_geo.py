@@ -179,6 +179,27 @@ def test_bit_exact_against_the_model():
             assert np.float32(hb).view(np.uint32) == want_h[i].view(np.uint32)
 
 
+MAX = geo.MAX_LAT_E7
+
+
+def test_the_native_coefficients_equal_the_python_reference():
+    """geo_coef (the origin's coefficients, native) against _coef_py, bit for bit, from pole
+    limit to pole limit and from below sea level to aircraft heights."""
+    import kern
+
+    assert kern.NATIVE
+    rng = np.random.default_rng(11)
+    lats = [-MAX, -1, 0, 1, MAX, *rng.integers(-MAX, MAX, 3000).tolist()]
+    heights = rng.uniform(-500.0, 12000.0, len(lats)).astype(F32)
+    for lat0, h0 in zip(lats, heights, strict=True):
+        a = f32.zeros(geo.NCOEF)
+        b = f32.zeros(geo.NCOEF)
+        a[geo.H0] = b[geo.H0] = h0
+        geo._coef_py(a, int(lat0))
+        kern.navk.geo_coef(b, int(lat0))
+        assert np.array_equal(np.asarray(a).view(np.uint32), np.asarray(b).view(np.uint32)), lat0
+
+
 @pytest.mark.parametrize("kernels", ["native", "python"])
 def test_micropython_vm_agrees_and_allocates_only_float_boxes(kernels):
     """The double-precision VM computes the same series; its metres differ from the float32

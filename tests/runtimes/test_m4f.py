@@ -200,7 +200,7 @@ def test_alignment_allocates_only_at_fixes_and_less_than_the_app_assumes(quick):
     assert 5 < len(allocating) <= seconds + 1, allocating  # the fixes, not every tick
     window = np.convolve(alloc, np.ones(400, np.int64))  # 2 s
     worst = int(window.max())
-    assert 1000 < worst < import_module("app")._ALIGN_BYTES, worst
+    assert 100 < worst < import_module("app")._ALIGN_BYTES, worst
 
 
 def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
