@@ -179,37 +179,44 @@ class Alignment:
         `track_turn_max` or a window too long: this fix becomes the anchor. The chord speed is
         a mean, behind a car accelerating at a by a T / 2, so the filter starts with the
         horizontal velocity sigma `track_vel_sigma`. Cost, at fix ticks while aligning only:
-        ~25 boxed floats (one atan2), ~60 when a window is evaluated (two atan2, one sqrt)."""
-        cfg = self.cfg
-        trk = self._trk
-        gp = self._gp
+        the yaw from the `euler` kernel; a window's evaluation (`_track_window`) boxes the
+        floats of a Python atan2 and sqrt on the board."""
         c = self.ctl
         ypr = self._tmp3  # scratch
         _euler(ypr, self.ins.c_bn)
-        yaw = ypr[rot.YAW]
         if c[_C_TRK_SET]:
             n = c[_C_FIX_TICK] - c[_C_TRK_TICK]
             if n < c[_C_T_TRACK]:
                 return  # window not long enough yet: keep the anchor
-            if n <= 2 * c[_C_T_TRACK]:
-                de = gp[0] - trk[_TR_E]
-                dn = gp[1] - trk[_TR_N]
-                sp = sqrt(de * de + dn * dn) / (f32.f32(n) * cfg.dt_s)
-                dyaw = yaw - trk[_TR_YAW]
-                if dyaw > PI:
-                    dyaw = dyaw - TWO_PI
-                elif dyaw < -PI:
-                    dyaw = dyaw + TWO_PI
-                lim = cfg.track_turn_max
-                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
-                    c[_C_TRK_SET] = 0
-                    self._start_navigation(atan2(de, dn) - dyaw * 0.5, sp, cfg.track_vel_sigma)
-                    return
+            if n <= 2 * c[_C_T_TRACK] and self._track_window(n, ypr[rot.YAW]):
+                return
+        trk = self._trk
+        gp = self._gp
         trk[_TR_E] = gp[0]
         trk[_TR_N] = gp[1]
-        trk[_TR_YAW] = yaw
+        trk[_TR_YAW] = ypr[rot.YAW]
         c[_C_TRK_TICK] = c[_C_FIX_TICK]
         c[_C_TRK_SET] = 1
+
+    def _track_window(self, n, yaw):
+        """The chord over n ticks from the anchor to this fix and the yaw now: navigation
+        starts (True) when fast enough and turning little enough (see _track). Locals few:
+        its frame stays on the C stack (tests/runtimes/test_frames.py)."""
+        de = self._gp[0] - self._trk[_TR_E]
+        dn = self._gp[1] - self._trk[_TR_N]
+        sp = sqrt(de * de + dn * dn) / (f32.f32(n) * self.cfg.dt_s)
+        yaw = yaw - self._trk[_TR_YAW]  # the yaw change over the window
+        if yaw > PI:
+            yaw = yaw - TWO_PI
+        elif yaw < -PI:
+            yaw = yaw + TWO_PI
+        if sp >= self.cfg.heading_speed_m_s and (
+            -self.cfg.track_turn_max <= yaw <= self.cfg.track_turn_max
+        ):
+            self.ctl[_C_TRK_SET] = 0
+            self._start_navigation(atan2(de, dn) - yaw * 0.5, sp, self.cfg.track_vel_sigma)
+            return True
+        return False
 
     def _start_navigation(self, course, sp, sigma_vel):
         """Heading from course (rad clockwise from north), horizontal velocity sp along it, at

