@@ -81,15 +81,21 @@ def _runtimes():
 
 def _run(args):
     from host_emulator.eval import scenario_run
+    from host_emulator.sim import faults
 
+    if any(f.strip().lower() == "help" for f in args.fault):
+        print("--fault KIND@T0+DURATION[:PARAM] (seconds), the kinds:\n" + faults.describe())
+        return 0
+    injected = [faults.parse(f) for f in args.fault]  # FaultError: one line, exit 1
     if args.stimulus:
         m = scenario_run.run_stimulus(
-            args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args)
-        )
+            args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args),
+            faults=injected,
+        )  # fmt: skip
     else:
         m = scenario_run.run(
             args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet,
-            kernels=_kernels(args),
+            kernels=_kernels(args), faults=injected,
         )  # fmt: skip
     from host_emulator.eval import demo
 
@@ -213,6 +219,10 @@ def main(argv=None):
     cli_args.add_kernels_option(run)
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument(
+        "--fault", action="append", default=[], metavar="KIND@T0+DURATION[:PARAM]",
+        help="inject a fault into the board's input (repeatable; `--fault help` lists them)",
+    )  # fmt: skip
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
     src = rp.add_mutually_exclusive_group(required=True)
     src.add_argument("--dataset", help="a built-in recording: drive_0708")

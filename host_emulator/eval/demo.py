@@ -45,6 +45,8 @@ def summary(m, out_dir):
             f"GNSS outage            {o['length_s']:g} s at {o['start_s']:g} s: "
             f"{fmt(o['horiz_err_end_m'], unit='m')} off at its end"
         )
+    if m.get("faults"):
+        lines.append(f"faults injected        {', '.join(m['faults'])}")
     lines.append(
         f"run speed              {m['ticks']} ticks of 5 ms in {m['wall_s']:.1f} s: "
         f"{m['realtime_factor']:.0f}x real time"

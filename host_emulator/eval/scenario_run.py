@@ -28,6 +28,7 @@ from host_emulator.eval import evaluate, report
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.proto import stream
 from host_emulator.sim import board_input, trajectory
+from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
 
@@ -160,6 +161,7 @@ def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
         **firmware_metrics(fw, decoded, tr, acc, stim.duration_s),
         "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[ok, :2].T)) if ok.any() else None,
         "nmea_damaged_sentences": int(sim.damaged_sentences),
+        "faults": list(stim.header.get("faults", [])),
     }
     metrics.update(extra or {})
     return metrics, tr, err
@@ -186,9 +188,15 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
 
 
+def _log_faults(stim, log):
+    for f in stim.header.get("faults", []):
+        log(f"fault injected: {f}")
+
+
 def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print,
-        kernels=None):  # fmt: skip
-    """The whole `run` command; returns the metrics. EmulatorError on bad input or failure."""
+        kernels=None, faults=()):  # fmt: skip
+    """The whole `run` command; returns the metrics. EmulatorError on bad input or failure.
+    faults: sim/faults.py Faults (or specs) injected into the simulated input."""
     cli_args.check_scenario(scenario)
     cli_args.check_duration(duration_s)
     cli_args.check_seed(seed)
@@ -201,12 +209,15 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     _clean(out_dir)
     t0 = time.perf_counter()
     sim = board_input.simulate(scenario, duration_s, seed)
+    if faults:
+        sim.stimulus = faults_mod.apply(sim.stimulus, faults, seed)
     stim_path = out_dir / "stimulus.bin"
     sim.stimulus.write(stim_path)
     log(
         f"simulated {scenario}: {sim.stimulus.duration_s:g} s, seed {seed} "
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
+    _log_faults(sim.stimulus, log)
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, stim_path, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)
@@ -217,10 +228,12 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     return metrics
 
 
-def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=None):
+def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=None,
+                 faults=()):  # fmt: skip
     """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
     is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
-    only the output is checked (frames, frame errors, time to navigation)."""
+    only the output is checked (frames, frame errors, time to navigation). faults: injected
+    into the file's input (the run's stimulus.bin then holds them)."""
     runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     stim = stim_mod.read(path)  # StimulusError (an EmulatorError) if unusable
     out_dir = pathlib.Path(out_dir)
@@ -229,14 +242,19 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
     h = stim.header
     src = pathlib.Path(path)
     local = out_dir / "stimulus.bin"
-    if src.resolve() != local.resolve():
+    if faults:
+        stim = faults_mod.apply(stim, faults, h.get("seed", 0))
+        h = stim.header
+        stim.write(local)
+        _log_faults(stim, log)
+    elif src.resolve() != local.resolve():
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, local, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
-        if sim.stimulus.to_bytes() != stim.to_bytes():
+        if not faults and sim.stimulus.to_bytes() != stim.to_bytes():
             log("note: the file differs from a fresh simulation of its scenario; evaluating "
                 "against that simulation's truth anyway")  # fmt: skip
         sim.stimulus = stim
@@ -257,6 +275,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         "frames": len(decoded.frames),
         "frame_errors": fe["total"],
         "note": "no truth for this stimulus: accuracy not evaluated",
+        "faults": list(h.get("faults", [])),
     }
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     return metrics

@@ -1,0 +1,205 @@
+"""Faults a board meets, injected into a stimulus where the firmware meets them: the BMI055's
+data registers, the GNSS UART's bytes and the PPS edges (issue 16). The unmodified firmware then
+runs on any runtime as on a board with that fault.
+
+A fault is written `KIND@T0+DURATION[:PARAM]` (seconds from the start of the stimulus; PARAM as
+the kind says), e.g. `imu-zeros@300+1` or `gyro-bias@300+60:1`. `parse` reads one, `apply`
+returns a new stimulus with faults applied, in the order given; ticks T0 .. T0 + DURATION are
+affected (the stimulus' tick is 5 ms). The kinds (KINDS: the text of `--fault help`):
+
+IMU (both dies' data registers; counts at the stimulus' configured ranges):
+- imu-stuck: every register keeps the value of T0's sample (new-data flags included);
+- imu-zeros, imu-ones: every data register reads 0x00 or 0xFF;
+- gyro-over, accel-over: every axis at the positive end of its range (over-range);
+- gyro-vibe, accel-vibe: every axis at alternately the positive and the negative end, tick by
+  tick (a vibration beyond the range);
+- gyro-bias:PARAM: PARAM deg/s added to every gyro axis (default 1);
+- accel-bias:PARAM: PARAM m/s^2 added to every accel axis (default 0.5);
+- accel-scale:PARAM: every accel count times PARAM (default 1.05).
+GNSS:
+- gnss-loss: no byte arrives (the receiver silent); PPS edges go on;
+- uart-corrupt:PARAM: each byte has a bit flipped with probability PARAM (default 0.01;
+  which bit and which bytes from `seed`);
+- pps-missing: no PPS edge;
+- pps-spurious: an extra PPS edge half-way between the receiver's.
+
+Not here yet (issue 16 lists them): an IMU that stops answering, GNSS field faults (position,
+height, speed, course, quality, HDOP), late and bursty bytes, a stalled loop.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from host_emulator.errors import EmulatorError
+from host_emulator.proto import stimulus as stim_mod
+from host_emulator.sim import imu as imu_mod
+
+G0_M_S2 = 9.80665
+GYRO_MAX, GYRO_MIN = 32767, -32768  # int16 counts
+ACCEL_MAX, ACCEL_MIN = 2047, -2048  # 12-bit counts
+
+# kind -> (default PARAM or None when it takes none, what it does)
+KINDS = {
+    "imu-stuck": (None, "both dies' registers keep T0's sample"),
+    "imu-zeros": (None, "every data register reads 0x00"),
+    "imu-ones": (None, "every data register reads 0xFF"),
+    "gyro-over": (None, "every gyro axis at the positive end of its range"),
+    "accel-over": (None, "every accel axis at the positive end of its range"),
+    "gyro-vibe": (None, "every gyro axis alternately at either end of its range"),
+    "accel-vibe": (None, "every accel axis alternately at either end of its range"),
+    "gyro-bias": (1.0, "PARAM deg/s added to every gyro axis"),
+    "accel-bias": (0.5, "PARAM m/s^2 added to every accel axis"),
+    "accel-scale": (1.05, "every accel count times PARAM"),
+    "gnss-loss": (None, "no GNSS byte arrives (PPS goes on)"),
+    "uart-corrupt": (0.01, "a bit flipped in each GNSS byte with probability PARAM"),
+    "pps-missing": (None, "no PPS edge"),
+    "pps-spurious": (None, "an extra PPS edge half-way between the receiver's"),
+}
+
+
+class FaultError(EmulatorError):
+    """A fault that cannot be applied as written, with what is wrong."""
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str
+    t0_s: float
+    duration_s: float
+    param: float | None = None
+
+    def __str__(self):
+        p = "" if self.param is None else f":{self.param:g}"
+        return f"{self.kind}@{self.t0_s:g}+{self.duration_s:g}{p}"
+
+
+def describe():
+    """The kinds, one line each (for `--fault help` and errors)."""
+    lines = []
+    for kind, (default, what) in KINDS.items():
+        form = kind if default is None else f"{kind}:PARAM"
+        extra = "" if default is None else f" (default {default:g})"
+        lines.append(f"  {form:18} {what}{extra}")
+    return "\n".join(lines)
+
+
+def parse(spec):
+    """A Fault from `KIND@T0+DURATION[:PARAM]`; FaultError saying what is wrong."""
+    form = "KIND@T0+DURATION[:PARAM], e.g. imu-zeros@300+1 or gyro-bias@300+60:1"
+    text = spec.strip()
+    kind, at, rest = text.partition("@")
+    if not at:
+        raise FaultError(f"fault {spec!r}: expected {form}")
+    kind = kind.strip().lower()
+    if kind not in KINDS:
+        raise FaultError(f"fault {spec!r}: unknown kind {kind!r}; the kinds:\n{describe()}")
+    when, _, param = rest.partition(":")
+    t0, plus, dur = when.partition("+")
+    if not plus:
+        raise FaultError(f"fault {spec!r}: expected {form}")
+    t0_s = _number(spec, t0, "T0")
+    duration_s = _number(spec, dur, "DURATION")
+    if t0_s < 0 or duration_s <= 0:
+        raise FaultError(f"fault {spec!r}: T0 must be 0 or more and DURATION more than 0")
+    default = KINDS[kind][0]
+    if default is None:
+        if param:
+            raise FaultError(f"fault {spec!r}: {kind} takes no PARAM")
+        return Fault(kind, t0_s, duration_s)
+    value = _number(spec, param, "PARAM") if param else default
+    if kind == "uart-corrupt" and not 0 < value <= 1:
+        raise FaultError(f"fault {spec!r}: PARAM is a probability, more than 0 and at most 1")
+    if kind == "accel-scale" and not value > 0:
+        raise FaultError(f"fault {spec!r}: PARAM is a scale factor, more than 0")
+    return Fault(kind, t0_s, duration_s, value)
+
+
+def _number(spec, text, name):
+    try:
+        v = float(text)
+    except ValueError:
+        raise FaultError(f"fault {spec!r}: {name} {text!r} is not a number") from None
+    if not np.isfinite(v):
+        raise FaultError(f"fault {spec!r}: {name} must be finite")
+    return v
+
+
+def apply(stim, faults, seed=0):
+    """A new Stimulus with `faults` (Fault objects or specs) applied in order; the header
+    lists them ("faults"). FaultError if a fault starts after the stimulus ends."""
+    faults = [f if isinstance(f, Fault) else parse(f) for f in faults]
+    gyro_regs = stim.gyro_regs.copy()
+    accel_regs = stim.accel_regs.copy()
+    pps = stim.pps_before_us.copy()
+    chunks = [stim.uart_bytes[a:b] for a, b in zip(stim.uart_offsets[:-1], stim.uart_offsets[1:],
+                                                    strict=True)]  # fmt: skip
+    cfg = stim.config
+    lsb_dps = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE[int(cfg.get("gyro_range_dps", 250))]
+    lsb_g = imu_mod.ACCEL_LSB_PER_G_BY_RANGE[int(cfg.get("accel_range_g", 2))]
+    rng = np.random.default_rng(seed)
+    n = len(stim)
+    tick_s = stim.tick_us * 1e-6
+    for f in faults:
+        k0 = int(round(f.t0_s / tick_s))
+        if k0 >= n:
+            raise FaultError(f"fault {f}: starts at {f.t0_s:g} s, after the stimulus ends "
+                             f"({n * tick_s:g} s)")  # fmt: skip
+        k1 = min(n, k0 + max(1, int(round(f.duration_s / tick_s))))
+        s = slice(k0, k1)
+        kind = f.kind
+        if kind == "imu-stuck":
+            gyro_regs[s] = gyro_regs[k0]
+            accel_regs[s] = accel_regs[k0]
+        elif kind in ("imu-zeros", "imu-ones"):
+            v = 0x00 if kind == "imu-zeros" else 0xFF
+            gyro_regs[s] = v
+            accel_regs[s] = v
+        elif kind.startswith("gyro-"):
+            g = stim_mod.gyro_counts(gyro_regs[s]).astype(np.int64)
+            if kind == "gyro-over":
+                g[:] = GYRO_MAX
+            elif kind == "gyro-vibe":
+                g[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], GYRO_MAX, GYRO_MIN)
+            else:  # gyro-bias
+                g += int(round(f.param * lsb_dps))
+            np.clip(g, GYRO_MIN, GYRO_MAX, out=g)
+            gyro_regs[s] = stim_mod.gyro_registers(g)
+        elif kind.startswith("accel-"):
+            a = stim_mod.accel_counts(accel_regs[s]).astype(np.int64)
+            new_data = accel_regs[s, 0::2] & 1  # each axis' flag, in its LSB register
+            if kind == "accel-over":
+                a[:] = ACCEL_MAX
+            elif kind == "accel-vibe":
+                a[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], ACCEL_MAX, ACCEL_MIN)
+            elif kind == "accel-bias":
+                a += int(round(f.param / G0_M_S2 * lsb_g))
+            else:  # accel-scale
+                a[:] = np.round(a * f.param).astype(np.int64)
+            np.clip(a, ACCEL_MIN, ACCEL_MAX, out=a)
+            regs = stim_mod.accel_registers(a)
+            regs[:, 0::2] = (regs[:, 0::2] & 0xFE) | new_data
+            accel_regs[s] = regs
+        elif kind == "gnss-loss":
+            for k in range(k0, k1):
+                chunks[k] = b""
+        elif kind == "uart-corrupt":
+            for k in range(k0, k1):
+                if chunks[k]:
+                    b = np.frombuffer(chunks[k], np.uint8).copy()
+                    hit = rng.random(len(b)) < f.param
+                    b[hit] ^= (1 << rng.integers(0, 8, int(hit.sum()))).astype(np.uint8)
+                    chunks[k] = b.tobytes()
+        elif kind == "pps-missing":
+            pps[s] = -1
+        else:  # pps-spurious: half a second after each of the receiver's edges
+            half = int(round(0.5 / tick_s))
+            for k in np.flatnonzero(stim.pps_before_us[s] >= 0) + k0:
+                if k + half < k1 and pps[k + half] < 0:
+                    pps[k + half] = stim.pps_before_us[k]
+    offsets = np.zeros(n + 1, np.int64)
+    offsets[1:] = np.cumsum([len(c) for c in chunks])
+    header = dict(stim.header)
+    header["faults"] = list(header.get("faults", [])) + [str(f) for f in faults]
+    return stim_mod.Stimulus(header, gyro_regs, accel_regs, stim.temp_raw.copy(), pps, offsets,
+                             b"".join(chunks), dict(stim.extra))  # fmt: skip
