@@ -21,10 +21,18 @@ GNSS:
 - uart-corrupt:PARAM: each byte has a bit flipped with probability PARAM (default 0.01;
   which bit and which bytes from `seed`);
 - pps-missing: no PPS edge;
-- pps-spurious: an extra PPS edge half-way between the receiver's.
+- pps-spurious: an extra PPS edge half-way between the receiver's;
+- gnss-jump:PARAM, gnss-height:PARAM: the sentences' positions PARAM m north (default 100), their
+  GGA heights PARAM m higher (default 100);
+- gnss-speed:PARAM, gnss-course:PARAM, gnss-quality:PARAM, gnss-hdop:PARAM: those fields set to
+  PARAM (m/s, deg, GGA quality, HDOP; defaults 1000, 400, 6, 0), physically absurd or unusable;
+- gnss-late:PARAM: the bytes arrive PARAM s late (default 1.4), those after them in order.
+A field fault edits every sentence that starts within the interval and has the field (a no-fix
+sentence's empty fields stay empty; a course is set wherever there is a speed), with its
+checksum made anew; the edited bytes take the
+ticks of the original's, aligned at its end (it completes when the original did).
 
-Not here yet (issue 16 lists them): an IMU that stops answering, GNSS field faults (position,
-height, speed, course, quality, HDOP), late and bursty bytes, a stalled loop.
+Not here yet (issue 16 lists them): an IMU that stops answering, a stalled loop.
 """
 
 from dataclasses import dataclass
@@ -55,7 +63,19 @@ KINDS = {
     "uart-corrupt": (0.01, "a bit flipped in each GNSS byte with probability PARAM"),
     "pps-missing": (None, "no PPS edge"),
     "pps-spurious": (None, "an extra PPS edge half-way between the receiver's"),
+    "gnss-jump": (100.0, "GGA/RMC positions PARAM m north of the truth's fixes"),
+    "gnss-height": (100.0, "GGA heights PARAM m higher"),
+    "gnss-speed": (1000.0, "RMC/VTG speed PARAM m/s"),
+    "gnss-course": (400.0, "RMC/VTG course PARAM deg"),
+    "gnss-quality": (6.0, "GGA fix quality PARAM (6: dead reckoning, 8: simulation)"),
+    "gnss-hdop": (0.0, "GGA HDOP PARAM"),
+    "gnss-late": (1.4, "GNSS bytes arrive PARAM s late (later ones wait behind them)"),
 }
+# the NMEA field faults: sentence edits (_edit)
+_FIELD_KINDS = ("gnss-jump", "gnss-height", "gnss-speed", "gnss-course", "gnss-quality",
+                "gnss-hdop")  # fmt: skip
+M_PER_DEG_LAT = 111194.93  # a degree of latitude on a 6,371 km sphere (a jump, not geodesy)
+KNOTS_PER_M_S = 3600.0 / 1852.0
 
 
 class FaultError(EmulatorError):
@@ -192,14 +212,129 @@ def apply(stim, faults, seed=0):
                     chunks[k] = b.tobytes()
         elif kind == "pps-missing":
             pps[s] = -1
-        else:  # pps-spurious: half a second after each of the receiver's edges
+        elif kind == "pps-spurious":  # half a second after each of the receiver's edges
             half = int(round(0.5 / tick_s))
             for k in np.flatnonzero(stim.pps_before_us[s] >= 0) + k0:
                 if k + half < k1 and pps[k + half] < 0:
                     pps[k + half] = stim.pps_before_us[k]
+        elif kind in _FIELD_KINDS:
+            chunks = _edit_sentences(chunks, k0, k1, f)
+        elif kind == "gnss-late":
+            chunks = _delay(chunks, k0, k1, int(round(f.param / tick_s)))
     offsets = np.zeros(n + 1, np.int64)
     offsets[1:] = np.cumsum([len(c) for c in chunks])
     header = dict(stim.header)
     header["faults"] = list(header.get("faults", [])) + [str(f) for f in faults]
     return stim_mod.Stimulus(header, gyro_regs, accel_regs, stim.temp_raw.copy(), pps, offsets,
                              b"".join(chunks), dict(stim.extra))  # fmt: skip
+
+
+def _bytes_and_ticks(chunks):
+    data = b"".join(chunks)
+    ticks = np.repeat(np.arange(len(chunks)), [len(c) for c in chunks])
+    return data, ticks
+
+
+def _chunks_of(data, ticks, n):
+    """Per-tick chunks of a byte stream whose byte i arrives at ticks[i] (non-decreasing);
+    bytes at or beyond tick n are dropped (they never arrive in the recording)."""
+    keep = ticks < n
+    data = bytes(np.frombuffer(data, np.uint8)[keep])
+    counts = np.bincount(ticks[keep], minlength=n)
+    ends = np.cumsum(counts)
+    return [data[e - c : e] for c, e in zip(counts, ends, strict=True)]
+
+
+def _delay(chunks, k0, k1, d):
+    data, ticks = _bytes_and_ticks(chunks)
+    late = (ticks >= k0) & (ticks < k1)
+    ticks = np.where(late, ticks + d, ticks)
+    ticks = np.maximum.accumulate(ticks)  # a FIFO: what follows waits behind the late bytes
+    return _chunks_of(data, ticks, len(chunks))
+
+
+def _edit_sentences(chunks, k0, k1, fault):
+    data, ticks = _bytes_and_ticks(chunks)
+    out, out_ticks = [], []
+    i = 0
+    while i < len(data):
+        j = data.find(b"$", i)
+        if j < 0:
+            j = len(data)
+        out.append(data[i:j])
+        out_ticks.append(ticks[i:j])
+        if j == len(data):
+            break
+        end = data.find(b"\n", j)
+        end = len(data) if end < 0 else end + 1
+        old = data[j:end]
+        new = old
+        if k0 <= ticks[j] < k1:
+            new = _edit(old, fault)
+        t = ticks[j:end]
+        out.append(new)
+        # aligned at the end: the edited sentence ends (and completes) when the original did
+        out_ticks.append(t[np.clip(np.arange(len(new)) - (len(new) - len(t)), 0, len(t) - 1)])
+        i = end
+    return _chunks_of(b"".join(out), np.concatenate(out_ticks), len(chunks))
+
+
+def _edit(raw, fault):
+    """One sentence with the fault's field edited and its checksum anew (unchanged if it is
+    not a sentence this fault edits, or has no such field)."""
+    try:
+        text = raw.decode("ascii")
+    except UnicodeDecodeError:
+        return raw
+    star = text.find("*")
+    if not text.startswith("$") or star < 0:
+        return raw
+    f = text[1:star].split(",")
+    kind, v = fault.kind, fault.param
+    name = f[0][-3:]
+    if name == "GGA" and len(f) > 9:
+        if kind == "gnss-jump" and f[2]:
+            f[2], f[3] = _moved_lat(f[2], f[3], v)
+        elif kind == "gnss-height" and f[9]:
+            f[9] = _same_decimals(float(f[9]) + v, f[9])
+        elif kind == "gnss-quality" and f[6]:
+            f[6] = str(int(v))
+        elif kind == "gnss-hdop" and f[8]:
+            f[8] = f"{v:.2f}"
+    elif name == "RMC" and len(f) > 8:
+        if kind == "gnss-jump" and f[3]:
+            f[3], f[4] = _moved_lat(f[3], f[4], v)
+        elif kind == "gnss-speed" and f[7]:
+            f[7] = f"{v * KNOTS_PER_M_S:.3f}"
+        elif kind == "gnss-course" and f[7]:  # wherever there is a speed (the course of a
+            f[8] = f"{v:.2f}"  # slow receiver is often empty)
+    elif name == "VTG" and len(f) > 7:
+        if kind == "gnss-speed" and f[5]:
+            f[5] = f"{v * KNOTS_PER_M_S:.3f}"
+            f[7] = f"{v * 3.6:.3f}"
+        elif kind == "gnss-course" and f[5]:
+            f[1] = f"{v:.2f}"
+    body = ",".join(f)
+    c = 0
+    for ch in body.encode("ascii"):
+        c ^= ch
+    return f"${body}*{c:02X}\r\n".encode("ascii")
+
+
+def _same_decimals(x, like):
+    dec = len(like.partition(".")[2])
+    return f"{x:.{dec}f}"
+
+
+def _moved_lat(field, hemi, metres):
+    """An NMEA latitude (ddmm.mmmm, N/S) moved `metres` north, in the same format."""
+    deg = int(field[:2]) + float(field[2:]) / 60.0
+    deg = (deg if hemi == "N" else -deg) + metres / M_PER_DEG_LAT
+    a = abs(deg)
+    d = int(a)
+    minutes = _same_decimals((a - d) * 60.0, field[2:])
+    if float(minutes) >= 60.0:  # rounded up to a whole degree
+        d += 1
+        minutes = _same_decimals(0.0, field[2:])
+    width = len(field[2:])
+    return f"{d:02d}{minutes:0>{width}}", "N" if deg >= 0 else "S"

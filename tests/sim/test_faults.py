@@ -171,3 +171,71 @@ def test_run_injects_faults_and_lists_them(tmp_path, capsys):
     assert "expected KIND@T0+DURATION" in err and "Traceback" not in err
     assert main([*argv, "--fault", "help"]) == 0
     assert "pps-spurious" in capsys.readouterr().out
+
+
+def _epochs(stim):
+    """(tick, epoch fields) of every epoch the firmware's NMEA parser completes, fed the
+    stimulus' bytes tick by tick; and its count of rejected lines."""
+    from host_emulator import firmware_env
+
+    firmware_env.install()
+    from drivers.gnss import Nmea
+
+    p = Nmea(need_speed=True)
+    out = []
+    for k, c in enumerate(_chunks(stim)):
+        if c:
+            buf = bytearray(c)
+            p.feed(buf, len(buf))
+        if p.epoch_ready:
+            p.epoch_ready = 0
+            out.append((k, p.epoch_lat_e7, p.epoch_alt_mm, p.epoch_quality, p.epoch_hdop_x100,
+                        p.epoch_speed_mm_s, p.epoch_course_cdeg))  # fmt: skip
+    return out, p.rejected()
+
+
+@pytest.mark.parametrize(
+    "spec, field, change",
+    [
+        ("gnss-jump:100", 1, lambda old, new: new - old == round(100 / faults.M_PER_DEG_LAT * 1e7)),
+        ("gnss-height:100", 2, lambda old, new: new - old == 100_000),
+        ("gnss-quality:6", 3, lambda old, new: new == 6),
+        ("gnss-hdop:0", 4, lambda old, new: new == 0),
+        ("gnss-speed:1000", 5, lambda old, new: abs(new - 1_000_000) <= 1),
+        ("gnss-course:400", 6, lambda old, new: new == 40_000),
+    ],
+)
+def test_gnss_field_faults_edit_the_sentences_the_parser_reads(stim, spec, field, change):
+    """The firmware's own parser reads the edited field in the epochs within the interval
+    (valid checksums: nothing more rejected) and the same epochs elsewhere."""
+    kind, _, param = spec.partition(":")
+    before, rejected = _epochs(stim)
+    after, rejected_after = _epochs(faults.apply(stim, [f"{kind}@11+4:{param}"]))  # moving
+    assert rejected_after == rejected and len(after) == len(before)
+    inside = 0
+    for b, a in zip(before, after, strict=True):
+        assert a[0] == b[0]  # the same tick: the edited sentence ends when the original did
+        if 2200 < a[0] < 3000:
+            inside += 1
+            assert a[:field] + a[field + 1 :] == b[:field] + b[field + 1 :], (spec, b, a)
+            assert change(b[field], a[field]), (spec, b, a)
+        elif a[0] >= 3200 or a[0] < 2200:
+            assert a == b
+    assert inside >= 3
+
+
+def test_late_bytes_arrive_later_and_in_order(stim):
+    before = _chunks(stim)
+    late = faults.apply(stim, ["gnss-late@5+1:1.4"])
+    after = _chunks(late)
+    assert b"".join(after) == b"".join(before)  # nothing lost, nothing reordered
+    assert all(c == b"" for c in after[1000:1280]) and any(before[1000:1200])
+    assert after[:1000] == before[:1000]
+    ep_before, _ = _epochs(stim)
+    ep_after, _ = _epochs(late)
+    first_b = next(e for e in ep_before if e[0] >= 1000)
+    first_a = next(e for e in ep_after if e[0] >= 1000)
+    # 1.4 s late; the next epoch's bytes queue behind and complete in the same tick (the
+    # parser then keeps the later epoch: a burst loses epochs, as on a board)
+    assert first_a[0] == first_b[0] + 280
+    assert [e for e in ep_after if e[0] > 1400] == [e for e in ep_before if e[0] > 1400]
