@@ -225,8 +225,14 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     n = len(stim)
     tick_us = stim.tick_us
     t0 = first_tick_us(tick_us)
-    gyro = stim_mod.gyro_counts(stim.gyro_regs).astype(np.int64)
-    accel = stim_mod.accel_counts(stim.accel_regs).astype(np.int64)
+    # what the driver reads: the registers, or the bus' idle 0xFF where the IMU does not answer
+    # (an injected fault: stimulus.imu_silent)
+    gyro_regs = stim.gyro_regs.copy()
+    accel_regs = stim.accel_regs.copy()
+    gyro_regs[stim.imu_silent] = 0xFF
+    accel_regs[stim.imu_silent] = 0xFF
+    gyro = stim_mod.gyro_counts(gyro_regs).astype(np.int64)
+    accel = stim_mod.accel_counts(accel_regs).astype(np.int64)
     gyro_sat = (gyro >= bmi055.GYRO_SAT_HI) | (gyro <= bmi055.GYRO_SAT_LO)
     accel_sat = (accel >= bmi055.ACCEL_SAT_HI) | (accel <= bmi055.ACCEL_SAT_LO)
     sat = gyro_sat.any(axis=1) | accel_sat.any(axis=1)  # the driver's `saturated`
@@ -236,8 +242,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     pps_before = stim.pps_before_us.tolist()
     offs = stim.uart_offsets.tolist()
     ub = stim.uart_bytes
-    g_regs = stim.gyro_regs.tobytes()
-    a_regs = stim.accel_regs.tobytes()
+    g_regs = gyro_regs.tobytes()
+    a_regs = accel_regs.tobytes()
 
     out_every = cfg.output_every_ticks
     ext_every = cfg.ext_every_ticks

@@ -17,7 +17,8 @@ clock to the PPS edge and fire it, advance the clock to t_k, fire the timer, run
 File layout (little-endian):
     b"INSSTIM1", header length u32, header (UTF-8 JSON object, see `Stimulus.header`)
     per tick: gyro registers 6 B, accel registers 6 B, temperature i8, flags u8 (bit 0: PPS
-              edge in this interval), pps_before_us u16, n u16, then the n UART bytes
+              edge in this interval; bit 1: the IMU does not answer in this interval, an
+              injected fault), pps_before_us u16, n u16, then the n UART bytes
     b"END1", ticks u32, CRC-32 (u32, proto/crc.py) of everything before it
 The trailer makes a truncated or damaged file an error, never a shorter run.
 
@@ -42,6 +43,7 @@ TICK_US = 5000
 _REC = struct.Struct("<6s6sbBHH")
 REC_LEN = _REC.size  # 18
 FLAG_PPS = 0x01
+FLAG_IMU_SILENT = 0x02  # board/mpy/feed.py repeats it
 
 
 class StimulusError(EmulatorError):
@@ -88,15 +90,19 @@ class Stimulus:
     uart_offsets: np.ndarray  # (N + 1,) int64: tick k's bytes are uart_bytes[o[k]:o[k+1]]
     uart_bytes: bytes = b""
     extra: dict = field(default_factory=dict)
+    imu_silent: np.ndarray = None  # (N,) bool: the IMU does not answer (None: never)
 
     def __post_init__(self):
         n = len(self.gyro_regs)
+        if self.imu_silent is None:
+            self.imu_silent = np.zeros(n, bool)
         shapes = (
             self.gyro_regs.shape == (n, 6),
             self.accel_regs.shape == (n, 6),
             self.temp_raw.shape == (n,),
             self.pps_before_us.shape == (n,),
             self.uart_offsets.shape == (n + 1,),
+            self.imu_silent.shape == (n,),
         )
         if not all(shapes) or int(self.uart_offsets[-1]) != len(self.uart_bytes):
             raise ValueError("Stimulus arrays do not have one row per tick")
@@ -137,6 +143,7 @@ class Stimulus:
             o,
             self.uart_bytes[: int(o[-1])],
             dict(self.extra),
+            self.imu_silent[:n].copy(),
         )
 
     # ---- file ----
@@ -148,6 +155,7 @@ class Stimulus:
         ub = self.uart_bytes
         g = self.gyro_regs.tobytes()
         a = self.accel_regs.tobytes()
+        silent = self.imu_silent
         for k in range(len(self)):
             pps = int(self.pps_before_us[k])
             n = int(o[k + 1] - o[k])
@@ -156,7 +164,7 @@ class Stimulus:
                     g[6 * k : 6 * k + 6],
                     a[6 * k : 6 * k + 6],
                     int(self.temp_raw[k]),
-                    FLAG_PPS if pps >= 0 else 0,
+                    (FLAG_PPS if pps >= 0 else 0) | (FLAG_IMU_SILENT if silent[k] else 0),
                     pps if pps >= 0 else 0,
                     n,
                 )
@@ -195,6 +203,7 @@ def from_bytes(data, name="stimulus"):
     accel = bytearray(6 * ticks)
     temp = np.zeros(ticks, np.int8)
     pps = np.full(ticks, -1, np.int32)
+    silent = np.zeros(ticks, bool)
     offs = np.zeros(ticks + 1, np.int64)
     chunks = []
     total = 0
@@ -209,6 +218,8 @@ def from_bytes(data, name="stimulus"):
         temp[k] = t
         if flags & FLAG_PPS:
             pps[k] = before
+        if flags & FLAG_IMU_SILENT:
+            silent[k] = True
         if n:
             if pos + n > end:
                 raise StimulusError(f"{name}: record {k} of {ticks} is cut short")
@@ -229,6 +240,8 @@ def from_bytes(data, name="stimulus"):
         pps,
         offs,
         b"".join(chunks),
+        {},
+        silent,
     )
 
 

@@ -110,11 +110,16 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         regs = np.concatenate((stim.gyro_regs, stim.accel_regs), axis=1).tobytes()  # 12 B a tick
         temp = stim.temp_raw.tolist()
         temp_set = None
+        silent = stim.imu_silent.tolist()
+        silent_set = False
         pps_before = stim.pps_before_us.tolist()
         offs = stim.uart_offsets.tolist()
         ub = stim.uart_bytes
         n = len(stim)
         for k in range(n):
+            if silent[k] != silent_set:  # an injected fault: the IMU stops answering
+                silent_set = silent[k]
+                imu.accel.responds = imu.gyro.responds = not silent_set
             imu.set_registers(regs, 12 * k, 12 * k + 6)
             if temp[k] != temp_set:  # the register holds it until it changes
                 temp_set = temp[k]

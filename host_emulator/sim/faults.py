@@ -9,6 +9,8 @@ affected (the stimulus' tick is 5 ms). The kinds (KINDS: the text of `--fault he
 
 IMU (both dies' data registers; counts at the stimulus' configured ranges):
 - imu-stuck: every register keeps the value of T0's sample (new-data flags included);
+- imu-silent: neither die answers (a broken SPI line or a dead chip: reads give the bus' idle
+  0xFF, the chip IDs too); a per-tick flag of the stimulus that each runtime's driver applies;
 - imu-zeros, imu-ones: every data register reads 0x00 or 0xFF;
 - gyro-over, accel-over: every axis at the positive end of its range (over-range);
 - gyro-vibe, accel-vibe: every axis at alternately the positive and the negative end, tick by
@@ -32,7 +34,7 @@ sentence's empty fields stay empty; a course is set wherever there is a speed), 
 checksum made anew; the edited bytes take the
 ticks of the original's, aligned at its end (it completes when the original did).
 
-Not here yet (issue 16 lists them): an IMU that stops answering, a stalled loop.
+Not here yet (issue 16 lists it): a stalled loop.
 """
 
 from dataclasses import dataclass
@@ -50,6 +52,7 @@ ACCEL_MAX, ACCEL_MIN = 2047, -2048  # 12-bit counts
 # kind -> (default PARAM or None when it takes none, what it does)
 KINDS = {
     "imu-stuck": (None, "both dies' registers keep T0's sample"),
+    "imu-silent": (None, "both dies stop answering (SPI reads the bus' idle 0xFF)"),
     "imu-zeros": (None, "every data register reads 0x00"),
     "imu-ones": (None, "every data register reads 0xFF"),
     "gyro-over": (None, "every gyro axis at the positive end of its range"),
@@ -152,6 +155,7 @@ def apply(stim, faults, seed=0):
     gyro_regs = stim.gyro_regs.copy()
     accel_regs = stim.accel_regs.copy()
     pps = stim.pps_before_us.copy()
+    silent = stim.imu_silent.copy()
     chunks = [stim.uart_bytes[a:b] for a, b in zip(stim.uart_offsets[:-1], stim.uart_offsets[1:],
                                                     strict=True)]  # fmt: skip
     cfg = stim.config
@@ -168,7 +172,9 @@ def apply(stim, faults, seed=0):
         k1 = min(n, k0 + max(1, int(round(f.duration_s / tick_s))))
         s = slice(k0, k1)
         kind = f.kind
-        if kind == "imu-stuck":
+        if kind == "imu-silent":
+            silent[s] = True
+        elif kind == "imu-stuck":
             gyro_regs[s] = gyro_regs[k0]
             accel_regs[s] = accel_regs[k0]
         elif kind in ("imu-zeros", "imu-ones"):
@@ -226,7 +232,7 @@ def apply(stim, faults, seed=0):
     header = dict(stim.header)
     header["faults"] = list(header.get("faults", [])) + [str(f) for f in faults]
     return stim_mod.Stimulus(header, gyro_regs, accel_regs, stim.temp_raw.copy(), pps, offsets,
-                             b"".join(chunks), dict(stim.extra))  # fmt: skip
+                             b"".join(chunks), dict(stim.extra), silent)  # fmt: skip
 
 
 def _bytes_and_ticks(chunks):

@@ -239,3 +239,27 @@ def test_late_bytes_arrive_later_and_in_order(stim):
     # parser then keeps the later epoch: a burst loses epochs, as on a board)
     assert first_a[0] == first_b[0] + 280
     assert [e for e in ep_after if e[0] > 1400] == [e for e in ep_before if e[0] > 1400]
+
+
+def test_a_silent_imu_is_a_flag_of_the_records_every_runtime_applies(stim, tmp_path):
+    """imu-silent: a per-tick flag of the stimulus (it survives the file), which each runtime's
+    driver applies to the emulated dies (SPI reads the bus' idle 0xFF) and the model mirrors:
+    CPython and the emulated Cortex-M4F give the model's bytes, the VM's frames equal them."""
+    from host_emulator.eval import parity
+    from host_emulator.runtimes import mpy_unix
+
+    s = faults.apply(stim, [f"imu-silent@{T0:g}+{DUR:g}"])
+    assert s.imu_silent[K0:K1].all() and s.imu_silent.sum() == K1 - K0
+    assert np.array_equal(s.gyro_regs, stim.gyro_regs)  # the registers are not what changed
+    back = stim_mod.from_bytes(s.to_bytes())
+    assert np.array_equal(back.imu_silent, s.imu_silent)
+    for runtime in ("cpython", "m4f"):
+        r = parity.compare(s, runtime=runtime, kernels="native")
+        assert r.identical, (runtime, r.summary())
+    frames = stream.decode(cpython.run(s, tmp_path / "c").out).frames
+    # a dead bus: every axis reads the same count (0xFFFF, -1) in every silent tick
+    dead = {tuple(f["gyro_dps"]) + tuple(f["accel_g"]) for f in frames[K0:K1]}
+    assert len(dead) == 1 and len(set(next(iter(dead))[:3])) == 1
+    assert tuple(frames[K1 + 5]["gyro_dps"]) + tuple(frames[K1 + 5]["accel_g"]) not in dead
+    vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out).frames
+    assert [f["raw"] for f in vm] == [f["raw"] for f in frames]

@@ -28,6 +28,7 @@ import machine  # board/mpy/machine.py
 MAGIC = b"INSSTIM1"
 REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
 FLAG_PPS = 1
+FLAG_IMU_SILENT = 2  # proto/stimulus.py: the IMU does not answer in this interval
 PROGRESS_EVERY = 1000  # ticks between progress lines
 EXIT_FIRMWARE_ERROR = 3
 
@@ -87,6 +88,9 @@ def next_input(f, rec, ubuf, imu, gnss):
     """The next record into the BMI055 registers and the GNSS UART; returns the UART byte
     buffer (grown when a record carries more)."""
     read_exact(f, rec, REC_LEN, "a record")
+    answers = not rec[13] & FLAG_IMU_SILENT
+    imu.accel.responds = answers
+    imu.gyro.responds = answers
     imu.set_registers(rec, 0, 6)
     t = rec[12]
     imu.set_temperature_raw(t - 256 if t >= 128 else t)
