@@ -79,14 +79,30 @@ def _runtimes():
     return 0
 
 
-def _run(args):
-    from host_emulator.eval import scenario_run
+def _add_fault_option(p):
+    p.add_argument(
+        "--fault", action="append", default=[], metavar="KIND@T0+DURATION[:PARAM]",
+        help="inject a fault into the board's input (repeatable; `--fault help` lists them)",
+    )  # fmt: skip
+
+
+def _faults(args):
+    """The parsed --fault options, or None after printing the kinds for `--fault help`;
+    FaultError (one line, exit 1) for one written wrong."""
     from host_emulator.sim import faults
 
     if any(f.strip().lower() == "help" for f in args.fault):
         print("--fault KIND@T0+DURATION[:PARAM] (seconds), the kinds:\n" + faults.describe())
+        return None
+    return [faults.parse(f) for f in args.fault]
+
+
+def _run(args):
+    from host_emulator.eval import scenario_run
+
+    injected = _faults(args)
+    if injected is None:
         return 0
-    injected = [faults.parse(f) for f in args.fault]  # FaultError: one line, exit 1
     if args.stimulus:
         m = scenario_run.run_stimulus(
             args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args),
@@ -171,10 +187,13 @@ def _replay(args):
     from host_emulator.eval import demo
     from host_emulator.replay import replay_run
 
+    injected = _faults(args)
+    if injected is None:
+        return 0
     ds = _load(args)
     m = replay_run.replay(
         ds, _replay_options(args, ds.gnss is not None), args.runtime, args.out,
-        show_progress=not args.quiet, kernels=_kernels(args),
+        show_progress=not args.quiet, kernels=_kernels(args), faults=injected,
     )  # fmt: skip
     print(demo.summary(m, args.out))
     return 0
@@ -219,10 +238,7 @@ def main(argv=None):
     cli_args.add_kernels_option(run)
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    run.add_argument(
-        "--fault", action="append", default=[], metavar="KIND@T0+DURATION[:PARAM]",
-        help="inject a fault into the board's input (repeatable; `--fault help` lists them)",
-    )  # fmt: skip
+    _add_fault_option(run)
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
     src = rp.add_mutually_exclusive_group(required=True)
     src.add_argument("--dataset", help="a built-in recording: drive_0708")
@@ -232,6 +248,7 @@ def main(argv=None):
     cli_args.add_kernels_option(rp)
     rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
     rp.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_fault_option(rp)
     ex = sub.add_parser(
         "export", help="a scenario or a replay's input as KF-GINS text files and RTKLIB .pos"
     )

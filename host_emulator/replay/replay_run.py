@@ -20,6 +20,7 @@ from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
 from host_emulator.proto import stream
 from host_emulator.replay import to_stimulus
+from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
 
@@ -94,6 +95,7 @@ def evaluate_replay(rep, fw, runtime):
         "duration_s": float(rep.stimulus.duration_s),
         "seed": int(opt.seed),
         "runtime": runtime,
+        "faults": list(rep.stimulus.header.get("faults", [])),
         **scenario_run.firmware_metrics(fw, decoded, tr, acc, rep.stimulus.duration_s),
         "gnss_horiz_rms_m": evaluate.rms(np.hypot(*g.err_n_m[sel, :2].T)) if sel.any() else None,
         "gnss_vert_rms_m": evaluate.rms(g.err_n_m[sel, 2]) if sel.any() else None,
@@ -209,9 +211,10 @@ def write_solution_pos(path, rep, tr):
 
 
 def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progress=True,
-           log=print, kernels=None):  # fmt: skip
+           log=print, kernels=None, faults=()):  # fmt: skip
     """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
-    input or when the firmware never navigates."""
+    input or when the firmware never navigates. faults: sim/faults.py Faults (or specs)
+    injected into the converted input."""
     runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     options = options or to_stimulus.ReplayOptions()
     if options.duration_s is not None:
@@ -226,12 +229,16 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
             (out_dir / name).unlink()
     t0 = time.perf_counter()
     rep = to_stimulus.convert(ds, options)
+    if faults:
+        rep.stimulus = faults_mod.apply(rep.stimulus, faults, options.seed)
     stim_path = out_dir / "stimulus.bin"
     rep.stimulus.write(stim_path)
     log(
         f"converted {ds.name}: {rep.stimulus.duration_s:.0f} s, {len(rep.gnss)} GNSS epochs "
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
+    for f in rep.stimulus.header.get("faults", []):
+        log(f"fault injected: {f}")
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
     fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels)
     (out_dir / "frames.bin").write_bytes(fw.out)

@@ -263,3 +263,16 @@ def test_a_silent_imu_is_a_flag_of_the_records_every_runtime_applies(stim, tmp_p
     assert tuple(frames[K1 + 5]["gyro_dps"]) + tuple(frames[K1 + 5]["accel_g"]) not in dead
     vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out).frames
     assert [f["raw"] for f in vm] == [f["raw"] for f in frames]
+
+
+def test_replay_injects_faults_too(tmp_path, capsys):
+    """`replay --fault`: the same kinds on a recording's converted input (drive_0708's first
+    60 s; the fault while it navigates)."""
+    out = tmp_path / "rp"
+    argv = ["replay", "--dataset", "drive_0708", "--duration", "60", "--out", str(out), "--quiet"]
+    assert main([*argv, "--fault", "gnss-height@45+5:500"]) == 0
+    assert "fault injected: gnss-height@45+5:500" in capsys.readouterr().out
+    assert json.loads((out / "metrics.json").read_text())["faults"] == ["gnss-height@45+5:500"]
+    assert stim_mod.read(out / "stimulus.bin").header["faults"] == ["gnss-height@45+5:500"]
+    assert main([*argv, "--fault", "gnss-height@45"]) == 1
+    assert "expected KIND@T0+DURATION" in capsys.readouterr().err
