@@ -159,8 +159,11 @@ def apply(stim, faults, seed=0):
     chunks = [stim.uart_bytes[a:b] for a, b in zip(stim.uart_offsets[:-1], stim.uart_offsets[1:],
                                                     strict=True)]  # fmt: skip
     cfg = stim.config
-    lsb_dps = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE[int(cfg.get("gyro_range_dps", 250))]
-    lsb_g = imu_mod.ACCEL_LSB_PER_G_BY_RANGE[int(cfg.get("accel_range_g", 2))]
+    lsb_dps = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE.get(cfg.get("gyro_range_dps", 250))
+    lsb_g = imu_mod.ACCEL_LSB_PER_G_BY_RANGE.get(cfg.get("accel_range_g", 2))
+    if lsb_dps is None or lsb_g is None:
+        raise FaultError(f"the stimulus' IMU ranges ({cfg.get('gyro_range_dps')} deg/s, "
+                         f"{cfg.get('accel_range_g')} g) are not the BMI055's")  # fmt: skip
     rng = np.random.default_rng(seed)
     n = len(stim)
     tick_s = stim.tick_us * 1e-6
