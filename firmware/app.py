@@ -107,8 +107,6 @@ class App:
         self.rx = bytearray(_RX_LEN)
         self.out = bytearray(frame.FRAME_LEN)
         self._fields = array("i", bytes(4 * frame.NF))
-        self.height_dm = 0
-        self.gnss_valid = False
         self.counter = 0
         self.due = 0  # ticks signalled by the timer, not yet run
         self.ticks = 0
@@ -247,14 +245,12 @@ class App:
                 return  # the last check left room for the fixes until this one
             self._heap_tick = t
             low = _GC_LOW_WATER + _ALIGN_BYTES
-        if gc.mem_free() < low:
-            gc.collect()
-            self.gc_runs += 1
+        self._heap_room(low)
 
-    def _heap_room(self):
-        """The navigator's heap_check: before a navigating step that allocates, the low-water
-        reserve free (automatic collection is off)."""
-        if gc.mem_free() < _GC_LOW_WATER:
+    def _heap_room(self, low=_GC_LOW_WATER):
+        """At least `low` bytes of heap free (automatic collection is off); the navigator's
+        heap_check, before a navigating step that allocates."""
+        if gc.mem_free() < low:
             gc.collect()
             self.gc_runs += 1
 
@@ -277,7 +273,6 @@ class App:
         the navigator's input. A no-fix epoch counts as lost."""
         g = self.gnss
         ok = g.epoch_pos_ok and g.epoch_quality > 0
-        self.gnss_valid = ok
         self._fields[_F_VALID] = 1 if ok else 0  # the frame's fix fields change only here
         if ok:
             self._fix_fields(g, self.nav.fix_in)
@@ -313,7 +308,6 @@ class App:
         msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
         # the frame carries the GGA altitude, in dm rounded half away from zero
         d = (2 * msl_mm + 100) // 200 if msl_mm >= 0 else -((100 - 2 * msl_mm) // 200)
-        self.height_dm = d
         ff[_F_HEIGHT_DM] = d
         fi[_FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
         fi[_FI_QUALITY] = g.epoch_quality
@@ -359,7 +353,7 @@ class App:
         fi[_EF_STATE] = c[_C_STATE]
         fi[_EF_CONFIG] = self.config_status
         fi[_EF_FLAGS] = (
-            (1 if self.gnss_valid else 0) | (2 if c[_C_STILL] else 0) | (4 if imu.saturated else 0)
+            self._fields[_F_VALID] | (2 if c[_C_STILL] else 0) | (4 if imu.saturated else 0)
         )
         fi[_EF_WORST_US] = self.t_worst_us
         fi[_EF_MEAN_US] = self.t_sum_us // self._period_ticks if self._period_ticks else 0

@@ -3,9 +3,9 @@
 The loop calls `imu(w_b, f_b)` (SI, or `imu_raw`/`imu_counts` with BMI055 counts) every tick and
 `gnss(...)`/`gnss_fix()` when a fix completes. Between calls everything lives in buffers made at
 start-up: the control state in `ctl` (ints), every float a tick touches in `mem` (Ins.x and
-Eskf.e are views into it). With the native kernels `imu_counts` is one call of `nav_tick` (events
-it cannot handle come back to Python: `_event`) and allocates nothing; with the Python kernels
-every float result is a heap object.
+Eskf.e are views into it). With the native kernels `imu_counts` is one call of `nav_tick` (the
+events it cannot handle come back to Python, and `imu_counts` runs them) and allocates nothing;
+with the Python kernels every float result is a heap object.
 
 One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits its Ekf class):
 - nav.py (here): inputs, calibration, the standstill detector, the per-tick flow, fix
@@ -423,26 +423,22 @@ class Navigator(Alignment, Aiding):
         self.ctl[_C_SAT] = 1 if saturated else 0
         ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
         while ev:
-            # _event, inlined: a Python call less in every tick with a fix
+            # the events of a tick with a fix dispatched here: a Python call less
             if ev == _EV_ALIGN:
                 self._align_fix()
             elif ev == _EV_FIX:
                 self._nav_fix()
             else:
-                self._event(ev)
+                self._reset_event(ev)
             ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
 
     def _imu_counts_py(self, gyro_h, accel_h, saturated):
         finite = imu_cal(self._w, self._f, gyro_h, accel_h, self._cal, self.ctl[_C_CAL_FLAGS])
         self._tick(finite, saturated)
 
-    def _event(self, ev):
-        """What nav_tick asks Python to do (_EV_*) before it resumes."""
-        if ev == _EV_ALIGN:
-            self._align_fix()
-        elif ev == _EV_FIX:
-            self._nav_fix()
-        elif ev == _EV_RESET:
+    def _reset_event(self, ev):
+        """nav_tick's rare events (_EV_RESET, _EV_FAULT): the reset they ask for."""
+        if ev == _EV_RESET:
             self._reset_to_gnss()
         else:
             self._fault_reset()

@@ -29,7 +29,7 @@ TARGETS = (
     ("drivers.bmi055", "BMI055", ("read",)),
     ("drivers.gnss", "Nmea", ("feed", "_end")),
     ("nav_align", "Alignment", ("_align_fix", "_level", "_track", "_start_navigation")),
-    ("nav", "Navigator", ("imu_counts", "_event", "gnss_fix", "_take_fix", "_tick", "gnss",
+    ("nav", "Navigator", ("imu_counts", "_reset_event", "gnss_fix", "_take_fix", "_tick", "gnss",
                           "_navigate", "_nav_fix",
                           "_schedule", "_start_queued_fix", "_inject", "_align",
                           "_still_update", "_fix_usable", "_reanchor", "_update_health",

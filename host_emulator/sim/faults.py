@@ -44,8 +44,8 @@ import numpy as np
 from host_emulator.errors import EmulatorError
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.sim import imu as imu_mod
+from host_emulator.sim import nmea
 
-G0_M_S2 = 9.80665
 GYRO_MAX, GYRO_MIN = 32767, -32768  # int16 counts
 ACCEL_MAX, ACCEL_MIN = 2047, -2048  # 12-bit counts
 
@@ -78,7 +78,6 @@ KINDS = {
 _FIELD_KINDS = ("gnss-jump", "gnss-height", "gnss-speed", "gnss-course", "gnss-quality",
                 "gnss-hdop")  # fmt: skip
 M_PER_DEG_LAT = 111194.93  # a degree of latitude on a 6,371 km sphere (a jump, not geodesy)
-KNOTS_PER_M_S = 3600.0 / 1852.0
 
 
 class FaultError(EmulatorError):
@@ -202,7 +201,7 @@ def apply(stim, faults, seed=0):
             elif kind == "accel-vibe":
                 a[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], ACCEL_MAX, ACCEL_MIN)
             elif kind == "accel-bias":
-                a += int(round(f.param / G0_M_S2 * lsb_g))
+                a += int(round(f.param / imu_mod.STANDARD_GRAVITY_M_S2 * lsb_g))
             else:  # accel-scale
                 a[:] = np.round(a * f.param).astype(np.int64)
             np.clip(a, ACCEL_MIN, ACCEL_MAX, out=a)
@@ -314,20 +313,16 @@ def _edit(raw, fault):
         if kind == "gnss-jump" and f[3]:
             f[3], f[4] = _moved_lat(f[3], f[4], v)
         elif kind == "gnss-speed" and f[7]:
-            f[7] = f"{v * KNOTS_PER_M_S:.3f}"
+            f[7] = f"{v * nmea.KNOTS_PER_M_S:.3f}"
         elif kind == "gnss-course" and f[7]:  # wherever there is a speed (the course of a
             f[8] = f"{v:.2f}"  # slow receiver is often empty)
     elif name == "VTG" and len(f) > 7:
         if kind == "gnss-speed" and f[5]:
-            f[5] = f"{v * KNOTS_PER_M_S:.3f}"
+            f[5] = f"{v * nmea.KNOTS_PER_M_S:.3f}"
             f[7] = f"{v * 3.6:.3f}"
         elif kind == "gnss-course" and f[5]:
             f[1] = f"{v:.2f}"
-    body = ",".join(f)
-    c = 0
-    for ch in body.encode("ascii"):
-        c ^= ch
-    return f"${body}*{c:02X}\r\n".encode("ascii")
+    return nmea.sentence(",".join(f))
 
 
 def _same_decimals(x, like):

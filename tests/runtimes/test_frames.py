@@ -43,7 +43,7 @@ PER_TICK = (
     ("app.py", "App._fix_tick"),
     ("lib/nav.py", "Navigator.gnss_fix"),
     ("lib/nav.py", "Navigator._take_fix"),
-    ("lib/nav.py", "Navigator._event"),
+    ("lib/nav.py", "Navigator._reset_event"),
     ("lib/nav.py", "Navigator._nav_fix"),
     ("lib/nav.py", "Navigator._fix_usable"),
     ("lib/geo.py", "LocalFrame.to_enu"),

@@ -535,26 +535,22 @@ class _Die:
             return
         reg = self._addr
         is_read = self._is_read
-        regs = self.regs
-        lo = REG_DATA
-        hi = REG_DATA + 6
-        status = REG_INT_STATUS
         if _SLICES and reg < 0 and n > 1 and wbuf is not None and rbuf is not None:
             r0 = wbuf[0] & 0x7F
-            if wbuf[0] & 0x80 and lo <= r0 and r0 + n - 1 <= hi:
-                # a burst read of data registers (the driver's every tick) by slices: the
-                # byte loop below gives the same bytes and side effects
+            if wbuf[0] & 0x80 and REG_DATA <= r0 and r0 + n - 1 <= REG_DATA + 6:
+                # a burst read of data registers (the driver's every tick) by slices, with
+                # read_reg's side effects for them: the byte loop gives the same
+                regs = self.regs
                 rbuf[0] = idle
                 rbuf[1:n] = regs[r0 : r0 + n - 1]
-                regs[status] &= 0x7F
+                regs[REG_INT_STATUS] &= 0x7F
                 if self.IS_ACCEL:
                     for r in range(r0, r0 + n - 1):
-                        regs[lo + ((r - lo) & 0x7E)] &= 0xFE
+                        regs[REG_DATA + ((r - REG_DATA) & 0x7E)] &= 0xFE
                 self.reads += n - 1
                 self._addr = (r0 + n - 1) & 0x7F
                 self._is_read = True
                 return
-        data_reads = 0
         for i in range(n):
             mosi = fill if wbuf is None else wbuf[i]
             v = idle
@@ -562,22 +558,15 @@ class _Die:
                 is_read = (mosi & 0x80) != 0
                 reg = mosi & 0x7F
             else:
-                if not is_read:
-                    self.write_reg(reg, mosi)
-                elif lo <= reg < hi:  # a data register: read_reg's lines for them, inlined
-                    v = regs[reg]
-                    regs[status] &= 0x7F
-                    if self.IS_ACCEL:
-                        regs[lo + ((reg - lo) & 0x7E)] &= 0xFE
-                    data_reads += 1
-                else:
+                if is_read:
                     v = self.read_reg(reg)
+                else:
+                    self.write_reg(reg, mosi)
                 reg = (reg + 1) & 0x7F
             if rbuf is not None:
                 rbuf[i] = v
         self._addr = reg
         self._is_read = is_read
-        self.reads += data_reads
 
 
 class GyroDie(_Die):
