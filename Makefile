@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain native lint accuracy bench-nav bench-board cpi accuracy-report \
+.PHONY: demo test toolchain native lint accuracy bench-nav bench-board bench-faults cpi accuracy-report \
 	digests replay build-flash deploy monitor virtual-board image flash-image clean
 
 $(STAMP): requirements.txt
@@ -45,6 +45,11 @@ bench-nav: $(STAMP)
 # configurations (~11 min; writes docs/benchmarks/board.md).
 bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
+
+# The fault matrix: every fault kind of `run --fault` injected into urban_drive, three seeds,
+# on CPython (~5 min; writes docs/benchmarks/faults.md).
+bench-faults: $(STAMP) native
+	$(BIN)/python -m host_emulator bench-faults
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
 # docs/accuracy.md and docs/benchmarks/accuracy.json).

@@ -32,6 +32,7 @@ from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
 
 _US_PER_TICK = const(5000)
+_PPS_TICKS = const(200)  # ticks from one PPS edge to the next
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
@@ -70,6 +71,7 @@ _EF_LAT0_E7 = const(9)
 _EF_LON0_DEG = const(10)
 _EF_LON0_FRAC = const(11)
 _EF_TICK = const(12)
+_EF_CAUSES = const(13)
 _FI_LAT_E7 = const(0)  # nav.FI_*: a fix in ints, Navigator.fix_in
 _FI_LON_DEG = const(1)
 _FI_LON_FRAC = const(2)
@@ -85,6 +87,14 @@ _C_STATE = const(1)
 _C_HEALTH = const(2)
 _C_STILL = const(3)
 _C_LAST_FIX_TICK = const(26)
+_C_CAUSES = const(48)
+# The app's own causes in the extended frame (nav.CAUSE_* are the navigator's)
+CAUSE_PPS = const(0x2000)  # PPS edges seen, but the last one not a second after the one before
+# or none for over a second (fixes are then timed by the configured latency): 1
+CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt or bad file): 1
+# a tick overran since the last extended frame (IMU samples lost): run time, like the overrun
+# counter, so it does not change the health code (which a model of the arithmetic reproduces)
+CAUSE_OVERRUN = const(0x8000)
 
 
 class App:
@@ -111,6 +121,11 @@ class App:
         self.due = 0  # ticks signalled by the timer, not yet run
         self.ticks = 0
         self.overruns = 0
+        self._ext_overruns = 0  # self.overruns at the last extended frame
+        self._pps_tick = 0  # self.ticks when the last PPS edge was seen (0: none yet)
+        self._pps_bad = 0  # CAUSE_PPS until this tick
+        # how far from a second apart two edges may be seen: the frame reads the flag
+        self._pps_tol = 4 + cfg.output_every_ticks
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -210,7 +225,7 @@ class App:
         if self.gnss.epoch_ready:
             self.gnss.epoch_ready = 0
             self._deliver_fix()
-        self.nav.imu_counts(imu.gyro, imu.accel, imu.saturated)
+        self.nav.imu_counts(imu.gyro, imu.accel, imu.status)
         # the frame, the extended frame and the raw record when due; the watchdog
         state = self.nav.ctl[_C_STATE]
         cfg = self.cfg
@@ -270,19 +285,25 @@ class App:
 
     def _deliver_fix(self):
         """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
-        the navigator's input. A no-fix epoch counts as lost."""
+        the navigator's input. A no-fix epoch counts as lost; so does a fix with a physically
+        impossible field (gnss.epoch_bad), which the navigator is told of by quality -1."""
         g = self.gnss
         ok = g.epoch_pos_ok and g.epoch_quality > 0
-        self._fields[_F_VALID] = 1 if ok else 0  # the frame's fix fields change only here
-        if ok:
+        if ok and g.epoch_bad:
+            self._fields[_F_VALID] = 0
+            self._no_fix(self.nav.fix_in, -1)
+        elif ok:
+            self._fields[_F_VALID] = 1  # the frame's fix fields change only here
             self._fix_fields(g, self.nav.fix_in)
         else:
-            self._no_fix(self.nav.fix_in)
+            self._fields[_F_VALID] = 0
+            self._no_fix(self.nav.fix_in, 0)
         self.nav.gnss_fix()
 
-    def _no_fix(self, fi):
+    def _no_fix(self, fi, quality):
         for i in range(_NFI):
             fi[i] = 0
+        fi[_FI_QUALITY] = quality
         fi[_FI_HDOP_X100] = 9900
         fi[_FI_SPEED_MM_S] = -1
         fi[_FI_COURSE_CDEG] = -1
@@ -330,7 +351,9 @@ class App:
         g = self.gnss
         fi[_F_COUNTER] = self.counter
         fi[_F_PPS] = g.pps_flag  # read and cleared here (gnss.py: pps_flag_take)
-        g.pps_flag = 0
+        if g.pps_flag:
+            g.pps_flag = 0
+            self._pps_seen()
         fi[_F_GGA] = g.gga_seen
         g.gga_seen = 0
         fi[_F_STATE] = state
@@ -341,15 +364,35 @@ class App:
             self._led = state == NAVIGATING
             self.board.navigating_led(self._led)
 
+    def _pps_seen(self):
+        """A PPS edge: CAUSE_PPS for a second if it did not come a second after the last."""
+        d = self.ticks - self._pps_tick
+        if self._pps_tick and (d < _PPS_TICKS - self._pps_tol or d > _PPS_TICKS + self._pps_tol):
+            self._pps_bad = self.ticks + _PPS_TICKS
+        self._pps_tick = self.ticks
+
     def _send_ext(self, imu):
         """The extended frame: health, timing, covariance, biases, position and origin."""
         fi = self.ext.fields
         c = self.nav.ctl
         health = c[_C_HEALTH]
-        if self.config_status != config.OK and health == 0:
-            health = 1  # running on defaults is a warning
+        causes = c[_C_CAUSES]
+        if self.config_status != config.OK:
+            causes |= CAUSE_CONFIG
+            if health == 0:
+                health = 1  # running on defaults is a warning
+        if self._pps_tick and (
+            self.ticks < self._pps_bad or self.ticks - self._pps_tick > _PPS_TICKS + self._pps_tol
+        ):
+            causes |= CAUSE_PPS
+            if health == 0:
+                health = 1
+        if self.overruns != self._ext_overruns:
+            self._ext_overruns = self.overruns
+            causes |= CAUSE_OVERRUN
         fi[_EF_COUNTER] = self.counter
         fi[_EF_HEALTH] = health
+        fi[_EF_CAUSES] = causes
         fi[_EF_STATE] = c[_C_STATE]
         fi[_EF_CONFIG] = self.config_status
         fi[_EF_FLAGS] = (

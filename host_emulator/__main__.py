@@ -17,6 +17,7 @@
     accuracy-report                 drive_0708 and the scenarios (make accuracy-report)
     float32                         accuracy of the float32 math and kernels (make accuracy)
     bench-board                     the app loop's cost per tick on the emulated Cortex-M4F
+    bench-faults                    the fault matrix: detection, trust, recovery (make bench-faults)
     profile                         where a tick goes on the emulated Cortex-M4F, per function
     digests [--update]              the change indicator: frame-stream digests per runtime
     cpi [--no-write]                CPI of MicroPython on an STM32F4 (make cpi; ~1 min)
@@ -51,6 +52,8 @@ DELEGATED = {
                 "accuracy of the float32 math functions and kernels (docs/float32.md)"),
     "bench-board": ("host_emulator.bench.board:main",
                     "instructions per tick of the app loop on the emulated Cortex-M4F"),
+    "bench-faults": ("host_emulator.bench.faults:main",
+                     "every fault kind injected into a drive: detection, health, recovery"),
     "profile": ("host_emulator.bench.profile:main",
                 "where a tick goes on the emulated Cortex-M4F, per function"),
     "digests": ("host_emulator.bench.digests:main",

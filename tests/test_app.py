@@ -22,6 +22,13 @@ LEVEL_REGS = (
     stimulus.gyro_registers([LEVEL_COUNTS[0]])[0].tobytes()
     + stimulus.accel_registers([LEVEL_COUNTS[1]])[0].tobytes()
 )
+# every other sample: a count more on gyro z (a real sensor's noise; counts that never change
+# are a stuck sensor to the firmware)
+NOISY_COUNTS = ([3, -2, 2], [11, -5, 1024])
+NOISY_REGS = (
+    stimulus.gyro_registers([NOISY_COUNTS[0]])[0].tobytes()
+    + stimulus.accel_registers([NOISY_COUNTS[1]])[0].tobytes()
+)
 
 
 def take_tx(port):
@@ -63,7 +70,7 @@ class Bench:
         """`ticks` timer periods; NMEA bytes arrive `per_tick` at a time (9600 baud: ~5)."""
         sent = bytearray()
         for k in range(ticks):
-            self.imu.set_registers(LEVEL_REGS, 0, 6)  # the sensor's next sample
+            self.imu.set_registers(NOISY_REGS if k & 1 else LEVEL_REGS, 0, 6)  # its next sample
             self.gnss_uart.feed(nmea[k * per_tick : (k + 1) * per_tick])
             time.advance_us(5000)
             self.machine.fire_timers()
@@ -144,9 +151,10 @@ def test_gnss_silence_frames_every_tick_and_stays_aligning(tmp_path):
     last = out[-1]
     assert last[28] == 1  # aligning: no GNSS, no heading
     assert last[17] == 0 and sum(f[16] for f in out) == 0  # no fix, no GGA
-    # raw sensor fields: gyro 3 counts at 131.2 -> 3 at 131.07; accel 1024 (1 g) -> 16383
-    assert struct.unpack_from("<3h", last, 3) == (3, -2, 1)
-    assert struct.unpack_from("<3h", last, 9) == (160, -80, 16383)
+    # raw sensor fields: gyro 3 counts at 131.2 -> 3 at 131.07; accel 1024 (1 g) -> 16383,
+    # 11 counts -> 176
+    assert struct.unpack_from("<3h", last, 3) == (3, -2, 2)  # tick 599: NOISY_COUNTS
+    assert struct.unpack_from("<3h", last, 9) == (176, -80, 16383)
     assert bench.machine.watchdog is not None and bench.machine.watchdog.feeds == 600
     assert bench.app.overruns == 0
 
@@ -224,9 +232,10 @@ def test_raw_records_reproduce_the_input_exactly(tmp_path):
     raw = bench.decoded.raw
     assert len(raw) == n
     assert b"".join(r["gnss_bytes"] for r in raw) == data
-    assert list(struct.unpack("<3h", raw[-1]["gyro_regs"])) == LEVEL_COUNTS[0]
+    counts = NOISY_COUNTS if (n - 1) & 1 else LEVEL_COUNTS
+    assert list(struct.unpack("<3h", raw[-1]["gyro_regs"])) == counts[0]
     accel = [v >> 4 for v in struct.unpack("<3h", raw[-1]["accel_regs"])]
-    assert accel == LEVEL_COUNTS[1]
+    assert accel == counts[1]
 
 
 def test_a_late_loop_counts_overruns(tmp_path):

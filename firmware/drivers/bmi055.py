@@ -34,7 +34,7 @@ register codes below).
 Saturation: the datasheet's accuracy collapses once the measured quantity exceeds the
 range, and the chip then clips at full scale. `read()` sets `saturated` when any axis is
 at full scale or within one count of it: gyro >= 32766 or <= -32767, accel >= 2046 or
-<= -2047. `sat_mask` tells which axes (bits 0-2 gyro x,y,z; bits 3-5 accel x,y,z).
+<= -2047. `status` tells which axes (bits 0-2 gyro x,y,z; bits 3-5 accel x,y,z).
 
 Allocation: `read()` and `read_temperature()` allocate nothing (no heap block, not even a
 transient call frame: each method's state stays within the VM's on-stack frame limit);
@@ -175,8 +175,10 @@ class BMI055:
     gyro: array('h', 3), gyro counts x, y, z (int16; divide by gyro_lsb_per_dps_x10 / 10
         for deg/s).
     accel: array('h', 3), accel counts x, y, z (-2048..2047; divide by accel_lsb_per_g).
-    saturated: True if an axis is at (or within one count of) full scale; sat_mask: which.
-    accel_new: bits 0-2 = the new_data bits of accel x, y, z (1: not read before).
+    saturated: True if an axis is at (or within one count of) full scale.
+    status: bits 0-5 the axes at full scale (gyro x, y, z, accel x, y, z), bits 6-8 the
+        new_data bits of accel x, y, z (1: not read before); the navigator's input
+        (nav.IMU_OVER_RANGE, nav.IMU_FRESH).
     raw_gyro, raw_accel: 6 bytes (memoryviews), the data registers as read (for raw
         logging/replay).
     """
@@ -228,8 +230,7 @@ class BMI055:
         self.gyro = array("h", (0, 0, 0))
         self.accel = array("h", (0, 0, 0))
         self.saturated = False
-        self.sat_mask = 0
-        self.accel_new = 0
+        self.status = 0
         cs_accel.value(1)
         cs_gyro.value(1)
         if init:
@@ -323,8 +324,7 @@ class BMI055:
         spi.write_readinto(tx, self._burst_a)
         cs.value(1)
         m = _decode(self.gyro, self.accel, self.raw_gyro, self.raw_accel)
-        self.sat_mask = m & 0x3F
-        self.accel_new = m >> 6
+        self.status = m
         self.saturated = (m & 0x3F) != 0
         return self.saturated
 

@@ -85,7 +85,9 @@ epoch is copied, so later sentences cannot tear it, into
   epoch_alt_ok, epoch_sep_mm, epoch_sep_ok, epoch_quality, epoch_nsat, epoch_hdop_x100,
   epoch_speed_mm_s, epoch_course_cdeg (-1: unknown; taken from the latest RMC with status A
   or VTG with mode other than N of the epoch), epoch_pps_us (pps_us when the epoch's first
-  sentence was parsed: the PPS edge of that second if one arrived in between),
+  sentence was parsed: the PPS edge of that second if one arrived in between), epoch_bad
+  (BAD_* bits: a fix with a physically impossible field, quality 6-8 or a time that did not
+  move forward, counted in n_epochs_bad; the app does not use it),
 and epoch_ready = 1, n_epochs += 1 (`epoch_take()` returns and clears epoch_ready). An
 epoch that had a GGA but never got its speed sentence is dropped when the next one starts
 (n_epochs_dropped += 1), never released late: a one-second-old position handed over as new
@@ -115,6 +117,19 @@ GGA = const(1)
 RMC = const(2)
 VTG = const(3)
 GSA = const(4)
+
+# epoch_bad: the fields that make a completed epoch's fix physically impossible (the app does
+# not use such a fix); checked only for an epoch with a position and a fix quality above 0
+BAD_QUALITY = const(1)  # GGA quality 6 (estimated), 7 (manual input), 8 (simulation), above
+BAD_HEIGHT = const(2)  # altitude outside -1 km .. 20 km above mean sea level
+BAD_SPEED = const(4)  # speed above 515 m/s (1,000 knots, the export-control limit)
+BAD_COURSE = const(8)  # course above 360 deg
+BAD_HDOP = const(16)  # HDOP 0: no satellite geometry gives it
+BAD_TIME = const(32)  # UTC not after the previous epoch's (a midnight rollover excepted)
+_ALT_MIN_MM = const(-1000000)
+_ALT_MAX_MM = const(20000000)
+_SPEED_MAX_MM_S = const(515000)
+_HALF_DAY_MS = const(43200000)
 
 # self._s, the parser's int buffer (firmware/native/layout.h NS_* repeats it): the framing
 # state between feeds, then the fields of the sentence that ended last
@@ -391,10 +406,13 @@ class Nmea:
         self._ep_pps = 0
         self._ep_speed = -1
         self._ep_course = -1
+        self._prev_utc = -1  # the last completed epoch's time
         # completed epoch
         self.epoch_ready = 0
         self.n_epochs = 0
         self.n_epochs_dropped = 0
+        self.n_epochs_bad = 0
+        self.epoch_bad = 0
         self.epoch_utc_ms = -1
         self.epoch_lat_e7 = 0
         self.epoch_lon_deg = 0
@@ -631,8 +649,34 @@ class Nmea:
         self.epoch_speed_mm_s = self._ep_speed
         self.epoch_course_cdeg = self._ep_course
         self.epoch_pps_us = self._ep_pps
+        self._plausible()
         self.n_epochs = (self.n_epochs + 1) & _WRAP
         self.epoch_ready = 1
+
+    def _plausible(self):
+        """epoch_bad (BAD_*) of the epoch just completed; n_epochs_bad counts the fixes it
+        makes unusable."""
+        bad = 0
+        utc = self.epoch_utc_ms
+        prev = self._prev_utc
+        self._prev_utc = utc  # a receiver's clock that jumped back costs one epoch, not hours
+        if self.epoch_pos_ok and self.epoch_quality > 0:
+            if self.epoch_quality >= 6 and self.epoch_quality <= 8:
+                bad |= BAD_QUALITY
+            a = self.epoch_alt_mm
+            if self.epoch_alt_ok and (a < _ALT_MIN_MM or a > _ALT_MAX_MM):
+                bad |= BAD_HEIGHT
+            if self.epoch_speed_mm_s > _SPEED_MAX_MM_S:
+                bad |= BAD_SPEED
+            if self.epoch_course_cdeg > 36000:
+                bad |= BAD_COURSE
+            if self.epoch_hdop_x100 == 0:
+                bad |= BAD_HDOP
+            if prev >= 0 and utc >= 0 and -_HALF_DAY_MS < utc - prev <= 0:
+                bad |= BAD_TIME
+            if bad:
+                self.n_epochs_bad = (self.n_epochs_bad + 1) & _WRAP
+        self.epoch_bad = bad
 
 
 def _hex(c):

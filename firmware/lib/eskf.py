@@ -83,8 +83,8 @@ E_C = const(498)  # C_bn at the start of the propagation (9)
 E_W = const(507)  # w_ie_n (3)
 E_S = const(510)  # job scalars (_NS)
 E_H = const(518)  # measurement rows (MAX_SCALARS x N)
-E_Z = const(638)  # measurements (MAX_SCALARS)
-E_R = const(646)  # their noise variances (MAX_SCALARS)
+E_Z = const(638)  # measurements (MAX_SCALARS); after its gate step, a scalar's innovation
+E_R = const(646)  # their noise variances (MAX_SCALARS); ... and the innovation's variance S
 E_DX = const(654)  # error state (N)
 E_Q = const(669)  # process noise per second (N)
 E_LO = const(684)  # P diagonal floor (N)
@@ -181,6 +181,26 @@ class Eskf:
         ii[I_JOB] = IDLE
         ii[I_READY] = 0
         ii[I_NSCAL] = 0
+
+    def widen(self, var, i0, n):
+        """P's variances i0 + j at least var[j], j < n (between jobs)."""
+        p = self.P
+        for j in range(n):
+            k = (i0 + j) * (N + 1)
+            if p[k] < var[j]:
+                p[k] = var[j]
+
+    def reset_rows(self, i, p_ii, j, p_jj):
+        """Rows and columns i and j of P zeroed, their variances p_ii and p_jj: the reset of
+        one channel (between jobs)."""
+        p = self.P
+        for k in range(N):
+            p[i * N + k] = 0.0
+            p[k * N + i] = 0.0
+            p[j * N + k] = 0.0
+            p[k * N + j] = 0.0
+        p[i * (N + 1)] = p_ii
+        p[j * (N + 1)] = p_jj
 
     # ---- propagation -----------------------------------------------------------------------
 
@@ -388,6 +408,8 @@ class Eskf:
                 hx = hx + hk * dx[k]
             sv = hv + self._r[m]
             y = self._z[m] - hx
+            self._z[m] = y  # from here on: the innovation and its variance (nav's bias watch)
+            self._r[m] = sv
             if not (sv > 0.0) or y * y > s[_GATE2] * sv:
                 ii[I_REJECTED] += 1
                 ii[I_GATE_MASK] |= 1 << m

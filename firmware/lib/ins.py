@@ -121,6 +121,10 @@ class Ins:
             self._th_prev[i] = 0.0
             self._dv_prev[i] = 0.0
 
+    def clear_memory(self, i):
+        """Forget the position sum's compensation of axis i (after that axis alone was set)."""
+        self._pk[i] = 0.0
+
     def step(self, w_b, f_b):
         """Advance one tick with body rate w_b (rad/s) and specific force f_b (m/s^2)."""
         step(self.x, w_b, f_b, self.coning)

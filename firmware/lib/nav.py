@@ -59,6 +59,28 @@ NAVIGATING = const(2)
 RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz): the fix
 # latency plus the wait for the filter (a propagation is 31 ticks at one slice per tick)
 
+# The IMU driver's status word (drivers/bmi055.py `status`): the axes that read over range
+# (bits 0-5) and the accel die's new_data bits (6-8; all clear: no sample since the last read)
+IMU_OVER_RANGE = const(0x3F)
+IMU_FRESH = const(0x1C0)
+
+# Health (seed 000 FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
+# (self.ctl[_C_CAUSES], the extended frame): 2 when a CAUSE_FAULTS bit is set, else 1 when any
+# bit is. "(1 s)": held for a second after the last occurrence. docs/health.md has the list.
+CAUSE_IMU_SAT = const(0x1)  # an IMU axis read over range (1 s)
+CAUSE_IMU_HELD = const(0x2)  # an IMU sample unusable, the previous one used instead (1 s)
+CAUSE_IMU_DEAD = const(0x4)  # IMU samples held T_STUCK ticks in a row: no IMU data (1 s)
+CAUSE_NUMERIC = const(0x8)  # non-finite IMU input, state or covariance (1 s)
+CAUSE_GNSS_LOST = const(0x10)  # navigating, no accepted fix for gnss_timeout_s
+CAUSE_GNSS_GATED = const(0x20)  # a fix, or part of it, gated out or unusable (1 s)
+CAUSE_GNSS_REJECTS = const(0x40)  # 2+ fixes in a row gated out: GNSS and INS disagree
+CAUSE_GNSS_DATA = const(0x80)  # the receiver's epoch had an impossible field: unused (1 s)
+CAUSE_RESET = const(0x100)  # position and velocity, or the height, reset to a fix (until
+# a later fix is accepted whole: the reset may have been onto a bad one)
+CAUSE_UNCERTAIN = const(0x200)  # the filter's position 1-sigma above fault_sigma_(v_)m
+CAUSE_DRIFT = const(0x400)  # GNSS innovations one-sided for several fixes: drift (5 s)
+CAUSE_FAULTS = const(0x74C)  # IMU_DEAD, NUMERIC, GNSS_REJECTS, RESET, UNCERTAIN, DRIFT: 2
+
 # Filter jobs (self.ctl[_C_JOB]). Private consts are inlined and cost no global on the board; the
 # NumPy model reads these names through CPython, where they are plain module attributes.
 _JOB_NONE = const(0)
@@ -112,7 +134,9 @@ _AID_NHC_SIGMA = const(5)
 _AID_LEVER = const(6)
 _AID_HDOP_MAX = const(9)  # worst HDOP accepted (and assumed when a fix gives none)
 _AID_REANCHOR = const(10)  # re-anchor the origin beyond this east or north distance, m
-_NAID = const(11)
+_AID_FAULT_SIGMA = const(11)  # health 2 beyond this east or north 1-sigma, m
+_AID_FAULT_SIGMA_V = const(12)  # ... or this vertical 1-sigma, m
+_NAID = const(13)
 # self.fix_in: a fix as the receiver gives it, in ints (the app fills it; `gnss_fix`)
 FI_LAT_E7 = const(0)
 FI_LON_DEG = const(1)  # longitude: whole degrees and 1e-7 deg fraction with their sign
@@ -137,9 +161,9 @@ _C_STATE = const(1)  # ALIGNING, NAVIGATING
 _C_HEALTH = const(2)
 _C_STILL = const(3)  # 1: standing still (zero-velocity updates)
 _C_N_STILL = const(4)  # ticks the standstill detector has been quiet
-_C_SAT_UNTIL = const(5)  # health 1 until this tick (IMU saturated)
-_C_FAULT_UNTIL = const(6)  # health 2 until this tick
-_C_GATED_UNTIL = const(7)  # health 1 until this tick (a fix gated out or rejected)
+_C_SAT_UNTIL = const(5)  # CAUSE_IMU_SAT until this tick
+_C_FAULT_UNTIL = const(6)  # CAUSE_NUMERIC until this tick
+_C_GATED_UNTIL = const(7)  # CAUSE_GNSS_GATED until this tick
 _C_SPEED_TICK = const(8)  # tick of the last usable fix with a speed (its speed: self._st)
 _C_ACCEPT_TICK = const(9)  # tick of the last accepted GNSS update
 _C_REJECTS = const(10)  # GNSS updates rejected in a row
@@ -178,8 +202,23 @@ _C_RESET_AFTER = const(42)  # reset to GNSS after this many rejected updates in 
 _C_OPTS = const(43)  # _OPT_* bits
 _C_CAL_FLAGS = const(44)  # 1: gyro matrix, 2: accel matrix
 _C_MIN_QUALITY = const(45)  # least GGA fix quality used
-_C_SAT = const(46)  # 1: the IMU was saturated this tick (nav_tick's input)
-_NC = const(47)
+_C_IMU_STATUS = const(46)  # the IMU driver's status word this tick (IMU_*: nav_tick's input)
+_C_V_REJECTS = const(47)  # GNSS heights rejected in a row
+_C_CAUSES = const(48)  # CAUSE_* bits of this tick: why health is not 0
+_C_UNCERTAIN = const(49)  # 1: the covariance puts the position beyond fault_sigma_(v_)m
+_C_N_HELD = const(50)  # IMU samples held in a row (see _imu_check)
+_C_N_SAME_G = const(51)  # gyro samples equal to the one before, in a row
+_C_N_SAME_A = const(52)  # ... accel samples
+_C_PREV_G = const(53)  # the last gyro counts (3)
+_C_PREV_A = const(56)  # the last accel counts (3)
+_C_T_STUCK = const(59)  # IMU samples held or unchanged this many ticks in a row: dead
+_C_HELD_UNTIL = const(60)  # CAUSE_IMU_HELD until this tick
+_C_DEAD_UNTIL = const(61)  # CAUSE_IMU_DEAD until this tick
+_C_RESET_UNTIL = const(62)  # CAUSE_RESET until this tick (a reset: until a fix agrees)
+_C_DATA_UNTIL = const(63)  # CAUSE_GNSS_DATA until this tick
+_C_INFLATE = const(64)  # 1: the IMU came back after a dead spell; widen P at the next job
+_C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
+_NC = const(66)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -203,15 +242,17 @@ _M_GP = const(1586)  # the fix's antenna position in the frame, m (3): self._gp
 _M_FX = const(1589)  # the pending fix's floats (_FX_*, 6): self._fx
 _M_US = const(1595)  # the fix of the running GNSS update (nav_aid.py, 7): self._used
 _M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
-_M_INIT = const(1613)  # the initial P diagonal (eskf.N): self._init
-_M_NS = const(1628)  # nav_start's course, speed and velocity sigma (3): self._ns
-_M_LVL = const(1631)  # sums of f and w while levelling (6): self._lvl
-_NM = const(1637)
+_M_INIT = const(1615)  # the initial P diagonal (eskf.N): self._init
+_M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._ns
+_M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
+_M_BW = const(1639)  # the drift watch: running means of normalised innovations (3)
+_NM = const(1642)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
 _EV_RESET = const(3)  # the filter kept rejecting GNSS: _reset_to_gnss
 _EV_FAULT = const(4)  # non-finite state or covariance: _fault_reset
+_EV_VRESET = const(5)  # the filter kept rejecting the height: _reset_vertical
 
 
 def _ticks(seconds, dt):
@@ -246,6 +287,7 @@ class Navigator(Alignment, Aiding):
         self._lvl = f32.view(m, _M_LVL, 6)  # sums of f and w while levelling
         self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
         self._ns = f32.view(m, _M_NS, 3)
+        self._init_motion = f32.view(m, _M_INIT + eskf.IX_VEL, 6)  # for widen
         self._trk = f32.zeros(3)
         # configuration derived once
         c[_C_T_PROP] = _ticks(cfg.prop_period_s, dt)
@@ -265,6 +307,7 @@ class Navigator(Alignment, Aiding):
         )
         c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
         c[_C_T_TRACK] = max(1, _ticks(cfg.track_s, dt))
+        c[_C_T_STUCK] = max(1, _ticks(cfg.imu_stuck_s, dt))
         # called before a step that allocates while navigating (re-anchoring, a reset): the
         # app makes room on the heap then (it checks nothing while navigating otherwise)
         self.heap_check = None
@@ -348,6 +391,8 @@ class Navigator(Alignment, Aiding):
             aid[_AID_LEVER + i] = cfg.lever_b_m[i]
         aid[_AID_HDOP_MAX] = cfg.gnss_hdop_max
         aid[_AID_REANCHOR] = cfg.reanchor_m
+        aid[_AID_FAULT_SIGMA] = cfg.fault_sigma_m
+        aid[_AID_FAULT_SIGMA_V] = cfg.fault_sigma_v_m
 
     def _reset_counters(self):
         c = self.ctl
@@ -381,6 +426,11 @@ class Navigator(Alignment, Aiding):
         return self.ctl[_C_HEALTH]
 
     @property
+    def causes(self):
+        """CAUSE_* bits: why health is not 0."""
+        return self.ctl[_C_CAUSES]
+
+    @property
     def updates(self):
         """GNSS updates started since the start (reports)."""
         return self.ctl[_C_UPDATES]
@@ -400,27 +450,36 @@ class Navigator(Alignment, Aiding):
 
     # ---- inputs --------------------------------------------------------------------------
 
-    def imu_raw(self, gyro_counts, accel_counts, saturated=False):
-        """One tick from BMI055 counts (3 ints each, sensor axes, any sequence)."""
+    def imu_raw(self, gyro_counts, accel_counts, saturated=False, fresh=True):
+        """One tick from BMI055 counts (3 ints each, sensor axes, any sequence); saturated: an
+        axis read over range; fresh: the accel die had a new sample (its new_data bits)."""
         cg = self._counts_g
         ca = self._counts_a
         for i in range(3):
             cg[i] = gyro_counts[i]
             ca[i] = accel_counts[i]
-        self.imu_counts(cg, ca, saturated)
+        self.imu_counts(cg, ca, (1 if saturated else 0) | (IMU_FRESH if fresh else 0))
 
-    def imu_counts(self, gyro_h, accel_h, saturated=False):
-        """imu_raw for counts already in array('h') buffers (the BMI055 driver's): no copy.
+    def imu_counts(self, gyro_h, accel_h, status=IMU_FRESH):
+        """imu_raw for counts already in array('h') buffers (the BMI055 driver's: no copy) and
+        the driver's status word (IMU_*).
 
-        With the native kernels the whole tick is one call of `nav_tick`, which mirrors `_tick`
-        below (the reference) on the same buffers (self.mem, self.ctl). It returns at each step
-        that runs in Python (alignment, a fix's screening, a reset: _EV_*)
-        and is called again to resume after it. This method's frame stays within the VM's
-        on-stack limit (tests/runtimes/test_frames.py): keep its locals and arguments few."""
+        A sample that cannot be right (an axis over range, no new accel sample, the all-zero
+        or idle-bus pattern, counts unchanged for T_STUCK ticks: _imu_check) is not used: the
+        previous sample is integrated again (CAUSE_IMU_HELD, and CAUSE_IMU_DEAD when that goes
+        on for T_STUCK ticks), so a dead or stuck IMU costs the dead reckoning of a constant
+        rate and specific force, not the integration of garbage.
+
+        With the native kernels the whole tick is one call of `nav_tick`, which mirrors
+        `_imu_counts_py` and `_tick` below (the reference) on the same buffers (self.mem,
+        self.ctl). It returns at each step that runs in Python (alignment, a fix's screening,
+        a reset: _EV_*) and is called again to resume after it. This method's frame stays
+        within the VM's on-stack limit (tests/runtimes/test_frames.py): keep its locals and
+        arguments few."""
+        self.ctl[_C_IMU_STATUS] = status
         if _nav_tick is None:
-            self._imu_counts_py(gyro_h, accel_h, saturated)
+            self._imu_counts_py(gyro_h, accel_h)
             return
-        self.ctl[_C_SAT] = 1 if saturated else 0
         ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
         while ev:
             # the events of a tick with a fix dispatched here: a Python call less
@@ -432,31 +491,49 @@ class Navigator(Alignment, Aiding):
                 self._reset_event(ev)
             ev = _nav_tick(self.ctl, self.kf.i, self.mem, gyro_h, accel_h)
 
-    def _imu_counts_py(self, gyro_h, accel_h, saturated):
+    def _imu_counts_py(self, gyro_h, accel_h):
+        if _imu_check(self.ctl, gyro_h, accel_h):
+            self._tick(_finite6(self._w, self._f), True)  # the previous sample, again
+            return
         finite = imu_cal(self._w, self._f, gyro_h, accel_h, self._cal, self.ctl[_C_CAL_FLAGS])
-        self._tick(finite, saturated)
+        self._tick(finite, False)
 
     def _reset_event(self, ev):
-        """nav_tick's rare events (_EV_RESET, _EV_FAULT): the reset they ask for."""
+        """nav_tick's rare events (_EV_RESET, _EV_VRESET, _EV_FAULT): the reset they ask for."""
         if ev == _EV_RESET:
             self._reset_to_gnss()
+        elif ev == _EV_VRESET:
+            self._reset_vertical()
         else:
             self._fault_reset()
 
     def imu(self, w_in, f_in, saturated=False):
-        """One tick: sensor-axes rate (rad/s) and specific force (m/s^2)."""
-        self._tick(self._calibrate(w_in, f_in), saturated)
+        """One tick: sensor-axes rate (rad/s) and specific force (m/s^2), used as given (the
+        sample checks of imu_counts are on counts)."""
+        self.ctl[_C_IMU_STATUS] = 1 if saturated else 0
+        self._tick(self._calibrate(w_in, f_in), False)
 
-    def _tick(self, finite, saturated):
+    def _tick(self, finite, held):
         c = self.ctl
         c[_C_TICK] += 1
-        if saturated:
-            c[_C_SAT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+        t = c[_C_TICK]
+        if c[_C_IMU_STATUS] & IMU_OVER_RANGE:
+            c[_C_SAT_UNTIL] = t + c[_C_T_SECOND]
+        if held:
+            c[_C_HELD_UNTIL] = t + c[_C_T_SECOND]
+            if c[_C_N_HELD] < c[_C_T_STUCK]:
+                c[_C_N_HELD] += 1
+            if c[_C_N_HELD] >= c[_C_T_STUCK]:
+                c[_C_DEAD_UNTIL] = t + c[_C_T_SECOND]
+        else:
+            if c[_C_N_HELD] >= c[_C_T_STUCK]:
+                c[_C_INFLATE] = 1  # the IMU is back after a dead spell
+            c[_C_N_HELD] = 0
         if not finite:
-            c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+            c[_C_FAULT_UNTIL] = t + c[_C_T_SECOND]
             self._update_health()
             return
-        if c[_C_TICK] & 3 == 0:
+        if t & 3 == 0 and not held:  # the standstill detector sees only real samples
             self._still_update()
         if c[_C_STATE] == NAVIGATING:
             self._navigate()
@@ -499,6 +576,8 @@ class Navigator(Alignment, Aiding):
         c[_C_FIX_LON_DEG] = lon_deg
         c[_C_FIX_LON_FRAC] = lon_frac
         c[_C_FIX_QUALITY] = quality
+        if quality < 0:  # the app dropped an epoch with an impossible field
+            c[_C_DATA_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         if fix_tick < 0:
             fix_tick = c[_C_TICK] - c[_C_T_LATENCY]
         c[_C_FIX_TICK] = fix_tick
@@ -560,9 +639,11 @@ class Navigator(Alignment, Aiding):
         if ki[eskf.I_READY]:
             self._inject()
         # P changes only when a job finishes: check it then, not every tick
-        if busy and ki[eskf.I_JOB] == eskf.IDLE and not kf.diagonal_ok():
-            self._fault_reset()
-            return
+        if busy and ki[eskf.I_JOB] == eskf.IDLE:
+            if not kf.diagonal_ok():
+                self._fault_reset()
+                return
+            c[_C_UNCERTAIN] = _uncertain(kf.e, self._aid)
         if not ins_finite(x):
             self._fault_reset()
 
@@ -618,6 +699,11 @@ class Navigator(Alignment, Aiding):
         non-holonomic constraint (the measurement rows: nav_aid.py)."""
         c = self.ctl
         kf = self.kf
+        if c[_C_INFLATE]:
+            # what the held samples missed: velocity and attitude variances at least their
+            # initial ones again, so that GNSS corrects them instead of being gated out
+            kf.widen(self._init_motion, eskf.IX_VEL, 6)
+            c[_C_INFLATE] = 0
         overdue = c[_C_SINCE_PROP] >= 2 * c[_C_T_PROP]
         if c[_C_FIX_QUEUED] and not overdue:
             self._start_queued_fix()
@@ -663,10 +749,19 @@ class Navigator(Alignment, Aiding):
         job = c[_C_JOB]
         c[_C_JOB] = _JOB_NONE
         if job == _JOB_GNSS:
-            # a fix whose east or north was gated out counts as rejected: one axis drifting
-            # away while the others are accepted must still end in a reset
+            # a fix whose east or north position or velocity was gated out counts as rejected:
+            # one axis drifting away (or a wrong heading turning the velocity) while the others
+            # are accepted must still end in a reset; the height is a channel of its own (a
+            # diverged vertical channel is reset alone)
             mask = kf.i[eskf.I_GATE_MASK]
-            if mask & 3:
+            ki = kf.i
+            if _drift_watch(kf.e, self.mem, ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]):
+                c[_C_DRIFT_UNTIL] = c[_C_TICK] + 5 * c[_C_T_SECOND]
+            if mask & 4:
+                c[_C_V_REJECTS] += 1
+            else:
+                c[_C_V_REJECTS] = 0
+            if mask & 0x1B:
                 c[_C_REJECTS] += 1
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
@@ -676,6 +771,10 @@ class Navigator(Alignment, Aiding):
                 c[_C_ACCEPT_TICK] = c[_C_TICK]
                 if mask:
                     c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+                elif c[_C_RESET_UNTIL] > c[_C_TICK]:
+                    c[_C_RESET_UNTIL] = c[_C_TICK]  # a whole fix agrees with the reset state
+                if c[_C_V_REJECTS] >= c[_C_RESET_AFTER]:
+                    self._reset_vertical()
 
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
@@ -725,17 +824,43 @@ class Navigator(Alignment, Aiding):
         c[_C_FIX_QUEUED] = 0
         c[_C_TRK_SET] = 0
         c[_C_LEVELED] = 0
+        c[_C_REJECTS] = 0
+        c[_C_V_REJECTS] = 0
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
 
     def _update_health(self):
+        """ctl[_C_CAUSES] and the health code they make (CAUSE_*)."""
         c = self.ctl
         t = c[_C_TICK]
+        k = 0
+        if t < c[_C_SAT_UNTIL]:
+            k |= CAUSE_IMU_SAT
+        if t < c[_C_HELD_UNTIL]:
+            k |= CAUSE_IMU_HELD
+        if t < c[_C_DEAD_UNTIL]:
+            k |= CAUSE_IMU_DEAD
         if t < c[_C_FAULT_UNTIL]:
+            k |= CAUSE_NUMERIC
+        if t < c[_C_GATED_UNTIL]:
+            k |= CAUSE_GNSS_GATED
+        if t < c[_C_DATA_UNTIL]:
+            k |= CAUSE_GNSS_DATA
+        if t < c[_C_RESET_UNTIL]:
+            k |= CAUSE_RESET
+        if t < c[_C_DRIFT_UNTIL]:
+            k |= CAUSE_DRIFT
+        if c[_C_STATE] == NAVIGATING:
+            if t - c[_C_ACCEPT_TICK] > c[_C_T_TIMEOUT]:
+                k |= CAUSE_GNSS_LOST
+            if c[_C_REJECTS] >= 2 or c[_C_V_REJECTS] >= 2:
+                k |= CAUSE_GNSS_REJECTS
+            if c[_C_UNCERTAIN]:
+                k |= CAUSE_UNCERTAIN
+        c[_C_CAUSES] = k
+        if k & CAUSE_FAULTS:
             c[_C_HEALTH] = 2
-        elif t < c[_C_SAT_UNTIL] or t < c[_C_GATED_UNTIL]:
-            c[_C_HEALTH] = 1
-        elif c[_C_STATE] == NAVIGATING and t - c[_C_ACCEPT_TICK] > c[_C_T_TIMEOUT]:
+        elif k:
             c[_C_HEALTH] = 1
         else:
             c[_C_HEALTH] = 0
@@ -791,8 +916,7 @@ def _cal_si(w, f, w_in, f_in, cal, flags):
     """w, f = M (x - b0) from SI rate and specific force; False if not finite."""
     _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
     _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
-    s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
-    return s - s == 0.0
+    return _finite6(w, f)
 
 
 def _still_py(st, f, w, x, prm, flags):
@@ -829,6 +953,89 @@ def _still_py(st, f, w, x, prm, flags):
             if v0 * v0 + v1 * v1 > lim * lim:
                 quiet = False
     return quiet
+
+
+def _imu_check(c, g, a):
+    """True if this tick's counts (g, a; the driver's status word in c[_C_IMU_STATUS]) cannot
+    be a sample of a working BMI055: an axis over range, no new accel sample, all six words
+    0x0000 or all 0xFFFF (registers cleared, or the bus' idle level: the chip does not
+    answer), or one die's counts unchanged for c[_C_T_STUCK] ticks (a real sensor's noise
+    moves them every sample). Keeps the last counts and the runs of unchanged ones in c."""
+    if g[0] == c[_C_PREV_G] and g[1] == c[_C_PREV_G + 1] and g[2] == c[_C_PREV_G + 2]:
+        if c[_C_N_SAME_G] < c[_C_T_STUCK]:
+            c[_C_N_SAME_G] += 1
+    else:
+        c[_C_N_SAME_G] = 0
+    if a[0] == c[_C_PREV_A] and a[1] == c[_C_PREV_A + 1] and a[2] == c[_C_PREV_A + 2]:
+        if c[_C_N_SAME_A] < c[_C_T_STUCK]:
+            c[_C_N_SAME_A] += 1
+    else:
+        c[_C_N_SAME_A] = 0
+    for i in range(3):
+        c[_C_PREV_G + i] = g[i]
+        c[_C_PREV_A + i] = a[i]
+    st = c[_C_IMU_STATUS]
+    if st & IMU_OVER_RANGE or not st & IMU_FRESH:
+        return True
+    v = a[0]
+    if (v == 0 or v == -1) and a[1] == v and a[2] == v and g[0] == v and g[1] == v and g[2] == v:
+        return True
+    return c[_C_N_SAME_G] >= c[_C_T_STUCK] or c[_C_N_SAME_A] >= c[_C_T_STUCK]
+
+
+def _finite6(w, f):
+    """False if the rate or specific force is not finite."""
+    s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2]
+    return s - s == 0.0
+
+
+def _uncertain(e, aid):
+    """1 if the covariance (Eskf.e's P) puts the position's east or north 1-sigma beyond
+    aid[_AID_FAULT_SIGMA], or its vertical one beyond aid[_AID_FAULT_SIGMA_V]."""
+    lim = aid[_AID_FAULT_SIGMA]
+    lim2 = lim * lim
+    p = f32.view(e, eskf.E_P, eskf.N * eskf.N)
+    if p[0] > lim2 or p[eskf.N + 1] > lim2:
+        return 1
+    lim = aid[_AID_FAULT_SIGMA_V]
+    if p[2 * (eskf.N + 1)] > lim * lim:
+        return 1
+    return 0
+
+
+_BW_ALPHA = f32.ratio(1, 4)  # weight of a fix in the drift watch's running means (~4 fixes)
+_BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
+_BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump
+
+
+def _drift_watch(e, mem, n):
+    """After a GNSS update of n scalars (eskf.E_Z/E_R hold each one's innovation y and its
+    variance S): the running means of y / sqrt(S) of the height (scalar 2) and of the
+    velocity east and north (3, 4, when the fix had a course) in mem's _M_BW. True, and the
+    means restarted, when one is beyond _BW_LIMIT: innovations that keep one sign for several
+    fixes mean the INS drifts away from GNSS faster than the filter allows for (a sensor bias
+    or scale that jumped; or fixes that are late). Each ratio is clipped at _BW_CLIP, so it
+    takes four one-sided outliers in a row (or more, smaller ones) to pass the limit: one bad
+    fix alone does not. A detector only, for now (docs/health.md)."""
+    z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
+    r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
+    bw = f32.view(mem, _M_BW, 3)
+    hit = False
+    for j in range(3):
+        m = 2 + j
+        if m < n and r[m] > 0.0:
+            q = z[m] / f32.sqrt(r[m])
+            if q > _BW_CLIP:
+                q = _BW_CLIP
+            elif q < -_BW_CLIP:
+                q = -_BW_CLIP
+            bw[j] = bw[j] + _BW_ALPHA * (q - bw[j])
+            if bw[j] > _BW_LIMIT or bw[j] < -_BW_LIMIT:
+                hit = True
+    if hit:
+        for j in range(3):
+            bw[j] = 0.0
+    return hit
 
 
 def _ring_put_py(ring_p, ring_v, x, corr, b):

@@ -8,6 +8,7 @@ nav.py decides when each runs: `_schedule`, `_inject`):
 - `_start_zupt`: the zero-velocity update at standstill, z = v_n;
 - `_start_nhc`: the non-holonomic constraint of a car, body lateral and vertical velocity 0;
 - `_reset_to_gnss`: position and velocity from the fix the filter last rejected;
+  `_reset_vertical`: the height alone, when only the height keeps being rejected;
 - `_lever_n` (antenna lever arm in the navigation frame) and the fix's 1-sigma errors
   `_sigma_h`, `_sigma_v` (given, else from HDOP).
 
@@ -33,6 +34,10 @@ _C_TICK = const(0)  # self.ctl: the control state
 _C_REJECTS = const(10)
 _C_FIX_TICK = const(19)
 _C_USED_TICK = const(20)
+_C_T_SECOND = const(32)
+_C_V_REJECTS = const(47)
+_C_RESET_UNTIL = const(62)
+UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
 # used only here
@@ -183,7 +188,7 @@ class Aiding:
         v = self._tmp3
         course = used[_US_COURSE]
         sp = used[_US_SPEED]
-        v[2] = ins.v_n[2]
+        v[2] = 0.0  # a vertical velocity that let the filter drift away is not kept
         if course >= 0.0:
             v[0] = sp * sin(course)
             v[1] = sp * cos(course)
@@ -195,6 +200,36 @@ class Aiding:
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
             sigma_vel = self.cfg.track_vel_sigma
-        self._restart(used, v, self.ctl[_C_TICK] - self.ctl[_C_USED_TICK], sh, sv, sigma_vel)
-        self.ctl[_C_REJECTS] = 0
+        c = self.ctl
+        self._restart(used, v, c[_C_TICK] - c[_C_USED_TICK], sh, sv, sigma_vel)
+        c[_C_REJECTS] = 0
+        c[_C_V_REJECTS] = 0
+        c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state
+        self.resets += 1
+
+    def _reset_vertical(self):
+        """Recovery when the filter keeps rejecting the height while it accepts east and north
+        (a vertical channel driven away by bad IMU data or a bad height): the height from the
+        fix it last rejected, vertical velocity 0, their covariance rows afresh (the fix's
+        vertical sigma, the initial velocity sigma). The step goes into the injected
+        corrections, as a filter correction would, so fixes still in the delay ring compare
+        with the reset state."""
+        self._room()
+        ins = self.ins
+        c = self.ctl
+        ln = self._tmp4
+        self._lever_n(ln)
+        p = ins.p_n
+        v = ins.v_n
+        h = self._used[_US_P + 2] - ln[2]
+        corr = self._corr
+        corr[2] = corr[2] + (h - p[2])
+        corr[5] = corr[5] - v[2]
+        p[2] = h
+        v[2] = 0.0
+        ins.clear_memory(2)
+        sv = self._used[_US_SIG_V]
+        self.kf.reset_rows(2, sv * sv, eskf.IX_VEL + 2, self._init[eskf.IX_VEL + 2])
+        c[_C_V_REJECTS] = 0
+        c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state
         self.resets += 1

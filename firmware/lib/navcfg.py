@@ -56,7 +56,9 @@ class NavConfig:
         self.gnss_stable_fixes = 5  # consecutive good fixes before GNSS counts as stable
         self.gnss_timeout_s = f32.f32(2)  # no accepted fix for this long: health 1
         self.gate_sigma = f32.f32(5)  # innovation gate, sigmas
-        self.reset_after_rejects = 5  # consecutive fixes with E or N gated out: reset to GNSS
+        # consecutive fixes with E or N gated out: reset to GNSS; with the height gated out:
+        # reset the vertical channel
+        self.reset_after_rejects = 5
         self.lever_b_m = f32.zeros(3)  # IMU -> antenna, body axes, m
 
         # Alignment
@@ -93,6 +95,16 @@ class NavConfig:
         self.prop_period_s = f32.ratio(1, 5)
         self.slices_per_tick = 1
         self.reanchor_m = f32.f32(2000)  # move the origin beyond this horizontal distance
+
+        # Faults (docs/health.md). Health 2 while the filter's own position 1-sigma exceeds
+        # fault_sigma_m east or north (3-sigma at 10 m, the accuracy a solution of this class
+        # must keep to be trusted), or fault_sigma_v_m vertically (twice that: GNSS heights
+        # are twice as noisy). An IMU whose samples are unusable, or unchanged (a real
+        # BMI055's noise moves every axis every few samples), for imu_stuck_s in a row is
+        # dead: health 2 until it recovers.
+        self.fault_sigma_m = f32.ratio(10, 3)
+        self.fault_sigma_v_m = f32.ratio(20, 3)
+        self.imu_stuck_s = f32.ratio(1, 10)
 
         # IMU calibration (seed 000 1.2.1), sensor -> body: x_b = M (x_raw - b0). Identity
         # M (None) skips the matrix product. Raw scale: counts per SI unit at the ranges.

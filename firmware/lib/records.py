@@ -15,7 +15,8 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32
        (1e-7 deg; the integrated lat/lon is the origin plus the position, through geo.py)
    116 tick u32 (navigator ticks, wrapping), 120 origin height f32 (m, ellipsoidal: the
-       position's U is relative to it)
+       position's U is relative to it), 124 causes u32 (why health is not 0: nav.CAUSE_*
+       and the app's CAUSE_CONFIG, CAUSE_OVERRUN; docs/health.md)
 Raw-input record, type 0x92 (every tick when `raw_record`; what a bit-exact replay needs):
      0 tick start us u32 (time.ticks_us), 4 PPS edge us u32 (the parser's pps_us)
      8 gyro data registers 6 bytes, 14 accel data registers 6 bytes (as read from the chip)
@@ -40,7 +41,7 @@ import geo
 
 EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)
-EXT_PAYLOAD = const(124)  # bytes after the counter
+EXT_PAYLOAD = const(128)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
 RAW_MAX_GNSS = const(232)  # the length byte counts 23 + n <= 255
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
@@ -58,7 +59,8 @@ EF_LAT0_E7 = const(9)
 EF_LON0_DEG = const(10)
 EF_LON0_FRAC = const(11)
 EF_TICK = const(12)
-NEF = const(13)
+EF_CAUSES = const(13)
+NEF = const(14)
 
 
 def _head(buf, rtype, n, counter):
@@ -95,6 +97,7 @@ def _ext_pack_py(d, fi, p, x, coef):
     frame.put_e7(d, 116, fi[EF_LON0_DEG], fi[EF_LON0_FRAC])
     frame.put_i32(d, 120, fi[EF_TICK])
     struct.pack_into("<f", d, 124, coef[geo.H0])
+    frame.put_i32(d, 128, fi[EF_CAUSES])
     seal(d, memoryview(d)[0 : EXT_LEN - 4], EXT_LEN - 4)
 
 

@@ -139,6 +139,8 @@ static void update_slice(float *e, int32_t *ii) {
         }
         float sv = hv + e[E_R + m];
         float y = e[E_Z + m] - hx;
+        e[E_Z + m] = y; /* from here on: the innovation and its variance (nav's bias watch) */
+        e[E_R + m] = sv;
         if (!(sv > 0.0f) || y * y > s[S_GATE2] * sv) {
             ii[I_REJECTED] += 1;
             ii[I_GATE_MASK] |= 1 << m;

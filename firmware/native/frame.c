@@ -122,7 +122,7 @@ static void put_f32(uint8_t *buf, int off, float x) {
     put_i32(buf, off, (int32_t)b.u);
 }
 
-#define EXT_LEN 132
+#define EXT_LEN 136
 
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x,
     const float *coef) {
@@ -150,6 +150,7 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     put_e7(buf, 116, fields[EF_LON0_DEG], fields[EF_LON0_FRAC]);
     put_i32(buf, 120, fields[EF_TICK]);
     put_f32(buf, 124, coef[GEO_H0]);
+    put_i32(buf, 128, fields[EF_CAUSES]);
     put_i32(buf, EXT_LEN - 4, (int32_t)crc32(buf, EXT_LEN - 4));
 }
 

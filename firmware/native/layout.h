@@ -128,7 +128,8 @@
 #define EF_LON0_DEG 10
 #define EF_LON0_FRAC 11
 #define EF_TICK 12
-#define NEF 13
+#define EF_CAUSES 13
+#define NEF 14
 /* drivers/bmi055.py: the counts that mean over range */
 #define BMI055_GYRO_SAT_HI 32766
 #define BMI055_GYRO_SAT_LO -32767
@@ -159,7 +160,9 @@
 #define AID_LEVER 6 /* IMU -> antenna, body, m (3) */
 #define AID_HDOP_MAX 9 /* worst HDOP accepted, assumed when unknown */
 #define AID_REANCHOR 10 /* re-anchoring distance, m */
-#define NAID 11
+#define AID_FAULT_SIGMA 11 /* health 2 beyond this east or north 1-sigma, m */
+#define AID_FAULT_SIGMA_V 12 /* ... or this vertical 1-sigma, m */
+#define NAID 13
 /* nav.py: a fix in ints, Navigator.fix_in, and fix_check's result bits */
 #define FI_LAT_E7 0
 #define FI_LON_DEG 1
@@ -235,8 +238,23 @@
 #define C_OPTS 43
 #define C_CAL_FLAGS 44
 #define C_MIN_QUALITY 45
-#define C_SAT 46
-#define NC 47
+#define C_IMU_STATUS 46
+#define C_V_REJECTS 47
+#define C_CAUSES 48
+#define C_UNCERTAIN 49
+#define C_N_HELD 50
+#define C_N_SAME_G 51
+#define C_N_SAME_A 52
+#define C_PREV_G 53
+#define C_PREV_A 56
+#define C_T_STUCK 59
+#define C_HELD_UNTIL 60
+#define C_DEAD_UNTIL 61
+#define C_RESET_UNTIL 62
+#define C_DATA_UNTIL 63
+#define C_INFLATE 64
+#define C_DRIFT_UNTIL 65
+#define NC 66
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52
@@ -253,10 +271,11 @@
 #define M_FX 1589
 #define M_US 1595
 #define M_AID 1602
-#define M_INIT 1613
-#define M_NS 1628
-#define M_LVL 1631
-#define NM 1637
+#define M_INIT 1615
+#define M_NS 1630
+#define M_LVL 1633
+#define M_BW 1639
+#define NM 1642
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
@@ -267,6 +286,21 @@
 #define EV_FIX 2
 #define EV_RESET 3
 #define EV_FAULT 4
+#define EV_VRESET 5
+#define IMU_OVER_RANGE 0x3F /* the IMU driver's status word */
+#define IMU_FRESH 0x1C0
+#define CAUSE_IMU_SAT 0x1 /* health's causes */
+#define CAUSE_IMU_HELD 0x2
+#define CAUSE_IMU_DEAD 0x4
+#define CAUSE_NUMERIC 0x8
+#define CAUSE_GNSS_LOST 0x10
+#define CAUSE_GNSS_GATED 0x20
+#define CAUSE_GNSS_REJECTS 0x40
+#define CAUSE_GNSS_DATA 0x80
+#define CAUSE_RESET 0x100
+#define CAUSE_UNCERTAIN 0x200
+#define CAUSE_DRIFT 0x400
+#define CAUSE_FAULTS 0x74C
 #define ALIGNING 1
 #define NAVIGATING 2
 #define RING 128

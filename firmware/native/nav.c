@@ -157,6 +157,9 @@ void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
     c[C_FIX_LON_DEG] = fi[FI_LON_DEG];
     c[C_FIX_LON_FRAC] = fi[FI_LON_FRAC];
     c[C_FIX_QUALITY] = fi[FI_QUALITY];
+    if (fi[FI_QUALITY] < 0) { /* the app dropped an epoch with an impossible field */
+        c[C_DATA_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+    }
     int32_t fix_tick = fi[FI_TICK];
     if (fix_tick < 0) {
         fix_tick = c[C_TICK] - c[C_T_LATENCY];

@@ -1,13 +1,14 @@
 /* A whole navigator tick in one call: Navigator._tick and its callees (firmware/lib/nav.py,
- * the reference: _still_update, _navigate, _schedule, _inject, _update_health), with the
- * control state in the int buffer c (C_*), the floats in m (Navigator.mem, M_*) and the float
- * work in the other kernels. Few arguments on purpose: see nav.py's self.mem.
+ * the reference: _imu_counts_py, _tick, _still_update, _navigate, _schedule, _inject,
+ * _update_health), with the control state in the int buffer c (C_*), the floats in m
+ * (Navigator.mem, M_*) and the float work in the other kernels. Few arguments on purpose: see
+ * nav.py's self.mem.
  *
  * What stays in Python returns an event (EV_*) with c[C_PHASE] saying where the tick resumes:
  * the app runs the event's method (a fix's screening, with re-anchoring or the start of
  * navigation, a reset: once a second at most) and calls again with the same arguments. The
- * filter's jobs start here, their rows included (aid.c). The order
- * of every step is the reference's, so a tick's results are the same bit for bit. */
+ * filter's jobs start here, their rows included (aid.c). The order of every step is the
+ * reference's, so a tick's results are the same bit for bit. */
 #include <stdint.h>
 
 #include "fmath32.h"
@@ -16,24 +17,106 @@
 #include "rot32.h"
 
 #define MIN_LEVEL_F (49.0f / 10.0f) /* nav_align.MIN_LEVEL_F, m/s^2 */
+#define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA */
+#define BW_LIMIT 3.0f /* nav._BW_LIMIT */
+#define BW_CLIP 5.0f /* nav._BW_CLIP */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
-#define PH_CHECK 2 /* after a reset to GNSS (EV_RESET) */
+#define PH_CHECK 2 /* after a reset to GNSS (EV_RESET, EV_VRESET) */
 #define PH_HEALTH 3 /* after alignment or a fault reset (EV_ALIGN, EV_FAULT) */
 
-/* _update_health */
+/* _update_health: the causes (CAUSE_*) and the health code they make */
 static void update_health(int32_t *c) {
     int32_t t = c[C_TICK];
-    if (t < c[C_FAULT_UNTIL]) {
-        c[C_HEALTH] = 2;
-    } else if (t < c[C_SAT_UNTIL] || t < c[C_GATED_UNTIL]) {
-        c[C_HEALTH] = 1;
-    } else if (c[C_STATE] == NAVIGATING && t - c[C_ACCEPT_TICK] > c[C_T_TIMEOUT]) {
-        c[C_HEALTH] = 1;
-    } else {
-        c[C_HEALTH] = 0;
+    int32_t k = 0;
+    if (t < c[C_SAT_UNTIL]) {
+        k |= CAUSE_IMU_SAT;
     }
+    if (t < c[C_HELD_UNTIL]) {
+        k |= CAUSE_IMU_HELD;
+    }
+    if (t < c[C_DEAD_UNTIL]) {
+        k |= CAUSE_IMU_DEAD;
+    }
+    if (t < c[C_FAULT_UNTIL]) {
+        k |= CAUSE_NUMERIC;
+    }
+    if (t < c[C_GATED_UNTIL]) {
+        k |= CAUSE_GNSS_GATED;
+    }
+    if (t < c[C_DATA_UNTIL]) {
+        k |= CAUSE_GNSS_DATA;
+    }
+    if (t < c[C_RESET_UNTIL]) {
+        k |= CAUSE_RESET;
+    }
+    if (t < c[C_DRIFT_UNTIL]) {
+        k |= CAUSE_DRIFT;
+    }
+    if (c[C_STATE] == NAVIGATING) {
+        if (t - c[C_ACCEPT_TICK] > c[C_T_TIMEOUT]) {
+            k |= CAUSE_GNSS_LOST;
+        }
+        if (c[C_REJECTS] >= 2 || c[C_V_REJECTS] >= 2) {
+            k |= CAUSE_GNSS_REJECTS;
+        }
+        if (c[C_UNCERTAIN]) {
+            k |= CAUSE_UNCERTAIN;
+        }
+    }
+    c[C_CAUSES] = k;
+    c[C_HEALTH] = (k & CAUSE_FAULTS) ? 2 : (k ? 1 : 0);
+}
+
+/* nav._imu_check: 1 if the counts cannot be a working BMI055's sample; keeps the last counts
+ * and the runs of unchanged ones */
+static int32_t imu_check(int32_t *c, const int16_t *g, const int16_t *a) {
+    if (g[0] == c[C_PREV_G] && g[1] == c[C_PREV_G + 1] && g[2] == c[C_PREV_G + 2]) {
+        if (c[C_N_SAME_G] < c[C_T_STUCK]) {
+            c[C_N_SAME_G] += 1;
+        }
+    } else {
+        c[C_N_SAME_G] = 0;
+    }
+    if (a[0] == c[C_PREV_A] && a[1] == c[C_PREV_A + 1] && a[2] == c[C_PREV_A + 2]) {
+        if (c[C_N_SAME_A] < c[C_T_STUCK]) {
+            c[C_N_SAME_A] += 1;
+        }
+    } else {
+        c[C_N_SAME_A] = 0;
+    }
+    for (int i = 0; i < 3; i++) {
+        c[C_PREV_G + i] = g[i];
+        c[C_PREV_A + i] = a[i];
+    }
+    int32_t st = c[C_IMU_STATUS];
+    if ((st & IMU_OVER_RANGE) || !(st & IMU_FRESH)) {
+        return 1;
+    }
+    int32_t v = a[0];
+    if ((v == 0 || v == -1) && a[1] == v && a[2] == v && g[0] == v && g[1] == v && g[2] == v) {
+        return 1;
+    }
+    return c[C_N_SAME_G] >= c[C_T_STUCK] || c[C_N_SAME_A] >= c[C_T_STUCK];
+}
+
+/* nav._finite6 */
+static int32_t finite6(const float *w, const float *f) {
+    float s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2];
+    return s - s == 0.0f;
+}
+
+/* nav._uncertain */
+static int32_t uncertain(const float *e, const float *aid) {
+    float lim = aid[AID_FAULT_SIGMA];
+    float lim2 = lim * lim;
+    const float *p = e + E_P;
+    if (p[0] > lim2 || p[N + 1] > lim2) {
+        return 1;
+    }
+    lim = aid[AID_FAULT_SIGMA_V];
+    return p[2 * (N + 1)] > lim * lim ? 1 : 0;
 }
 
 /* nav_align._level: roll and pitch from the mean specific force, the gyro bias from the
@@ -138,10 +221,25 @@ static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
         m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3);
 }
 
+/* Eskf.widen: P's variances i0 + j at least var[j] */
+static void widen(float *e, const float *var, int32_t i0, int32_t n) {
+    float *p = e + E_P;
+    for (int32_t j = 0; j < n; j++) {
+        int32_t k = (i0 + j) * (N + 1);
+        if (p[k] < var[j]) {
+            p[k] = var[j];
+        }
+    }
+}
+
 /* _schedule (the filter is idle): start the next job, if one is due */
 static void schedule(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
     float *e = m + M_E;
+    if (c[C_INFLATE]) { /* the IMU is back after a dead spell */
+        widen(e, m + M_INIT + IX_VEL, IX_VEL, 6);
+        c[C_INFLATE] = 0;
+    }
     int32_t overdue = c[C_SINCE_PROP] >= 2 * c[C_T_PROP];
     if (c[C_FIX_QUEUED] && !overdue) {
         start_queued_fix(c, ki, m);
@@ -159,9 +257,40 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
     }
 }
 
-/* _inject (dx is ready): 1 when the rejects call for a reset to GNSS */
-static int32_t inject(int32_t *c, int32_t *ki, float *x, float *e, float *corr) {
-    navk_inject(x, e, corr);
+/* nav._drift_watch: 1 when a running mean of normalised innovations passes the limit */
+static int32_t drift_watch(const float *e, float *m, int32_t n) {
+    const float *z = e + E_Z;
+    const float *r = e + E_R;
+    float *bw = m + M_BW;
+    int32_t hit = 0;
+    for (int j = 0; j < 3; j++) {
+        int32_t k = 2 + j;
+        if (k < n && r[k] > 0.0f) {
+            float q = z[k] / __builtin_sqrtf(r[k]);
+            if (q > BW_CLIP) {
+                q = BW_CLIP;
+            } else if (q < -BW_CLIP) {
+                q = -BW_CLIP;
+            }
+            bw[j] = bw[j] + BW_ALPHA * (q - bw[j]);
+            if (bw[j] > BW_LIMIT || bw[j] < -BW_LIMIT) {
+                hit = 1;
+            }
+        }
+    }
+    if (hit) {
+        for (int j = 0; j < 3; j++) {
+            bw[j] = 0.0f;
+        }
+    }
+    return hit;
+}
+
+/* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
+static int32_t inject(int32_t *c, int32_t *ki, float *m) {
+    float *x = m + M_X;
+    float *e = m + M_E;
+    navk_inject(x, e, m + M_CORR);
     ki[I_READY] = 0;
     int32_t job = c[C_JOB];
     c[C_JOB] = JOB_NONE;
@@ -169,17 +298,27 @@ static int32_t inject(int32_t *c, int32_t *ki, float *x, float *e, float *corr) 
         return 0;
     }
     int32_t mask = ki[I_GATE_MASK];
-    if (mask & 3) {
+    if (drift_watch(e, m, ki[I_ACCEPTED] + ki[I_REJECTED])) {
+        c[C_DRIFT_UNTIL] = c[C_TICK] + 5 * c[C_T_SECOND];
+    }
+    if (mask & 4) {
+        c[C_V_REJECTS] += 1;
+    } else {
+        c[C_V_REJECTS] = 0;
+    }
+    if (mask & 0x1B) { /* east, north: position or velocity */
         c[C_REJECTS] += 1;
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
-        return c[C_REJECTS] >= c[C_RESET_AFTER];
+        return c[C_REJECTS] >= c[C_RESET_AFTER] ? EV_RESET : 0;
     }
     c[C_REJECTS] = 0;
     c[C_ACCEPT_TICK] = c[C_TICK];
     if (mask) {
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+    } else if (c[C_RESET_UNTIL] > c[C_TICK]) {
+        c[C_RESET_UNTIL] = c[C_TICK]; /* a whole fix agrees with the reset state */
     }
-    return 0;
+    return c[C_V_REJECTS] >= c[C_RESET_AFTER] ? EV_VRESET : 0;
 }
 
 static int32_t stop(int32_t *c, int32_t phase, int32_t ev) {
@@ -197,17 +336,35 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
     float *corr = m + M_CORR;
     switch (c[C_PHASE]) {
         case PH_START: {
-            int32_t finite = navk_imu_cal(w, f, gyro, accel, m + M_CAL, c[C_CAL_FLAGS]);
+            /* _imu_counts_py and _tick: an unusable sample is replaced by the previous one */
+            int32_t held = imu_check(c, gyro, accel);
+            int32_t finite = held ? finite6(w, f)
+                                  : navk_imu_cal(w, f, gyro, accel, m + M_CAL, c[C_CAL_FLAGS]);
             c[C_TICK] += 1;
-            if (c[C_SAT]) {
-                c[C_SAT_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+            int32_t t = c[C_TICK];
+            if (c[C_IMU_STATUS] & IMU_OVER_RANGE) {
+                c[C_SAT_UNTIL] = t + c[C_T_SECOND];
+            }
+            if (held) {
+                c[C_HELD_UNTIL] = t + c[C_T_SECOND];
+                if (c[C_N_HELD] < c[C_T_STUCK]) {
+                    c[C_N_HELD] += 1;
+                }
+                if (c[C_N_HELD] >= c[C_T_STUCK]) {
+                    c[C_DEAD_UNTIL] = t + c[C_T_SECOND];
+                }
+            } else {
+                if (c[C_N_HELD] >= c[C_T_STUCK]) {
+                    c[C_INFLATE] = 1; /* the IMU is back after a dead spell */
+                }
+                c[C_N_HELD] = 0;
             }
             if (!finite) {
-                c[C_FAULT_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+                c[C_FAULT_UNTIL] = t + c[C_T_SECOND];
                 update_health(c);
                 return 0;
             }
-            if ((c[C_TICK] & 3) == 0) {
+            if ((t & 3) == 0 && !held) {
                 still_update(c, st, f, w, x, m + M_STP);
             }
             if (c[C_STATE] != NAVIGATING) {
@@ -236,14 +393,22 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
             }
             c[C_BUSY] = ki[I_JOB] != IDLE;
             navk_eskf_work(e, ki, c[C_SLICES]);
-            if (ki[I_READY] && inject(c, ki, x, e, corr)) {
-                return stop(c, PH_CHECK, EV_RESET);
+            if (ki[I_READY]) {
+                int32_t ev = inject(c, ki, m);
+                if (ev) {
+                    return stop(c, PH_CHECK, ev);
+                }
             }
         /* fall through */
         case PH_CHECK:
             /* P changes only when a job finishes: check it then, not every tick */
-            if ((c[C_BUSY] && ki[I_JOB] == IDLE && !navk_eskf_diagonal_ok(e))
-                || !navk_ins_finite(x)) {
+            if (c[C_BUSY] && ki[I_JOB] == IDLE) {
+                if (!navk_eskf_diagonal_ok(e)) {
+                    return stop(c, PH_HEALTH, EV_FAULT);
+                }
+                c[C_UNCERTAIN] = uncertain(e, m + M_AID);
+            }
+            if (!navk_ins_finite(x)) {
                 return stop(c, PH_HEALTH, EV_FAULT);
             }
         /* fall through */

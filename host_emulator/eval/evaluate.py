@@ -39,6 +39,7 @@ class Track:
     bg: np.ndarray  # (M, 3) gyro bias estimate, rad/s
     ba: np.ndarray  # (M, 3) accel bias estimate, m/s^2
     health: np.ndarray  # (M,)
+    causes: np.ndarray  # (M,) the health's cause bits (proto/records.py CAUSES; 0 if absent)
     gnss_valid: np.ndarray  # (M,) bool
     align_time_s: float | None  # first navigating state time
 
@@ -83,6 +84,7 @@ def track(decoded, tick_s, origin):
         bg=np.array([e["gyro_bias_rad_s"] for e, _ in rows], float).reshape(m, 3),
         ba=np.array([e["accel_bias_m_s2"] for e, _ in rows], float).reshape(m, 3),
         health=np.array([e["health"] for e, _ in rows], int),
+        causes=np.array([e["causes"] or 0 for e, _ in rows], int),
         gnss_valid=np.array([f["gnss_valid"] for _, f in rows], bool),
         align_time_s=align,
     )

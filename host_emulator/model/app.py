@@ -138,7 +138,7 @@ def frame_bytes(t, cfg):
     return b
 
 
-def ext_frame(counter, health, state, cfg_status, flags, model):
+def ext_frame(counter, health, state, cfg_status, flags, model, causes):
     """The extended frame (proto/records.py) of the model's state after this tick."""
     kf, ins = model.kf, model.ins
     return records.encode_ext(
@@ -161,6 +161,7 @@ def ext_frame(counter, health, state, cfg_status, flags, model):
             "origin_lon_e7": model.origin_lon_e7,
             "tick": model.tick & 0x3FFFFFFF,
             "origin_h_m": model.coef[fw_geo.H0],
+            "causes": causes,
         },
     )
 
@@ -180,9 +181,9 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     tick's ticks_us value."""
     fw_app = _firmware()[0]
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
-    fix.valid = 1 if ok else 0
-    if not ok:
-        model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)  # a no-fix epoch
+    fix.valid = 1 if ok and not g.epoch_bad else 0
+    if not fix.valid:  # a no-fix epoch (quality 0), or a fix with an impossible field (-1)
+        model.gnss(0, 0, 0.0, -1 if ok else 0, F32(99), -1.0, -1.0)
         return
     lat = g.epoch_lat_e7
     lon = fw_geo.join_e7(g.epoch_lon_deg, g.epoch_lon_frac_e7)
@@ -236,9 +237,11 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     gyro_sat = (gyro >= bmi055.GYRO_SAT_HI) | (gyro <= bmi055.GYRO_SAT_LO)
     accel_sat = (accel >= bmi055.ACCEL_SAT_HI) | (accel <= bmi055.ACCEL_SAT_LO)
     sat = gyro_sat.any(axis=1) | accel_sat.any(axis=1)  # the driver's `saturated`
+    fresh = (accel_regs[:, 0:6:2] & 1).any(axis=1)  # an accel new_data bit (status 6-8)
     gyro_l = gyro.tolist()
     accel_l = accel.tolist()
     sat_l = sat.tolist()
+    fresh_l = fresh.tolist()
     pps_before = stim.pps_before_us.tolist()
     offs = stim.uart_offsets.tolist()
     ub = stim.uart_bytes
@@ -268,6 +271,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     ring = bytearray()
     fix = _Fix()
     counter = 0
+    pps_tick = pps_bad = 0  # app._pps_seen's state
+    pps_tol = 4 + out_every
     j = 0  # frames so far
     for k in range(n):
         # the interval before tick k: bytes arrive in the ring, the PPS edge fires
@@ -292,11 +297,16 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             deliver_fix(g, model, fix, cfg.gnss_hdop_max, now)
         if tick_hook is not None:
             tick_hook(k, model)
-        model.imu_raw(gyro_l[k], accel_l[k], sat_l[k])
+        model.imu_raw(gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
         ticks = k + 1
         parts = []
         if ticks % out_every == 0:
             t["pps"][j] = g.pps_flag_take()
+            if t["pps"][j]:  # app._pps_seen
+                d = ticks - pps_tick
+                if pps_tick and abs(d - fw_app._PPS_TICKS) > pps_tol:
+                    pps_bad = ticks + fw_app._PPS_TICKS
+                pps_tick = ticks
             t["gga"][j] = g.gga_flag_take()
             t["valid"][j] = fix.valid
             t["lat_e7"][j] = fix.lat_e7
@@ -310,10 +320,17 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             counter = (counter + 1) & 0xFF
         if ext_every and ticks % ext_every == 0:
             health = model.health
-            if cfg_status != config.OK and health == 0:
-                health = 1
+            causes = model.causes
+            if cfg_status != config.OK:
+                causes |= fw_app.CAUSE_CONFIG
+                if health == 0:
+                    health = 1
+            if pps_tick and (ticks < pps_bad or ticks - pps_tick > fw_app._PPS_TICKS + pps_tol):
+                causes |= fw_app.CAUSE_PPS
+                if health == 0:
+                    health = 1
             flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
-            parts.append(ext_frame(counter, health, model.state, cfg_status, flags, model))
+            parts.append(ext_frame(counter, health, model.state, cfg_status, flags, model, causes))
         if cfg.raw_record:
             parts.append(
                 records.encode_raw(

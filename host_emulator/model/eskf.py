@@ -67,6 +67,7 @@ class EskfModel:
         self.accepted = 0
         self.rejected = 0
         self.gate_mask = 0
+        self.innov = []
 
     def set_gate(self, gate_sigma, inv_tau_g, inv_tau_a):
         self.gate2 = gate_sigma * gate_sigma
@@ -159,6 +160,7 @@ class EskfModel:
         self.accepted = 0
         self.rejected = 0
         self.gate_mask = 0
+        self.innov = []  # (y, S) of each scalar, after its gate step
 
     def _update_slice(self):
         m = self.m
@@ -186,6 +188,7 @@ class EskfModel:
                 hx = hx + hk * self.dx[k]
             s = hv + r
             y = z - hx
+            self.innov.append((y, s))
             if not (s > 0.0) or y * y > self.gate2 * s:
                 self.rejected += 1
                 self.gate_mask |= 1 << m

@@ -99,6 +99,10 @@ class NavModel(AlignmentModel, AidingModel):
         self.ticks_latency = _ticks(cfg.gnss_latency_s, dt)
         self.ticks_second = _ticks(F32(1), dt)
         self.ticks_track = max(_ticks(cfg.track_s, dt), 1)
+        self.ticks_stuck = max(_ticks(cfg.imu_stuck_s, dt), 1)
+        self.imu_status = 0  # the IMU driver's status word of this tick (nav.IMU_*)
+        self.prev_g = [0, 0, 0]  # the last counts
+        self.prev_a = [0, 0, 0]
         self._set_noise(cfg)
         self._reset_counters()
 
@@ -153,9 +157,22 @@ class NavModel(AlignmentModel, AidingModel):
         self.trk_tick = 0  # its measurement tick
         self.last_accept_tick = 0
         self.rejects = 0
+        self.v_rejects = 0  # heights rejected in a row
         self.gated_until = 0
         self.fault_until = 0
         self.sat_until = 0
+        self.held_until = 0
+        self.dead_until = 0
+        self.reset_until = 0
+        self.data_until = 0
+        self.causes = 0
+        self.uncertain = 0
+        self.n_held = 0  # IMU samples held in a row
+        self.n_same_g = 0  # unchanged gyro / accel samples in a row
+        self.n_same_a = 0
+        self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
+        self.drift_until = 0
+        self.drift_watch = np.zeros(3, F32)  # running means of normalised innovations
         self.since_prop = 0
         self.since_zupt = 0
         self.since_nhc = 0
@@ -185,20 +202,63 @@ class NavModel(AlignmentModel, AidingModel):
 
     # ---- inputs ----
 
-    def imu_raw(self, gyro_counts, accel_counts, saturated=False):
-        w = np.asarray(gyro_counts, dtype=F32) / self.cfg.gyro_counts_per_rad_s
-        f = np.asarray(accel_counts, dtype=F32) / self.cfg.accel_counts_per_m_s2
-        self.imu(w, f, saturated)
+    def imu_raw(self, gyro_counts, accel_counts, saturated=False, fresh=True):
+        """A tick of BMI055 counts; a sample that cannot be a working sensor's is replaced by
+        the previous one (nav._imu_check)."""
+        self.imu_status = (1 if saturated else 0) | (fw_nav.IMU_FRESH if fresh else 0)
+        g = [int(v) for v in gyro_counts]
+        a = [int(v) for v in accel_counts]
+        if self._imu_check(g, a):
+            s = sum_left([*self.w_b, *self.f_b])
+            self._tick(s - s == 0.0, True)
+            return
+        w = np.asarray(g, dtype=F32) / self.cfg.gyro_counts_per_rad_s
+        f = np.asarray(a, dtype=F32) / self.cfg.accel_counts_per_m_s2
+        self._tick(self._calibrate(w, f), False)
+
+    def _imu_check(self, g, a):
+        """Over range, no new accel sample, all-zero or all-ones words, or counts unchanged
+        for ticks_stuck ticks: not a sample."""
+        if g == self.prev_g:
+            self.n_same_g = min(self.n_same_g + 1, self.ticks_stuck)
+        else:
+            self.n_same_g = 0
+        if a == self.prev_a:
+            self.n_same_a = min(self.n_same_a + 1, self.ticks_stuck)
+        else:
+            self.n_same_a = 0
+        self.prev_g = g
+        self.prev_a = a
+        st = self.imu_status
+        if st & fw_nav.IMU_OVER_RANGE or not st & fw_nav.IMU_FRESH:
+            return True
+        if a[0] in (0, -1) and set(g + a) == {a[0]}:
+            return True
+        return self.n_same_g >= self.ticks_stuck or self.n_same_a >= self.ticks_stuck
 
     def imu(self, w_in, f_in, saturated=False):
+        self.imu_status = 1 if saturated else 0
+        self._tick(self._calibrate(w_in, f_in), False)
+
+    def _tick(self, finite, held):
         self.tick += 1
-        if saturated:
-            self.sat_until = self.tick + self.ticks_second
-        if not self._calibrate(w_in, f_in):
-            self.fault_until = self.tick + self.ticks_second
+        t = self.tick
+        if self.imu_status & fw_nav.IMU_OVER_RANGE:
+            self.sat_until = t + self.ticks_second
+        if held:
+            self.held_until = t + self.ticks_second
+            self.n_held = min(self.n_held + 1, self.ticks_stuck)
+            if self.n_held >= self.ticks_stuck:
+                self.dead_until = t + self.ticks_second
+        else:
+            if self.n_held >= self.ticks_stuck:
+                self.inflate = 1
+            self.n_held = 0
+        if not finite:
+            self.fault_until = t + self.ticks_second
             self._update_health()
             return
-        if self.tick & 3 == 0:
+        if t & 3 == 0 and not held:
             self._still_update()
         if self.state == NAVIGATING:
             self._navigate()
@@ -222,6 +282,8 @@ class NavModel(AlignmentModel, AidingModel):
         self.fix_lat_e7 = lat_e7
         self.fix_lon_e7 = lon_e7
         self.fix_quality = quality
+        if quality < 0:  # an epoch the app dropped for an impossible field
+            self.data_until = self.tick + self.ticks_second
         if fix_tick < 0:
             fix_tick = self.tick - self.ticks_latency
         self.fix_tick = fix_tick
@@ -311,9 +373,14 @@ class NavModel(AlignmentModel, AidingModel):
         kf.work(self.cfg.slices_per_tick)
         if kf.ready:
             self._inject()
-        if busy and kf.job == IDLE and not kf.diagonal_ok():  # P changed only if a job ended
-            self._fault_reset()
-            return
+        if busy and kf.job == IDLE:  # P changed only if a job ended
+            if not kf.diagonal_ok():
+                self._fault_reset()
+                return
+            lim2 = self.cfg.fault_sigma_m * self.cfg.fault_sigma_m
+            lim2_v = self.cfg.fault_sigma_v_m * self.cfg.fault_sigma_v_m
+            P = kf.P
+            self.uncertain = 1 if max(P[0, 0], P[1, 1]) > lim2 or P[2, 2] > lim2_v else 0
         p, v = ins.p_n, ins.v_n
         s = sum_left([p[0], p[1], p[2], v[0], v[1], v[2], ins.q_bn[0]])
         if s - s != 0.0:
@@ -358,6 +425,10 @@ class NavModel(AlignmentModel, AidingModel):
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
+        if self.inflate:  # velocity and attitude variances at least their initial ones
+            d = np.arange(IX_VEL, IX_VEL + 6)
+            kf.P[d, d] = np.maximum(kf.P[d, d], self.init_diag[d])
+            self.inflate = 0
         overdue = self.since_prop >= 2 * self.ticks_prop
         if self.fix_queued and not overdue:
             self.fix_queued = False
@@ -401,7 +472,10 @@ class NavModel(AlignmentModel, AidingModel):
         kf.dx = np.zeros(N, F32)
         kf.ready = False
         if self.job == JOB_GNSS:
-            if kf.gate_mask & 3:
+            if self._drift_watch(kf.innov):
+                self.drift_until = self.tick + 5 * self.ticks_second
+            self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
+            if kf.gate_mask & 0x1B:  # east or north, position or velocity
                 self.rejects += 1
                 self.gated_until = self.tick + self.ticks_second
                 if self.rejects >= self.cfg.reset_after_rejects:
@@ -411,7 +485,25 @@ class NavModel(AlignmentModel, AidingModel):
                 self.last_accept_tick = self.tick
                 if kf.gate_mask:
                     self.gated_until = self.tick + self.ticks_second
+                elif self.reset_until > self.tick:
+                    self.reset_until = self.tick
+                if self.v_rejects >= self.cfg.reset_after_rejects:
+                    self._reset_vertical()
         self.job = JOB_NONE
+
+    def _drift_watch(self, innov):
+        """nav._drift_watch: running means of y / sqrt(S) of the height and the velocity east
+        and north; True (and restarted) when one passes the limit."""
+        bw = self.drift_watch
+        hit = False
+        for j, (y, s) in enumerate(innov[2:5]):
+            if s > 0.0:
+                q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
+                bw[j] = bw[j] + fw_nav._BW_ALPHA * (q - bw[j])
+                hit = hit or bw[j] > fw_nav._BW_LIMIT or bw[j] < -fw_nav._BW_LIMIT
+        if hit:
+            bw[:] = ZERO
+        return hit
 
     def _fault_reset(self):
         ins = self.ins
@@ -429,19 +521,34 @@ class NavModel(AlignmentModel, AidingModel):
         self.fix_queued = False
         self.trk_set = False
         self.leveled = False
+        self.rejects = 0
+        self.v_rejects = 0
         self.fault_until = self.tick + self.ticks_second
         self.resets += 1
 
     def _update_health(self):
+        """The causes (nav.CAUSE_*) and the health code they make."""
         t = self.tick
-        if t < self.fault_until:
-            self.health = 2
-        elif t < self.sat_until or t < self.gated_until:
-            self.health = 1
-        elif self.state == NAVIGATING and t - self.last_accept_tick > self.ticks_timeout:
-            self.health = 1
-        else:
-            self.health = 0
+        held = (
+            (self.sat_until, fw_nav.CAUSE_IMU_SAT),
+            (self.held_until, fw_nav.CAUSE_IMU_HELD),
+            (self.dead_until, fw_nav.CAUSE_IMU_DEAD),
+            (self.fault_until, fw_nav.CAUSE_NUMERIC),
+            (self.gated_until, fw_nav.CAUSE_GNSS_GATED),
+            (self.data_until, fw_nav.CAUSE_GNSS_DATA),
+            (self.reset_until, fw_nav.CAUSE_RESET),
+            (self.drift_until, fw_nav.CAUSE_DRIFT),
+        )
+        k = sum(bit for until, bit in held if t < until)
+        if self.state == NAVIGATING:
+            if t - self.last_accept_tick > self.ticks_timeout:
+                k |= fw_nav.CAUSE_GNSS_LOST
+            if self.rejects >= 2 or self.v_rejects >= 2:
+                k |= fw_nav.CAUSE_GNSS_REJECTS
+            if self.uncertain:
+                k |= fw_nav.CAUSE_UNCERTAIN
+        self.causes = k
+        self.health = 2 if k & fw_nav.CAUSE_FAULTS else (1 if k else 0)
 
     # ---- state for comparisons ----
 
@@ -492,6 +599,7 @@ class NavModel(AlignmentModel, AidingModel):
             "ring_p": self.ring_p,
             "ring_v": self.ring_v,
             "corr": self.corr,
+            "drift_watch": self.drift_watch,
             "gnss_p": self.gnss_p,
             "fix": self.fix,
             "used_fix": self.used,
@@ -523,6 +631,18 @@ class NavModel(AlignmentModel, AidingModel):
             "gated_until": self.gated_until,
             "fault_until": self.fault_until,
             "sat_until": self.sat_until,
+            "held_until": self.held_until,
+            "dead_until": self.dead_until,
+            "reset_until": self.reset_until,
+            "data_until": self.data_until,
+            "causes": self.causes,
+            "uncertain": self.uncertain,
+            "v_rejects": self.v_rejects,
+            "n_held": self.n_held,
+            "n_same_g": self.n_same_g,
+            "n_same_a": self.n_same_a,
+            "inflate": self.inflate,
+            "drift_until": self.drift_until,
             "since_prop": self.since_prop,
             "since_zupt": self.since_zupt,
             "since_nhc": self.since_nhc,

@@ -8,9 +8,13 @@ fix's sigmas. Rows are queued as (z, r, [(k, h_k), ...]) in the firmware's order
 
 import numpy as np
 
+from host_emulator import firmware_env
 from host_emulator.model import fmath as ref_fmath
-from host_emulator.model.eskf import IX_ATT, IX_VEL
-from host_emulator.model.f32ops import F32, ONE, cross, mat_vec, vec
+from host_emulator.model.eskf import IX_ATT, IX_POS, IX_VEL
+from host_emulator.model.f32ops import F32, ONE, ZERO, cross, mat_vec, vec
+
+firmware_env.install()
+import nav_aid as fw_nav_aid  # noqa: E402  (UNCONFIRMED)
 
 
 class AidingModel:
@@ -105,10 +109,32 @@ class AidingModel:
         u = self.used
         course, sp = u[4], u[3]
         if course >= 0.0:
-            v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), ins.v_n[2])
+            v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
         else:
-            v = vec(ins.v_n[0], ins.v_n[1], ins.v_n[2])
+            v = vec(ins.v_n[0], ins.v_n[1], 0)
         sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
         self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
         self.rejects = 0
+        self.v_rejects = 0
+        self.reset_until = fw_nav_aid.UNCONFIRMED
+        self.resets += 1
+
+    def _reset_vertical(self):
+        """The height from the fix the last update rejected, vertical velocity 0, their rows
+        and columns of P afresh; the step into the corrections (the delay ring's reference)."""
+        ins = self.ins
+        h = self.used[2] - self._lever_n()[2]
+        self.corr[2] = self.corr[2] + (h - ins.p_n[2])
+        self.corr[5] = self.corr[5] - ins.v_n[2]
+        ins.p_n[2] = h
+        ins.v_n[2] = ZERO
+        ins.p_comp[2] = ZERO
+        P = self.kf.P
+        sv = self.used[6]
+        for i, var in ((IX_POS + 2, sv * sv), (IX_VEL + 2, self.init_diag[IX_VEL + 2])):
+            P[i, :] = ZERO
+            P[:, i] = ZERO
+            P[i, i] = var
+        self.v_rejects = 0
+        self.reset_until = fw_nav_aid.UNCONFIRMED
         self.resets += 1

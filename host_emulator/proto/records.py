@@ -41,13 +41,36 @@ EXT_FIELDS = (
     ("origin_lon_e7", "i", 1),
     ("tick", "I", 1),  # navigator ticks, wrapping at 2**30
     ("origin_h_m", "f", 1),  # ellipsoidal; the position's U is relative to it
+    ("causes", "I", 1),  # why health is not 0: CAUSES bits (docs/health.md)
 )
+# The bits of "causes": firmware/lib/nav.py CAUSE_* (the navigator's) and firmware/app.py's
+# (tests/proto checks that they agree), by name, in bit order
+CAUSES = (
+    (0x1, "imu_saturated"),
+    (0x2, "imu_sample_held"),
+    (0x4, "imu_dead"),
+    (0x8, "numeric_fault"),
+    (0x10, "gnss_lost"),
+    (0x20, "gnss_gated"),
+    (0x40, "gnss_rejects"),
+    (0x80, "gnss_bad_data"),
+    (0x100, "reset_to_gnss"),
+    (0x200, "uncertain"),
+    (0x400, "drift"),
+    (0x2000, "pps_irregular"),
+    (0x4000, "config_defaults"),
+    (0x8000, "overrun"),
+)
+CAUSE_OVERRUN = 0x8000  # run time (the board's timing), not the firmware's arithmetic
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time
 assert all(code == "H" for name, code, _ in EXT_FIELDS if name in EXT_TIMING_FIELDS)
 EXT_FLOAT_FIELDS = tuple(n for n, code, _ in EXT_FIELDS if code == "f")
 _EXT = struct.Struct("<" + "".join(f"{count}{code}" for _, code, count in EXT_FIELDS))
 EXT_PAYLOAD = _EXT.size  # bytes after the counter
 EXT_LEN = HEAD_LEN + EXT_PAYLOAD + CRC_LEN
+# before "causes" (an older firmware's recordings): decoded with causes None
+_EXT_V1 = struct.Struct("<" + "".join(f"{count}{code}" for _, code, count in EXT_FIELDS[:-1]))
+EXT_LEN_V1 = EXT_LEN - 4
 
 RAW_FIELDS = (
     ("t0_us", "I"),  # the tick's start, time.ticks_us
@@ -74,13 +97,13 @@ def _offsets(fields, start):
 
 EXT_OFFSETS = _offsets(EXT_FIELDS, HEAD_LEN)
 RAW_OFFSETS = _offsets(RAW_FIELDS, HEAD_LEN)
-assert EXT_LEN == 132 and RAW_FIXED_LEN == 26 and RAW_MAX_GNSS == 232
+assert EXT_LEN == 136 and RAW_FIXED_LEN == 26 and RAW_MAX_GNSS == 232
 
 
 def length_ok(r):
     """Whether a record's length is its type's (extended frame: fixed; raw: its GNSS count)."""
     if r[1] == EXT_TYPE:
-        return len(r) == EXT_LEN
+        return len(r) in (EXT_LEN, EXT_LEN_V1)
     return len(r) >= RAW_MIN_LEN and r[2] == RAW_FIXED_LEN - 3 + r[RAW_FIXED_LEN - 1]
 
 
@@ -94,14 +117,30 @@ def seal(body):
 
 
 def decode_ext(r):
-    """The extended frame's fields: counter, then EXT_FIELDS (floats as Python floats)."""
-    values = _EXT.unpack_from(r, HEAD_LEN)
+    """The extended frame's fields: counter, then EXT_FIELDS (floats as Python floats;
+    causes None in an older firmware's shorter frame)."""
+    if len(r) == EXT_LEN_V1:
+        values = (*_EXT_V1.unpack_from(r, HEAD_LEN), None)
+    else:
+        values = _EXT.unpack_from(r, HEAD_LEN)
     out = {"counter": r[3]}
     i = 0
     for name, _, count in EXT_FIELDS:
         out[name] = values[i] if count == 1 else list(values[i : i + count])
         i += count
     return out
+
+
+def cause_names(causes):
+    """The names of the bits set in an extended frame's "causes" (CAUSES; unknown bits as
+    hex), or [] for None (an older firmware's frame)."""
+    if not causes:
+        return []
+    names = [name for bit, name in CAUSES if causes & bit]
+    rest = causes & ~sum(bit for bit, _ in CAUSES)
+    if rest:
+        names.append(f"0x{rest:x}")
+    return names
 
 
 def encode_ext(counter, fields):

@@ -193,7 +193,8 @@ def split(data):
 
 def without_run_time(data):
     """A copy of the stream with the board's run-time counters of every extended frame
-    (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs) set to 0 and its CRC renewed:
+    (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs; the overrun cause) set to 0
+    and its CRC renewed:
     what is left is the firmware's arithmetic and logic, comparable between a board (or the
     emulated Cortex-M4F, which collects garbage as the board does) and the model."""
     out = bytearray(data)
@@ -204,5 +205,7 @@ def without_run_time(data):
             for name in records.EXT_TIMING_FIELDS:
                 at = i + records.EXT_OFFSETS[name]
                 out[at : at + 2] = bytes(2)  # the timing fields are u16
+            at = i + records.EXT_OFFSETS["causes"] + 1  # CAUSE_OVERRUN is bit 7 of byte 1
+            out[at] &= ~(records.CAUSE_OVERRUN >> 8) & 0xFF
             out[i:end] = records.seal(out[i : end - records.CRC_LEN])
     return bytes(out)

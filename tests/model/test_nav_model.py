@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import eskf
 import ins as ins_mod
+import nav as nav_mod
 import navcfg
 import numpy as np
 import pytest
@@ -218,6 +219,7 @@ def firmware_snapshot(nav):
         "ring_p": nav._ring_p,
         "ring_v": nav._ring_v,
         "corr": nav._corr,
+        "drift_watch": f32.view(nav.mem, nav_mod._M_BW, 3),
         "gnss_p": nav._gp,
         "fix": nav._fx,
         "used_fix": nav._used,
@@ -251,6 +253,18 @@ def firmware_snapshot(nav):
         "gated_until": nav_runner.control(nav, "gated_until"),
         "fault_until": nav_runner.control(nav, "fault_until"),
         "sat_until": nav_runner.control(nav, "sat_until"),
+        "held_until": nav_runner.control(nav, "held_until"),
+        "dead_until": nav_runner.control(nav, "dead_until"),
+        "reset_until": nav_runner.control(nav, "reset_until"),
+        "data_until": nav_runner.control(nav, "data_until"),
+        "causes": nav_runner.control(nav, "causes"),
+        "uncertain": nav_runner.control(nav, "uncertain"),
+        "v_rejects": nav_runner.control(nav, "v_rejects"),
+        "n_held": nav_runner.control(nav, "n_held"),
+        "n_same_g": nav_runner.control(nav, "n_same_g"),
+        "n_same_a": nav_runner.control(nav, "n_same_a"),
+        "inflate": nav_runner.control(nav, "inflate"),
+        "drift_until": nav_runner.control(nav, "drift_until"),
         "since_prop": nav_runner.control(nav, "since_prop"),
         "since_zupt": nav_runner.control(nav, "since_zupt"),
         "since_nhc": nav_runner.control(nav, "since_nhc"),
@@ -320,12 +334,14 @@ class Seen:
     ceiled: int = 0  # ticks with a variance at its ceiling
     origins: set = field(default_factory=set)
     health: set = field(default_factory=set)
+    causes: dict = field(default_factory=dict)  # nav.CAUSE_* bits -> ticks
 
 
 def observe(seen, nav, before):
     t = nav.tick
     kf = nav.kf
     seen.health.add(nav.health)
+    seen.causes[nav.causes] = seen.causes.get(nav.causes, 0) + 1
     if nav.frame.valid:
         seen.origins.add((nav.frame.lat0_e7, geo.join_e7(nav.frame.lon0_deg, nav.frame.lon0_frac)))
     new_fix = nav_runner.control(nav, "last_fix_tick") == t and before["last_fix_tick"] != t
@@ -429,7 +445,14 @@ def test_model_tracks_the_firmware_bit_for_bit_for_a_minute_with_an_outage():
     assert_gnss_seen(seen, drive.outage)
     assert seen.rejected_gnss >= 1 and seen.partly_gated >= 1 and seen.unusable_fixes >= 10
     assert seen.zupts >= 3 and seen.still_ticks >= 400
+    # warnings for the gated fixes and the outage; nothing that makes health 2 (a fault)
     assert seen.health == {0, 1}
+    gnss = nav_mod.CAUSE_GNSS_GATED | nav_mod.CAUSE_GNSS_LOST
+    assert {k for k in seen.causes if k} <= {
+        nav_mod.CAUSE_GNSS_GATED,
+        nav_mod.CAUSE_GNSS_LOST,
+        gnss,
+    }
 
 
 def test_model_follows_re_anchoring_across_the_180th_meridian():

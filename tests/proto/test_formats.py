@@ -89,7 +89,7 @@ def _firmware_ext(counter, tick):
         b[:] = rng.normal(size=len(b)).astype(np.float32)
     e = records.ExtFrame()
     e.fields[:] = array("i", (counter, 1, 2, 3, 5, 70000, 1234, 65535, 7, -338688000, -151,
-                              -2093000, tick))  # fmt: skip
+                              -2093000, tick, 0xCBC5))  # fmt: skip
     e.pack(p, x, coef)
     ref = bytearray(records.EXT_LEN)  # the Python reference of the (native) kernel
     records._ext_pack_py(ref, e.fields, p, x, coef)
@@ -118,9 +118,37 @@ def test_the_firmwares_extended_frame_is_the_record_layout():
         2**30 - 1,
     )
     assert d["p_diag"][0] == float(p[0]) and np.isnan(d["p_diag"][1])
+    assert d["causes"] == 0xCBC5
+    assert rec_schema.cause_names(0xCBC5) == [
+        "imu_saturated", "imu_dead", "gnss_rejects", "gnss_bad_data", "reset_to_gnss",
+        "uncertain", "config_defaults", "overrun", "0x800",
+    ]  # fmt: skip
     fields = dict(d, p_diag=np.diagonal(p.reshape(15, 15)), gyro_bias_rad_s=bg,
                   accel_bias_m_s2=ba, pos_enu_m=pos, origin_h_m=coef[geo.H0])  # fmt: skip
     assert rec_schema.encode_ext(9, fields) == data  # the NaN's bits included
+    # an older firmware's frame, without the causes, still decodes
+    old = data[: rec_schema.EXT_LEN_V1 - 4]
+    old = rec_schema.seal(bytes([*old[:2], old[2] - 4, *old[3:]]))
+    assert rec_schema.length_ok(old) and rec_schema.crc_ok(old)
+    d_old = rec_schema.decode_ext(old)
+    assert d_old["causes"] is None and d_old["origin_h_m"] == d["origin_h_m"]
+    assert d_old["tick"] == d["tick"] and d_old["health"] == d["health"]
+
+
+def test_the_cause_bits_are_the_firmwares():
+    """proto/records.py CAUSES names the bits firmware/lib/nav.py and app.py define."""
+    import app
+    import nav
+
+    fw = {v: k for k, v in vars(nav).items() if k.startswith("CAUSE_") and k != "CAUSE_FAULTS"}
+    fw.update({app.CAUSE_CONFIG: "CAUSE_CONFIG", app.CAUSE_OVERRUN: "CAUSE_OVERRUN",
+               app.CAUSE_PPS: "CAUSE_PPS"})  # fmt: skip
+    assert sorted(fw) == [bit for bit, _ in rec_schema.CAUSES]
+    assert rec_schema.CAUSE_OVERRUN == app.CAUSE_OVERRUN
+    two = ("CAUSE_IMU_DEAD", "CAUSE_NUMERIC", "CAUSE_GNSS_REJECTS", "CAUSE_RESET",
+           "CAUSE_UNCERTAIN", "CAUSE_DRIFT")  # fmt: skip
+    faults = sum(b for b, n in fw.items() if n in two)
+    assert nav.CAUSE_FAULTS == faults
 
 
 def test_the_firmwares_raw_record_is_the_record_layout():

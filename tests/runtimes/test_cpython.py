@@ -50,7 +50,7 @@ def test_the_firmware_driver_reads_the_stimulus_registers():
     model.set_temperature_raw(-7)
     assert imu.read() is True  # int16 and 12-bit limits: saturated
     assert list(imu.gyro) == [123, -32768, 32767] and list(imu.accel) == [-2048, 2047, 5]
-    assert imu.accel_new == 0b111  # new_data bits from the record
+    assert (imu.status >> 6) == 0b111  # new_data bits from the record
     assert imu.read_temperature() == -7
 
 

@@ -285,7 +285,7 @@ imu.set_temperature_raw(-7)
 res["read_locked"] = _locked(drv.read)
 res["gyro"] = list(drv.gyro)
 res["accel"] = list(drv.accel)
-res["accel_new"] = drv.accel_new
+res["accel_new"] = drv.status >> 6
 res["temp"] = drv.read_temperature()
 u = machine.UART(2, baudrate=9600, rxbuf=16, timeout=0)
 u.feed(b"0123456789")

@@ -107,6 +107,7 @@ def _check_exports(tmp_path, d, prefix):
     ehead, erows = _read_csv(tmp_path / f"{prefix}_ext.csv")
     assert ehead == [c[0] for c in export.EXT_COLUMNS] and len(erows) == len(d.ext)
     assert [int(r[1]) for r in erows] == [e["tick"] for e in d.ext]
+    assert [int(r[ehead.index("causes")]) for r in erows] == [e["causes"] for e in d.ext]
 
     from asammdf import MDF
 
@@ -313,3 +314,21 @@ def test_a_port_that_sends_only_garbage_or_nothing_or_is_busy(tmp_path, port_ope
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_the_view_names_the_causes_of_the_health_code():
+    """An extended frame's cause bits are shown by name in the live view and the log line."""
+    from host_emulator.proto import records
+    from tools.monitor import view
+
+    st = view.Status("test")
+    f = frame_schema.decode(frame_schema.encode(1, nav_state=2))
+    st.on_frame(0.005, f)
+    fields = {n: ([0.0] * c if c > 1 else 0) for n, _, c in records.EXT_FIELDS}
+    fields.update(health=2, nav_state=2, causes=0x204)  # imu_dead, uncertain
+    st.on_ext(records.decode_ext(records.encode_ext(1, fields)))
+    counts = dict.fromkeys(("bytes", "skipped_bytes", "bad_checksum", "bad_crc",
+                            "dropped_frames", "frames", "ext", "raw"), 0)  # fmt: skip
+    text = "\n".join(view.render(st, counts, 1.0, live=False))
+    assert "health 2 FAULT" in text and "causes     imu_dead uncertain" in text
+    assert "health=2 (imu_dead,uncertain)" in view.one_line(st, counts, 1.0)

@@ -5,6 +5,7 @@ terminal, or as one line per second when stdout is not a terminal; and the final
 import collections
 import math
 
+from host_emulator.proto import records
 from tools.monitor.export import sigmas
 
 NAV_STATES = {1: "ALIGNING", 2: "NAVIGATING"}
@@ -134,6 +135,8 @@ def render(st, counts, elapsed_s, live=True):
                 f"   board tick {e['tick']}"
             )
         lines.append(f"state      {state:<11}{extra}")
+        if e is not None and e.get("causes"):
+            lines.append(f"causes     {' '.join(records.cause_names(e['causes']))}")
         gnss = "valid" if f["gnss_valid"] else "NO FIX"
         if st.fix is not None:
             age = st.frame_t - st.fix_t
@@ -196,6 +199,8 @@ def one_line(st, counts, elapsed_s):
         )
         if st.ext is not None:
             body += f" health={st.ext['health']}"
+            if st.ext.get("causes"):
+                body += f" ({','.join(records.cause_names(st.ext['causes']))})"
     c = counts
     errs = (
         f"checksum={c['bad_checksum']} crc={c['bad_crc']} skipped={c['skipped_bytes']} "
