@@ -33,6 +33,7 @@ from nav import NAVIGATING, Navigator, nav_frame
 
 _US_PER_TICK = const(5000)
 _PPS_TICKS = const(200)  # ticks from one PPS edge to the next
+_PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
@@ -89,8 +90,11 @@ _C_STILL = const(3)
 _C_LAST_FIX_TICK = const(26)
 _C_CAUSES = const(48)
 # The app's own causes in the extended frame (nav.CAUSE_* are the navigator's)
-CAUSE_PPS = const(0x2000)  # PPS edges seen, but the last one not a second after the one before
-# or none for over a second (fixes are then timed by the configured latency): 1
+CAUSE_NMEA = const(0x1000)  # GNSS sentences rejected (checksum, framing, fields) before an
+# epoch: 1, 1 s
+CAUSE_PPS = const(0x2000)  # a PPS edge not a whole number of seconds after the one before, or
+# a fix without an edge in the second before it though edges came before (the fix is then
+# timed by the configured latency): 1, for a second
 CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt or bad file): 1
 # a tick overran since the last extended frame (IMU samples lost): run time, like the overrun
 # counter, so it does not change the health code (which a model of the arithmetic reproduces)
@@ -122,10 +126,10 @@ class App:
         self.ticks = 0
         self.overruns = 0
         self._ext_overruns = 0  # self.overruns at the last extended frame
-        self._pps_tick = 0  # self.ticks when the last PPS edge was seen (0: none yet)
-        self._pps_bad = 0  # CAUSE_PPS until this tick
-        # how far from a second apart two edges may be seen: the frame reads the flag
-        self._pps_tol = 4 + cfg.output_every_ticks
+        self._pps_last = 0  # the last PPS edge seen (ticks_us; _pps_seen)
+        self._pps_bad = 0  # CAUSE_PPS until this tick (self.ticks)
+        self._nmea_rejected = 0  # the parser's rejected() at the last look
+        self._nmea_bad = 0  # CAUSE_NMEA until this tick
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -288,6 +292,10 @@ class App:
         the navigator's input. A no-fix epoch counts as lost; so does a fix with a physically
         impossible field (gnss.epoch_bad), which the navigator is told of by quality -1."""
         g = self.gnss
+        n = g.rejected()  # sentences rejected since the last epoch: CAUSE_NMEA for a second
+        if n != self._nmea_rejected:
+            self._nmea_rejected = n
+            self._nmea_bad = self.ticks + _PPS_TICKS
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         if ok and g.epoch_bad:
             self._fields[_F_VALID] = 0
@@ -340,10 +348,13 @@ class App:
     def _fix_tick(self, pps_us):
         """The fix's measurement tick: the PPS edge's when the edge came less than a second
         before the epoch's first sentence, else -1 (the navigator applies the configured
-        latency)."""
+        latency); CAUSE_PPS for a second when there is none though edges came before (a
+        missing edge)."""
         age_us = time.ticks_diff(time.ticks_us(), pps_us)
         if pps_us and 0 <= age_us < 1000000:
             return self.nav.ctl[_C_TICK] - age_us // _US_PER_TICK
+        if self._pps_last:
+            self._pps_bad = self.ticks + _PPS_TICKS
         return -1
 
     def _send_frame(self, imu, state):
@@ -351,9 +362,7 @@ class App:
         g = self.gnss
         fi[_F_COUNTER] = self.counter
         fi[_F_PPS] = g.pps_flag  # read and cleared here (gnss.py: pps_flag_take)
-        if g.pps_flag:
-            g.pps_flag = 0
-            self._pps_seen()
+        g.pps_flag = 0
         fi[_F_GGA] = g.gga_seen
         g.gga_seen = 0
         fi[_F_STATE] = state
@@ -363,13 +372,6 @@ class App:
         if (state == NAVIGATING) != self._led:
             self._led = state == NAVIGATING
             self.board.navigating_led(self._led)
-
-    def _pps_seen(self):
-        """A PPS edge: CAUSE_PPS for a second if it did not come a second after the last."""
-        d = self.ticks - self._pps_tick
-        if self._pps_tick and (d < _PPS_TICKS - self._pps_tol or d > _PPS_TICKS + self._pps_tol):
-            self._pps_bad = self.ticks + _PPS_TICKS
-        self._pps_tick = self.ticks
 
     def _send_ext(self, imu):
         """The extended frame: health, timing, covariance, biases, position and origin."""
@@ -381,9 +383,13 @@ class App:
             causes |= CAUSE_CONFIG
             if health == 0:
                 health = 1  # running on defaults is a warning
-        if self._pps_tick and (
-            self.ticks < self._pps_bad or self.ticks - self._pps_tick > _PPS_TICKS + self._pps_tol
-        ):
+        if self.gnss.pps_us != self._pps_last:
+            self._pps_seen()
+        if self.ticks < self._nmea_bad:
+            causes |= CAUSE_NMEA
+            if health == 0:
+                health = 1
+        if self.ticks < self._pps_bad:
             causes |= CAUSE_PPS
             if health == 0:
                 health = 1
@@ -404,6 +410,17 @@ class App:
         fi[_EF_GC_RUNS] = self.gc_runs & 0xFFFF
         fi[_EF_TICK] = c[_C_TICK] & 0x3FFFFFFF
         self._send_ext_state(fi)
+
+    def _pps_seen(self):
+        """A PPS edge new since the last extended frame (checked there, not every tick: it
+        costs): CAUSE_PPS for a second if it is not a whole number of seconds after the last
+        one seen (a spurious edge)."""
+        p = self.gnss.pps_us
+        if self._pps_last:
+            d = (time.ticks_diff(p, self._pps_last) + 500000) % 1000000
+            if d < 500000 - _PPS_TOL_US or d > 500000 + _PPS_TOL_US:
+                self._pps_bad = self.ticks + _PPS_TICKS
+        self._pps_last = p
 
     def _send_ext_state(self, fi):
         """The extended frame's origin, covariance and state, packed and sent."""

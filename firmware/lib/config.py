@@ -66,6 +66,27 @@ _SCHEMA = (
 _GYRO_RANGES = (125, 250, 500, 1000, 2000)
 _ACCEL_RANGES = (2, 4, 8, 16)
 _BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)
+# Physical ranges of the float settings, every value (each element of a vector): name, low and
+# high as integers over den (exact, no float literal), unit, and whether low itself is refused
+# (a noise or threshold of 0). Wide enough for any BMI055 board and vehicle; a value outside is
+# a mistake (a unit mix-up, a typo) that would make the filter diverge or stall.
+_RANGES = (
+    ("gyro_bias0", -35, 35, 100, "rad/s", False),  # 20 deg/s; the BMI055's offset is ~1
+    ("accel_bias0", -2, 2, 1, "m/s^2", False),  # 0.2 g; the BMI055's offset is ~70 mg
+    ("gyro_matrix", -2, 2, 1, "", False),  # rotation and scale: elements within 1 and a bit
+    ("accel_matrix", -2, 2, 1, "", False),
+    ("lever_b_m", -10, 10, 1, "m", False),
+    ("mount_ypr_deg", -180, 180, 1, "deg", False),
+    ("gyro_arw", 0, 5, 100, "rad/s/sqrt(Hz)", True),  # BMI055: 0.0005 with margin
+    ("accel_vrw", 0, 5, 10, "m/s^2/sqrt(Hz)", True),  # BMI055: 0.003
+    ("gyro_bias_sigma", 0, 1, 10, "rad/s", True),  # the filter's ceiling
+    ("accel_bias_sigma", 0, 1, 1, "m/s^2", True),  # the filter's ceiling
+    ("gnss_hdop_max", 0, 50, 1, "", True),
+    ("gate_sigma", 1, 100, 1, "sigmas", False),
+    ("gnss_uere_m", 0, 100, 1, "m", True),
+    ("still_gyro", 0, 2, 10, "rad/s", True),
+    ("still_accel", 0, 5, 1, "m/s^2", True),
+)
 
 
 class BoardConfig:
@@ -139,22 +160,26 @@ class BoardConfig:
             for x in value if isinstance(value, list) else (value,):
                 if not x - x == 0.0:
                     return f"{name} is not finite"
-        for name in (
-            "gyro_arw",
-            "accel_vrw",
-            "gyro_bias_sigma",
-            "accel_bias_sigma",
-            "gnss_hdop_max",
-            "gate_sigma",
-            "gnss_uere_m",
-            "still_gyro",
-            "still_accel",
-        ):
-            if not getattr(self, name) > 0.0:
-                return f"{name} must be positive"
+        for name, lo, hi, den, unit, open_low in _RANGES:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            for x in value if isinstance(value, list) else (value,):
+                if x * den < lo or x * den > hi or (open_low and x * den <= lo):
+                    text = f"{name} must be within {_dec(lo, den)}..{_dec(hi, den)}"
+                    return text + (" " + unit if unit else "") + (", above 0" if open_low else "")
         if not 0.0 <= self.gnss_latency_s < 1.0:
             return "gnss_latency_s must be in [0, 1) s"
         return None
+
+
+def _dec(num, den):
+    """num / den (den a power of ten) as a decimal, without a float: -35, 100 -> "-0.35"."""
+    q, r = divmod(abs(num), den)
+    s = str(q)
+    if r:
+        s += "." + ("0" * len(str(den)) + str(r))[-(len(str(den)) - 1) :].rstrip("0")
+    return ("-" if num < 0 else "") + s
 
 
 def _apply_mounting(nav, ypr_deg):

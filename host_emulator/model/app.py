@@ -176,10 +176,15 @@ class _Fix:
         self.height_dm = 0
 
 
-def deliver_fix(g, model, fix, hdop_max, now_us):
+def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     """app._deliver_fix on the model: g is the parser with a completed epoch; now_us the
-    tick's ticks_us value."""
+    tick's ticks_us value; pps the app's PPS check state ("last" edge, "bad" until), ticks
+    the app's tick count."""
     fw_app = _firmware()[0]
+    n = g.rejected()  # app._deliver_fix: sentences rejected since the last epoch
+    if n != pps["nmea"]:
+        pps["nmea"] = n
+        pps["nmea_bad"] = ticks + fw_app._PPS_TICKS
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
     fix.valid = 1 if ok and not g.epoch_bad else 0
     if not fix.valid:  # a no-fix epoch (quality 0), or a fix with an impossible field (-1)
@@ -205,8 +210,21 @@ def deliver_fix(g, model, fix, hdop_max, now_us):
     age_us = ticks_diff(now_us, g.epoch_pps_us)
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
+    elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
+        pps["bad"] = ticks + fw_app._PPS_TICKS
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
+
+
+def _pps_seen(g, pps, ticks):
+    """app._send_ext's PPS check: a new edge not whole seconds after the last one seen."""
+    fw_app = _firmware()[0]
+    if g.pps_us != pps["last"]:
+        if pps["last"]:
+            d = (ticks_diff(g.pps_us, pps["last"]) + 500_000) % 1_000_000 - 500_000
+            if abs(d) > fw_app._PPS_TOL_US:
+                pps["bad"] = ticks + fw_app._PPS_TICKS
+        pps["last"] = g.pps_us
 
 
 def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
@@ -271,8 +289,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     ring = bytearray()
     fix = _Fix()
     counter = 0
-    pps_tick = pps_bad = 0  # app._pps_seen's state
-    pps_tol = 4 + out_every
+    pps = {"last": 0, "bad": 0, "nmea": 0, "nmea_bad": 0}  # the app's PPS and NMEA checks
     j = 0  # frames so far
     for k in range(n):
         # the interval before tick k: bytes arrive in the ring, the PPS edge fires
@@ -294,7 +311,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             del ring[:m]
             g.feed(rx, m)
         if g.epoch_take():
-            deliver_fix(g, model, fix, cfg.gnss_hdop_max, now)
+            deliver_fix(g, model, fix, cfg.gnss_hdop_max, now, pps, k + 1)
         if tick_hook is not None:
             tick_hook(k, model)
         model.imu_raw(gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
@@ -302,11 +319,6 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
         parts = []
         if ticks % out_every == 0:
             t["pps"][j] = g.pps_flag_take()
-            if t["pps"][j]:  # app._pps_seen
-                d = ticks - pps_tick
-                if pps_tick and abs(d - fw_app._PPS_TICKS) > pps_tol:
-                    pps_bad = ticks + fw_app._PPS_TICKS
-                pps_tick = ticks
             t["gga"][j] = g.gga_flag_take()
             t["valid"][j] = fix.valid
             t["lat_e7"][j] = fix.lat_e7
@@ -325,7 +337,12 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
                 causes |= fw_app.CAUSE_CONFIG
                 if health == 0:
                     health = 1
-            if pps_tick and (ticks < pps_bad or ticks - pps_tick > fw_app._PPS_TICKS + pps_tol):
+            _pps_seen(g, pps, ticks)
+            if ticks < pps["nmea_bad"]:
+                causes |= fw_app.CAUSE_NMEA
+                if health == 0:
+                    health = 1
+            if ticks < pps["bad"]:
                 causes |= fw_app.CAUSE_PPS
                 if health == 0:
                     health = 1

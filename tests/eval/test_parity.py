@@ -11,6 +11,7 @@ from host_emulator import firmware_env
 from host_emulator.eval import parity
 from host_emulator.model import app as model_runner
 from host_emulator.model import rot as ref_rot
+from host_emulator.proto import records as rec_schema
 from host_emulator.proto import stimulus, stream
 from host_emulator.sim import board_input
 from host_emulator.sim import gnss as sim_gnss
@@ -57,7 +58,9 @@ def test_parity_holds_through_levelling_heading_and_navigation(highway, highway_
     assert (speed > 20.0).all()
     p_pos = np.array([e["p_diag"][0] for e in d.ext if e["nav_state"] == 2])
     assert len(set(p_pos.tolist())) > 50  # propagations and GNSS updates change P
-    assert {e["health"] for e in d.ext} == {0}
+    # normal but for the simulated receiver's damaged sentence (a warning for a second)
+    nmea = {name: bit for bit, name in rec_schema.CAUSES}["nmea_errors"]
+    assert {(e["health"], e["causes"]) for e in d.ext} == {(0, 0), (1, nmea)}
 
 
 def test_a_flipped_state_bit_is_found_at_its_tick_and_named(highway, highway_parity):

@@ -96,6 +96,47 @@ def test_out_of_range_values_are_refused(tmp_path):
     assert "lever_b_m" in nan.validate()
 
 
+@pytest.mark.parametrize(
+    "name, value, words",
+    [
+        ("gyro_bias0", [3e38, 0.0, 0.0], "gyro_bias0 must be within -0.35..0.35 rad/s"),
+        ("accel_bias0", [0.0, 0.0, -2.5], "accel_bias0 must be within -2..2 m/s^2"),
+        ("lever_b_m", [0.0, 11.0, 0.0], "lever_b_m must be within -10..10 m"),
+        ("gyro_matrix", [3.0, 0, 0, 0, 1, 0, 0, 0, 1], "gyro_matrix must be within -2..2"),
+        ("mount_ypr_deg", [0.0, 0.0, 181.0], "mount_ypr_deg must be within -180..180 deg"),
+        ("gyro_arw", 0.2, "gyro_arw must be within 0..0.05 rad/s/sqrt(Hz), above 0"),
+        ("accel_vrw", 0.0, "accel_vrw must be within 0..0.5 m/s^2/sqrt(Hz), above 0"),
+        ("gyro_bias_sigma", 1.0, "gyro_bias_sigma must be within 0..0.1 rad/s, above 0"),
+        ("accel_bias_sigma", 2.0, "accel_bias_sigma must be within 0..1 m/s^2, above 0"),
+        ("gnss_hdop_max", 60.0, "gnss_hdop_max must be within 0..50, above 0"),
+        ("gate_sigma", 0.5, "gate_sigma must be within 1..100 sigmas"),
+        ("gnss_uere_m", 500.0, "gnss_uere_m must be within 0..100 m, above 0"),
+        ("still_gyro", 1.0, "still_gyro must be within 0..0.2 rad/s, above 0"),
+        ("still_accel", 6.0, "still_accel must be within 0..5 m/s^2, above 0"),
+    ],
+)
+def test_physically_impossible_values_are_refused_with_the_range(name, value, words):
+    """Finite but absurd settings (issue 16: gyro_bias0=3e38 gave a NaN covariance) are refused
+    with the setting's name and its range; the defaults and the range's ends are accepted."""
+    cfg = custom()
+    setattr(cfg, name, value)
+    assert cfg.validate() == words
+    assert config.BoardConfig().validate() is None
+
+
+def test_the_ends_of_each_range_are_accepted():
+    for name, lo, hi, den, _unit, open_low in config._RANGES:
+        for end in (lo, hi):
+            if open_low and end == lo:
+                continue  # must be above 0
+            cfg = custom()
+            v = end / den
+            old = getattr(cfg, name)
+            n = 9 if name.endswith("_matrix") else 3
+            setattr(cfg, name, [v] * n if isinstance(old, list) or old is None else v)
+            assert cfg.validate() is None, (name, v)
+
+
 def test_unknown_records_from_a_newer_firmware_are_skipped(tmp_path):
     data = config.encode(custom())
     body = bytearray(data[:-4])

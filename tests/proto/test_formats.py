@@ -142,7 +142,7 @@ def test_the_cause_bits_are_the_firmwares():
 
     fw = {v: k for k, v in vars(nav).items() if k.startswith("CAUSE_") and k != "CAUSE_FAULTS"}
     fw.update({app.CAUSE_CONFIG: "CAUSE_CONFIG", app.CAUSE_OVERRUN: "CAUSE_OVERRUN",
-               app.CAUSE_PPS: "CAUSE_PPS"})  # fmt: skip
+               app.CAUSE_PPS: "CAUSE_PPS", app.CAUSE_NMEA: "CAUSE_NMEA"})  # fmt: skip
     assert sorted(fw) == [bit for bit, _ in rec_schema.CAUSES]
     assert rec_schema.CAUSE_OVERRUN == app.CAUSE_OVERRUN
     two = ("CAUSE_IMU_DEAD", "CAUSE_NUMERIC", "CAUSE_GNSS_REJECTS", "CAUSE_RESET",

@@ -112,7 +112,7 @@ def test_an_attribute_store_on_the_navigator_searches_its_class():
         "def on_plain():\n"
         "    o.x = 1\n"
         "def in_ctl():\n"
-        "    n.ctl[38] = 0\n"  # _C_SAT, an input flag
+        "    n.ctl[46] = 0\n"  # _C_IMU_STATUS, an input the app sets every tick
         "print('R', *[cost(g) for g in (empty, on_nav, on_plain, in_ctl)])\n"
     )
     empty, on_nav, on_plain, in_ctl = (int(x) for x in out.split("R ")[1].split()[:4])

@@ -268,12 +268,13 @@ def test_a_silent_imu_is_a_flag_of_the_records_every_runtime_applies(stim, tmp_p
 
 def test_the_firmware_under_faults_is_the_models_bit_for_bit(stim):
     """Held IMU samples (zeros, over range, stuck), the covariance widened after a dead spell,
-    a fix with an impossible field, a height jump: CPython and the emulated Cortex-M4F send
-    the model's bytes, extended frames (health and causes) included."""
+    a fix with an impossible field, a height jump, a spurious PPS edge: CPython and the
+    emulated Cortex-M4F send the model's bytes, extended frames (health and causes) included."""
     from host_emulator.eval import parity
 
     s = faults.apply(stim, ["imu-zeros@13.6+0.3", "gyro-over@14.2+0.2", "imu-stuck@14.6+0.5",
-                            "gnss-quality@13.5+1:8", "gnss-height@15+1:60"])  # fmt: skip
+                            "gnss-quality@13.5+1:8", "gnss-height@15+1:60",
+                            "pps-spurious@11+2"])  # fmt: skip
     for runtime in ("cpython", "m4f"):
         r = parity.compare(s, runtime=runtime, kernels="native")
         assert r.identical, (runtime, r.summary())
@@ -281,7 +282,8 @@ def test_the_firmware_under_faults_is_the_models_bit_for_bit(stim):
     seen = set()
     for e in d.ext:
         seen.update(rec_schema.cause_names(e["causes"]))
-    assert {"imu_sample_held", "imu_dead", "imu_saturated", "gnss_bad_data"} <= seen
+    want = {"imu_sample_held", "imu_dead", "imu_saturated", "gnss_bad_data", "pps_irregular"}
+    assert want <= seen
 
 
 def test_replay_injects_faults_too(tmp_path, capsys):
