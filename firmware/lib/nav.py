@@ -34,9 +34,9 @@ else arrival minus the configured latency) and the correction is applied to the 
 The ring stores each state minus the corrections injected so far, so a correction injected
 between the fix time and the update does not make the comparison stale.
 
-Health: 0 normal; 1 warning (GNSS lost for `gnss_timeout_s`, a fix gated out or rejected for
-HDOP/quality, IMU saturated in the last second); 2 fault (non-finite state or covariance
-detected and reset, non-finite IMU input) held for one second.
+Health (seed 000 FR009): 0 normal, 1 warning, 2 fault, with its causes (CAUSE_* below,
+docs/health.md): IMU samples that cannot be right are held, channels whose innovations keep
+failing are reset, and the filter's own uncertainty and drift say when not to trust it.
 """
 
 from array import array
