@@ -5,8 +5,11 @@ Per tick, in this order: BMI055 burst read -> bytes waiting on the GNSS UART int
 parser -> a completed fix to the navigator (its measurement tick from the PPS edge when one
 was seen in the last second, else the configured latency) -> navigator tick -> the 52-byte
 frame (every `output_every_ticks`) -> watchdog -> timing statistics -> garbage collection if
-the heap runs low. Automatic collection is off: a collection only ever runs here, after the
-frame has gone out, so it never delays a sample or a frame.
+the heap runs low. Ticks the timer signalled while the loop was busy elsewhere are counted as
+overruns, and the navigator steps through them on the last sample before this tick's
+(`_catch_up`): its clock, which fixes are stamped in, keeps the timer's. Automatic collection
+is off: a collection only ever runs here, after the frame has gone out, so it never delays a
+sample or a frame.
 
 Buffers are made once in `__init__`. With the native kernels (lib/kern.py) a navigating tick
 allocates nothing, fix delivery and both frames included (the float work is in the kernels,
@@ -33,6 +36,7 @@ from nav import NAVIGATING, Navigator, nav_frame
 
 _US_PER_TICK = const(5000)
 _PPS_TICKS = const(200)  # ticks from one PPS edge to the next
+_CATCH_UP_MAX = const(200)  # missed ticks the navigator steps through (board.WDT_TIMEOUT_MS)
 _PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
@@ -96,8 +100,9 @@ CAUSE_PPS = const(0x2000)  # a PPS edge not a whole number of seconds after the 
 # a fix without an edge in the second before it though edges came before (the fix is then
 # timed by the configured latency): 1, for a second
 CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt or bad file): 1
-# a tick overran since the last extended frame (IMU samples lost): run time, like the overrun
-# counter, so it does not change the health code (which a model of the arithmetic reproduces)
+# ticks the loop missed since the last extended frame (the board was busy: IMU samples lost,
+# the navigator stepped through them on the last one read): a warning, 1. Run time on a board, so
+# proto/stream.without_run_time removes it and the 1 it alone raised
 CAUSE_OVERRUN = const(0x8000)
 
 
@@ -205,12 +210,14 @@ class App:
     # about a thousand instructions on the board).
 
     def service(self):
-        """One pass of the loop: the tick, if one is due; every further tick the timer
-        signalled meanwhile is an overrun (its IMU sample is lost)."""
+        """One pass of the loop: the tick, if one is due. Further ticks the timer signalled
+        meanwhile are overruns (the board was busy): their IMU samples are lost, and the
+        navigator steps through them on the last sample read (_catch_up), so that its clock,
+        which fixes are stamped in, keeps the timer's."""
         if not self.due:
             return
         if self.due > 1:
-            self.overruns += self.due - 1
+            self._catch_up(self.due - 1)
         self.due = 0
         t0 = time.ticks_us()
         self.ticks += 1
@@ -242,6 +249,21 @@ class App:
         if self._wdt is not None:
             self._wdt.feed()
         self._account(t0, state)
+
+    def _catch_up(self, lost):
+        """Ticks the loop missed: counted, and stepped by the navigator on the last sample
+        read (theirs are gone: the registers hold only the newest), at most _CATCH_UP_MAX
+        (the watchdog's timeout: a board busy longer has been reset)."""
+        self.overruns += lost
+        self.ticks += lost
+        imu = self.imu
+        if imu is None:
+            return
+        if lost > _CATCH_UP_MAX:
+            lost = _CATCH_UP_MAX
+        nav = self.nav
+        for _ in range(lost):
+            nav.imu_counts(imu.gyro, imu.accel, imu.status)
 
     def _account(self, t0, state):
         """Timing statistics; garbage collection when the heap runs low."""
@@ -396,6 +418,8 @@ class App:
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN
+            if health == 0:
+                health = 1
         fi[_EF_COUNTER] = self.counter
         fi[_EF_HEALTH] = health
         fi[_EF_CAUSES] = causes

@@ -245,8 +245,8 @@ _M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
 _M_INIT = const(1615)  # the initial P diagonal (eskf.N): self._init
 _M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._ns
 _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
-_M_BW = const(1639)  # the drift watch: running means of normalised innovations (3)
-_NM = const(1642)
+_M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
+_NM = const(1644)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
@@ -1006,35 +1006,36 @@ def _uncertain(e, aid):
 _BW_ALPHA = f32.ratio(1, 4)  # weight of a fix in the drift watch's running means (~4 fixes)
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 _BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump
+_BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
 
 
 def _drift_watch(e, mem, n):
     """After a GNSS update of n scalars (eskf.E_Z/E_R hold each one's innovation y and its
-    variance S): the running means of y / sqrt(S) of the height (scalar 2) and of the
-    velocity east and north (3, 4, when the fix had a course) in mem's _M_BW. True, and the
-    means restarted, when one is beyond _BW_LIMIT: innovations that keep one sign for several
-    fixes mean the INS drifts away from GNSS faster than the filter allows for (a sensor bias
-    or scale that jumped; or fixes that are late). Each ratio is clipped at _BW_CLIP, so it
-    takes four one-sided outliers in a row (or more, smaller ones) to pass the limit: one bad
-    fix alone does not. A detector only, for now (docs/health.md)."""
+    variance S): the running means of y / sqrt(S) of the position east, north, up (scalars
+    0-2) and of the velocity east and north (3, 4, when the fix had a course) in mem's _M_BW.
+    True, and the means restarted, when one is beyond _BW_LIMIT: innovations that keep one
+    sign for several fixes mean the INS drifts away from GNSS faster than the filter allows
+    for (a sensor bias or scale that jumped; or fixes that are late). The positions count
+    because a fix without a course (a stop, a slow receiver) has no velocity rows. Each ratio
+    is clipped at _BW_CLIP, so it takes four one-sided outliers in a row (or more, smaller
+    ones) to pass the limit: one bad fix alone does not. A detector only (docs/health.md)."""
     z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
     r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
-    bw = f32.view(mem, _M_BW, 3)
+    bw = f32.view(mem, _M_BW, _BW_N)
     hit = False
-    for j in range(3):
-        m = 2 + j
+    for m in range(_BW_N):
         if m < n and r[m] > 0.0:
             q = z[m] / f32.sqrt(r[m])
             if q > _BW_CLIP:
                 q = _BW_CLIP
             elif q < -_BW_CLIP:
                 q = -_BW_CLIP
-            bw[j] = bw[j] + _BW_ALPHA * (q - bw[j])
-            if bw[j] > _BW_LIMIT or bw[j] < -_BW_LIMIT:
+            bw[m] = bw[m] + _BW_ALPHA * (q - bw[m])
+            if bw[m] > _BW_LIMIT or bw[m] < -_BW_LIMIT:
                 hit = True
     if hit:
-        for j in range(3):
-            bw[j] = 0.0
+        for m in range(_BW_N):
+            bw[m] = 0.0
     return hit
 
 

@@ -275,7 +275,7 @@
 #define M_NS 1630
 #define M_LVL 1633
 #define M_BW 1639
-#define NM 1642
+#define NM 1644
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4

@@ -20,6 +20,7 @@
 #define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA */
 #define BW_LIMIT 3.0f /* nav._BW_LIMIT */
 #define BW_CLIP 5.0f /* nav._BW_CLIP */
+#define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -263,8 +264,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
     const float *r = e + E_R;
     float *bw = m + M_BW;
     int32_t hit = 0;
-    for (int j = 0; j < 3; j++) {
-        int32_t k = 2 + j;
+    for (int k = 0; k < BW_N; k++) {
         if (k < n && r[k] > 0.0f) {
             float q = z[k] / __builtin_sqrtf(r[k]);
             if (q > BW_CLIP) {
@@ -272,14 +272,14 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
             } else if (q < -BW_CLIP) {
                 q = -BW_CLIP;
             }
-            bw[j] = bw[j] + BW_ALPHA * (q - bw[j]);
-            if (bw[j] > BW_LIMIT || bw[j] < -BW_LIMIT) {
+            bw[k] = bw[k] + BW_ALPHA * (q - bw[k]);
+            if (bw[k] > BW_LIMIT || bw[k] < -BW_LIMIT) {
                 hit = 1;
             }
         }
     }
     if (hit) {
-        for (int j = 0; j < 3; j++) {
+        for (int j = 0; j < BW_N; j++) {
             bw[j] = 0.0f;
         }
     }

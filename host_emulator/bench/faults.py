@@ -85,6 +85,7 @@ MATRIX = (
     Case("gnss-quality@+5:8", ("gnss_bad_data",), 1.0),
     Case("gnss-hdop@+5:0", ("gnss_bad_data",), 1.0),
     Case("gnss-late@+30:1.4", ("gnss_late", *_GNSS_FIX), 1.0),
+    Case("stall@+0.2", ("overrun",), 1.0),
 )
 _BITS = {name: bit for bit, name in records.CAUSES}
 # run in the MicroPython VM as well (unix port, seed 0): the same firmware on MicroPython
@@ -161,16 +162,13 @@ def _run(task):
 
 def _first_change_s(clean, faulted):
     """When the board first meets the fault: the time of the first tick whose input differs
-    (registers, the silent flag, PPS edges, GNSS bytes; an edited sentence arrives with its
-    epoch, up to a second after the fault's start). None if nothing differs."""
+    (registers, the silent and stall flags, PPS edges, GNSS bytes; an edited sentence arrives
+    with its epoch, up to a second after the fault's start). None if nothing differs."""
     k = None
     n = len(clean.gyro_regs)
 
-    def silent(s):
-        return np.zeros(n, bool) if s.imu_silent is None else s.imu_silent
-
     for a, b in ((clean.gyro_regs, faulted.gyro_regs), (clean.accel_regs, faulted.accel_regs),
-                 (silent(clean), silent(faulted)),
+                 (clean.imu_silent, faulted.imu_silent), (clean.stalled, faulted.stalled),
                  (clean.pps_before_us, faulted.pps_before_us)):  # fmt: skip
         d = np.flatnonzero(np.any((a != b).reshape(n, -1), axis=1))
         if d.size and (k is None or d[0] < k):

@@ -138,8 +138,10 @@ def frame_bytes(t, cfg):
     return b
 
 
-def ext_frame(counter, health, state, cfg_status, flags, model, causes):
-    """The extended frame (proto/records.py) of the model's state after this tick."""
+def ext_frame(counter, health, state, cfg_status, flags, model, causes, overruns=0):
+    """The extended frame (proto/records.py) of the model's state after this tick; overruns:
+    the ticks the loop missed so far (on the emulator, whose loop takes no virtual time, only
+    injected stalls)."""
     kf, ins = model.kf, model.ins
     return records.encode_ext(
         counter,
@@ -151,7 +153,7 @@ def ext_frame(counter, health, state, cfg_status, flags, model, causes):
             # the board's run time: 0 on the emulator, whose loop takes no virtual time
             "worst_tick_us": 0,
             "mean_tick_us": 0,
-            "overruns": 0,
+            "overruns": overruns & 0xFFFF,
             "gc_runs": 0,
             "p_diag": np.diagonal(kf.P),
             "gyro_bias_rad_s": ins.bg,
@@ -268,7 +270,10 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
 
     out_every = cfg.output_every_ticks
     ext_every = cfg.ext_every_ticks
-    frame_ticks = np.flatnonzero((np.arange(n) + 1) % out_every == 0)
+    # app.service: a stalled tick (an injected fault) runs no loop; the next one counts the
+    # ticks it missed, so the tick count stays k + 1 and only the stalled ticks' frames are lost
+    stalled_l = stim.stalled.tolist()
+    frame_ticks = np.flatnonzero(((np.arange(n) + 1) % out_every == 0) & ~stim.stalled)
     nf = len(frame_ticks)
     t = {
         "counter": np.arange(nf) & 0xFF,
@@ -291,6 +296,10 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     counter = 0
     pps = {"last": 0, "bad": 0, "nmea": 0, "nmea_bad": 0}  # the app's PPS and NMEA checks
     j = 0  # frames so far
+    lost = 0  # ticks stalled since the last one run
+    last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
+    overruns = 0  # app.overruns, and its value at the last extended frame
+    ext_overruns = 0
     for k in range(n):
         # the interval before tick k: bytes arrive in the ring, the PPS edge fires
         a, b = offs[k], offs[k + 1]
@@ -302,7 +311,16 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             time.set_us(t_k - pps_before[k])
             g.pps_isr(None)
         time.set_us(t_k)
+        if stalled_l[k]:
+            lost += 1
+            continue
         now = t_k % TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
+        if lost:  # app._catch_up: the navigator steps through the missed ticks on the last
+            overruns += lost  # sample read (the driver's zeros before the first)
+            for _ in range(min(lost, fw_app._CATCH_UP_MAX)):
+                model.imu_raw(*last)
+            lost = 0
+        last = (gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
         # tick k: IMU read, GNSS poll, fix, navigator
         rx = b""
         if ring:
@@ -346,8 +364,15 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
                 causes |= fw_app.CAUSE_PPS
                 if health == 0:
                     health = 1
+            if overruns != ext_overruns:  # app._send_ext
+                ext_overruns = overruns
+                causes |= fw_app.CAUSE_OVERRUN
+                if health == 0:
+                    health = 1
             flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
-            parts.append(ext_frame(counter, health, model.state, cfg_status, flags, model, causes))
+            parts.append(
+                ext_frame(counter, health, model.state, cfg_status, flags, model, causes, overruns)
+            )
         if cfg.raw_record:
             parts.append(
                 records.encode_raw(

@@ -172,7 +172,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.n_same_a = 0
         self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
         self.drift_until = 0
-        self.drift_watch = np.zeros(3, F32)  # running means of normalised innovations
+        self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         self.since_prop = 0
         self.since_zupt = 0
         self.since_nhc = 0
@@ -492,11 +492,11 @@ class NavModel(AlignmentModel, AidingModel):
         self.job = JOB_NONE
 
     def _drift_watch(self, innov):
-        """nav._drift_watch: running means of y / sqrt(S) of the height and the velocity east
-        and north; True (and restarted) when one passes the limit."""
+        """nav._drift_watch: running means of y / sqrt(S) of the position east, north, up
+        and the velocity east and north; True (and restarted) when one passes the limit."""
         bw = self.drift_watch
         hit = False
-        for j, (y, s) in enumerate(innov[2:5]):
+        for j, (y, s) in enumerate(innov[: fw_nav._BW_N]):
             if s > 0.0:
                 q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
                 bw[j] = bw[j] + fw_nav._BW_ALPHA * (q - bw[j])

@@ -62,7 +62,7 @@ CAUSES = (
     (0x4000, "config_defaults"),
     (0x8000, "overrun"),
 )
-CAUSE_OVERRUN = 0x8000  # run time (the board's timing), not the firmware's arithmetic
+CAUSE_OVERRUN = 0x8000  # run time on a board (an injected stall on the emulator): a warning
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time
 assert all(code == "H" for name, code, _ in EXT_FIELDS if name in EXT_TIMING_FIELDS)
 EXT_FLOAT_FIELDS = tuple(n for n, code, _ in EXT_FIELDS if code == "f")

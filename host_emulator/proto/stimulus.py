@@ -44,6 +44,9 @@ _REC = struct.Struct("<6s6sbBHH")
 REC_LEN = _REC.size  # 18
 FLAG_PPS = 0x01
 FLAG_IMU_SILENT = 0x02  # board/mpy/feed.py repeats it
+# the board is busy in this interval (an injected stall): the timer and the interrupt handlers
+# run, the loop does not; board/mpy/feed.py repeats it
+FLAG_STALL = 0x04
 
 
 class StimulusError(EmulatorError):
@@ -91,11 +94,14 @@ class Stimulus:
     uart_bytes: bytes = b""
     extra: dict = field(default_factory=dict)
     imu_silent: np.ndarray = None  # (N,) bool: the IMU does not answer (None: never)
+    stalled: np.ndarray = None  # (N,) bool: the loop does not run (FLAG_STALL; None: never)
 
     def __post_init__(self):
         n = len(self.gyro_regs)
         if self.imu_silent is None:
             self.imu_silent = np.zeros(n, bool)
+        if self.stalled is None:
+            self.stalled = np.zeros(n, bool)
         shapes = (
             self.gyro_regs.shape == (n, 6),
             self.accel_regs.shape == (n, 6),
@@ -103,6 +109,7 @@ class Stimulus:
             self.pps_before_us.shape == (n,),
             self.uart_offsets.shape == (n + 1,),
             self.imu_silent.shape == (n,),
+            self.stalled.shape == (n,),
         )
         if not all(shapes) or int(self.uart_offsets[-1]) != len(self.uart_bytes):
             raise ValueError("Stimulus arrays do not have one row per tick")
@@ -144,6 +151,7 @@ class Stimulus:
             self.uart_bytes[: int(o[-1])],
             dict(self.extra),
             self.imu_silent[:n].copy(),
+            self.stalled[:n].copy(),
         )
 
     # ---- file ----
@@ -156,6 +164,7 @@ class Stimulus:
         g = self.gyro_regs.tobytes()
         a = self.accel_regs.tobytes()
         silent = self.imu_silent
+        stalled = self.stalled
         for k in range(len(self)):
             pps = int(self.pps_before_us[k])
             n = int(o[k + 1] - o[k])
@@ -164,7 +173,9 @@ class Stimulus:
                     g[6 * k : 6 * k + 6],
                     a[6 * k : 6 * k + 6],
                     int(self.temp_raw[k]),
-                    (FLAG_PPS if pps >= 0 else 0) | (FLAG_IMU_SILENT if silent[k] else 0),
+                    (FLAG_PPS if pps >= 0 else 0)
+                    | (FLAG_IMU_SILENT if silent[k] else 0)
+                    | (FLAG_STALL if stalled[k] else 0),
                     pps if pps >= 0 else 0,
                     n,
                 )
@@ -204,6 +215,7 @@ def from_bytes(data, name="stimulus"):
     temp = np.zeros(ticks, np.int8)
     pps = np.full(ticks, -1, np.int32)
     silent = np.zeros(ticks, bool)
+    stalled = np.zeros(ticks, bool)
     offs = np.zeros(ticks + 1, np.int64)
     chunks = []
     total = 0
@@ -220,6 +232,8 @@ def from_bytes(data, name="stimulus"):
             pps[k] = before
         if flags & FLAG_IMU_SILENT:
             silent[k] = True
+        if flags & FLAG_STALL:
+            stalled[k] = True
         if n:
             if pos + n > end:
                 raise StimulusError(f"{name}: record {k} of {ticks} is cut short")
@@ -242,6 +256,7 @@ def from_bytes(data, name="stimulus"):
         b"".join(chunks),
         {},
         silent,
+        stalled,
     )
 
 

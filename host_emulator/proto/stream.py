@@ -193,8 +193,8 @@ def split(data):
 
 def without_run_time(data):
     """A copy of the stream with the board's run-time counters of every extended frame
-    (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs; the overrun cause) set to 0
-    and its CRC renewed:
+    (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs; the overrun cause, and the
+    health 1 it alone raised) set to 0 and its CRC renewed:
     what is left is the firmware's arithmetic and logic, comparable between a board (or the
     emulated Cortex-M4F, which collects garbage as the board does) and the model."""
     out = bytearray(data)
@@ -205,7 +205,10 @@ def without_run_time(data):
             for name in records.EXT_TIMING_FIELDS:
                 at = i + records.EXT_OFFSETS[name]
                 out[at : at + 2] = bytes(2)  # the timing fields are u16
-            at = i + records.EXT_OFFSETS["causes"] + 1  # CAUSE_OVERRUN is bit 7 of byte 1
-            out[at] &= ~(records.CAUSE_OVERRUN >> 8) & 0xFF
+            at = i + records.EXT_OFFSETS["causes"]
+            causes = int.from_bytes(out[at : at + 4], "little") & ~records.CAUSE_OVERRUN
+            out[at : at + 4] = causes.to_bytes(4, "little")
+            if not causes and out[i + records.EXT_OFFSETS["health"]] == 1:
+                out[i + records.EXT_OFFSETS["health"]] = 0  # health is 0 exactly when no cause is
             out[i:end] = records.seal(out[i : end - records.CRC_LEN])
     return bytes(out)

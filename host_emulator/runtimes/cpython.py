@@ -112,6 +112,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         temp_set = None
         silent = stim.imu_silent.tolist()
         silent_set = False
+        stalled = stim.stalled.tolist()
         pps_before = stim.pps_before_us.tolist()
         offs = stim.uart_offsets.tolist()
         ub = stim.uart_bytes
@@ -134,6 +135,8 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
                 pps.fire()
             time.set_us(t_k)
             machine.fire_timers()
+            if stalled[k]:  # an injected stall: the board busy, its loop does not run
+                continue
             try:
                 a.service()
             except Exception as e:

@@ -31,10 +31,14 @@ GNSS:
 - gnss-late:PARAM: the bytes arrive PARAM s late (default 1.4), those after them in order.
 A field fault edits every sentence that starts within the interval and has the field (a no-fix
 sentence's empty fields stay empty; a course is set wherever there is a speed), with its
-checksum made anew; the edited bytes take the
-ticks of the original's, aligned at its end (it completes when the original did).
+checksum made anew (a sentence whose checksum was already wrong is left as it is); the edited
+bytes take the ticks of the original's, aligned at its end (it completes when the original did).
 
-Not here yet (issue 16 lists it): a stalled loop.
+Board:
+- stall: the board busy (a long interrupt, a flash write): the loop does not run over the
+  interval, while the tick timer and the PPS interrupt do and GNSS bytes fill the UART's ring;
+  a per-tick flag of the stimulus that each runtime applies. At most STALL_MAX_S: longer, the
+  board's watchdog (1 s) would reset it, which no runtime emulates.
 """
 
 from dataclasses import dataclass
@@ -73,7 +77,11 @@ KINDS = {
     "gnss-quality": (6.0, "GGA fix quality PARAM (6: dead reckoning, 8: simulation)"),
     "gnss-hdop": (0.0, "GGA HDOP PARAM"),
     "gnss-late": (1.4, "GNSS bytes arrive PARAM s late (later ones wait behind them)"),
+    "stall": (None, "the board busy: the loop does not run (the timer and interrupts do)"),
 }
+# a stall this long would end in the board's watchdog reset (firmware/board.py), which the
+# runtimes do not emulate: refused rather than run as if the board had survived it
+STALL_MAX_S = 0.5
 # the NMEA field faults: sentence edits (_edit)
 _FIELD_KINDS = ("gnss-jump", "gnss-height", "gnss-speed", "gnss-course", "gnss-quality",
                 "gnss-hdop")  # fmt: skip
@@ -125,6 +133,10 @@ def parse(spec):
     if t0_s < 0 or duration_s <= 0:
         raise FaultError(f"fault {spec!r}: T0 must be 0 or more and DURATION more than 0")
     default = KINDS[kind][0]
+    if kind == "stall" and duration_s > STALL_MAX_S:
+        raise FaultError(f"fault {spec!r}: a stall of more than {STALL_MAX_S:g} s nears the "
+                         f"board's watchdog timeout (1 s), a reset the emulator does not "
+                         f"model")  # fmt: skip
     if default is None:
         if param:
             raise FaultError(f"fault {spec!r}: {kind} takes no PARAM")
@@ -155,6 +167,7 @@ def apply(stim, faults, seed=0):
     accel_regs = stim.accel_regs.copy()
     pps = stim.pps_before_us.copy()
     silent = stim.imu_silent.copy()
+    stalled = stim.stalled.copy()
     chunks = [stim.uart_bytes[a:b] for a, b in zip(stim.uart_offsets[:-1], stim.uart_offsets[1:],
                                                     strict=True)]  # fmt: skip
     cfg = stim.config
@@ -176,6 +189,8 @@ def apply(stim, faults, seed=0):
         kind = f.kind
         if kind == "imu-silent":
             silent[s] = True
+        elif kind == "stall":
+            stalled[s] = True
         elif kind == "imu-stuck":
             gyro_regs[s] = gyro_regs[k0]
             accel_regs[s] = accel_regs[k0]
@@ -234,7 +249,7 @@ def apply(stim, faults, seed=0):
     header = dict(stim.header)
     header["faults"] = list(header.get("faults", [])) + [str(f) for f in faults]
     return stim_mod.Stimulus(header, gyro_regs, accel_regs, stim.temp_raw.copy(), pps, offsets,
-                             b"".join(chunks), dict(stim.extra), silent)  # fmt: skip
+                             b"".join(chunks), dict(stim.extra), silent, stalled)  # fmt: skip
 
 
 def _bytes_and_ticks(chunks):
@@ -289,13 +304,18 @@ def _edit_sentences(chunks, k0, k1, fault):
 
 def _edit(raw, fault):
     """One sentence with the fault's field edited and its checksum anew (unchanged if it is
-    not a sentence this fault edits, or has no such field)."""
+    not a sentence this fault edits, has no such field, or arrived damaged: a new checksum
+    would repair what the receiver, or the simulation of one, sent broken)."""
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError:
         return raw
     star = text.find("*")
-    if not text.startswith("$") or star < 0:
+    if (
+        not text.startswith("$")
+        or star < 0
+        or text[star + 1 : star + 3] != (f"{nmea.checksum(text[1:star]):02X}")
+    ):
         return raw
     f = text[1:star].split(",")
     kind, v = fault.kind, fault.param

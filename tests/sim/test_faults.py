@@ -13,7 +13,7 @@ from host_emulator.proto import records as rec_schema
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.proto import stream
 from host_emulator.runtimes import cpython
-from host_emulator.sim import board_input, faults
+from host_emulator.sim import board_input, faults, nmea
 
 T0, DUR = 14.0, 1.0  # after quick_start starts navigating (13.4 s)
 K0, K1 = 2800, 3000
@@ -45,6 +45,7 @@ def test_the_written_form_and_its_defaults():
         ("imu-zeros@1+1:3", "imu-zeros takes no PARAM"),
         ("uart-corrupt@1+1:2", "a probability"),
         ("accel-scale@1+1:0", "a scale factor"),
+        ("stall@1+0.6", "the board's watchdog timeout"),
     ],
 )
 def test_a_fault_written_wrong_says_what_is_wrong(spec, words):
@@ -139,9 +140,13 @@ def test_a_fault_after_the_end_is_refused(stim):
 def test_the_firmware_meets_every_kind_without_raising_or_non_finite_output(stim, kind, tmp_path):
     """It runs on, and every float it sends, in frames and extended frames, is finite
     (detection and recovery: tests/bench/test_faults.py)."""
-    r = cpython.run(faults.apply(stim, [f"{kind}@{T0:g}+{DUR:g}"]), tmp_path)
+    dur = faults.STALL_MAX_S if kind == "stall" else DUR
+    s = faults.apply(stim, [f"{kind}@{T0:g}+{dur:g}"])
+    r = cpython.run(s, tmp_path)
     d = stream.decode(r.out)
-    assert len(d.frames) == len(stim) and len(d.ext) == len(stim) // 20
+    run = ~s.stalled  # a stalled tick sends nothing (the board is busy)
+    assert len(d.frames) == run.sum()
+    assert len(d.ext) == (run & ((np.arange(len(stim)) + 1) % 20 == 0)).sum()
     for f in d.frames:
         assert all(np.isfinite(v) for v in f.values() if isinstance(v, float)), kind
     for e in d.ext:
@@ -225,6 +230,18 @@ def test_gnss_field_faults_edit_the_sentences_the_parser_reads(stim, spec, field
     assert inside >= 3
 
 
+@pytest.mark.parametrize("kind", ["gnss-jump", "gnss-height", "gnss-quality", "gnss-hdop"])
+def test_a_field_fault_leaves_a_damaged_sentence_damaged(kind):
+    """An edit comes with a new checksum only where the old one held: a sentence that arrived
+    broken (here one digit of its time replaced, as the simulated receiver does) stays broken,
+    not repaired into a fix the receiver never sent."""
+    good = nmea.sentence("GNGGA,020410.00,3036.123456,N,11421.654321,E,1,12,0.8,25.3,M,,M,,")
+    broken = good.replace(b"020410", b"02041?")
+    fault = faults.parse(f"{kind}@0+1")
+    assert faults._edit(broken, fault) == broken
+    assert faults._edit(good, fault) != good
+
+
 def test_late_bytes_arrive_later_and_in_order(stim):
     before = _chunks(stim)
     late = faults.apply(stim, ["gnss-late@5+1:1.4"])
@@ -264,6 +281,37 @@ def test_a_silent_imu_is_a_flag_of_the_records_every_runtime_applies(stim, tmp_p
     assert tuple(frames[K1 + 5]["gyro_dps"]) + tuple(frames[K1 + 5]["accel_g"]) not in dead
     vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out).frames
     assert [f["raw"] for f in vm] == [f["raw"] for f in frames]
+
+
+def test_a_stall_loses_its_frames_and_the_navigator_steps_through_its_ticks(stim, tmp_path):
+    """stall: a per-tick flag (it survives the file); no loop runs over it, so its frames are
+    missing; the next tick counts the missed ticks as overruns (health 1, `overrun`) and the
+    navigator steps through them on that tick's sample: its clock (the extended frames'
+    tick) keeps the timer's. CPython and the emulated Cortex-M4F give the model's bytes; the
+    VM runs it too."""
+    from host_emulator.eval import parity
+    from host_emulator.runtimes import mpy_unix
+
+    s = faults.apply(stim, [f"stall@{T0:g}+0.2"])
+    k0, k1 = K0, K0 + 40
+    assert s.stalled[k0:k1].all() and s.stalled.sum() == 40
+    assert np.array_equal(stim_mod.from_bytes(s.to_bytes()).stalled, s.stalled)
+    for runtime in ("cpython", "m4f"):
+        r = parity.compare(s, runtime=runtime, kernels="native")
+        assert r.identical, (runtime, r.summary())
+    clean = stream.decode(cpython.run(stim, tmp_path / "clean").out)
+    d = stream.decode(cpython.run(s, tmp_path / "c").out)
+    assert len(d.frames) == len(clean.frames) - 40
+    assert [e["tick"] for e in d.ext] == [e["tick"] for e in clean.ext[: k0 // 20]] + [
+        e["tick"] for e in clean.ext[k1 // 20 :]
+    ]
+    after = d.ext[k0 // 20]  # the first extended frame after the stall
+    assert after["overruns"] == 40 and after["health"] >= 1
+    assert "overrun" in rec_schema.cause_names(after["causes"])
+    assert "overrun" not in rec_schema.cause_names(d.ext[k0 // 20 + 1]["causes"])
+    assert after["nav_state"] == clean.ext[k1 // 20]["nav_state"]
+    vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out)
+    assert len(vm.frames) == len(d.frames) and vm.ext[k0 // 20]["overruns"] == 40
 
 
 def test_the_firmware_under_faults_is_the_models_bit_for_bit(stim):

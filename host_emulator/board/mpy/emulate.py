@@ -52,6 +52,7 @@ from feed import (
     firmware_error,
     first_tick_us,
     next_input,
+    stalled,
     start_firmware,
 )
 
@@ -124,7 +125,8 @@ def main():
         try:  # the firmware's code: its interrupt handlers and one pass of its loop
             fire_inputs(rec, t_k, pps)
             m0 = gc.mem_alloc()
-            a.service()
+            if not stalled(rec):
+                a.service()
             m1 = gc.mem_alloc()
         except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
             fo.write(out_uart.tx, out_uart.tx_n)
@@ -201,7 +203,8 @@ def stream_main(realtime):
             t_k = t0 + k * tick_us
             try:
                 fire_inputs(rec, t_k, pps)
-                a.service()
+                if not stalled(rec):
+                    a.service()
             except Exception as e:  # noqa: BLE001
                 firmware_error(k, e)
             if out_uart.tx_n:

@@ -167,6 +167,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         firmware_error,
         first_tick_us,
         next_input,
+        stalled,
         start_firmware,
     )
 
@@ -213,7 +214,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             emu_in()
             fire_inputs(rec, t_k, pps)
             emu_out()
-            a.service()
+            if not stalled(rec):
+                a.service()
         except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
             fo.write(out_uart.tx, out_uart.tx_n)
             fo.close()

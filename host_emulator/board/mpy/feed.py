@@ -29,6 +29,7 @@ MAGIC = b"INSSTIM1"
 REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
 FLAG_PPS = 1
 FLAG_IMU_SILENT = 2  # proto/stimulus.py: the IMU does not answer in this interval
+FLAG_STALL = 4  # proto/stimulus.py: the board is busy, the loop does not run (an injected stall)
 PROGRESS_EVERY = 1000  # ticks between progress lines
 EXIT_FIRMWARE_ERROR = 3
 
@@ -101,6 +102,12 @@ def next_input(f, rec, ubuf, imu, gnss):
         read_exact(f, ubuf, n, "UART bytes")
         gnss.feed(ubuf, n)
     return ubuf
+
+
+def stalled(rec):
+    """True if the board is busy over this record's tick (an injected stall): the interrupt
+    handlers run (fire_inputs), the loop does not."""
+    return rec[13] & FLAG_STALL
 
 
 def fire_inputs(rec, t_k, pps):
