@@ -79,8 +79,8 @@ KINDS = {
     "gnss-late": (1.4, "GNSS bytes arrive PARAM s late (later ones wait behind them)"),
     "stall": (None, "the board busy: the loop does not run (the timer and interrupts do)"),
 }
-# a stall this long would end in the board's watchdog reset (firmware/board.py), which the
-# runtimes do not emulate: refused rather than run as if the board had survived it
+# a longer stall, with the catch-up after it, nears the board's watchdog timeout (1 s,
+# firmware/board.py), whose reset no runtime emulates: refused rather than run as if survived
 STALL_MAX_S = 0.5
 # the NMEA field faults: sentence edits (_edit)
 _FIELD_KINDS = ("gnss-jump", "gnss-height", "gnss-speed", "gnss-course", "gnss-quality",
@@ -314,7 +314,7 @@ def _edit(raw, fault):
     if (
         not text.startswith("$")
         or star < 0
-        or text[star + 1 : star + 3] != (f"{nmea.checksum(text[1:star]):02X}")
+        or text[star + 1 : star + 3].upper() != f"{nmea.checksum(text[1:star]):02X}"
     ):
         return raw
     f = text[1:star].split(",")
