@@ -35,7 +35,7 @@ from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
 
 _US_PER_TICK = const(5000)
-_PPS_TICKS = const(200)  # ticks from one PPS edge to the next
+_SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
 _CATCH_UP_MAX = const(200)  # missed ticks the navigator steps through (board.WDT_TIMEOUT_MS)
 _PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
@@ -317,7 +317,7 @@ class App:
         n = g.rejected()  # sentences rejected since the last epoch: CAUSE_NMEA for a second
         if n != self._nmea_rejected:
             self._nmea_rejected = n
-            self._nmea_bad = self.ticks + _PPS_TICKS
+            self._nmea_bad = self.ticks + _SECOND_TICKS
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         if ok and g.epoch_bad:
             self._fields[_F_VALID] = 0
@@ -376,7 +376,7 @@ class App:
         if pps_us and 0 <= age_us < 1000000:
             return self.nav.ctl[_C_TICK] - age_us // _US_PER_TICK
         if self._pps_last:
-            self._pps_bad = self.ticks + _PPS_TICKS
+            self._pps_bad = self.ticks + _SECOND_TICKS
         return -1
 
     def _send_frame(self, imu, state):
@@ -399,27 +399,22 @@ class App:
         """The extended frame: health, timing, covariance, biases, position and origin."""
         fi = self.ext.fields
         c = self.nav.ctl
-        health = c[_C_HEALTH]
-        causes = c[_C_CAUSES]
+        causes = 0  # the app's own, each a warning (running on defaults among them)
         if self.config_status != config.OK:
-            causes |= CAUSE_CONFIG
-            if health == 0:
-                health = 1  # running on defaults is a warning
+            causes = CAUSE_CONFIG
         if self.gnss.pps_us != self._pps_last:
             self._pps_seen()
         if self.ticks < self._nmea_bad:
             causes |= CAUSE_NMEA
-            if health == 0:
-                health = 1
         if self.ticks < self._pps_bad:
             causes |= CAUSE_PPS
-            if health == 0:
-                health = 1
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN
-            if health == 0:
-                health = 1
+        health = c[_C_HEALTH]
+        if causes and health == 0:
+            health = 1
+        causes |= c[_C_CAUSES]
         fi[_EF_COUNTER] = self.counter
         fi[_EF_HEALTH] = health
         fi[_EF_CAUSES] = causes
@@ -443,7 +438,7 @@ class App:
         if self._pps_last:
             d = (time.ticks_diff(p, self._pps_last) + 500000) % 1000000
             if d < 500000 - _PPS_TOL_US or d > 500000 + _PPS_TOL_US:
-                self._pps_bad = self.ticks + _PPS_TICKS
+                self._pps_bad = self.ticks + _SECOND_TICKS
         self._pps_last = p
 
     def _send_ext_state(self, fi):

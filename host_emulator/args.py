@@ -50,6 +50,21 @@ def add_kernels_option(parser):
     )
 
 
+def _jobs(text):
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number, at least 1: {text!r}")
+    return n
+
+
+def add_jobs_option(parser, what="parallel runs"):
+    """--jobs N (at least 1; default 2), for the benchmarks that run in a process pool."""
+    parser.add_argument("--jobs", type=_jobs, default=2, help=f"{what} (default 2)")
+
+
 def number(text, name):
     """float(text), or a UsageError naming the option."""
     try:

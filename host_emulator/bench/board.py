@@ -320,15 +320,13 @@ def main(argv=None):
     p.add_argument("--scenario", default="urban_drive")
     p.add_argument("--duration", default=None, help="seconds (default: the whole scenario)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="markdown file (default %(default)s)")
-    p.add_argument("--jobs", type=int, default=2, help="parallel runs (default 2)")
+    cli_args.add_jobs_option(p)
     try:
         args = p.parse_args(argv)
         duration = None if args.duration is None else cli_args.number(args.duration, "--duration")
         cli_args.check_scenario(args.scenario)
         if duration is not None:
             cli_args.check_duration(duration)
-        if args.jobs < 1:
-            raise cli_args.UsageError("--jobs must be at least 1")
     except (cli_args.UsageError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

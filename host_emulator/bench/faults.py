@@ -352,12 +352,10 @@ def main(argv=None):
         prog="python -m host_emulator bench-faults", description=__doc__.split("\n\n")[1]
     )
     p.add_argument("--out", default=str(DEFAULT_OUT), help="markdown file (default %(default)s)")
-    p.add_argument("--jobs", type=int, default=2, help="parallel runs (default 2)")
+    cli_args.add_jobs_option(p)
     p.add_argument("--quick", action="store_true", help="one seed, a shorter drive")
     try:
         args = p.parse_args(argv)
-        if args.jobs < 1:
-            raise cli_args.UsageError("--jobs must be at least 1")
     except (cli_args.UsageError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

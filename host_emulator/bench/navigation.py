@@ -24,6 +24,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from host_emulator import args as cli_args
+
 TARGETS = {  # issue 3, urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
     "horiz_rms_m": 1.0,
     "vel_rms_m_s": 0.05,
@@ -246,7 +248,7 @@ def main(argv=None):
         default="docs/benchmarks/navigation.md",
         help="markdown report to write (a .json with the raw numbers beside it)",
     )
-    ap.add_argument("--jobs", type=int, default=2, help="parallel processes (default 2)")
+    cli_args.add_jobs_option(ap, "parallel processes")
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")

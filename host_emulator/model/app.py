@@ -186,7 +186,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     n = g.rejected()  # app._deliver_fix: sentences rejected since the last epoch
     if n != pps["nmea"]:
         pps["nmea"] = n
-        pps["nmea_bad"] = ticks + fw_app._PPS_TICKS
+        pps["nmea_bad"] = ticks + fw_app._SECOND_TICKS
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
     fix.valid = 1 if ok and not g.epoch_bad else 0
     if not fix.valid:  # a no-fix epoch (quality 0), or a fix with an impossible field (-1)
@@ -213,7 +213,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
-        pps["bad"] = ticks + fw_app._PPS_TICKS
+        pps["bad"] = ticks + fw_app._SECOND_TICKS
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
 
@@ -225,7 +225,7 @@ def _pps_seen(g, pps, ticks):
         if pps["last"]:
             d = (ticks_diff(g.pps_us, pps["last"]) + 500_000) % 1_000_000 - 500_000
             if abs(d) > fw_app._PPS_TOL_US:
-                pps["bad"] = ticks + fw_app._PPS_TICKS
+                pps["bad"] = ticks + fw_app._SECOND_TICKS
         pps["last"] = g.pps_us
 
 
@@ -349,26 +349,21 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             j += 1
             counter = (counter + 1) & 0xFF
         if ext_every and ticks % ext_every == 0:
-            health = model.health
-            causes = model.causes
+            causes = 0  # app._send_ext: the app's own causes, each a warning
             if cfg_status != config.OK:
-                causes |= fw_app.CAUSE_CONFIG
-                if health == 0:
-                    health = 1
+                causes = fw_app.CAUSE_CONFIG
             _pps_seen(g, pps, ticks)
             if ticks < pps["nmea_bad"]:
                 causes |= fw_app.CAUSE_NMEA
-                if health == 0:
-                    health = 1
             if ticks < pps["bad"]:
                 causes |= fw_app.CAUSE_PPS
-                if health == 0:
-                    health = 1
-            if overruns != ext_overruns:  # app._send_ext
+            if overruns != ext_overruns:
                 ext_overruns = overruns
                 causes |= fw_app.CAUSE_OVERRUN
-                if health == 0:
-                    health = 1
+            health = model.health
+            if causes and health == 0:
+                health = 1
+            causes |= model.causes
             flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
             parts.append(
                 ext_frame(counter, health, model.state, cfg_status, flags, model, causes, overruns)

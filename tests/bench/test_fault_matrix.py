@@ -9,7 +9,7 @@ from host_emulator.bench import faults as bench
 
 T0 = bench.FAULT_T0_S
 SHORT = ("imu-zeros@+1", "imu-stuck@+1", "accel-vibe@+2", "gnss-height@+5:100",
-         "gnss-quality@+5:6", "gnss-loss@+10")  # fmt: skip
+         "gnss-quality@+5:6", "gnss-loss@+10", "stall@+0.2")  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -36,3 +36,9 @@ def test_the_matrix_covers_every_kind():
     from host_emulator.sim import faults
 
     assert kinds == set(faults.KINDS)
+
+
+@pytest.mark.parametrize("jobs", ["0", "two"])
+def test_a_jobs_count_that_cannot_run_is_one_line(jobs, capsys):
+    assert bench.main(["--jobs", jobs]) == 2
+    assert "--jobs" in capsys.readouterr().err
