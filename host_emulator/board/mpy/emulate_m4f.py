@@ -213,8 +213,12 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         try:  # the firmware's code: its interrupt handlers and one pass of its loop
             emu_in()
             fire_inputs(rec, t_k, pps)
-            emu_out()
-            if not stalled(rec):
+            # the driver's test is emulation (inside the bracket); the loop's pass is counted
+            # exactly as without a stall flag: emu_out() and then service(), nothing between
+            if stalled(rec):
+                emu_out()
+            else:
+                emu_out()
                 a.service()
         except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
             fo.write(out_uart.tx, out_uart.tx_n)
