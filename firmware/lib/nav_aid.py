@@ -181,7 +181,10 @@ class Aiding:
         """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
         and horizontal velocity from the fix it last rejected (the navigator's own velocity,
         with the track start's wider sigma, when the fix has no course), a fresh covariance;
-        attitude and biases are kept."""
+        the attitude is kept. The bias estimates go back to the calibration (0 on top of
+        gyro_bias0/accel_bias0): what the filter learned while it drifted away from GNSS is
+        what let it drift (after a bias step, a learned 1 deg/s outlives the step and
+        defeats standstill detection), and the fresh covariance lets it learn them again."""
         self._room()
         ins = self.ins
         used = self._used
@@ -202,6 +205,9 @@ class Aiding:
             sigma_vel = self.cfg.track_vel_sigma
         c = self.ctl
         self._restart(used, v, c[_C_TICK] - c[_C_USED_TICK], sh, sv, sigma_vel)
+        for i in range(3):
+            ins.bg[i] = 0.0
+            ins.ba[i] = 0.0
         c[_C_REJECTS] = 0
         c[_C_V_REJECTS] = 0
         c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state

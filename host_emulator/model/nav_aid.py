@@ -104,7 +104,7 @@ class AidingModel:
 
     def _reset_to_gnss(self):
         """From the fix the last update rejected: p, horizontal v (from its course, else the
-        INS's), a fresh P; attitude and biases kept."""
+        INS's), a fresh P; attitude kept, bias estimates back to 0 (the calibration)."""
         ins = self.ins
         u = self.used
         course, sp = u[4], u[3]
@@ -114,6 +114,8 @@ class AidingModel:
             v = vec(ins.v_n[0], ins.v_n[1], 0)
         sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
         self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
+        ins.bg = np.zeros(3, F32)
+        ins.ba = np.zeros(3, F32)
         self.rejects = 0
         self.v_rejects = 0
         self.reset_until = fw_nav_aid.UNCONFIRMED

@@ -144,6 +144,33 @@ def test_fixes_above_the_hdop_limit_are_not_used():
     assert nav.health == 1
 
 
+def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
+    """Fixes 40 m away from where the navigator is, five in a row: it resets onto them, and
+    the biases it had learned (which let it drift, after a bias step) go back to 0 on top of
+    the calibration, their variances to the initial ones, so it learns them again."""
+    nav, truth, _, _ = navigating()
+    learned = np.concatenate([np.array(nav.ins.bg), np.array(nav.ins.ba)])
+    assert np.all(learned != 0.0) and nav.resets == 0
+    lat = int(truth.lat_e7[-1]) + 36000  # 400 m north
+    lon = int(truth.lon_e7[-1])
+    h, hdop, unknown = f32.f32(truth.h_m[-1]), f32.f32(1.0), f32.f32(-1.0)
+    p = f32.zeros(15)
+    at_reset = None
+    for _ in range(8):
+        nav_runner.gnss_e7(nav, lat, lon, h, 1, hdop, unknown, unknown)
+        for _ in range(200):
+            nav.imu(f32.zeros(3) + F32(0.0), _gravity_up())
+            if nav.resets and at_reset is None:
+                nav.p_diag(p)
+                at_reset = (np.array(nav.ins.bg), np.array(nav.ins.ba), np.array(p))
+    assert nav.resets == 1 and at_reset is not None
+    bg, ba, p_diag = at_reset
+    assert np.all(bg == 0.0) and np.all(ba == 0.0)
+    cfg = nav.cfg
+    assert np.allclose(p_diag[9:12], F32(cfg.init_gyro_bias_sigma) ** 2, rtol=1e-6)
+    assert np.allclose(p_diag[12:15], F32(cfg.init_accel_bias_sigma) ** 2, rtol=1e-6)
+
+
 F32 = np.float32
 
 
