@@ -38,6 +38,17 @@ _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
 _CATCH_UP_MAX = const(200)  # missed ticks the navigator steps through (board.WDT_TIMEOUT_MS)
 _PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
+_IMU_REPEAT = const(0x200)  # nav.IMU_REPEAT: a missed tick's repeat of the last sample
+_EDGE_REF_MAX_US = const(300000000)  # an older reference edge is dropped (ticks_us wraps 2^30)
+_DAY_S = const(86400)
+_LATE = const(-2)  # _fix_tick: the epoch is a second or more older than its arrival
+_K_PPS_LAST = const(0)  # App._chk: the last PPS edge seen (ticks_us; _pps_seen)
+_K_PPS_BAD = const(1)  # CAUSE_PPS until this tick (App.ticks)
+_K_EDGE_US = const(2)  # the PPS edge of the last on-time epoch (ticks_us; _late_s)
+_K_EDGE_S = const(3)  # and its UTC second of the day (-1: none yet)
+_K_LATE_BAD = const(4)  # CAUSE_GNSS_LATE until this tick
+_K_NMEA_REJ = const(5)  # the parser's rejected() at the last look
+_K_NMEA_BAD = const(6)  # CAUSE_NMEA until this tick
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
@@ -99,6 +110,9 @@ CAUSE_NMEA = const(0x1000)  # GNSS sentences rejected (checksum, framing, fields
 CAUSE_PPS = const(0x2000)  # a PPS edge not a whole number of seconds after the one before, or
 # a fix without an edge in the second before it though edges came before (the fix is then
 # timed by the configured latency): 1, for a second
+CAUSE_GNSS_LATE = const(0x800)  # an epoch that arrived a second or more after its own PPS edge
+# (its UTC second against the edges counted since an on-time epoch): older than the
+# navigator's delay ring reaches, so not used; 1, for a second
 CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt or bad file): 1
 # ticks the loop missed since the last extended frame (the board was busy: IMU samples lost,
 # the navigator stepped through them on the last one read): a warning, 1. Run time on a board, so
@@ -131,10 +145,12 @@ class App:
         self.ticks = 0
         self.overruns = 0
         self._ext_overruns = 0  # self.overruns at the last extended frame
-        self._pps_last = 0  # the last PPS edge seen (ticks_us; _pps_seen)
-        self._pps_bad = 0  # CAUSE_PPS until this tick (self.ticks)
-        self._nmea_rejected = 0  # the parser's rejected() at the last look
-        self._nmea_bad = 0  # CAUSE_NMEA until this tick
+        # the PPS, late-epoch and NMEA checks' state (_K_*), read once a second or less: one
+        # attribute, not seven. Every method call on self first misses the instance's
+        # attribute table (a hash table grown only when full), and a fuller table makes
+        # every tick dearer: with the three late-check values as attributes of their own
+        # (36 in a table of 37) a navigating tick cost 1,700 instructions more on the board
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -262,8 +278,9 @@ class App:
         if lost > _CATCH_UP_MAX:
             lost = _CATCH_UP_MAX
         nav = self.nav
+        st = imu.status | _IMU_REPEAT  # not a read: no evidence of a stuck IMU
         for _ in range(lost):
-            nav.imu_counts(imu.gyro, imu.accel, imu.status)
+            nav.imu_counts(imu.gyro, imu.accel, st)
 
     def _account(self, t0, state):
         """Timing statistics; garbage collection when the heap runs low."""
@@ -312,12 +329,14 @@ class App:
     def _deliver_fix(self):
         """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
         the navigator's input. A no-fix epoch counts as lost; so does a fix with a physically
-        impossible field (gnss.epoch_bad), which the navigator is told of by quality -1."""
+        impossible field (gnss.epoch_bad), which the navigator is told of by quality -1, and a
+        late one (_fix_tick), shown in the frame but given to the navigator as no fix."""
         g = self.gnss
         n = g.rejected()  # sentences rejected since the last epoch: CAUSE_NMEA for a second
-        if n != self._nmea_rejected:
-            self._nmea_rejected = n
-            self._nmea_bad = self.ticks + _SECOND_TICKS
+        k = self._chk
+        if n != k[_K_NMEA_REJ]:
+            k[_K_NMEA_REJ] = n
+            k[_K_NMEA_BAD] = self.ticks + _SECOND_TICKS
         ok = g.epoch_pos_ok and g.epoch_quality > 0
         if ok and g.epoch_bad:
             self._fields[_F_VALID] = 0
@@ -325,6 +344,8 @@ class App:
         elif ok:
             self._fields[_F_VALID] = 1  # the frame's fix fields change only here
             self._fix_fields(g, self.nav.fix_in)
+            if self.nav.fix_in[_FI_TICK] == _LATE:  # the receiver's fix, too old to use
+                self._no_fix(self.nav.fix_in, 0)
         else:
             self._fields[_F_VALID] = 0
             self._no_fix(self.nav.fix_in, 0)
@@ -365,19 +386,46 @@ class App:
         fi[_FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted
         fi[_FI_SPEED_MM_S] = g.epoch_speed_mm_s  # < 0: unknown
         fi[_FI_COURSE_CDEG] = g.epoch_course_cdeg if g.epoch_speed_mm_s >= 0 else -1
-        fi[_FI_TICK] = self._fix_tick(g.epoch_pps_us)
+        fi[_FI_TICK] = self._fix_tick(g.epoch_pps_us, g.epoch_utc_ms)
 
-    def _fix_tick(self, pps_us):
+    def _fix_tick(self, pps_us, utc_ms):
         """The fix's measurement tick: the PPS edge's when the edge came less than a second
-        before the epoch's first sentence, else -1 (the navigator applies the configured
-        latency); CAUSE_PPS for a second when there is none though edges came before (a
-        missing edge)."""
+        before the epoch's first sentence and belongs to the epoch's second, _LATE when it
+        belongs to a later one (CAUSE_GNSS_LATE for a second), else -1 (the navigator applies
+        the configured latency); CAUSE_PPS for a second when there is no edge though edges
+        came before (a missing edge)."""
         age_us = time.ticks_diff(time.ticks_us(), pps_us)
         if pps_us and 0 <= age_us < 1000000:
+            if self._late_s(pps_us, utc_ms // 1000) > 0:
+                self._chk[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
+                return _LATE
             return self.nav.ctl[_C_TICK] - age_us // _US_PER_TICK
-        if self._pps_last:
-            self._pps_bad = self.ticks + _SECOND_TICKS
+        if self._chk[_K_PPS_LAST]:
+            self._chk[_K_PPS_BAD] = self.ticks + _SECOND_TICKS
         return -1
+
+    def _late_s(self, p_us, s):
+        """Whole seconds by which edge p_us is later than the epoch's UTC second s (of the
+        day; < 0: unknown): the edges are counted from the reference, the edge of the last
+        on-time epoch (a receiver whose bytes come 1.4 s late would otherwise have its fixes
+        stamped a second late). 0 makes p_us the reference; so does a first epoch, an old
+        reference or a negative count (a receiver clock that jumped: the reference no longer
+        holds). An edge off the whole seconds (spurious) is not counted. Few locals: the frame
+        stays on the C stack (tests/runtimes/test_frames.py)."""
+        if s < 0:
+            return 0
+        k = self._chk
+        if k[_K_EDGE_S] >= 0:
+            d = time.ticks_diff(p_us, k[_K_EDGE_US]) + 500000  # rounds to whole seconds below
+            if -_EDGE_REF_MAX_US < d < _EDGE_REF_MAX_US:
+                if d % 1000000 < 500000 - _PPS_TOL_US or d % 1000000 > 500000 + _PPS_TOL_US:
+                    return 0  # a spurious edge, off the seconds (CAUSE_PPS): no count
+                d = (k[_K_EDGE_S] + d // 1000000 - s) % _DAY_S
+                if 0 < d < _DAY_S // 2:
+                    return d
+        k[_K_EDGE_US] = p_us
+        k[_K_EDGE_S] = s
+        return 0
 
     def _send_frame(self, imu, state):
         fi = self._fields
@@ -402,12 +450,15 @@ class App:
         causes = 0  # the app's own, each a warning (running on defaults among them)
         if self.config_status != config.OK:
             causes = CAUSE_CONFIG
-        if self.gnss.pps_us != self._pps_last:
+        k = self._chk
+        if self.gnss.pps_us != k[_K_PPS_LAST]:
             self._pps_seen()
-        if self.ticks < self._nmea_bad:
+        if self.ticks < k[_K_NMEA_BAD]:
             causes |= CAUSE_NMEA
-        if self.ticks < self._pps_bad:
+        if self.ticks < k[_K_PPS_BAD]:
             causes |= CAUSE_PPS
+        if self.ticks < k[_K_LATE_BAD]:
+            causes |= CAUSE_GNSS_LATE
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN
@@ -435,11 +486,12 @@ class App:
         costs): CAUSE_PPS for a second if it is not a whole number of seconds after the last
         one seen (a spurious edge)."""
         p = self.gnss.pps_us
-        if self._pps_last:
-            d = (time.ticks_diff(p, self._pps_last) + 500000) % 1000000
+        k = self._chk
+        if k[_K_PPS_LAST]:
+            d = (time.ticks_diff(p, k[_K_PPS_LAST]) + 500000) % 1000000
             if d < 500000 - _PPS_TOL_US or d > 500000 + _PPS_TOL_US:
-                self._pps_bad = self.ticks + _SECOND_TICKS
-        self._pps_last = p
+                k[_K_PPS_BAD] = self.ticks + _SECOND_TICKS
+        k[_K_PPS_LAST] = p
 
     def _send_ext_state(self, fi):
         """The extended frame's origin, covariance and state, packed and sent."""

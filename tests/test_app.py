@@ -113,6 +113,9 @@ def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():
     import geo
 
     assert app._E7 == geo._E7
+    assert app._IMU_REPEAT == nav.IMU_REPEAT and not nav.IMU_REPEAT & (
+        nav.IMU_OVER_RANGE | nav.IMU_FRESH
+    )
     fix_in = {n for n in vars(app) if n.startswith("_FI_")} | {"_NFI"}
     assert fix_in == {"_" + n for n in vars(nav) if n.startswith("FI_")} | {"_NFI"}
     for name in fix_in:
@@ -333,3 +336,42 @@ def test_ctrl_c_stops_the_loop_and_keeps_the_repl_alive(tmp_path):
     for _ in range(3):
         machine.fire_timers()
     assert machine.watchdog.feeds == feeds + 3
+
+
+def test_an_epoch_is_late_when_its_pps_edge_belongs_to_a_later_second(tmp_path):
+    """_late_s (an epoch's edge and UTC second) counts PPS edges (whole seconds of ticks_us)
+    from the edge of the last on-time epoch: an epoch whose first sentence came after a later
+    second's edge is late by that many seconds (its fix would be stamped wrong) and keeps the
+    reference; an on-time epoch moves it; an edge off the seconds (spurious) is not counted;
+    the UTC day wraps; a count that went backwards (the receiver's clock jumped) or a
+    reference older than 300 s starts afresh."""
+    a = Bench(tmp_path).app
+    import app
+
+    def edge_ref():
+        return a._chk[app._K_EDGE_US]
+
+    def second_ref():
+        return a._chk[app._K_EDGE_S]
+
+    def edge(us):
+        return us % (1 << 30)  # ticks_us wraps at 2^30
+
+    e0 = (1 << 30) - 400_000
+    assert a._late_s(e0, 86_399) == 0  # the first epoch: the reference
+    e1 = edge(e0 + 1_000_030)  # the next edge (30 us of board clock drift), over the wrap
+    assert a._late_s(e1, 0) == 0  # midnight: second 0 follows 86399
+    assert edge_ref() == e1 and second_ref() == 0
+    assert a._late_s(edge(e1 + 2_000_000), 1) == 1  # second 1 after second 2's edge
+    assert a._late_s(edge(e1 + 3_000_000), 1) == 2
+    assert edge_ref() == e1  # late epochs keep the reference
+    assert a._late_s(edge(e1 + 2_500_000), 1) == 0  # a spurious edge: not counted
+    assert edge_ref() == e1
+    assert a._late_s(edge(e1 + 4_000_000), 4) == 0  # on time again: the reference moves
+    assert second_ref() == 4
+    assert a._late_s(edge(e1 + 5_000_000), 9) == 0  # the clock jumped ahead: afresh
+    assert second_ref() == 9
+    assert a._late_s(edge(e1 + 400_000_000), 1) == 0  # an old reference: afresh
+    assert second_ref() == 1
+    assert a._late_s(edge(e1 + 401_000_000), -1) == 0  # no UTC time: nothing to count
+    assert second_ref() == 1

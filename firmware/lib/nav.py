@@ -63,6 +63,9 @@ RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz
 # (bits 0-5) and the accel die's new_data bits (6-8; all clear: no sample since the last read)
 IMU_OVER_RANGE = const(0x3F)
 IMU_FRESH = const(0x1C0)
+# and the app's bit 9: a missed tick's repeat of the last sample (app._catch_up), not a read of
+# its own, so not counted as an unchanged sample (a stall is not a stuck IMU)
+IMU_REPEAT = const(0x200)
 
 # Health (seed 000 FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
 # (self.ctl[_C_CAUSES], the extended frame): 2 when a CAUSE_FAULTS bit is set, else 1 when any
@@ -960,21 +963,23 @@ def _imu_check(c, g, a):
     be a sample of a working BMI055: an axis over range, no new accel sample, all six words
     0x0000 or all 0xFFFF (registers cleared, or the bus' idle level: the chip does not
     answer), or one die's counts unchanged for c[_C_T_STUCK] ticks (a real sensor's noise
-    moves them every sample). Keeps the last counts and the runs of unchanged ones in c."""
-    if g[0] == c[_C_PREV_G] and g[1] == c[_C_PREV_G + 1] and g[2] == c[_C_PREV_G + 2]:
-        if c[_C_N_SAME_G] < c[_C_T_STUCK]:
-            c[_C_N_SAME_G] += 1
-    else:
-        c[_C_N_SAME_G] = 0
-    if a[0] == c[_C_PREV_A] and a[1] == c[_C_PREV_A + 1] and a[2] == c[_C_PREV_A + 2]:
-        if c[_C_N_SAME_A] < c[_C_T_STUCK]:
-            c[_C_N_SAME_A] += 1
-    else:
-        c[_C_N_SAME_A] = 0
-    for i in range(3):
-        c[_C_PREV_G + i] = g[i]
-        c[_C_PREV_A + i] = a[i]
+    moves them every sample). Keeps the last counts and the runs of unchanged ones in c (not
+    for an IMU_REPEAT: the same read again)."""
     st = c[_C_IMU_STATUS]
+    if not st & IMU_REPEAT:
+        if g[0] == c[_C_PREV_G] and g[1] == c[_C_PREV_G + 1] and g[2] == c[_C_PREV_G + 2]:
+            if c[_C_N_SAME_G] < c[_C_T_STUCK]:
+                c[_C_N_SAME_G] += 1
+        else:
+            c[_C_N_SAME_G] = 0
+        if a[0] == c[_C_PREV_A] and a[1] == c[_C_PREV_A + 1] and a[2] == c[_C_PREV_A + 2]:
+            if c[_C_N_SAME_A] < c[_C_T_STUCK]:
+                c[_C_N_SAME_A] += 1
+        else:
+            c[_C_N_SAME_A] = 0
+        for i in range(3):
+            c[_C_PREV_G + i] = g[i]
+            c[_C_PREV_A + i] = a[i]
     if st & IMU_OVER_RANGE or not st & IMU_FRESH:
         return True
     v = a[0]

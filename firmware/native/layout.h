@@ -289,6 +289,7 @@
 #define EV_VRESET 5
 #define IMU_OVER_RANGE 0x3F /* the IMU driver's status word */
 #define IMU_FRESH 0x1C0
+#define IMU_REPEAT 0x200 /* the app's: a missed tick's repeat of the last sample */
 #define CAUSE_IMU_SAT 0x1 /* health's causes */
 #define CAUSE_IMU_HELD 0x2
 #define CAUSE_IMU_DEAD 0x4

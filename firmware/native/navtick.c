@@ -71,27 +71,29 @@ static void update_health(int32_t *c) {
 }
 
 /* nav._imu_check: 1 if the counts cannot be a working BMI055's sample; keeps the last counts
- * and the runs of unchanged ones */
+ * and the runs of unchanged ones (not for a repeat of the same read) */
 static int32_t imu_check(int32_t *c, const int16_t *g, const int16_t *a) {
-    if (g[0] == c[C_PREV_G] && g[1] == c[C_PREV_G + 1] && g[2] == c[C_PREV_G + 2]) {
-        if (c[C_N_SAME_G] < c[C_T_STUCK]) {
-            c[C_N_SAME_G] += 1;
-        }
-    } else {
-        c[C_N_SAME_G] = 0;
-    }
-    if (a[0] == c[C_PREV_A] && a[1] == c[C_PREV_A + 1] && a[2] == c[C_PREV_A + 2]) {
-        if (c[C_N_SAME_A] < c[C_T_STUCK]) {
-            c[C_N_SAME_A] += 1;
-        }
-    } else {
-        c[C_N_SAME_A] = 0;
-    }
-    for (int i = 0; i < 3; i++) {
-        c[C_PREV_G + i] = g[i];
-        c[C_PREV_A + i] = a[i];
-    }
     int32_t st = c[C_IMU_STATUS];
+    if (!(st & IMU_REPEAT)) {
+        if (g[0] == c[C_PREV_G] && g[1] == c[C_PREV_G + 1] && g[2] == c[C_PREV_G + 2]) {
+            if (c[C_N_SAME_G] < c[C_T_STUCK]) {
+                c[C_N_SAME_G] += 1;
+            }
+        } else {
+            c[C_N_SAME_G] = 0;
+        }
+        if (a[0] == c[C_PREV_A] && a[1] == c[C_PREV_A + 1] && a[2] == c[C_PREV_A + 2]) {
+            if (c[C_N_SAME_A] < c[C_T_STUCK]) {
+                c[C_N_SAME_A] += 1;
+            }
+        } else {
+            c[C_N_SAME_A] = 0;
+        }
+        for (int i = 0; i < 3; i++) {
+            c[C_PREV_G + i] = g[i];
+            c[C_PREV_A + i] = a[i];
+        }
+    }
     if ((st & IMU_OVER_RANGE) || !(st & IMU_FRESH)) {
         return 1;
     }

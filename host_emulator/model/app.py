@@ -211,11 +211,38 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     fix_tick = -1
     age_us = ticks_diff(now_us, g.epoch_pps_us)
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
+        if _late_s(pps, g.epoch_pps_us, g.epoch_utc_ms) > 0:  # app._fix_tick: too old to use
+            pps["late_bad"] = ticks + fw_app._SECOND_TICKS
+            model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)
+            return
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
         pps["bad"] = ticks + fw_app._SECOND_TICKS
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
+
+
+def _late_s(pps, p_us, utc_ms):
+    """app._late_s: whole seconds by which edge p_us is later than the epoch's UTC second,
+    counted from the edge of the last on-time epoch (pps "edge_us", "edge_s"), which a 0
+    count, a first epoch, an old reference or a negative count replace; an edge off the
+    seconds is not counted."""
+    fw_app = _firmware()[0]
+    if utc_ms < 0:
+        return 0
+    s = utc_ms // 1000
+    if pps["edge_s"] >= 0:
+        d = ticks_diff(p_us, pps["edge_us"])
+        if abs(d) < fw_app._EDGE_REF_MAX_US:
+            r = (d + 500_000) % 1_000_000 - 500_000
+            if abs(r) > fw_app._PPS_TOL_US:
+                return 0
+            late = (pps["edge_s"] + (d + 500_000) // 1_000_000 - s) % fw_app._DAY_S
+            if 0 < late < fw_app._DAY_S // 2:
+                return late
+    pps["edge_us"] = p_us
+    pps["edge_s"] = s
+    return 0
 
 
 def _pps_seen(g, pps, ticks):
@@ -294,7 +321,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     ring = bytearray()
     fix = _Fix()
     counter = 0
-    pps = {"last": 0, "bad": 0, "nmea": 0, "nmea_bad": 0}  # the app's PPS and NMEA checks
+    # the app's PPS, late-epoch and NMEA checks
+    pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0, "nmea_bad": 0}
     j = 0  # frames so far
     lost = 0  # ticks stalled since the last one run
     last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
@@ -318,7 +346,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
         if lost:  # app._catch_up: the navigator steps through the missed ticks on the last
             overruns += lost  # sample read (the driver's zeros before the first)
             for _ in range(min(lost, fw_app._CATCH_UP_MAX)):
-                model.imu_raw(*last)
+                model.imu_raw(*last, repeat=True)
             lost = 0
         last = (gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
         # tick k: IMU read, GNSS poll, fix, navigator
@@ -357,6 +385,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
                 causes |= fw_app.CAUSE_NMEA
             if ticks < pps["bad"]:
                 causes |= fw_app.CAUSE_PPS
+            if ticks < pps["late_bad"]:
+                causes |= fw_app.CAUSE_GNSS_LATE
             if overruns != ext_overruns:
                 ext_overruns = overruns
                 causes |= fw_app.CAUSE_OVERRUN

@@ -202,10 +202,12 @@ class NavModel(AlignmentModel, AidingModel):
 
     # ---- inputs ----
 
-    def imu_raw(self, gyro_counts, accel_counts, saturated=False, fresh=True):
+    def imu_raw(self, gyro_counts, accel_counts, saturated=False, fresh=True, repeat=False):
         """A tick of BMI055 counts; a sample that cannot be a working sensor's is replaced by
-        the previous one (nav._imu_check)."""
+        the previous one (nav._imu_check); repeat: a missed tick's repeat of the last read."""
         self.imu_status = (1 if saturated else 0) | (fw_nav.IMU_FRESH if fresh else 0)
+        if repeat:
+            self.imu_status |= fw_nav.IMU_REPEAT
         g = [int(v) for v in gyro_counts]
         a = [int(v) for v in accel_counts]
         if self._imu_check(g, a):
@@ -219,17 +221,18 @@ class NavModel(AlignmentModel, AidingModel):
     def _imu_check(self, g, a):
         """Over range, no new accel sample, all-zero or all-ones words, or counts unchanged
         for ticks_stuck ticks: not a sample."""
-        if g == self.prev_g:
-            self.n_same_g = min(self.n_same_g + 1, self.ticks_stuck)
-        else:
-            self.n_same_g = 0
-        if a == self.prev_a:
-            self.n_same_a = min(self.n_same_a + 1, self.ticks_stuck)
-        else:
-            self.n_same_a = 0
-        self.prev_g = g
-        self.prev_a = a
         st = self.imu_status
+        if not st & fw_nav.IMU_REPEAT:  # a repeat of the same read is no evidence
+            if g == self.prev_g:
+                self.n_same_g = min(self.n_same_g + 1, self.ticks_stuck)
+            else:
+                self.n_same_g = 0
+            if a == self.prev_a:
+                self.n_same_a = min(self.n_same_a + 1, self.ticks_stuck)
+            else:
+                self.n_same_a = 0
+            self.prev_g = g
+            self.prev_a = a
         if st & fw_nav.IMU_OVER_RANGE or not st & fw_nav.IMU_FRESH:
             return True
         if a[0] in (0, -1) and set(g + a) == {a[0]}:

@@ -57,6 +57,7 @@ CAUSES = (
     (0x100, "reset_to_gnss"),
     (0x200, "uncertain"),
     (0x400, "drift"),
+    (0x800, "gnss_late"),
     (0x1000, "nmea_errors"),
     (0x2000, "pps_irregular"),
     (0x4000, "config_defaults"),

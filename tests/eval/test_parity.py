@@ -135,7 +135,10 @@ def test_parity_with_raw_records_other_rates_mounting_and_pps_lost(highway):
 
 def test_parity_when_the_gnss_receive_ring_overflows():
     """Five seconds of NMEA bytes arrive at once: the 255-byte reads drain the 1 KB receive
-    ring over several ticks and the rest is lost, the same way on both sides."""
+    ring over several ticks and the rest is lost, the same way on both sides. Every epoch of a
+    burst arrives after a later second's PPS edge than its own: each is reported late and none
+    is used (stamped with the burst's edge, a fix would be seconds wrong), so the board never
+    starts navigating."""
     s = board_input.simulate("highway_outage", 45.0, seed=3).stimulus
     k = np.arange(len(s) + 1)
     burst = np.minimum(-(-k // 1000) * 1000, len(s))
@@ -152,7 +155,9 @@ def test_parity_when_the_gnss_receive_ring_overflows():
     assert r.identical, r.summary()
     assert r.firmware_stats["gnss_rx_overflow"] > 0 and r.firmware_stats["nmea_rejected"] > 0
     d = _frames(r.out_firmware)
-    assert sum(f["gga"] for f in d.frames) > 10 and d.frames[-1]["nav_state"] == 2
+    assert sum(f["gga"] for f in d.frames) > 10 and d.frames[-1]["nav_state"] == 1
+    late = [e for e in d.ext if "gnss_late" in rec_schema.cause_names(e["causes"])]
+    assert len(late) >= 50  # a second for each of the bursts' late epochs
 
 
 def test_parity_without_receiver_speed_and_course():

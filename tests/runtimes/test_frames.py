@@ -41,6 +41,7 @@ PER_TICK = (
     ("app.py", "App._fix_fields"),
     ("app.py", "App._no_fix"),
     ("app.py", "App._fix_tick"),
+    ("app.py", "App._late_s"),
     ("lib/nav.py", "Navigator.gnss_fix"),
     ("lib/nav.py", "Navigator._take_fix"),
     ("lib/nav.py", "Navigator._reset_event"),

@@ -286,9 +286,9 @@ def test_a_silent_imu_is_a_flag_of_the_records_every_runtime_applies(stim, tmp_p
 def test_a_stall_loses_its_frames_and_the_navigator_steps_through_its_ticks(stim, tmp_path):
     """stall: a per-tick flag (it survives the file); no loop runs over it, so its frames are
     missing; the next tick counts the missed ticks as overruns (health 1, `overrun`) and the
-    navigator steps through them on that tick's sample: its clock (the extended frames'
-    tick) keeps the timer's. CPython and the emulated Cortex-M4F give the model's bytes; the
-    VM runs it too."""
+    navigator steps through them on that tick's sample, which is not taken for a stuck IMU:
+    its clock (the extended frames' tick) keeps the timer's. CPython and the emulated
+    Cortex-M4F give the model's bytes; the VM runs it too."""
     from host_emulator.eval import parity
     from host_emulator.runtimes import mpy_unix
 
@@ -309,6 +309,8 @@ def test_a_stall_loses_its_frames_and_the_navigator_steps_through_its_ticks(stim
     assert after["overruns"] == 40 and after["health"] >= 1
     assert "overrun" in rec_schema.cause_names(after["causes"])
     assert "overrun" not in rec_schema.cause_names(d.ext[k0 // 20 + 1]["causes"])
+    # the steps repeat one read (IMU_REPEAT): not taken for a stuck IMU, health stays 1
+    assert all(e["health"] <= 1 for e in d.ext[k0 // 20 : k0 // 20 + 15])
     assert after["nav_state"] == clean.ext[k1 // 20]["nav_state"]
     vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out)
     assert len(vm.frames) == len(d.frames) and vm.ext[k0 // 20]["overruns"] == 40
@@ -345,3 +347,29 @@ def test_replay_injects_faults_too(tmp_path, capsys):
     assert stim_mod.read(out / "stimulus.bin").header["faults"] == ["gnss-height@45+5:500"]
     assert main([*argv, "--fault", "gnss-height@45"]) == 1
     assert "expected KIND@T0+DURATION" in capsys.readouterr().err
+
+
+def test_late_epochs_are_reported_and_not_used(stim, tmp_path):
+    """gnss-late: the bytes of 13.5-15.5 s arrive 1.4 s late, the epoch of second 14 after
+    the edge of second 15. The app counts the edges from the last on-time epoch, says `gnss_late`
+    and gives the navigator no fix (stamped with the later edge it would be a second wrong),
+    so the position variance does not fall where the clean run's does at a fix; CPython and
+    the emulated Cortex-M4F send the model's bytes."""
+    from host_emulator.eval import parity
+
+    s = faults.apply(stim, ["gnss-late@13.5+2:1.4"])
+    for runtime in ("cpython", "m4f"):
+        r = parity.compare(s, runtime=runtime, kernels="native")
+        assert r.identical, (runtime, r.summary())
+    d = stream.decode(cpython.run(s, tmp_path / "late").out)
+    clean = stream.decode(cpython.run(stim, tmp_path / "clean").out)
+    names = [rec_schema.cause_names(e["causes"]) for e in d.ext]
+    late = [k for k, n in enumerate(names) if "gnss_late" in n]
+    assert late and all(15.5 < (k + 1) * 0.1 < 16.6 for k in late), late
+    assert not any("gnss_late" in rec_schema.cause_names(e["causes"]) for e in clean.ext)
+
+    def fix_drops(ext):  # the east variance falling by a third or more: a fix used
+        var_e = [e["p_diag"][0] for e in ext[143:]]  # from 14.4 s, after the last on-time fix
+        return sum(b < 0.67 * a for a, b in zip(var_e[:-1], var_e[1:], strict=True))
+
+    assert fix_drops(d.ext) == 0 and fix_drops(clean.ext) >= 1
