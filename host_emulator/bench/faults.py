@@ -307,7 +307,9 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=()):
     lines += [
         "",
         f"Detection coverage: {detected} of {total} injected faults ({cov:.0f} %; target "
-        f">= 90 %). Frames above {TRUST_M:g} m without health 2: {misses10} (target 0).",
+        f">= 90 %). Frames above {TRUST_M:g} m without health 2: {misses10} (target 0). "
+        "Why a target is missed, kind by kind: [docs/health.md](../health.md), "
+        '"How well: the fault benchmark".',
         "",
         f"No-fault runs (horizontal / vertical RMS over the navigation phase): {nom}.",
         "",
