@@ -139,7 +139,7 @@ def test_a_fault_after_the_end_is_refused(stim):
 @pytest.mark.parametrize("kind", list(faults.KINDS))
 def test_the_firmware_meets_every_kind_without_raising_or_non_finite_output(stim, kind, tmp_path):
     """It runs on, and every float it sends, in frames and extended frames, is finite
-    (detection and recovery: tests/bench/test_faults.py)."""
+    (detection and recovery: tests/bench/test_fault_matrix.py, a kind of each family)."""
     dur = faults.STALL_MAX_S if kind == "stall" else DUR
     s = faults.apply(stim, [f"{kind}@{T0:g}+{dur:g}"])
     r = cpython.run(s, tmp_path)
