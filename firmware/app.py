@@ -49,6 +49,11 @@ _K_EDGE_S = const(3)  # and its UTC second of the day (-1: none yet)
 _K_LATE_BAD = const(4)  # CAUSE_GNSS_LATE until this tick
 _K_NMEA_REJ = const(5)  # the parser's rejected() at the last look
 _K_NMEA_BAD = const(6)  # CAUSE_NMEA until this tick
+_K_EDGES_OK = const(7)  # regular PPS edges in a row that each had an epoch after them
+_K_OVERDUE = const(8)  # the tick from which the last edge's epoch is overdue (_pps_seen)
+_OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
+_OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
+_NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
@@ -105,14 +110,14 @@ _C_STILL = const(3)
 _C_LAST_FIX_TICK = const(26)
 _C_CAUSES = const(48)
 # The app's own causes in the extended frame (nav.CAUSE_* are the navigator's)
-CAUSE_NMEA = const(0x1000)  # GNSS sentences rejected (checksum, framing, fields) before an
-# epoch: 1, 1 s
+CAUSE_NMEA = const(0x1000)  # a GNSS sentence rejected (checksum, framing, fields), seen at the
+# next PPS edge or epoch: 1, 1 s
 CAUSE_PPS = const(0x2000)  # a PPS edge not a whole number of seconds after the one before, or
 # a fix without an edge in the second before it though edges came before (the fix is then
 # timed by the configured latency): 1, for a second
 CAUSE_GNSS_LATE = const(0x800)  # an epoch that arrived a second or more after its own PPS edge
 # (its UTC second against the edges counted since an on-time epoch): older than the
-# navigator's delay ring reaches, so not used; 1, for a second
+# navigator's delay ring reaches, so not used; or one overdue (_pps_seen); 1, for a second
 CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt or bad file): 1
 # ticks the loop missed since the last extended frame (the board was busy: IMU samples lost,
 # the navigator stepped through them on the last one read): a warning, 1. Run time on a board, so
@@ -149,7 +154,7 @@ class App:
         # attribute, not seven. Every method call on self first misses the instance's
         # attribute table (a hash table grown only when full): as attributes of their own,
         # 36 in a table of 37, they made every navigating tick dearer (issue 16's notes)
-        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0))
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -331,7 +336,7 @@ class App:
         impossible field (gnss.epoch_bad), which the navigator is told of by quality -1, and a
         late one (_fix_tick), shown in the frame but given to the navigator as no fix."""
         g = self.gnss
-        n = g.rejected()  # sentences rejected since the last epoch: CAUSE_NMEA for a second
+        n = g.rejected()  # sentences rejected since the last look: CAUSE_NMEA for a second
         k = self._chk
         if n != k[_K_NMEA_REJ]:
             k[_K_NMEA_REJ] = n
@@ -430,8 +435,12 @@ class App:
         fi = self._fields
         g = self.gnss
         fi[_F_COUNTER] = self.counter
-        fi[_F_PPS] = g.pps_flag  # read and cleared here (gnss.py: pps_flag_take)
-        g.pps_flag = 0
+        if g.pps_flag:  # read and cleared here (gnss.py: pps_flag_take)
+            g.pps_flag = 0
+            fi[_F_PPS] = 1
+            self._pps_seen()
+        else:
+            fi[_F_PPS] = 0
         fi[_F_GGA] = g.gga_seen
         g.gga_seen = 0
         fi[_F_STATE] = state
@@ -450,8 +459,11 @@ class App:
         if self.config_status != config.OK:
             causes = CAUSE_CONFIG
         k = self._chk
-        if self.gnss.pps_us != k[_K_PPS_LAST]:
-            self._pps_seen()
+        if self.ticks >= k[_K_OVERDUE]:  # no epoch yet after the last edge? (_pps_seen)
+            k[_K_OVERDUE] = _NEVER
+            if self.gnss.epoch_pps_us != k[_K_PPS_LAST]:  # none: a late receiver
+                k[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
+                k[_K_EDGES_OK] = 0
         if self.ticks < k[_K_NMEA_BAD]:
             causes |= CAUSE_NMEA
         if self.ticks < k[_K_PPS_BAD]:
@@ -481,16 +493,32 @@ class App:
         self._send_ext_state(fi)
 
     def _pps_seen(self):
-        """A PPS edge new since the last extended frame (checked there, not every tick: it
-        costs): CAUSE_PPS for a second if it is not a whole number of seconds after the last
-        one seen (a spurious edge)."""
-        p = self.gnss.pps_us
+        """A PPS edge (its frame tick; the checks are here, not every tick: they cost).
+        CAUSE_PPS for a second if it is not a whole number of seconds after the last one (a
+        spurious edge); CAUSE_NMEA for a second if a sentence was rejected since the last
+        edge (or epoch: _deliver_fix). After _OVERDUE_EDGES regular edges in a row that each
+        had an epoch (one whose first sentence came after it), the next epoch is due within
+        _OVERDUE_TICKS: _send_ext says CAUSE_GNSS_LATE if it has not come by then (a late
+        receiver, told before its late epoch comes: _late_s); a receiver that sends less
+        often than once a second never has that run."""
+        g = self.gnss
+        p = g.pps_us
         k = self._chk
+        if g.epoch_pps_us == k[_K_PPS_LAST]:
+            k[_K_EDGES_OK] += 1
+        else:
+            k[_K_EDGES_OK] = 0
         if k[_K_PPS_LAST]:
             d = (time.ticks_diff(p, k[_K_PPS_LAST]) + 500000) % 1000000
             if d < 500000 - _PPS_TOL_US or d > 500000 + _PPS_TOL_US:
                 k[_K_PPS_BAD] = self.ticks + _SECOND_TICKS
+                k[_K_EDGES_OK] = 0
         k[_K_PPS_LAST] = p
+        k[_K_OVERDUE] = self.ticks + _OVERDUE_TICKS if k[_K_EDGES_OK] >= _OVERDUE_EDGES else _NEVER
+        p = g.rejected()  # (p reused: a twelfth word would put the frame on the heap)
+        if p != k[_K_NMEA_REJ]:
+            k[_K_NMEA_REJ] = p
+            k[_K_NMEA_BAD] = self.ticks + _SECOND_TICKS
 
     def _send_ext_state(self, fi):
         """The extended frame's origin, covariance and state, packed and sent."""

@@ -183,10 +183,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     tick's ticks_us value; pps the app's PPS check state ("last" edge, "bad" until), ticks
     the app's tick count."""
     fw_app = _firmware()[0]
-    n = g.rejected()  # app._deliver_fix: sentences rejected since the last epoch
-    if n != pps["nmea"]:
-        pps["nmea"] = n
-        pps["nmea_bad"] = ticks + fw_app._SECOND_TICKS
+    _nmea_seen(g, pps, ticks)
     ok = bool(g.epoch_pos_ok) and g.epoch_quality > 0
     fix.valid = 1 if ok and not g.epoch_bad else 0
     if not fix.valid:  # a no-fix epoch (quality 0), or a fix with an impossible field (-1)
@@ -246,14 +243,28 @@ def _late_s(pps, p_us, utc_ms):
 
 
 def _pps_seen(g, pps, ticks):
-    """app._send_ext's PPS check: a new edge not whole seconds after the last one seen."""
+    """app._pps_seen, at the frame tick that takes an edge's flag: a spurious edge, the run of
+    edges that each had an epoch and the tick the next epoch is overdue from, the rejected
+    sentences."""
     fw_app = _firmware()[0]
-    if g.pps_us != pps["last"]:
-        if pps["last"]:
-            d = (ticks_diff(g.pps_us, pps["last"]) + 500_000) % 1_000_000 - 500_000
-            if abs(d) > fw_app._PPS_TOL_US:
-                pps["bad"] = ticks + fw_app._SECOND_TICKS
-        pps["last"] = g.pps_us
+    pps["edges_ok"] = pps["edges_ok"] + 1 if g.epoch_pps_us == pps["last"] else 0
+    if pps["last"]:
+        d = (ticks_diff(g.pps_us, pps["last"]) + 500_000) % 1_000_000 - 500_000
+        if abs(d) > fw_app._PPS_TOL_US:
+            pps["bad"] = ticks + fw_app._SECOND_TICKS
+            pps["edges_ok"] = 0
+    pps["last"] = g.pps_us
+    pps["overdue"] = fw_app._NEVER
+    if pps["edges_ok"] >= fw_app._OVERDUE_EDGES:
+        pps["overdue"] = ticks + fw_app._OVERDUE_TICKS
+    _nmea_seen(g, pps, ticks)
+
+
+def _nmea_seen(g, pps, ticks):
+    """app._pps_seen and _deliver_fix: sentences rejected since the last look."""
+    if g.rejected() != pps["nmea"]:
+        pps["nmea"] = g.rejected()
+        pps["nmea_bad"] = ticks + _firmware()[0]._SECOND_TICKS
 
 
 def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
@@ -322,7 +333,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     fix = _Fix()
     counter = 0
     # the app's PPS, late-epoch and NMEA checks
-    pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0, "nmea_bad": 0}
+    pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0,
+           "nmea_bad": 0, "edges_ok": 0, "overdue": 0x3FFFFFFF}  # fmt: skip
     j = 0  # frames so far
     lost = 0  # ticks stalled since the last one run
     last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
@@ -365,6 +377,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
         parts = []
         if ticks % out_every == 0:
             t["pps"][j] = g.pps_flag_take()
+            if t["pps"][j]:
+                _pps_seen(g, pps, ticks)
             t["gga"][j] = g.gga_flag_take()
             t["valid"][j] = fix.valid
             t["lat_e7"][j] = fix.lat_e7
@@ -380,7 +394,11 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             causes = 0  # app._send_ext: the app's own causes, each a warning
             if cfg_status != config.OK:
                 causes = fw_app.CAUSE_CONFIG
-            _pps_seen(g, pps, ticks)
+            if ticks >= pps["overdue"]:  # no epoch yet after the last edge? (app._send_ext)
+                pps["overdue"] = fw_app._NEVER
+                if g.epoch_pps_us != pps["last"]:
+                    pps["late_bad"] = ticks + fw_app._SECOND_TICKS
+                    pps["edges_ok"] = 0
             if ticks < pps["nmea_bad"]:
                 causes |= fw_app.CAUSE_NMEA
             if ticks < pps["bad"]:

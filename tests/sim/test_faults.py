@@ -351,10 +351,11 @@ def test_replay_injects_faults_too(tmp_path, capsys):
 
 def test_late_epochs_are_reported_and_not_used(stim, tmp_path):
     """gnss-late: the bytes of 13.5-15.5 s arrive 1.4 s late, the epoch of second 14 after
-    the edge of second 15. The app counts the edges from the last on-time epoch, says `gnss_late`
-    and gives the navigator no fix (stamped with the later edge it would be a second wrong),
-    so the position variance does not fall where the clean run's does at a fix; CPython and
-    the emulated Cortex-M4F send the model's bytes."""
+    the edge of second 15. The app says `gnss_late` once the epoch is overdue, counts the
+    edges from the last on-time epoch when it comes, and gives the navigator no fix (stamped
+    with the later edge it would be a second wrong), so the position variance does not fall
+    where the clean run's does at a fix; CPython and the emulated Cortex-M4F send the model's
+    bytes."""
     from host_emulator.eval import parity
 
     s = faults.apply(stim, ["gnss-late@13.5+2:1.4"])
@@ -365,7 +366,9 @@ def test_late_epochs_are_reported_and_not_used(stim, tmp_path):
     clean = stream.decode(cpython.run(stim, tmp_path / "clean").out)
     names = [rec_schema.cause_names(e["causes"]) for e in d.ext]
     late = [k for k, n in enumerate(names) if "gnss_late" in n]
-    assert late and all(15.5 < (k + 1) * 0.1 < 16.6 for k in late), late
+    # overdue (App._overdue): no epoch 0.8 s after the edge of second 14, said from the
+    # extended frame of 14.9 s for a second; the late epoch itself (15.5 s) keeps it to the end
+    assert late == list(range(148, 160)), late
     assert not any("gnss_late" in rec_schema.cause_names(e["causes"]) for e in clean.ext)
 
     def fix_drops(ext):  # the east variance falling by a third or more: a fix used
@@ -373,3 +376,18 @@ def test_late_epochs_are_reported_and_not_used(stim, tmp_path):
         return sum(b < 0.67 * a for a, b in zip(var_e[:-1], var_e[1:], strict=True))
 
     assert fix_drops(d.ext) == 0 and fix_drops(clean.ext) >= 1
+
+
+def test_an_overdue_epoch_is_late_only_from_a_receiver_that_sends_every_second(stim, tmp_path):
+    """App._overdue: after a run of seconds that each had their epoch, no epoch 0.8 s after
+    a PPS edge says `gnss_late` for a second (a late receiver is told before its late epoch
+    comes); a receiver that sends every other second never has that run, so its silent
+    seconds are not called late."""
+    once = faults.apply(stim, ["gnss-loss@14+1"])  # second 14's sentences missing
+    d = stream.decode(cpython.run(once, tmp_path / "once").out)
+    late = [k for k, e in enumerate(d.ext) if "gnss_late" in rec_schema.cause_names(e["causes"])]
+    assert late == list(range(148, 158)), late  # from 14.9 s (edge 14 + 0.8 s) for a second
+    sparse = faults.apply(stim, [f"gnss-loss@{t}+1" for t in range(1, 16, 2)])
+    d = stream.decode(cpython.run(sparse, tmp_path / "sparse").out)
+    assert sum(f["gga"] for f in d.frames) >= 6  # the even seconds' epochs came
+    assert not any("gnss_late" in rec_schema.cause_names(e["causes"]) for e in d.ext)
