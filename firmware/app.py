@@ -150,10 +150,11 @@ class App:
         self.ticks = 0
         self.overruns = 0
         self._ext_overruns = 0  # self.overruns at the last extended frame
-        # the PPS, late-epoch and NMEA checks' state (_K_*), read once a second or less: one
-        # attribute, not seven. Every method call on self first misses the instance's
-        # attribute table (a hash table grown only when full): as attributes of their own,
-        # 36 in a table of 37, they made every navigating tick dearer (issue 16's notes)
+        # the PPS, late/overdue-epoch and NMEA checks' state (_K_*), read once a second or
+        # less (the overdue tick at each extended frame): one array attribute. Every method
+        # call on self first misses the instance's attribute table (a hash table grown only
+        # when full): as attributes of their own (36 in a table of 37 for the first three),
+        # they made every navigating tick dearer (issue 16's notes)
         self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER))
         self.t_worst_us = 0
         self.t_sum_us = 0
