@@ -51,6 +51,8 @@ _K_NMEA_REJ = const(5)  # the parser's rejected() at the last look
 _K_NMEA_BAD = const(6)  # CAUSE_NMEA until this tick
 _K_EDGES_OK = const(7)  # regular PPS edges in a row that each had an epoch after them
 _K_OVERDUE = const(8)  # the tick from which the last edge's epoch is overdue (_pps_seen)
+_K_MSL_MM = const(9)  # the last height the receiver gave, above mean sea level, mm (0 before one)
+_K_H_MM = const(10)  # ... and above the ellipsoid (_fix_fields); _NEVER: none yet
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
@@ -137,11 +139,16 @@ class App:
         self._gnss_uart = self.board.gnss_uart
         self._out_uart = self.board.out_uart
         self._wdt = None  # the board's watchdog once started
-        self.nav = Navigator(cfg.nav_config())
+        nav_cfg = cfg.nav_config()
+        # the start-up's garbage (the file's decoding, the settings' conversion) collected
+        # first, so that the navigator's 6.5 KB state block finds a free run even when the
+        # heap held other objects before the firmware started (tests/runtimes/test_m4f.py)
+        gc.collect()
+        self.nav = Navigator(nav_cfg)
         self.nav.heap_check = self._heap_room
-        # a receiver configured for GGA only never sends the speed sentence that completes
-        # an epoch by default: gnss_need_speed 0 completes it at the GGA (no speed, no course)
-        self.gnss = Nmea(need_speed=cfg.gnss_need_speed != 0)
+        # what completes an epoch: 2 (auto) the receiver's sentences decide (GGA+RMC, RMC
+        # only, GGA only, ...: drivers/gnss.py "Epochs"); 1 and 0 force GGA + RMC/VTG, GGA
+        self.gnss = Nmea(need_speed=cfg.gnss_need_speed)
         self.rx = bytearray(_RX_LEN)
         self.out = bytearray(frame.FRAME_LEN)
         self._fields = array("i", bytes(4 * frame.NF))
@@ -155,7 +162,7 @@ class App:
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
         # they made every navigating tick dearer (issue 16's notes)
-        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER))
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _NEVER))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -192,8 +199,12 @@ class App:
             self.console("IMU not ready: " + self.imu_error)
 
     def start(self):
-        """Timer, PPS interrupt, watchdog; automatic garbage collection off. The console line
-        starting "ins: running" is what deploy tools wait for."""
+        """Timer, PPS interrupt, watchdog; automatic garbage collection off with the native
+        kernels (a navigating tick allocates nothing; the app collects between ticks when the
+        heap runs low, _account). With the Python kernels every tick allocates, and a tick
+        that needs more than the heap has left would raise MemoryError (automatic collection
+        is the collector's only retry): it stays on there. The console line starting
+        "ins: running" is what deploy tools wait for."""
         b = self.board
         b.on_pps(self.gnss.pps_isr)
         b.start_tick(self.isr_tick)
@@ -203,7 +214,8 @@ class App:
             "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
         )
         gc.collect()
-        gc.disable()
+        if self._native:
+            gc.disable()
 
     def stop(self):
         """After Ctrl-C at the console: no more ticks or PPS interrupts, garbage collection
@@ -332,10 +344,11 @@ class App:
         return n
 
     def _deliver_fix(self):
-        """A completed epoch (GGA + RMC/VTG of the same second): the frame's fix fields, and
-        the navigator's input. A no-fix epoch counts as lost; so does a fix with a physically
-        impossible field (gnss.epoch_bad), which the navigator is told of by quality -1, and a
-        late one (_fix_tick), shown in the frame but given to the navigator as no fix."""
+        """A completed epoch (what the receiver sends for a second: gnss.py "Epochs"): the
+        frame's fix fields, and the navigator's input. A no-fix epoch counts as lost; so does a
+        fix with a physically impossible field (gnss.epoch_bad), which the navigator is told of
+        by quality -1, and a late one (_fix_tick), shown in the frame but given to the
+        navigator as no fix."""
         g = self.gnss
         n = g.rejected()  # sentences rejected since the last look: CAUSE_NMEA for a second
         k = self._chk
@@ -350,6 +363,8 @@ class App:
             self._fields[_F_VALID] = 1  # the frame's fix fields change only here
             self._fix_fields(g, self.nav.fix_in)
             if self.nav.fix_in[_FI_TICK] == _LATE:  # the receiver's fix, too old to use
+                self._no_fix(self.nav.fix_in, 0)
+            elif self.nav.fix_in[_FI_ALT_MM] == _NEVER:  # no height yet (an RMC-only receiver)
                 self._no_fix(self.nav.fix_in, 0)
         else:
             self._fields[_F_VALID] = 0
@@ -368,7 +383,12 @@ class App:
     def _fix_fields(self, g, fi):
         """The epoch's fix into the frame's fields and the navigator's fix_in. An epoch without
         speed (empty RMC/VTG fields, a GGA-only receiver) passes speed -1 and course -1:
-        unknown, unlike a standing receiver's speed 0.00 with an empty course."""
+        unknown, unlike a standing receiver's speed 0.00 with an empty course. An epoch without
+        height (an RMC's fix, a GGA with an empty altitude) carries the last height the
+        receiver gave (a GGA-and-RMC-in-alternate-seconds receiver: a second old), not 0;
+        until a receiver gives one (RMC only: never), the fix is shown in the frame (height 0)
+        but the navigator gets none (_deliver_fix: it has no height-less update, so a height
+        of 0 would pull it hundreds of metres down; docs/gnss.md)."""
         ff = self._fields
         # geo.split_into and frame.round_div written out: a Python call less for each
         v = g.epoch_lat_e7
@@ -382,11 +402,15 @@ class App:
         v = g.epoch_lon_frac_e7
         ff[_F_LON_FRAC] = v
         fi[_FI_LON_FRAC] = v
-        msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
+        k = self._chk
+        if g.epoch_alt_ok:
+            k[_K_MSL_MM] = g.epoch_alt_mm
+            k[_K_H_MM] = g.epoch_alt_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)
+        v = k[_K_MSL_MM]
         # the frame carries the GGA altitude, in dm rounded half away from zero
-        d = (2 * msl_mm + 100) // 200 if msl_mm >= 0 else -((100 - 2 * msl_mm) // 200)
+        d = (2 * v + 100) // 200 if v >= 0 else -((100 - 2 * v) // 200)
         ff[_F_HEIGHT_DM] = d
-        fi[_FI_ALT_MM] = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)  # ellipsoidal
+        fi[_FI_ALT_MM] = k[_K_H_MM]  # ellipsoidal
         fi[_FI_QUALITY] = g.epoch_quality
         fi[_FI_HDOP_X100] = g.epoch_hdop_x100  # < 0: unknown, the worst accepted
         fi[_FI_SPEED_MM_S] = g.epoch_speed_mm_s  # < 0: unknown

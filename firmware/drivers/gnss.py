@@ -27,13 +27,14 @@ protocols such as UBX, NUL fill, line noise) are skipped silently. A line is rej
 - it has no '*' ("no checksum"; NMEA-0183 made it optional once, we do not),
 - '*' is not followed by exactly two hex digits (either case) and the end ("malformed"),
 - the XOR of the characters between '$' and '*' differs ("bad checksum").
-A sentence with a good checksum is parsed if its address is GGA, RMC, VTG or GSA from talker
-GP, GN, GL, BD, GA or GB; any other sentence (GSV, GLL, ZDA, TXT, $P... proprietary, other
-talkers) is "ignored", which is not an error. A parsed sentence whose fields break the
-syntax below (a letter in a number, a time without six digits, too few fields) is rejected
-("bad field") and leaves every attribute unchanged. Needed fields: GGA up to the altitude
-(the geoid separation only if present), RMC up to the date, VTG the eight of NMEA 2.x, GSA
-the seventeen; more fields (mode, system id, ...) are fine.
+A sentence with a good checksum is parsed if its address is GGA, RMC, VTG or GSA from any
+talker of two capital letters but P (GP, GN, GL, GA, GB, BD, GQ, QZ, GI, IN, ...); any other
+sentence (GSV, GLL, ZDA, TXT, $P... proprietary) is "ignored", which is not an error. A
+parsed sentence whose fields break the syntax below (a letter in a number, a time without
+six digits, too few fields) is rejected ("bad field") and leaves every attribute unchanged.
+Needed fields: GGA up to the altitude (the geoid separation only if present), RMC up to the
+date, VTG the eight of NMEA 2.x, GSA the seventeen; more fields (mode, system id, ...) are
+fine.
 
 Field syntax and units (empty fields are legal everywhere and mark the value unknown):
 - numbers: optional sign, digits, optional '.' and digits; scaled to an integer unit with
@@ -75,12 +76,30 @@ signed values; characters as their byte code, 0 when absent):
     for up to 4 decimals in the sentence.
 
 Epochs. A receiver prints one group of sentences per fix, in a chip-specific order (u-blox
-RMC VTG GGA, MTK/SiRF GGA ... RMC VTG, Quectel GGA VTG RMC). An epoch is keyed by the UTC time
-of GGA and RMC; VTG has no time and belongs to the epoch of the latest GGA/RMC before it (all
-receivers print VTG after that). An epoch is complete as soon as it has its GGA and a speed
-sentence (RMC or VTG) of the same time, i.e. at the later of the two; `Nmea(need_speed=False)`
-completes it at the GGA alone (for receivers configured without RMC/VTG). On completion the
-epoch is copied, so later sentences cannot tear it, into
+RMC VTG GGA, MTK/SiRF GGA ... RMC VTG, Quectel GGA VTG RMC), and not every receiver prints
+the same ones: GGA+RMC(+VTG), RMC only, GGA only, GGA+VTG, GGA every second with RMC every
+tenth, GGA and RMC in alternate seconds. An epoch is keyed by the UTC time of GGA and RMC;
+VTG has no time and belongs to the epoch of the latest GGA/RMC before it if it comes within
+3/4 of the output period (learned from the UTC steps, 750 ms at 1 Hz) of that epoch's first
+sentence, else (a receiver printing VTG first and no RMC) to the next epoch, if that starts
+within the same window after it. The parser learns what the receiver sends from the last
+four epochs that had a time: a GGA, and a speed sentence (RMC or VTG), are expected when at
+most one of those four lacked it. An epoch is complete, and released at once, as soon as it
+has its GGA (or, GGA not expected, an RMC) and, if expected, its speed sentence: at the
+receiver's last expected sentence of the second, never later. So
+- GGA+RMC(+VTG) and GGA+VTG receivers complete at the later of GGA and the first speed
+  sentence, as `Nmea(need_speed=1)` always does (one lost sentence does not change that);
+- RMC only: at the RMC (its position; no height, satellites or HDOP: epoch_alt_ok 0,
+  epoch_nsat and epoch_hdop_x100 -1, quality from status and mode: _rmc_quality);
+- GGA only, and GGA with RMC every n-th second: at the GGA (speed only where the RMC of the
+  second came before the GGA);
+- GGA and RMC in alternate seconds: at each (GGA: no speed; RMC: no height).
+Learning costs a receiver that is not GGA+speed its first two epochs (four for alternate
+seconds), dropped as below; a receiver that changes what it sends is followed within four.
+`Nmea(need_speed=1)` and `Nmea(need_speed=0)` (board setting gnss_need_speed 1, 0) override
+the learning: always a GGA and a speed sentence, or a GGA alone (the behaviours before
+learning). Figures per receiver kind on the gpsd logs: tests/drivers/test_receivers.py,
+docs/gnss.md. On completion the epoch is copied, so later sentences cannot tear it, into
   epoch_utc_ms, epoch_lat_e7, epoch_lon_deg, epoch_lon_frac_e7, epoch_pos_ok, epoch_alt_mm,
   epoch_alt_ok, epoch_sep_mm, epoch_sep_ok, epoch_quality, epoch_nsat, epoch_hdop_x100,
   epoch_speed_mm_s, epoch_course_cdeg (-1: unknown; taken from the latest RMC with status A
@@ -89,9 +108,9 @@ epoch is copied, so later sentences cannot tear it, into
   (BAD_* bits: a fix with a physically impossible field, quality 6-8 or a time that did not
   move forward, counted in n_epochs_bad; the app does not use it),
 and epoch_ready = 1, n_epochs += 1 (`epoch_take()` returns and clears epoch_ready). An
-epoch that had a GGA but never got its speed sentence is dropped when the next one starts
-(n_epochs_dropped += 1), never released late: a one-second-old position handed over as new
-would hurt the filter.
+epoch that had a GGA or RMC but never got what was expected is dropped when the next one
+starts (n_epochs_dropped += 1), never released late: a one-second-old position handed over as
+new would hurt the filter (the navigator's delay ring reaches back 0.64 s).
 
 PPS: `pps_isr(pin)` only stores time.ticks_us() in pps_us and sets pps_flag = 1 (hard IRQ
 safe: no allocation, no float). The app reads and clears the flags with `pps_flag_take()`,
@@ -110,6 +129,22 @@ from array import array
 import kern
 from micropython import const
 
+try:
+    from time import ticks_diff as _ticks_diff
+    from time import ticks_us as _ticks_us
+except ImportError:  # CPython: the emulator may add them (its virtual clock) later, or never
+
+    def _ticks_us():
+        import time
+
+        return time.ticks_us() if hasattr(time, "ticks_us") else 0
+
+    def _ticks_diff(a, b):
+        import time
+
+        return time.ticks_diff(a, b) if hasattr(time, "ticks_diff") else a - b
+
+
 MAXLEN = const(100)  # characters between '$' and CR; NMEA-0183 allows 79 (82 with $ CR LF)
 _MAXF = const(40)  # comma positions kept; the parsed types use at most 21 fields
 
@@ -117,6 +152,8 @@ GGA = const(1)
 RMC = const(2)
 VTG = const(3)
 GSA = const(4)
+AUTO = const(2)  # Nmea(need_speed=AUTO): the receiver's sentences decide (Epochs)
+_JOIN_US_PER_MS = const(750)  # a VTG joins an epoch within 3/4 of the output period
 
 # epoch_bad: the fields that make a completed epoch's fix physically impossible (the app does
 # not use such a fix); checked only for an epoch with a position and a fix quality above 0
@@ -171,8 +208,6 @@ _BAD = const(-0x3FFFFFFF)  # _num(): syntax error (both below any value, inside 
 _CAP = const(100000000)  # digit accumulator limit: v * 10 + 9 < 1e9 < 2**30
 _WRAP = const(0x3FFFFFFF)  # counters wrap here and stay small ints
 
-# Talkers accepted, as (first letter << 8) | second letter: GP GN GL BD GA GB.
-_TALKERS = (0x4750, 0x474E, 0x474C, 0x4244, 0x4741, 0x4742)
 # Sentence formatters as (c1 << 16) | (c2 << 8) | c3.
 _F_GGA = const(0x474741)
 _F_RMC = const(0x524D43)
@@ -340,8 +375,8 @@ def _char(line, a, b):
 
 
 class Nmea:
-    def __init__(self, need_speed=True):
-        self.need_speed = need_speed
+    def __init__(self, need_speed=AUTO):
+        self.need_speed = need_speed  # AUTO, or 1 / 0: always / never wait for the speed
         # the line and, after its MAXLEN bytes, the comma table: fs[i] = lb[_FS + i] is the
         # start of field i in the line, fs[nf] = '*' + 1
         self._line = bytearray(_FS + _MAXF + 1)
@@ -401,12 +436,23 @@ class Nmea:
         # epoch in progress
         self._ep_utc = -2  # no epoch yet (-1: the last GGA/RMC had no time)
         self._ep_gga = 0
+        self._ep_rmc = 0
         self._ep_spd = 0
         self._ep_done = 0
         self._ep_pps = 0
+        self._ep_us = 0  # ticks_us at its first sentence
         self._ep_speed = -1
         self._ep_course = -1
         self._prev_utc = -1  # the last completed epoch's time
+        # what the receiver sends: bit i set if the epoch i + 1 back had no GGA / no speed
+        # sentence (need_speed AUTO learns it; 1 and 0 fix it: always, never wait for speed)
+        self._miss_gga = 0
+        self._miss_spd = 0 if need_speed else 15
+        self._join_us = 1000 * _JOIN_US_PER_MS  # a VTG's window after its epoch's start
+        self._vtg_pend = 0  # a VTG that came after its window: the next epoch's
+        self._vtg_us = 0
+        self._vtg_speed = -1
+        self._vtg_course = -1
         # completed epoch
         self.epoch_ready = 0
         self.n_epochs = 0
@@ -538,6 +584,7 @@ class Nmea:
     def _gga(self):
         s = self._s
         utc = s[_NS_UTC]
+        self._epoch_time(utc)  # first: a new epoch learns from the one it ends
         self.gga_utc_ms = utc
         self.gga_pos_ok = s[_NS_POS]
         if s[_NS_POS]:
@@ -557,14 +604,13 @@ class Nmea:
             self.gga_sep_ok = 1
         self.gga_seen = 1
         self.n_gga = (self.n_gga + 1) & _WRAP
-        self._epoch_time(utc)
         if utc >= 0:
             self._ep_gga = 1
-            if self._ep_spd or not self.need_speed:
-                self._complete()
+            self._check()
 
     def _rmc(self):
         s = self._s
+        self._epoch_time(s[_NS_UTC])
         self.rmc_utc_ms = s[_NS_UTC]
         self.rmc_status = s[_NS_A]
         self.rmc_pos_ok = s[_NS_POS]
@@ -577,7 +623,8 @@ class Nmea:
         self.rmc_date = s[_NS_D]
         self.rmc_mode = s[_NS_E]
         self.n_rmc = (self.n_rmc + 1) & _WRAP
-        self._epoch_time(s[_NS_UTC])
+        if s[_NS_UTC] >= 0:
+            self._ep_rmc = 1
         if s[_NS_A] == 65:  # 'A'
             self._speed(s[_NS_B], s[_NS_C])
         else:
@@ -589,10 +636,22 @@ class Nmea:
         self.vtg_speed_mm_s = s[_NS_B]
         self.vtg_mode = s[_NS_E]
         self.n_vtg = (self.n_vtg + 1) & _WRAP
+        spd = s[_NS_B]
+        crs = s[_NS_C]
         if s[_NS_E] == 78:  # 'N': data not valid
-            self._speed(-1, -1)
-        else:
-            self._speed(s[_NS_B], s[_NS_C])
+            spd = -1
+            crs = -1
+        if self._ep_utc >= 0:
+            t = _ticks_us()
+            if _ticks_diff(t, self._ep_us) > self._join_us:
+                # too long after its epoch's first sentence: the first of the next group
+                # (a receiver that prints VTG before GGA/RMC and no RMC): for the next epoch
+                self._vtg_pend = 1
+                self._vtg_us = t
+                self._vtg_speed = spd
+                self._vtg_course = crs
+                return
+        self._speed(spd, crs)
 
     def _gsa(self):
         s = self._s
@@ -607,18 +666,37 @@ class Nmea:
     # ---- epochs ------------------------------------------------------------------------
 
     def _epoch_time(self, utc):
-        """A GGA or RMC of time utc: start a new epoch if the time changed. Without a time
-        (utc -1) the "epoch" is a gap that nothing completes and no VTG joins."""
-        if utc != self._ep_utc:
-            if self._ep_gga and not self._ep_done:
+        """A GGA or RMC of time utc: start a new epoch if the time changed, after learning
+        from the one it ends. Without a time (utc -1) the "epoch" is a gap that nothing
+        completes, no VTG joins and nothing learns from."""
+        if utc == self._ep_utc:
+            return
+        old = self._ep_utc
+        if old >= 0:
+            if (self._ep_gga or self._ep_rmc) and not self._ep_done:
                 self.n_epochs_dropped = (self.n_epochs_dropped + 1) & _WRAP
-            self._ep_utc = utc
-            self._ep_gga = 0
-            self._ep_spd = 0
-            self._ep_done = 0
-            self._ep_pps = self.pps_us
-            self._ep_speed = -1
-            self._ep_course = -1
+            if self.need_speed == AUTO:
+                self._miss_gga = ((self._miss_gga << 1) | (1 - self._ep_gga)) & 15
+                self._miss_spd = ((self._miss_spd << 1) | (1 - self._ep_spd)) & 15
+            d = utc - old
+            if 0 < d <= 1000:  # the output period (1 Hz .. 10 Hz): a VTG's window
+                self._join_us = d * _JOIN_US_PER_MS
+        self._ep_utc = utc
+        self._ep_gga = 0
+        self._ep_rmc = 0
+        self._ep_spd = 0
+        self._ep_done = 0
+        self._ep_pps = self.pps_us
+        self._ep_speed = -1
+        self._ep_course = -1
+        if utc < 0:
+            return
+        t = _ticks_us()
+        self._ep_us = t
+        if self._vtg_pend:  # a VTG that came first in this group
+            self._vtg_pend = 0
+            if _ticks_diff(t, self._vtg_us) <= self._join_us:
+                self._speed(self._vtg_speed, self._vtg_course)
 
     def _speed(self, spd, crs):
         """Speed and course of the current epoch (from RMC, or VTG)."""
@@ -627,25 +705,50 @@ class Nmea:
         self._ep_speed = spd
         self._ep_course = crs
         self._ep_spd = 1
-        if self._ep_gga:
+        self._check()
+
+    def _check(self):
+        """Complete the epoch when it has what the receiver sends each epoch: a GGA (or an
+        RMC's position, from a receiver not sending GGA every epoch) and a speed sentence
+        (unless the receiver does not send one every epoch). x & (x - 1) is 0 when at most
+        one of the last four epochs missed it."""
+        if self._ep_done:
+            return
+        m = self._miss_gga
+        if not (self._ep_gga or self._ep_rmc and m & (m - 1)):
+            return
+        m = self._miss_spd
+        if self._ep_spd or m & (m - 1):
             self._complete()
 
     def _complete(self):
-        if self._ep_done:
-            return
         self._ep_done = 1
-        self.epoch_utc_ms = self.gga_utc_ms
-        self.epoch_lat_e7 = self.gga_lat_e7
-        self.epoch_lon_deg = self.gga_lon_deg
-        self.epoch_lon_frac_e7 = self.gga_lon_frac_e7
-        self.epoch_pos_ok = self.gga_pos_ok
-        self.epoch_alt_mm = self.gga_alt_mm
-        self.epoch_alt_ok = self.gga_alt_ok
-        self.epoch_sep_mm = self.gga_sep_mm
-        self.epoch_sep_ok = self.gga_sep_ok
-        self.epoch_quality = self.gga_quality
-        self.epoch_nsat = self.gga_nsat
-        self.epoch_hdop_x100 = self.gga_hdop_x100
+        if self._ep_gga:
+            self.epoch_utc_ms = self.gga_utc_ms
+            self.epoch_lat_e7 = self.gga_lat_e7
+            self.epoch_lon_deg = self.gga_lon_deg
+            self.epoch_lon_frac_e7 = self.gga_lon_frac_e7
+            self.epoch_pos_ok = self.gga_pos_ok
+            self.epoch_alt_mm = self.gga_alt_mm
+            self.epoch_alt_ok = self.gga_alt_ok
+            self.epoch_sep_mm = self.gga_sep_mm
+            self.epoch_sep_ok = self.gga_sep_ok
+            self.epoch_quality = self.gga_quality
+            self.epoch_nsat = self.gga_nsat
+            self.epoch_hdop_x100 = self.gga_hdop_x100
+        else:  # the RMC's position: no height, satellites or HDOP
+            self.epoch_utc_ms = self.rmc_utc_ms
+            self.epoch_lat_e7 = self.rmc_lat_e7
+            self.epoch_lon_deg = self.rmc_lon_deg
+            self.epoch_lon_frac_e7 = self.rmc_lon_frac_e7
+            self.epoch_pos_ok = self.rmc_pos_ok
+            self.epoch_alt_mm = 0
+            self.epoch_alt_ok = 0
+            self.epoch_sep_mm = 0
+            self.epoch_sep_ok = 0
+            self.epoch_quality = _rmc_quality(self.rmc_status, self.rmc_mode)
+            self.epoch_nsat = -1
+            self.epoch_hdop_x100 = -1
         self.epoch_speed_mm_s = self._ep_speed
         self.epoch_course_cdeg = self._ep_course
         self.epoch_pps_us = self._ep_pps
@@ -677,6 +780,29 @@ class Nmea:
             if bad:
                 self.n_epochs_bad = (self.n_epochs_bad + 1) & _WRAP
         self.epoch_bad = bad
+
+
+def _rmc_quality(status, mode):
+    """GGA's fix quality of an RMC: 0 unless status A; then from the NMEA 2.3 mode letter
+    (D differential 2, R RTK fixed 4, F RTK float 5, E estimated 6, M manual 7, S simulator
+    8, N 0; A, P or none 1)."""
+    if status != 65:  # 'A'
+        return 0
+    if mode == 68:  # 'D'
+        return 2
+    if mode == 82:  # 'R'
+        return 4
+    if mode == 70:  # 'F'
+        return 5
+    if mode == 69:  # 'E'
+        return 6
+    if mode == 77:  # 'M'
+        return 7
+    if mode == 83:  # 'S'
+        return 8
+    if mode == 78:  # 'N'
+        return 0
+    return 1
 
 
 def _hex(c):
@@ -889,7 +1015,8 @@ def _line_py(s, lb, k, x, star, nf):
     kind = 0
     if lb[_FS + 1] == 6:  # a five-letter address
         t = (lb[0] << 8) | lb[1]
-        if t in _TALKERS:
+        # any talker (GP GN GL GA GB BD GQ QZ IN ...): two capitals, P (proprietary) excepted
+        if 65 <= lb[0] <= 90 and lb[0] != 80 and 65 <= lb[1] <= 90:
             f = (lb[2] << 16) | (lb[3] << 8) | lb[4]
             if f == _F_GGA:
                 kind = GGA

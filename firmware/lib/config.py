@@ -43,7 +43,9 @@ _SCHEMA = (
     (6, "ext_every_ticks", _INT, 1, 20),  # extended frame every n ticks, 0: off
     (7, "raw_record", _INT, 1, 0),  # 1: a raw-input record every tick (replay)
     (8, "gnss_baud", _INT, 1, 9600),
-    (9, "gnss_need_speed", _INT, 1, 1),  # 0: a GGA alone completes an epoch (GGA-only receiver)
+    # 2 (auto): the receiver's sentences decide what completes an epoch (drivers/gnss.py,
+    # "Epochs"); overrides: 1 always a GGA and a speed sentence (RMC/VTG), 0 a GGA alone
+    (9, "gnss_need_speed", _INT, 1, 2),
     (10, "coning", _INT, 1, 0),  # 1: two-sample coning and sculling corrections (navcfg)
     (11, "slices_per_tick", _INT, 1, 1),  # slices of filter work per tick (1..4, eskf.py)
     (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
@@ -147,8 +149,8 @@ class BoardConfig:
             return "ext_every_ticks must be 0..2000"
         if self.raw_record not in (0, 1):
             return "raw_record must be 0 or 1"
-        if self.gnss_need_speed not in (0, 1):
-            return "gnss_need_speed must be 0 or 1"
+        if self.gnss_need_speed not in (0, 1, 2):
+            return "gnss_need_speed must be 2 (auto), 1 (GGA and RMC/VTG) or 0 (GGA alone)"
         if self.coning not in (0, 1):
             return "coning must be 0 or 1"
         if not 1 <= self.slices_per_tick <= 4:

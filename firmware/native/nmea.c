@@ -439,8 +439,8 @@ static int32_t line_end(int32_t *s, uint8_t *lb, int32_t k, int32_t x, int32_t s
     int32_t kind = 0;
     if (fs[1] == 6) { /* a five-letter address */
         int32_t t = (line[0] << 8) | line[1];
-        if (t == 0x4750 || t == 0x474E || t == 0x474C || t == 0x4244 || t == 0x4741
-            || t == 0x4742) { /* GP GN GL BD GA GB */
+        /* any talker (GP GN GL GA GB BD GQ QZ IN ...): two capitals, P (proprietary) excepted */
+        if (line[0] >= 65 && line[0] <= 90 && line[0] != 80 && line[1] >= 65 && line[1] <= 90) {
             int32_t f = (line[2] << 16) | (line[3] << 8) | line[4];
             if (f == FMT_GGA) {
                 kind = NR_GGA;

@@ -13,10 +13,11 @@ Modelled independently here (NumPy float32, or plain integers):
   MicroPython's 30-bit ticks_us/ticks_diff; t0 is derived from the BMI055 driver's start-up
   waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
   tests/test_parity.py against the tick start times the firmware's raw records carry);
-- app._deliver_fix: lat/lon split, height in dm, f32 ratios for height, HDOP and speed,
-  course x pi/18000 (rebuilt from its float32 bits), speed and course -1 when unknown, the
-  fallback HDOP, the no-fix epoch and the measurement tick from the PPS edge (or -1: the
-  configured latency);
+- app._deliver_fix: lat/lon split, height in dm (an epoch without one: the last one the
+  receiver gave; before any, 0 in the frame and no fix for the navigator), f32 ratios for
+  height, HDOP and speed, course x pi/18000 (rebuilt from its float32 bits), speed and
+  course -1 when unknown, the fallback HDOP, the no-fix epoch and the measurement tick from
+  the PPS edge (or -1: the configured latency);
 - the 52-byte frame, vectorised over all ticks (proto/frame.py's table as a NumPy record
   type): euler angles through model/rot.py,
   x * scale in float32 rounded half away from zero, clamped, NaN -> 0; the sensor fields'
@@ -176,6 +177,8 @@ class _Fix:
         self.lat_e7 = 0
         self.lon_e7 = 0
         self.height_dm = 0
+        self.msl_mm = 0  # the last height the receiver gave (app._K_MSL_MM, _K_H_MM)
+        self.h_mm = None  # None: none yet (the navigator gets no fix)
 
 
 def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
@@ -193,9 +196,11 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     lon = fw_geo.join_e7(g.epoch_lon_deg, g.epoch_lon_frac_e7)
     fix.lat_e7 = lat
     fix.lon_e7 = lon
-    msl_mm = g.epoch_alt_mm if g.epoch_alt_ok else 0
-    alt_mm = msl_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)
-    fix.height_dm = int(_round_div(msl_mm, 100))
+    if g.epoch_alt_ok:  # else the last height the receiver gave (app._fix_fields)
+        fix.msl_mm = g.epoch_alt_mm
+        fix.h_mm = g.epoch_alt_mm + (g.epoch_sep_mm if g.epoch_sep_ok else 0)
+    alt_mm = fix.h_mm
+    fix.height_dm = int(_round_div(fix.msl_mm, 100))
     hdop = F32(hdop_max)
     if g.epoch_hdop_x100 >= 0:
         hdop = F32(g.epoch_hdop_x100) / F32(100)
@@ -215,6 +220,9 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
         pps["bad"] = ticks + fw_app._SECOND_TICKS
+    if alt_mm is None:  # no height yet (an RMC-only receiver): app._deliver_fix
+        model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)
+        return
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
 
@@ -277,7 +285,7 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     cfg = config.decode(board_config.to_bytes(values))  # what the board reads from flash
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
-    g = Nmea(need_speed=cfg.gnss_need_speed != 0)  # as app.App builds its parser
+    g = Nmea(need_speed=cfg.gnss_need_speed)  # as app.App builds its parser
     firmware_env.install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
     fw_app, fw_board, _, bmi055 = _firmware()
 

@@ -28,7 +28,7 @@ NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
 LOGS = sorted(p.name[:-4] for p in NMEA_DIR.glob("*.log"))
 needs_logs = pytest.mark.skipif(not LOGS, reason=f"no NMEA logs in {NMEA_DIR}")
 TYPES = {b"GGA": gnss.GGA, b"RMC": gnss.RMC, b"VTG": gnss.VTG, b"GSA": gnss.GSA}
-TALKERS = {b"GP", b"GN", b"GL", b"BD", b"GA", b"GB"}
+TALKERS = {bytes((a, b)) for a in range(65, 91) for b in range(65, 91) if a != 80}  # not P
 SMALL = 2**30  # MicroPython small ints on a 32-bit board: -2**30 <= x < 2**30
 
 ATTRS = {
@@ -137,23 +137,28 @@ def known_type(line):
 
 # Exact counters after the whole log: accepted GGA, RMC, VTG, GSA; ignored (other types,
 # good checksum); rejected: bad checksum, no checksum, malformed, overlong, collided, bad
-# field; epochs completed and dropped (GGA without a speed sentence of its second). Where each
+# field; epochs completed and dropped (a GGA or RMC whose second never got what the receiver
+# sends: the GGA, or the speed sentence, test_receivers.py). Where each
 # rejection comes from (the lines are listed by the framing reference in test_framing_*):
 EXPECTED = {
     "GPSmap-76S": (12, 12, 11, 12, 104, 0, 0, 0, 0, 0, 0, 12, 0),  # clean; 1 VTG missing
     "beidou-bd": (10, 10, 0, 20, 39, 0, 0, 0, 0, 0, 0, 10, 0),  # GN/GP/BD talkers, BDGSA
-    "bu353-glonass": (18, 19, 0, 38, 37, 0, 0, 0, 0, 0, 0, 18, 0),  # GN/GL GSA
+    # GN/GL GSA; the first RMC's GGA came before the log started: dropped
+    "bu353-glonass": (18, 19, 0, 38, 37, 0, 0, 0, 0, 0, 0, 18, 1),
     # 1 GPGSV with a bad checksum (INDEX: "1 bad-checksum GSV")
     "com-1289": (14, 14, 0, 14, 55, 1, 0, 0, 0, 0, 0, 14, 0),
-    # all 23 GGA have bad checksums (INDEX): no GGA, hence no epoch
-    "firefly-II": (0, 23, 0, 0, 23, 23, 0, 0, 0, 0, 0, 0, 0),
+    # all 23 GGA have bad checksums (INDEX): an RMC-only receiver to the parser, learned in
+    # two epochs (dropped), then 21 epochs from the RMC
+    "firefly-II": (0, 23, 0, 0, 23, 23, 0, 0, 0, 0, 0, 21, 2),
     # cold boot through a simulator, many damaged lines: 30 bad checksums (garbled bodies such
     # as "$GPN,..." and "$GP,00,..." with the original checksum); 4 without '*' ($PLCS, and
     # 3 truncated fragments); 5 malformed (a run of NUL bytes inside an RMC, and 4 lines where
     # '*1E' is followed by the rest of another sentence); 2 overlong (two GSV fragments glued
     # to other sentences, > 100 characters); 5 collided (3 x "$GPGSA...*1E$GPRMC" without
     # CR/LF, 2 GSV fragments cut by '$'). The epoch of 00:03:43 is dropped: its RMC is damaged.
-    "gp-320fw-2019-04-07-coldboot": (10, 16, 10, 13, 42, 30, 4, 5, 2, 5, 0, 9, 1),
+    # At the cold boot RMCs come without GGA: learned RMC-only (2 dropped), 7 no-fix epochs
+    # from RMC status V more than GGA+RMC would complete.
+    "gp-320fw-2019-04-07-coldboot": (10, 16, 10, 13, 42, 30, 4, 5, 2, 5, 0, 16, 3),
     # the partial last sentence (INDEX) ends in CR LF without '*'
     "holux-gm-210": (11, 11, 0, 11, 6, 0, 1, 0, 0, 0, 0, 11, 0),
     "mt3339": (30, 30, 0, 30, 48, 0, 0, 0, 0, 0, 0, 30, 0),
@@ -162,8 +167,9 @@ EXPECTED = {
     "myguide-3100": (13, 13, 0, 13, 61, 0, 0, 0, 0, 0, 0, 13, 0),  # empty GGA quality field
     "neo-m8n": (23, 23, 23, 44, 180, 0, 0, 0, 0, 0, 0, 23, 0),
     "nmea-fuzzy-cases": (14, 14, 0, 0, 0, 0, 0, 0, 0, 0, 0, 14, 0),  # 8 minute decimals
-    # 5 Hz; the log ends after a GGA whose RMC never came: 150 GGA, 149 epochs
-    "quectel-l76k-nmea": (150, 150, 150, 450, 1380, 0, 0, 0, 0, 0, 0, 149, 0),
+    # 5 Hz; the log ends after a GGA whose RMC never came: 150 GGA, 149 epochs; the first
+    # RMC's GGA came before the log started: dropped
+    "quectel-l76k-nmea": (150, 150, 150, 450, 1380, 0, 0, 0, 0, 0, 0, 149, 1),
     # 8 epochs of signal loss print GGA/RMC without time: they form no epoch (42 - 8 = 34)
     "quectel": (42, 42, 42, 42, 144, 0, 0, 0, 0, 0, 0, 34, 0),
     # "$GPGGA,030130$GPGLL,..." (INDEX: unterminated GGA collided with GLL)
@@ -171,8 +177,9 @@ EXPECTED = {
     # binary UBX before the first sentence is skipped; the incomplete last line has no '*'
     "ublox-8": (72, 72, 72, 144, 648, 0, 1, 0, 0, 0, 0, 72, 0),
     "ublox-lea-4h": (14, 14, 14, 14, 52, 0, 0, 0, 0, 0, 0, 14, 0),
-    # a gap in the log (08:37:36 -> 08:55:15): the GGA of 08:55:15 has no RMC of its second
-    "ublox-lea-5h": (18, 19, 18, 18, 91, 0, 0, 0, 0, 0, 0, 17, 1),
+    # a gap in the log (08:37:36 -> 08:55:15): the GGA of 08:55:15 has no RMC of its second,
+    # and the first RMC's GGA came before the log started: 2 dropped
+    "ublox-lea-5h": (18, 19, 18, 18, 91, 0, 0, 0, 0, 0, 0, 17, 2),
     # the log starts with the GGA of 00:19:01 whose RMC came before the start of the log
     "ublox-lea-5q": (9, 9, 9, 9, 27, 0, 0, 0, 0, 0, 0, 8, 1),
     "ublox-neo-m9n-nmea": (61, 61, 61, 244, 976, 0, 0, 0, 0, 0, 0, 61, 0),
@@ -457,31 +464,51 @@ def test_fields_match_pynmea2():
 # ---- epochs -----------------------------------------------------------------------------
 
 
-def reference_epochs(accepted, need_speed=True):
-    """The epoch rule restated over the accepted sentences: key = UTC of GGA/RMC (VTG joins
-    the latest key; no time: no epoch); complete at the first moment the key has its GGA and
-    a speed sentence; speed from RMC with status A or VTG with mode != N, else -1."""
+RMC_QUALITY = {"D": 2, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}  # else 1 (status A)
+
+
+def reference_epochs(accepted, need_speed=gnss.AUTO):
+    """The epoch rule restated over the accepted sentences (one burst each, so every VTG is
+    within its window): key = UTC of GGA/RMC (VTG joins the latest key; no time: no epoch).
+    Of the last four keyed epochs, a GGA (a speed sentence) is expected unless two or more
+    lacked it (need_speed 1: both always; 0: a GGA always, the speed never). Complete at the
+    first moment the key has its GGA, or an RMC and GGA is not expected, and a speed sentence
+    or speed is not expected: the GGA's fix, else the RMC's (no height, nsat, HDOP); speed
+    from RMC with status A or VTG with mode != N, else -1."""
     out = []
-    key, gga, spd, done = None, None, None, False
+    hist = collections.deque(maxlen=4)  # (had a GGA, had a speed sentence) of past epochs
+    key, gga, rmc, spd, done = None, None, None, None, False
     for kind, line, s in accepted:
         if kind in (gnss.GGA, gnss.RMC):
             t = s["gga_utc_ms" if kind == gnss.GGA else "rmc_utc_ms"]
             if t != key:
-                key, gga, spd, done = t, None, None, False
+                if key is not None and key >= 0 and need_speed == gnss.AUTO:
+                    hist.append((gga is not None, spd is not None))
+                key, gga, rmc, spd, done = t, None, None, None, False
             if t < 0:
                 continue
             if kind == gnss.GGA:
                 gga = s
-            elif s["rmc_status"] == ord("A"):
-                spd = (s["rmc_speed_mm_s"], s["rmc_course_cdeg"])
             else:
-                spd = (-1, -1)
+                rmc = s
+                ok = s["rmc_status"] == ord("A")
+                spd = (s["rmc_speed_mm_s"], s["rmc_course_cdeg"]) if ok else (-1, -1)
         elif kind == gnss.VTG and key is not None and key >= 0:
             ok = s["vtg_mode"] != ord("N")
             spd = (s["vtg_speed_mm_s"], s["vtg_course_cdeg"]) if ok else (-1, -1)
-        if gga and (spd or not need_speed) and not done:
+        want_gga = sum(not g for g, _ in hist) < 2
+        want_spd = need_speed == 1 or need_speed == gnss.AUTO and sum(not v for _, v in hist) < 2
+        if not done and (gga or rmc and not want_gga) and (spd or not want_spd):
             done = True
-            ep = {"epoch_" + a[4:]: v for a, v in gga.items()}
+            if gga:
+                ep = {"epoch_" + a[4:]: v for a, v in gga.items()}
+            else:
+                q = 0
+                if rmc["rmc_status"] == ord("A"):
+                    q = RMC_QUALITY.get(chr(rmc["rmc_mode"]) if rmc["rmc_mode"] else "", 1)
+                ep = {"epoch_" + a[4:]: rmc[a] for a in ATTRS[gnss.RMC][:6] if "status" not in a}
+                ep.update(epoch_alt_mm=0, epoch_alt_ok=0, epoch_sep_mm=0, epoch_sep_ok=0)
+                ep.update(epoch_quality=q, epoch_nsat=-1, epoch_hdop_x100=-1)
             ep["epoch_speed_mm_s"], ep["epoch_course_cdeg"] = spd or (-1, -1)
             out.append((ep, line))
     return out
@@ -738,11 +765,13 @@ def test_ignored_types_and_talkers():
         sentence("GPZDA,201530.00,04,07,2002,00,00"),
         sentence("GPTXT,01,01,02,ANTENNA OK"),
         sentence("PUBX,00,1"),
-        sentence("GQGGA" + GGA_BODY[5:]),  # QZSS talker: not in the list
+        sentence("PGGGA" + GGA_BODY[5:]),  # P: proprietary, not a talker
+        sentence("gpGGA" + GGA_BODY[5:]),  # talkers are capitals
+        sentence("G1GGA" + GGA_BODY[5:]),
         sentence("GPGGAX" + GGA_BODY[5:]),
     )
-    assert (p.n_ignored, p.seq, p.rejected()) == (7, 0, 0)
-    for talker in ("GP", "GN", "GL", "BD", "GA", "GB"):
+    assert (p.n_ignored, p.seq, p.rejected()) == (9, 0, 0)
+    for talker in ("GP", "GN", "GL", "BD", "GA", "GB", "GQ", "QZ", "GI", "IN", "ZZ"):
         p = fed(sentence(talker + GGA_BODY[2:]))
         assert p.n_gga == 1 and p.talker == (ord(talker[0]) << 8 | ord(talker[1]))
 
@@ -947,7 +976,7 @@ def host_records(data):
 def test_vm_parses_real_sentences_like_cpython(kernels):
     data = vm_sample()
     want, p = host_records(data)
-    assert len(want) == 451  # 360 sentences and 91 epochs
+    assert len(want) == 458  # 360 sentences and 98 epochs
     attrs = {str(k): v for k, v in ATTRS.items()}
     got = mpvm.run_json(
         _VM_RECORDER % (attrs, EPOCH)
@@ -1012,15 +1041,43 @@ def test_vm_feed_allocates_nothing(kernels):
         "    p.feed(b, len(b))",
         "res['split'] = [_locked(split), _blocks(split)]",
         "res['pps'] = [_locked(lambda: p.pps_isr(None)), _blocks(lambda: p.pps_isr(None))]",
+    ]
+    # the learned paths: an epoch from an RMC alone (GGA not expected), a VTG after its
+    # window held for the next epoch and taken by it (windows forced: no clock to wait for)
+    t = 123600
+    for name in ("rmc_only", "vtg_first"):
+        rmc = sentence(RMC_BODY.replace("123519.25", f"{t}.25"))
+        vtg_gga = sentence(VTG_BODY) + sentence(GGA_BODY.replace("123519.25", f"{t + 1}.25"))
+        t += 2
+        body += [
+            f"r = {rmc!r}",
+            f"v1 = {vtg_gga[:45]!r}",  # the VTG, through its LF
+            f"v2 = {vtg_gga[45:]!r}",
+            "def run():",
+            "    p._miss_gga = 3" if name == "rmc_only" else "    p._miss_gga = 0",
+            "    p.feed(r, len(r))",
+            "    p._join_us = -1",
+            "    p.feed(v1, len(v1))",
+            "    p._join_us = 750000",
+            "    p.feed(v2, len(v2))",
+            "    p.epoch_ready = 0",
+            f"res[{name!r}] = [_locked(run), p.n_epochs]",
+        ]
+    body += [
+        "res['vtg_first'].append(p.epoch_speed_mm_s)",
         "res['counts'] = [p.n_gga, p.n_rmc, p.n_vtg, p.n_gsa, p.n_epochs, p.rejected()]",
         "print(json.dumps(res))",
     ]
     res = mpvm.run_json("\n".join(body), kernels=kernels)
     counts = res.pop("counts")
+    rmc_only, vtg_first = res.pop("rmc_only"), res.pop("vtg_first")
+    assert rmc_only[0] and vtg_first[0] and vtg_first[2] == 2833  # the VTG's 10.2 km/h
+    assert vtg_first[1] == rmc_only[1] + 1  # the GGA's with the VTG (the RMC waited: dropped)
     assert res == {name: [True, 0] for name in [*_LOCKED_CASES, "split", "pps"]}
     # each case ran 3 times; GGA in gga, south_west, empty_fields, split; RMC in
-    # rmc_completes_epoch, far_east, empty_fields; VTG in vtg, collision
-    assert counts[:4] == [4 * 3, 3 * 3, 2 * 3, 3]
+    # rmc_completes_epoch, far_east, empty_fields; VTG in vtg, collision; and one GGA, RMC
+    # and VTG in each of rmc_only and vtg_first
+    assert counts[:4] == [4 * 3 + 2, 3 * 3 + 2, 2 * 3 + 2, 3]
     assert counts[4] > 0 and counts[5] > 20
 
 

@@ -59,11 +59,12 @@ def test_parity_holds_through_levelling_heading_and_navigation(highway, highway_
     p_pos = np.array([e["p_diag"][0] for e in d.ext if e["nav_state"] == 2])
     assert len(set(p_pos.tolist())) > 50  # propagations and GNSS updates change P
     # normal but for the simulated receiver's damaged sentence: its epoch is overdue, then the
-    # rejected sentence is seen on the next PPS edge (each a warning for a second)
+    # rejected sentence is seen on the next PPS edge (each a warning for a second); without
+    # that epoch's fix the navigator goes 2 s without an accepted one: gnss_lost, briefly
     bits = {name: bit for bit, name in rec_schema.CAUSES}
-    nmea, late = bits["nmea_errors"], bits["gnss_late"]
+    nmea, late, lost = bits["nmea_errors"], bits["gnss_late"], bits["gnss_lost"]
     seen = {(e["health"], e["causes"]) for e in d.ext}
-    assert seen == {(0, 0), (1, late), (1, late | nmea), (1, nmea)}
+    assert seen == {(0, 0), (1, late), (1, late | nmea), (1, nmea | lost), (1, nmea)}
 
 
 def test_a_flipped_state_bit_is_found_at_its_tick_and_named(highway, highway_parity):
@@ -192,16 +193,17 @@ def test_parity_without_receiver_speed_and_course():
 
 
 def test_parity_with_a_gga_only_receiver():
-    """A receiver configured for GGA (and GSA) only: without gnss_need_speed 0 no epoch ever
-    completes (the parser waits for a speed sentence); with it every GGA is a fix without
-    speed and course, and the navigator starts from the track, the same on both sides."""
+    """A receiver configured for GGA (and GSA) only: with gnss_need_speed 1 (the rule before
+    issue 17) no epoch ever completes (the parser waits for a speed sentence); by default
+    (2, auto) the parser learns that none comes, every GGA is a fix without speed and course,
+    and the navigator starts from the track, the same on both sides."""
     model = sim_gnss.GnssModel(sigma_h_m=1.5, sigma_v_m=3.0, sentences=("GGA", "GSA"))
     stim = board_input.simulate("highway_outage", 50.0, seed=0, gnss_model=model).stimulus
     assert b"RMC" not in stim.uart_bytes and b"VTG" not in stim.uart_bytes
-    waiting = _frames(model_runner.run(stim))
+    waiting = _frames(model_runner.run(stim, {"gnss_need_speed": 1}))
     assert {f["nav_state"] for f in waiting.frames} == {1}
     assert {f["gnss_valid"] for f in waiting.frames} == {0}
-    r = parity.compare(stim, {"gnss_need_speed": 0})
+    r = parity.compare(stim)
     assert r.identical, r.summary()
     d = _frames(r.out_firmware)
     states = np.array([f["nav_state"] for f in d.frames])
