@@ -64,6 +64,9 @@ _SCHEMA = (
     (37, "gnss_uere_m", _FLOAT, 1, None),
     (38, "still_gyro", _FLOAT, 1, None),  # rad/s rms: standstill threshold (vibration)
     (39, "still_accel", _FLOAT, 1, None),  # m/s^2 rms of specific-force changes
+    (40, "heading_speed_m_s", _FLOAT, 1, None),  # the course is the heading from this speed
+    (41, "track_min_m", _FLOAT, 1, None),  # without a course: the chord that gives the heading
+    (42, "track_max_s", _FLOAT, 1, None),  # ... within this long
 )
 _GYRO_RANGES = (125, 250, 500, 1000, 2000)
 _ACCEL_RANGES = (2, 4, 8, 16)
@@ -88,6 +91,9 @@ _RANGES = (
     ("gnss_uere_m", 0, 100, 1, "m", True),
     ("still_gyro", 0, 2, 10, "rad/s", True),
     ("still_accel", 0, 5, 1, "m/s^2", True),
+    ("heading_speed_m_s", 1, 300, 10, "m/s", False),  # a slow walk .. a car on a highway
+    ("track_min_m", 1, 200, 1, "m", False),
+    ("track_max_s", 1, 120, 1, "s", False),
 )
 
 

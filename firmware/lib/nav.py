@@ -19,12 +19,12 @@ z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
 
 States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
 vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
-heading from the GNSS course over ground once the speed exceeds `heading_speed_m_s`: this
-board has no magnetometer, so a static board cannot know its heading. A receiver that reports
-no course (GGA only, or position-only data) gives the heading from its track instead: the
-chord between two fixes `track_s` apart, whose direction is the course at the window's middle,
-turned by half the yaw change the gyros saw over the window (see `nav_align._track`). Then
-NAVIGATING (2): INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS
+heading from the GNSS course over ground from `heading_speed_m_s` (a walk) on: this board has
+no magnetometer, so a static board cannot know its heading. A receiver that reports no course
+(GGA only, or position-only data) gives the heading from its track instead: the chord from an
+anchor fix once it is `track_min_m` long, whose direction is the course at the window's
+middle, turned by half the yaw change the gyros saw over the window (see `nav_align._track`).
+Then NAVIGATING (2): INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS
 position and velocity updates with the antenna lever arm, zero-velocity updates at standstill
 and the non-holonomic constraint for cars.
 
@@ -189,8 +189,8 @@ _C_LAST_FIX_TICK = const(26)  # tick a fix last arrived
 _C_N_LEVEL = const(27)  # ticks summed in self._lvl (levelling)
 _C_LEVELED = const(28)  # 1: roll and pitch levelled
 _C_N_STABLE = const(29)  # usable fixes in a row (aligning)
-_C_TRK_SET = const(30)  # 1: a track anchor is held (self._trk; nav_align._track)
-_C_TRK_TICK = const(31)  # measurement tick of the anchor fix
+_C_TRK_SET = const(30)  # track anchors held (self._trk; nav_align._track)
+_C_TRK_TICK = const(31)  # measurement tick of the newest anchor fix
 _C_T_SECOND = const(32)  # configuration in ticks (from here on: set once)
 _C_T_STILL = const(33)
 _C_T_TIMEOUT = const(34)
@@ -198,7 +198,7 @@ _C_T_PROP = const(35)
 _C_T_ZUPT = const(36)
 _C_T_NHC = const(37)
 _C_T_LEVEL = const(38)  # levelling sums this many ticks
-_C_T_TRACK = const(39)  # the track window, ticks (at least 1)
+_C_T_TRACK = const(39)  # the track window's longest, ticks (at least 1)
 _C_T_LATENCY = const(40)  # a fix without a PPS edge was measured this long before arrival
 _C_SLICES = const(41)  # filter slices per tick
 _C_RESET_AFTER = const(42)  # reset to GNSS after this many rejected updates in a row
@@ -291,7 +291,7 @@ class Navigator(Alignment, Aiding):
         self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
         self._ns = f32.view(m, _M_NS, 3)
         self._init_motion = f32.view(m, _M_INIT + eskf.IX_VEL, 6)  # for widen
-        self._trk = f32.zeros(3)
+        self._trk = None  # nav_align: the track anchors, made at the first fix without a course
         # configuration derived once
         c[_C_T_PROP] = _ticks(cfg.prop_period_s, dt)
         c[_C_T_ZUPT] = _ticks(cfg.zupt_period_s, dt)
@@ -309,7 +309,7 @@ class Navigator(Alignment, Aiding):
             | (_OPT_CONING if self.ins.coning else 0)
         )
         c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
-        c[_C_T_TRACK] = max(1, _ticks(cfg.track_s, dt))
+        c[_C_T_TRACK] = max(1, _ticks(cfg.track_max_s, dt))
         c[_C_T_STUCK] = max(1, _ticks(cfg.imu_stuck_s, dt))
         # called before a step that allocates while navigating (re-anchoring, a reset): the
         # app makes room on the heap then (it checks nothing while navigating otherwise)

@@ -8,16 +8,22 @@ A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in 
 - `_level`: roll and pitch from the mean specific force (it points up at rest), the gyro bias
   from the mean rate when standing still; the heading is kept;
 - `_align_fix`: a usable fix (`gnss_stable_fixes` in a row) places the origin and the
-  position; once levelled, the heading comes from the receiver's course over ground above
-  `heading_speed_m_s` (this board has no magnetometer: a static board cannot know its
-  heading), or from the track of the fixes when the receiver reports no course (`_track`);
+  position; once levelled, the heading comes from the receiver's course over ground from
+  `heading_speed_m_s` on (0.8 m/s: a walk; this board has no magnetometer: a static board
+  cannot know its heading), or from the track of the fixes when the receiver reports no
+  course (`_track`);
 - `_start_navigation`: heading, velocity along it, position and covariance from the fix, and
-  the switch to NAVIGATING.
+  the switch to NAVIGATING. The heading's variance is `init_yaw_sigma`^2 (how far the body may
+  point away from its direction of travel, the course's usual noise included) or, when larger,
+  that of the course it came from, which grows as the speed falls: (gnss_vel_sigma / speed)^2
+  for the receiver's course, 2 sigma_h^2 / |chord|^2 for the track's.
 
 Frames and units as everywhere (rot.py): ENU navigation frame, yaw counter-clockwise from
 north, course over ground clockwise from north (so yaw = -course); rad, m, m/s, ticks.
 Runs only while aligning (natively: at fix ticks only); nothing here runs in a navigating tick.
 """
+
+from array import array
 
 import kern
 from micropython import const
@@ -47,11 +53,16 @@ _C_TRK_SET = const(30)
 _C_TRK_TICK = const(31)
 _C_T_LEVEL = const(38)
 _C_T_TRACK = const(39)
+_IX_YAW = const(8)  # eskf.IX_ATT + 2: the yaw's row of the covariance
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 
-# self._trk: the track anchor (heading from GNSS positions, see _track); used only here
+# self._trk: the track anchors (heading from GNSS positions, see _track), used only here: a
+# float array, 3 floats per anchor, oldest first, and an int array of their measurement ticks,
+# with the shortest window (track_s) in ticks after them; None until the first fix without a
+# course (_track_buffers)
+_TR_SLOTS = const(8)
 _TR_E = const(0)  # antenna position of the anchor fix in the frame, m
 _TR_N = const(1)
 _TR_YAW = const(2)  # yaw of the attitude when the anchor fix was processed, rad
@@ -65,6 +76,14 @@ _fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usa
 
 
 class Alignment:
+    def _track_buffers(self):
+        """The track anchors' buffers (self._trk), made at the first fix without a course:
+        most receivers report one, and the 200 bytes stay free. The shortest window (track_s)
+        in ticks after the anchors' ticks, rounded as nav._ticks."""
+        tk = array("i", bytes(4 * (_TR_SLOTS + 1)))
+        tk[_TR_SLOTS] = int(self.cfg.track_s / self.cfg.dt_s + 0.5)
+        self._trk = (f32.zeros(3 * _TR_SLOTS), tk)
+
     def _align(self):
         """An aligning tick: the reference of nav_tick's aligning step (firmware/native/
         navtick.c, align_step) and then the pending fix, which is Python's part there."""
@@ -151,9 +170,16 @@ class Alignment:
         if course >= 0.0:
             c[_C_TRK_SET] = 0
             if fx[_FX_SPEED] >= self.cfg.heading_speed_m_s:
-                self._start_navigation(course, fx[_FX_SPEED], self.cfg.init_vel_sigma)
+                self._course_start(course)
         else:
             self._track()
+
+    def _course_start(self, course):
+        """Navigation starts from the receiver's course and speed; the course's 1-sigma is
+        gnss_vel_sigma / speed."""
+        sp = self._fx[_FX_SPEED]
+        s = self.cfg.gnss_vel_sigma / sp
+        self._start_navigation(course, sp, self.cfg.init_vel_sigma, s * s)
 
     def _set_origin(self):
         """The first stable fix becomes the origin of the navigation frame; False if it cannot
@@ -169,59 +195,104 @@ class Alignment:
     def _track(self):
         """Heading and velocity from the track of a receiver that reports no course.
 
-        The anchor is an earlier usable fix (antenna position, measurement tick) and the yaw
-        of the attitude when it was processed (the gyros keep the attitude current while
-        levelled, `_align`). At a fix `track_s` or more after it (at most twice that), the
-        chord d from the anchor gives the mean speed |d| / T; from `heading_speed_m_s` on, d's
-        direction is the course at the window's middle, and the heading has turned since by
-        half the yaw change dyaw over the window (a steady turn): course = atan2(d_E, d_N) -
-        dyaw / 2 (course is clockwise, yaw counter-clockwise). Too slow, a turn beyond
-        `track_turn_max` or a window too long: this fix becomes the anchor. The chord speed is
-        a mean, behind a car accelerating at a by a T / 2, so the filter starts with the
-        horizontal velocity sigma `track_vel_sigma`. Cost, at fix ticks while aligning only:
-        the yaw from the `euler` kernel; a window's evaluation (`_track_window`) boxes the
-        floats of a Python atan2 and sqrt on the board."""
-        c = self.ctl
+        Anchors are earlier usable fixes (antenna position, measurement tick) with the yaw of
+        the attitude when each was processed (the gyros keep the attitude current while
+        levelled, `_align`): up to _TR_SLOTS of them, one per _TR_SLOTS-th of `track_max_s`. At
+        each fix the shortest window from `track_s` on whose chord d reaches `track_min_m`
+        (long against the fixes' noise: a walker needs ~10 s) is looked at: at a mean
+        speed |d| / T from `heading_speed_m_s` on, d's direction is the course at the
+        window's middle, and the heading has turned since by half the yaw change dyaw over
+        the window (a steady turn): course = atan2(d_E, d_N) - dyaw / 2 (course is clockwise,
+        yaw counter-clockwise). Too slow or a turn beyond `track_turn_max`: the anchors are
+        dropped and this fix is the first of new ones. The chord speed is a mean, behind a
+        car accelerating at a by a T / 2, so the filter starts with the horizontal velocity
+        sigma `track_vel_sigma`. Cost, at fix ticks while aligning only: the yaw from the
+        `euler` kernel; a window's evaluation boxes the floats of a Python atan2 and sqrt on
+        the board."""
+        if self._trk is None:
+            self._track_buffers()
         ypr = self._tmp3  # scratch
         _euler(ypr, self.ins.c_bn)
-        if c[_C_TRK_SET]:
-            n = c[_C_FIX_TICK] - c[_C_TRK_TICK]
-            if n < c[_C_T_TRACK]:
-                return  # window not long enough yet: keep the anchor
-            if n <= 2 * c[_C_T_TRACK] and self._track_window(n, ypr[rot.YAW]):
-                return
-        trk = self._trk
-        gp = self._gp
-        trk[_TR_E] = gp[0]
-        trk[_TR_N] = gp[1]
-        trk[_TR_YAW] = ypr[rot.YAW]
-        c[_C_TRK_TICK] = c[_C_FIX_TICK]
-        c[_C_TRK_SET] = 1
+        i = self._track_anchor()
+        if i >= 0 and self._track_window(i, ypr[rot.YAW]):
+            return
+        c = self.ctl
+        if c[_C_TRK_SET] and c[_C_FIX_TICK] - c[_C_TRK_TICK] < c[_C_T_TRACK] // _TR_SLOTS:
+            return  # the newest anchor is recent enough
+        self._track_push(ypr[rot.YAW])
 
-    def _track_window(self, n, yaw):
-        """The chord over n ticks from the anchor to this fix and the yaw now: navigation
-        starts (True) when fast enough and turning little enough (see _track). Locals few:
-        its frame stays on the C stack (tests/runtimes/test_frames.py)."""
-        de = self._gp[0] - self._trk[_TR_E]
-        dn = self._gp[1] - self._trk[_TR_N]
-        sp = sqrt(de * de + dn * dn) / (f32.f32(n) * self.cfg.dt_s)
-        yaw = yaw - self._trk[_TR_YAW]  # the yaw change over the window
+    def _track_push(self, yaw):
+        """This fix becomes the newest anchor (the oldest goes when all slots are held)."""
+        c = self.ctl
+        k = c[_C_TRK_SET]
+        trk, tk = self._trk
+        if k == _TR_SLOTS:
+            for j in range(3, 3 * _TR_SLOTS):
+                trk[j - 3] = trk[j]
+            for j in range(1, _TR_SLOTS):
+                tk[j - 1] = tk[j]
+            k -= 1
+        trk[3 * k + _TR_E] = self._gp[0]
+        trk[3 * k + _TR_N] = self._gp[1]
+        trk[3 * k + _TR_YAW] = yaw
+        tk[k] = c[_C_FIX_TICK]
+        c[_C_TRK_TICK] = c[_C_FIX_TICK]
+        c[_C_TRK_SET] = k + 1
+
+    def _track_anchor(self):
+        """The newest anchor from track_s to track_max_s old whose chord to this fix reaches
+        track_min_m, or -1."""
+        c = self.ctl
+        i = c[_C_TRK_SET] - 1
+        trk, tk = self._trk
+        while i >= 0 and c[_C_FIX_TICK] - tk[i] <= c[_C_T_TRACK]:
+            if c[_C_FIX_TICK] - tk[i] >= tk[_TR_SLOTS]:
+                de = self._gp[0] - trk[3 * i + _TR_E]
+                dn = self._gp[1] - trk[3 * i + _TR_N]
+                if de * de + dn * dn >= self.cfg.track_min_m * self.cfg.track_min_m:
+                    return i
+            i -= 1
+        return -1
+
+    def _track_window(self, i, yaw):
+        """The chord from anchor i to this fix and the yaw now: True when navigation starts
+        (fast enough, turning little enough), else False with the anchors dropped (see
+        _track). Its frame, and _track_start's, stay within the VM's on-stack limit
+        (tests/runtimes/test_frames.py): the chord goes through the scratch self._tmp3."""
+        self.ctl[_C_TRK_SET] = 0
+        yaw = yaw - self._trk[0][3 * i + _TR_YAW]  # the yaw change over the window
         if yaw > PI:
             yaw = yaw - TWO_PI
         elif yaw < -PI:
             yaw = yaw + TWO_PI
-        if sp >= self.cfg.heading_speed_m_s and (
-            -self.cfg.track_turn_max <= yaw <= self.cfg.track_turn_max
-        ):
-            self.ctl[_C_TRK_SET] = 0
-            self._start_navigation(atan2(de, dn) - yaw * 0.5, sp, self.cfg.track_vel_sigma)
-            return True
-        return False
+        if not -self.cfg.track_turn_max <= yaw <= self.cfg.track_turn_max:
+            return False
+        t = self._tmp3
+        t[0] = self._gp[0] - self._trk[0][3 * i + _TR_E]
+        t[1] = self._gp[1] - self._trk[0][3 * i + _TR_N]
+        d = sqrt(t[0] * t[0] + t[1] * t[1])
+        t[2] = self._sigma_h() / d  # the chord's direction: 1-sigma sqrt(2) sigma_h / |d|
+        t[2] = 2.0 * t[2] * t[2]
+        i = self.ctl[_C_FIX_TICK] - self._trk[1][i]  # the window, ticks
+        d = d / (f32.f32(i) * self.cfg.dt_s)  # the mean speed
+        if d < self.cfg.heading_speed_m_s:
+            return False
+        self._track_start(yaw, d)
+        return True
 
-    def _start_navigation(self, course, sp, sigma_vel):
+    def _track_start(self, yaw, sp):
+        """Navigation starts from the chord in self._tmp3 (E, N, the course's variance), turned
+        by half the window's yaw change, at the mean speed sp."""
+        t = self._tmp3
+        self._start_navigation(atan2(t[0], t[1]) - yaw * 0.5, sp, self.cfg.track_vel_sigma, t[2])
+
+    def _start_navigation(self, course, sp, sigma_vel, var_course):
         """Heading from course (rad clockwise from north), horizontal velocity sp along it, at
-        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity. Natively
+        the current fix's position; sigma_vel: 1-sigma of the horizontal velocity; var_course:
+        the course's variance, rad^2: the heading's is the larger of it and init_yaw_sigma^2.
+        Natively
         one kernel (`nav_start`), which mirrors `_start_navigation_py` and `_restart`."""
+        self._yaw_var(var_course)
         if _nav_start is None:
             self._start_navigation_py(course, sp, sigma_vel)
             return
@@ -230,6 +301,15 @@ class Alignment:
         s[1] = sp
         s[2] = sigma_vel
         _nav_start(self.ctl, self.kf.i, self.mem)
+
+    def _yaw_var(self, var_course):
+        """The heading's initial variance, kept in the initial diagonal for later resets
+        (nav._restart): the larger of init_yaw_sigma^2 and the course's."""
+        y = self.cfg.init_yaw_sigma
+        y = y * y
+        if var_course > y:
+            y = var_course
+        self._init[_IX_YAW] = y
 
     def _start_navigation_py(self, course, sp, sigma_vel):
         """_start_navigation with the Python kernels (the reference of `nav_start`)."""

@@ -40,7 +40,10 @@ class NavConfig:
         # Initial uncertainty when navigation starts (1 sigma).
         self.init_vel_sigma = f32.ratio(1, 2)  # m/s
         self.init_tilt_sigma = _deg(2)  # rad, roll and pitch from levelling
-        self.init_yaw_sigma = _deg(10) if profile == "car" else _deg(60)  # from GNSS course
+        # the heading's, beyond the course's own noise (nav_align._start_navigation): how far
+        # the body may point away from its direction of travel (a car: its slip and the
+        # mounting; a board in hand: the hand)
+        self.init_yaw_sigma = _deg(10) if profile == "car" else _deg(15)
         self.init_gyro_bias_sigma = _deg(1, 10)  # rad/s residual after the static average
         self.init_accel_bias_sigma = f32.ratio(1961, 10000)  # m/s^2 (20 mg)
 
@@ -63,16 +66,25 @@ class NavConfig:
 
         # Alignment
         self.level_s = f32.f32(2)  # static averaging for roll, pitch and gyro bias
-        self.heading_speed_m_s = f32.f32(3)  # GNSS course becomes the heading above this
+        # the course over ground becomes the heading from this speed on: a walk (0.8 m/s);
+        # its noise, larger as the speed falls, sets the heading's initial variance
+        self.heading_speed_m_s = f32.ratio(4, 5)
         # Without a course from the receiver (GGA only, position-only data) the heading comes
-        # from the track: the chord between fixes track_s apart (at a mean speed from
-        # heading_speed_m_s on), corrected by half the gyros' yaw change over it; a turn of
-        # more than track_turn_max within the window is not used. The chord's mean speed lags
-        # an accelerating car by a T / 2 (3-7 m/s measured on simulated starts from a stop):
-        # the filter starts with the horizontal velocity sigma track_vel_sigma (2 m/s: 1 m/s
-        # gave 6.4 m vs 4.9 m horizontal RMS over the first 10 s of highway_outage, 3 m/s no
-        # better than 2 after that; docs/navigation.md).
-        self.track_s = f32.f32(4)  # 12 m at 3 m/s: 1.5 m fix noise gives ~10 deg (init_yaw_sigma)
+        # from the track: the chord from an anchor fix once it is track_min_m long (within
+        # track_s to track_max_s, at a mean speed from heading_speed_m_s on), corrected by half the
+        # gyros' yaw change over it; a turn of more than track_turn_max within the window is
+        # not used. 12 m against fixes of 2 m 1-sigma: sqrt(2) 2 / 12 = 13 deg (the
+        # heading's initial sigma adds it); a walker covers it in ~10 s. The chord's mean
+        # speed lags an accelerating car by a T / 2 (3-7 m/s measured on simulated starts from
+        # a stop, with 4 s windows): the filter starts with the horizontal velocity sigma
+        # track_vel_sigma (2 m/s: 1 m/s gave 6.4 m vs 4.9 m horizontal RMS over the first 10 s
+        # of highway_outage, 3 m/s no better than 2 after that; docs/navigation.md).
+        self.track_min_m = f32.f32(12)
+        # windows from track_s (a car accelerating away from a stop covers more than 12 m in
+        # them: a longer chord, a better heading) to track_max_s (longer ones hold more turns
+        # and pace changes)
+        self.track_s = f32.f32(4)
+        self.track_max_s = f32.f32(20)
         self.track_turn_max = _deg(30)  # rad
         self.track_vel_sigma = f32.f32(2)  # m/s
 

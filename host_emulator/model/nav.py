@@ -34,6 +34,7 @@ from host_emulator.model.nav_align import AlignmentModel
 
 firmware_env.install()
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
+import nav_align as fw_nav_align  # noqa: E402
 
 import geo as fw_geo  # noqa: E402
 
@@ -87,9 +88,10 @@ class NavModel(AlignmentModel, AidingModel):
         self.still_lp = np.zeros(6, F32)
         self.level_sums = np.zeros(6, F32)  # sums of f and w while levelling
         self.init_diag = np.zeros(N, F32)
-        # the track anchor (heading without a receiver course): antenna E, N of the anchor fix
-        # and the yaw of the attitude when it was processed
-        self.track = np.zeros(3, F32)
+        # the track anchors (heading without a receiver course), oldest first: antenna E, N
+        # of the anchor fix and the yaw of the attitude when it was processed; their ticks
+        self.track = np.zeros((fw_nav_align._TR_SLOTS, 3), F32)
+        self.trk_ticks = [0] * fw_nav_align._TR_SLOTS
         self.ticks_prop = _ticks(cfg.prop_period_s, dt)
         self.ticks_zupt = _ticks(cfg.zupt_period_s, dt)
         self.ticks_nhc = _ticks(cfg.nhc_period_s, dt)
@@ -98,7 +100,8 @@ class NavModel(AlignmentModel, AidingModel):
         self.ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
         self.ticks_latency = _ticks(cfg.gnss_latency_s, dt)
         self.ticks_second = _ticks(F32(1), dt)
-        self.ticks_track = max(_ticks(cfg.track_s, dt), 1)
+        self.ticks_track = max(_ticks(cfg.track_max_s, dt), 1)
+        self.ticks_track_min = _ticks(cfg.track_s, dt)
         self.ticks_stuck = max(_ticks(cfg.imu_stuck_s, dt), 1)
         self.imu_status = 0  # the IMU driver's status word of this tick (nav.IMU_*)
         self.prev_g = [0, 0, 0]  # the last counts
@@ -153,8 +156,8 @@ class NavModel(AlignmentModel, AidingModel):
         self.fix_tick = 0
         self.last_fix_tick = -1000000
         self.speed_tick = -1000000  # tick of the last usable fix with a speed
-        self.trk_set = False  # a track anchor is held
-        self.trk_tick = 0  # its measurement tick
+        self.trk_set = 0  # track anchors held
+        self.trk_tick = 0  # the newest one's measurement tick
         self.last_accept_tick = 0
         self.rejects = 0
         self.v_rejects = 0  # heights rejected in a row
@@ -522,7 +525,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.n_level = 0
         self.n_stable = 0
         self.fix_queued = False
-        self.trk_set = False
+        self.trk_set = 0
         self.leveled = False
         self.rejects = 0
         self.v_rejects = 0
@@ -598,7 +601,7 @@ class NavModel(AlignmentModel, AidingModel):
             "still_lp": self.still_lp,
             "level_sums": self.level_sums,
             "init_diag": self.init_diag,
-            "track": self.track,
+            "track": self.track.reshape(-1),
             "ring_p": self.ring_p,
             "ring_v": self.ring_v,
             "corr": self.corr,

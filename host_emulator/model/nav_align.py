@@ -10,7 +10,8 @@ import numpy as np
 from host_emulator import firmware_env
 from host_emulator.model import fmath as ref_fmath
 from host_emulator.model import rot as ref_rot
-from host_emulator.model.f32ops import F32, HALF, ZERO, vec
+from host_emulator.model.eskf import IX_ATT
+from host_emulator.model.f32ops import F32, HALF, TWO, ZERO, vec
 
 firmware_env.install()
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
@@ -18,6 +19,8 @@ import nav_align as fw_nav_align  # noqa: E402
 
 import fmath as fw_fmath  # noqa: E402
 import rot as fw_rot  # noqa: E402
+
+TR_SLOTS = fw_nav_align._TR_SLOTS
 
 
 class AlignmentModel:
@@ -67,7 +70,7 @@ class AlignmentModel:
         self.last_fix_tick = self.tick
         if not self._fix_usable():
             self.n_stable = 0
-            self.trk_set = False
+            self.trk_set = 0
             return
         self.n_stable += 1
         if self.n_stable < cfg.gnss_stable_fixes:
@@ -80,51 +83,78 @@ class AlignmentModel:
         self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, h)
         self.ins.p_n = self.gnss_p.copy()
         if not self.leveled:
-            self.trk_set = False
+            self.trk_set = 0
             return
         course = self.fix[3]
         if course >= 0.0:  # the receiver's course over ground
-            self.trk_set = False
-            if self.fix[2] >= cfg.heading_speed_m_s:
-                self._start_navigation(course, self.fix[2], cfg.init_vel_sigma)
+            self.trk_set = 0
+            sp = self.fix[2]
+            if sp >= cfg.heading_speed_m_s:
+                s = cfg.gnss_vel_sigma / sp
+                self._start_navigation(course, sp, cfg.init_vel_sigma, s * s)
         else:
             self._track()
 
     def _track(self):
-        """No course: the chord d = p - p_anchor over T = n dt (track_s <= T <= 2 track_s)
-        gives the mean speed |d| / T and, from heading_speed_m_s on and for a yaw change
-        |dyaw| <= track_turn_max (wrapped to +-pi), the course atan2(d_E, d_N) - dyaw / 2 now;
-        otherwise this fix becomes the anchor."""
+        """No course: anchors (antenna E, N and yaw of earlier usable fixes, one per
+        TR_SLOTS-th of track_max_s, the newest TR_SLOTS kept); the newest anchor track_s to
+        track_max_s old whose chord d = p - p_anchor reaches track_min_m gives, for a yaw change
+        |dyaw| <= track_turn_max (wrapped to +-pi) and a mean speed |d| / T from
+        heading_speed_m_s on, the course atan2(d_E, d_N) - dyaw / 2 now, of variance
+        2 sigma_h^2 / |d|^2; a failed window drops the anchors. This fix is added as an anchor
+        when the newest is a slot's spacing old."""
         cfg = self.cfg
         gp = self.gnss_p
         c = self.ins.c_bn
         yaw = ref_fmath.atan2(-c[0, 1], c[1, 1])  # dcm_to_euler's yaw
-        if self.trk_set:
-            n = self.fix_tick - self.trk_tick
-            if n < self.ticks_track:
-                return
-            if n <= 2 * self.ticks_track:
-                de = gp[0] - self.track[0]
-                dn = gp[1] - self.track[1]
-                sp = np.sqrt(de * de + dn * dn) / (F32(n) * cfg.dt_s)
-                dyaw = yaw - self.track[2]
-                if dyaw > fw_fmath.PI:
-                    dyaw = dyaw - fw_fmath.TWO_PI
-                elif dyaw < -fw_fmath.PI:
-                    dyaw = dyaw + fw_fmath.TWO_PI
-                lim = cfg.track_turn_max
-                if sp >= cfg.heading_speed_m_s and -lim <= dyaw <= lim:
-                    self.trk_set = False
+        min2 = cfg.track_min_m * cfg.track_min_m
+        i = self.trk_set - 1
+        while i >= 0 and self.fix_tick - self.trk_ticks[i] <= self.ticks_track:
+            if self.fix_tick - self.trk_ticks[i] >= self.ticks_track_min:
+                de = gp[0] - self.track[i, 0]
+                dn = gp[1] - self.track[i, 1]
+                if de * de + dn * dn >= min2:
+                    break
+            i -= 1
+        else:
+            i = -1
+        if i >= 0:
+            self.trk_set = 0
+            dyaw = yaw - self.track[i, 2]
+            if dyaw > fw_fmath.PI:
+                dyaw = dyaw - fw_fmath.TWO_PI
+            elif dyaw < -fw_fmath.PI:
+                dyaw = dyaw + fw_fmath.TWO_PI
+            lim = cfg.track_turn_max
+            if -lim <= dyaw <= lim:
+                de = gp[0] - self.track[i, 0]
+                dn = gp[1] - self.track[i, 1]
+                d = np.sqrt(de * de + dn * dn)
+                sp = d / (F32(self.fix_tick - self.trk_ticks[i]) * cfg.dt_s)
+                if sp >= cfg.heading_speed_m_s:
                     course = ref_fmath.atan2(de, dn) - dyaw * HALF
-                    self._start_navigation(course, sp, cfg.track_vel_sigma)
+                    r = self._sigma_h() / d
+                    self._start_navigation(course, sp, cfg.track_vel_sigma, TWO * r * r)
                     return
-        self.track = vec(gp[0], gp[1], yaw)
+        k = self.trk_set
+        if k and self.fix_tick - self.trk_tick < self.ticks_track // TR_SLOTS:
+            return
+        if k == TR_SLOTS:
+            self.track[:-1] = self.track[1:].copy()
+            self.trk_ticks[:-1] = self.trk_ticks[1:]
+            k -= 1
+        self.track[k] = vec(gp[0], gp[1], yaw)
+        self.trk_ticks[k] = self.fix_tick
         self.trk_tick = self.fix_tick
-        self.trk_set = True
+        self.trk_set = k + 1
 
-    def _start_navigation(self, course, sp, sigma_vel):
+    def _start_navigation(self, course, sp, sigma_vel, var_course):
         """Heading = course (yaw = -course), v = sp (sin, cos course, 0), p = antenna
-        - C_bn lever, P = diag(init) with the fix's sigmas and sigma_vel horizontally."""
+        - C_bn lever, P = diag(init) with the fix's sigmas, sigma_vel horizontally and the
+        yaw's max(init_yaw_sigma^2, var_course) (kept in init for later resets)."""
+        y = self.cfg.init_yaw_sigma
+        y = y * y
+        self.init_diag[IX_ATT + 2] = var_course if var_course > y else y
         ins = self.ins
         ypr = ref_rot.dcm_to_euler(ins.c_bn)
         ypr[fw_rot.YAW] = -course

@@ -63,6 +63,8 @@ def to_stimulus(truth, imu, gnss, header=None, seed=0):
         "utc_start": gnss.model.utc_start,
         "gnss_rate_hz": float(gnss.model.rate_hz),
     }
+    if truth.board_profile:  # the walk: the board in hand (firmware/lib/config.py "profile")
+        head["config"]["profile"] = int(truth.board_profile)
     head.update(header or {})
     temp = imu.temp_raw[:ticks] if imu.temp_raw is not None else np.zeros(ticks, np.int8)
     s = stim_mod.from_arrays(

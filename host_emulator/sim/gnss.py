@@ -27,6 +27,7 @@ The byte stream the receiver sends (NMEA sentences, baud rate, corrupted sentenc
 Defaults: 1 Hz, sigma 2/2/4 m E/N/U (the KF-GINS benchmark set-up, DESIGN 10).
 """
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -57,7 +58,8 @@ class GnssModel:
     excursion_hdop: tuple = (2.0, 4.0)
     latency_s: float = 0.1
     latency_jitter_s: float = 0.03
-    lever_b_m: tuple = (0.0, 0.5, 1.0)  # IMU -> antenna, body axes (right, forward, up)
+    # IMU -> antenna, body axes (right, forward, up); None: the scenario's (Truth.antenna_b_m)
+    lever_b_m: tuple | None = None
     ttff_s: float = 0.0  # no fix before this time
     pps_without_fix: bool = False
     dgps_every_s: float = 240.0
@@ -152,6 +154,8 @@ def simulate(truth, model=None, seed=0, outages=None):
     """Receiver output for a Truth. outages: ((start_s, length_s), ...), default truth.outages;
     epochs in [start, start + length) have no fix. Same seed -> same data."""
     model = GnssModel() if model is None else model
+    if model.lever_b_m is None:
+        model = dataclasses.replace(model, lever_b_m=tuple(truth.antenna_b_m))
     outages = truth.outages if outages is None else tuple(outages)
     step = RATE_HZ / model.rate_hz
     if abs(step - round(step)) > 1e-9 or step < 1:

@@ -246,6 +246,9 @@ class DriveScript:
         self.grade = Ramps(grade0_rad)
         self.bank = Ramps(bank0_rad)
         self.t_s = 0.0
+        self.sway = None  # a Sway: the carried sensor's own motion on the path
+        self.antenna_b_m = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna, body axes: a car's roof
+        self.board_profile = 0  # the board's profile setting for it: 0 car, 1 handheld
 
     @property
     def v_m_s(self):
@@ -255,11 +258,12 @@ class DriveScript:
     def hold(self, duration_s):
         self.t_s += max(0.0, float(duration_s))
 
-    def speed_to(self, v_m_s, accel_m_s2=1.2):
-        """Change speed at a mean acceleration (peak = 2x mean); advances the cursor."""
+    def speed_to(self, v_m_s, accel_m_s2=1.2, min_s=0.0):
+        """Change speed at a mean acceleration (peak = 2x mean), over min_s at least (a small
+        change would otherwise be a jerk no body makes); advances the cursor."""
         dv = float(v_m_s) - self.v_m_s
         if dv != 0.0:
-            length = abs(dv) / accel_m_s2
+            length = max(abs(dv) / accel_m_s2, min_s)
             self.speed.add(self.t_s, length, dv)
             self.t_s += length
 
@@ -291,6 +295,38 @@ class DriveScript:
             s += length
 
 
+class Sway:
+    """Periodic motion of a carried sensor on top of its path (a walker's hand, a rider's
+    frame), in closed form like the rest: each channel is A g(t) sin(w t + phase) with the
+    gate g = v(t) / v_ref_m_s, so it scales with the pace and fades out at a stop.
+
+    Position, along the path's horizontal forward axis u, its right axis r and up: surge and
+    bob at the step frequency, lateral sway at half of it (the weight moves from foot to foot).
+    Attitude added to the path's: pitch at the step frequency, roll and yaw at half of it (the
+    arm and the torso swing with the stride). The sensor's heading therefore differs from the
+    direction of travel by up to `yaw_rad`: nothing holds the body velocity to its forward axis.
+    """
+
+    CHANNELS = ("surge", "lateral", "bob", "yaw", "pitch", "roll")
+    _HALF = ("lateral", "yaw", "roll")  # at half the step frequency
+
+    def __init__(self, step_hz, v_ref_m_s, amplitudes, phases):
+        self.step_hz = float(step_hz)
+        self.v_ref_m_s = float(v_ref_m_s)
+        self.amplitudes = {k: float(amplitudes.get(k, 0.0)) for k in self.CHANNELS}
+        self.phases = {k: float(phases.get(k, 0.0)) for k in self.CHANNELS}
+
+    def channel(self, name, t, v, dv, d2v):
+        """(x, dx/dt, d2x/dt2) of one channel at times t, given the path speed and its
+        derivatives there."""
+        a = self.amplitudes[name]
+        w = TWO_PI * self.step_hz * (0.5 if name in self._HALF else 1.0)
+        ph = w * t + self.phases[name]
+        s, c = np.sin(ph), np.cos(ph)
+        g, g1, g2 = v / self.v_ref_m_s, dv / self.v_ref_m_s, d2v / self.v_ref_m_s
+        return a * g * s, a * (g1 * s + g * w * c), a * (g2 * s + 2.0 * g1 * w * c - g * w * w * s)
+
+
 @dataclass(frozen=True, eq=False)
 class Truth:
     """Truth at every IMU sample (N of them, 200 Hz). SI units; frames as in the module doc."""
@@ -315,6 +351,8 @@ class Truth:
     h_m: np.ndarray  # (N,) ellipsoidal height, m
     w_ie_n: np.ndarray  # (3,) Earth rate in ENU, rad/s
     outages: tuple = field(default=())  # GNSS outage windows ((start_s, length_s), ...)
+    antenna_b_m: tuple = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna, body axes (sim.gnss's default)
+    board_profile: int = 0  # the board's profile setting (config.py): 0 car, 1 handheld
 
     dt_s = DT_S
 
@@ -390,12 +428,37 @@ def truth_from_script(
     p_n = np.zeros((n, 3))
     np.cumsum(steps, axis=0, out=p_n[1:])
 
-    ypr = np.stack([yaw, pitch, roll], axis=-1)
+    yaw_b, r_b = yaw, r  # the body's yaw and yaw rate: the path's unless the sensor sways
+    if script.sway is not None:
+        sw = script.sway
+        s0, s1, s2 = sw.channel("surge", t, v, dv, d2v)
+        l0, l1, l2 = sw.channel("lateral", t, v, dv, d2v)
+        b0, b1, b2 = sw.channel("bob", t, v, dv, d2v)
+        # horizontal forward u_h and right r_h of the path: du_h/dyaw = -r_h, dr_h/dyaw = u_h
+        zero = np.zeros(n)
+        u_h = np.stack([-sy, cy, zero], axis=-1)
+        r_h = np.stack([cy, sy, zero], axis=-1)
+        up = np.stack([zero, zero, np.ones(n)], axis=-1)
+        p_n += s0[:, None] * u_h + l0[:, None] * r_h + b0[:, None] * up
+        v_n = v_n + ((s1 + l0 * r)[:, None] * u_h + (l1 - s0 * r)[:, None] * r_h + b1[:, None] * up)
+        a_n = a_n + (
+            (s2 + 2.0 * l1 * r + l0 * dr - s0 * r * r)[:, None] * u_h
+            + (l2 - 2.0 * s1 * r - s0 * dr - l0 * r * r)[:, None] * r_h
+            + b2[:, None] * up
+        )
+        psi, dpsi, _ = sw.channel("yaw", t, v, dv, d2v)
+        yaw_b, r_b = yaw + psi, r + dpsi
+        th, dth, _ = sw.channel("pitch", t, v, dv, d2v)
+        pitch, dpitch = pitch + th, dpitch + dth
+        ph, dph, _ = sw.channel("roll", t, v, dv, d2v)
+        roll, droll = roll + ph, droll + dph
+
+    ypr = np.stack([yaw_b, pitch, roll], axis=-1)
     c_bn = euler_to_dcm(ypr)
     sr, cr = np.sin(roll), np.cos(roll)
     sp, cp = np.sin(pitch), np.cos(pitch)
     w_nb_b = np.stack(
-        [cr * dpitch - sr * cp * r, droll + sp * r, sr * dpitch + cr * cp * r], axis=-1
+        [cr * dpitch - sr * cp * r_b, droll + sp * r_b, sr * dpitch + cr * cp * r_b], axis=-1
     )
     w_ie_n = origin.w_ie_n()
     w_ib_b = w_nb_b + nav_to_body(c_bn, np.broadcast_to(w_ie_n, (n, 3)))
@@ -404,7 +467,7 @@ def truth_from_script(
 
     lat_e7, lon_e7, h_m = origin.to_geodetic(p_n)
     ypr_out = ypr.copy()
-    ypr_out[:, 0] = wrap_pi(yaw)
+    ypr_out[:, 0] = wrap_pi(yaw_b)
     return Truth(
         name=name,
         description=description,
@@ -425,6 +488,8 @@ def truth_from_script(
         lon_e7=lon_e7,
         h_m=h_m,
         w_ie_n=w_ie_n,
+        antenna_b_m=tuple(script.antenna_b_m),
+        board_profile=int(script.board_profile),
         outages=tuple(
             (float(s), float(min(length, duration_s - s)))
             for s, length in outages
@@ -594,4 +659,116 @@ def highway_outage(duration_s, seed, outages):
         script.speed_to(v, 0.3)
         angle = np.deg2rad(rng.uniform(5.0, 25.0)) * rng.choice([-1.0, 1.0])
         script.turn(angle, v / rng.uniform(1000.0, 2500.0), ramp_s=rng.uniform(4.0, 8.0))
+    return script
+
+
+def _phases(rng):
+    return {k: rng.uniform(-np.pi, np.pi) for k in Sway.CHANNELS}
+
+
+@_scenario(
+    "walk",
+    "a walk with the board in hand: 30 s held still, then 1.0-1.6 m/s with the hand's own "
+    "motion (2-3 cm bob and sway, +-4 deg of heading wobble), 90-degree turns both ways, stops "
+    "of 5-15 s; a 10 s GNSS outage",
+    300.0,
+    ((150.0, 10.0),),
+)
+def walk(duration_s, seed, outages):
+    rng, _ = _streams(seed)
+    script = DriveScript(rng.uniform(-np.pi, np.pi))
+    script.PITCH_PER_ACCEL = 0.0  # a hand neither squats nor leans like a car body
+    script.ROLL_PER_ACCEL = 0.0
+    deg = np.deg2rad
+    script.sway = Sway(
+        step_hz=rng.uniform(1.7, 2.0),
+        v_ref_m_s=1.3,
+        amplitudes={
+            "surge": 0.02,
+            "lateral": 0.03,
+            "bob": 0.03,
+            "yaw": deg(4.0),
+            "pitch": deg(2.0),
+            "roll": deg(3.0),
+        },  # fmt: skip
+        phases=_phases(rng),
+    )
+    # a hand-held board carries its own antenna: a car's 1 m lever would swing at the hand's
+    # rates (0.4 m/s)
+    script.antenna_b_m = (0.0, 0.05, 0.0)
+    script.board_profile = 1  # handheld: no non-holonomic constraint, no standstill updates
+    script.hold(30.0)
+    guards = [(s - 3.0, s + length + 3.0) for s, length in outages]
+    pattern = ("left", "stop", "right", "right", "stop", "left")
+    i = 0
+    while script.t_s < duration_s:
+        script.speed_to(rng.uniform(1.0, 1.6), rng.uniform(0.4, 0.7), min_s=1.0)
+        script.hold(rng.uniform(10.0, 25.0))
+        kind = pattern[i % len(pattern)]
+        i += 1
+        if kind == "stop":
+            stop_s = rng.uniform(5.0, 15.0)
+            while _overlaps(script.t_s, script.t_s + 3.0 + stop_s, guards):
+                script.hold(1.0)
+            script.speed_to(0.0, rng.uniform(0.5, 0.8), min_s=1.0)
+            script.hold(stop_s)
+        else:
+            # a corner taken at walking pace: ~0.8 rad/s, a radius of 1-2 m
+            angle = 0.5 * np.pi if kind == "left" else -0.5 * np.pi
+            script.turn(angle, rng.uniform(0.6, 1.0), ramp_s=rng.uniform(0.4, 0.7))
+    return script
+
+
+@_scenario(
+    "bicycle",
+    "20 s static, then riding 3-7 m/s in town: leaning into 90-degree turns, stops of 5-15 s at "
+    "crossings, the frame's pedalling sway; a 10 s GNSS outage",
+    300.0,
+    ((150.0, 10.0),),
+)
+def bicycle(duration_s, seed, outages):
+    rng, road_rng = _streams(seed)
+    script = DriveScript(rng.uniform(-np.pi, np.pi))
+    script.add_road(
+        road_rng,
+        length_m=7.0 * duration_s,
+        grade_max_rad=np.arctan(0.03),
+        bank_max_rad=np.deg2rad(0.5),
+        spacing_m=(50.0, 200.0),
+        transition_m=(20.0, 50.0),
+    )
+    script.PITCH_PER_ACCEL = 0.0
+    # a bicycle leans into a turn until gravity balances the lateral acceleration:
+    # tan(lean) = v r / g, to first order (a car's body rolls the other way)
+    script.ROLL_PER_ACCEL = -1.0 / 9.81
+    deg = np.deg2rad
+    script.sway = Sway(
+        step_hz=rng.uniform(2.2, 2.8),  # two pedal strokes per crank turn at 66-84 rpm
+        v_ref_m_s=5.0,
+        amplitudes={"surge": 0.01, "lateral": 0.01, "yaw": deg(1.0), "roll": deg(1.5)},
+        phases=_phases(rng),
+    )
+    script.antenna_b_m = (0.0, 0.2, 0.3)  # board and antenna in a bag on the frame
+    script.hold(20.0)
+    guards = [(s - 3.0, s + length + 3.0) for s, length in outages]
+    pattern = ("left", "stop", "right", "left", "stop", "right")
+    i = 0
+    while script.t_s < duration_s:
+        script.speed_to(rng.uniform(3.0, 7.0), rng.uniform(0.5, 1.0), min_s=1.0)
+        script.hold(rng.uniform(8.0, 25.0))
+        kind = pattern[i % len(pattern)]
+        i += 1
+        if kind == "stop":
+            brake = rng.uniform(1.0, 2.0)
+            brake_s = script.v_m_s / brake
+            stop_s = rng.uniform(5.0, 15.0)
+            while _overlaps(script.t_s + brake_s, script.t_s + brake_s + stop_s, guards):
+                script.hold(1.0)
+            script.speed_to(0.0, brake)
+            script.hold(stop_s)
+        else:
+            v_turn = rng.uniform(2.5, 4.0)
+            angle = 0.5 * np.pi if kind == "left" else -0.5 * np.pi
+            script.speed_to(v_turn, rng.uniform(1.0, 1.5), min_s=1.0)
+            script.turn(angle, v_turn / rng.uniform(5.0, 10.0), ramp_s=rng.uniform(1.0, 1.5))
     return script

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import eskf
 import ins as ins_mod
 import nav as nav_mod
+import nav_align
 import navcfg
 import numpy as np
 import pytest
@@ -215,7 +216,8 @@ def firmware_snapshot(nav):
         "still_lp": nav._st,
         "level_sums": nav._lvl,
         "init_diag": nav._init,
-        "track": nav._trk,
+        # made at the first fix without a course (zeros until then, as the model's)
+        "track": nav._trk[0] if nav._trk is not None else f32.zeros(3 * nav_align._TR_SLOTS),
         "ring_p": nav._ring_p,
         "ring_v": nav._ring_v,
         "corr": nav._corr,
@@ -376,7 +378,7 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
     input or edit to both); setup(nav, model) runs once at the start; pps=False hands the
     fixes over without their measurement tick (the navigator assumes its configured latency).
     """
-    lever = sim_gnss.GnssModel().lever_b_m
+    lever = drive.truth.antenna_b_m  # the simulated receiver's (sim_gnss.simulate)
     for i in range(3):
         cfg.lever_b_m[i] = lever[i]
     nav = Navigator(cfg)
@@ -528,10 +530,12 @@ def test_model_of_the_start_from_the_gnss_track():
     slow, too long or turning too much, dropped at an unusable fix), the yaw wrap within the
     window, the start from the chord with the half-turn correction and the track's velocity
     sigma, then navigation on positions alone with a stop, all bit for bit."""
-    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1)
+    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1,
+                     heading_speed_m_s=f32.f32(3), track_min_m=f32.f32(12),
+                     track_max_s=f32.f32(8))  # fmt: skip
     drive = track_drive(60.0)
     n = len(drive.truth.t_s) - 1
-    anchors = []  # the anchor fix's time (s) whenever an anchor is set anew
+    anchors = []  # the anchor fix's time (s) whenever the anchors start anew
     start_p_vel = []
 
     def anchor(nav):
@@ -542,16 +546,18 @@ def test_model_of_the_start_from_the_gnss_track():
         was = nav.state
         nav.imu_raw(drive.gyro[k], drive.accel[k])
         model.imu_raw(drive.gyro[k], drive.accel[k])
-        if anchor(nav)[0] and anchor(nav) != held:
+        if anchor(nav)[0] == 1 and anchor(nav) != held:
             anchors.append(round(anchor(nav)[1] * DT))
         if was != NAVIGATING and nav.state == NAVIGATING:
             start_p_vel.append(float(nav.kf.P[3 * 16]))
 
     nav, _, seen = side_by_side(drive, cfg, n, hooks=dict.fromkeys(range(n), tick))
-    # 4 s: first; 8: too slow; 14: after the unusable fix; 18: turning beyond 30 deg;
-    # 28: after a window of 10 s
-    assert anchors == [4, 8, 14, 18, 28], anchors
-    assert 32.0 < seen.nav_tick * DT < 32.5, seen.nav_tick  # the 28-32 s window
+    # 4 s: first; 14: after the unusable fix at 9 s (5 stable fixes again); 18: a window of
+    # 4 s whose chord reached 12 m turning beyond 30 deg; after the 9 s gap the anchors are
+    # older than track_max_s, so the start's window begins at 28 s
+    assert anchors == [4, 14, 18], anchors
+    # the 28-32 s window: track_s (4 s) long, its chord beyond 12 m
+    assert 32.0 < seen.nav_tick * DT < 32.5, seen.nav_tick
     assert start_p_vel == [float(cfg.track_vel_sigma) ** 2]
     assert nav_runner.control(nav, "speed_tick") == -1000000  # no fix had a speed
     assert len(seen.accepted_gnss) >= 15 and seen.zupts >= 3 and seen.still_ticks >= 400

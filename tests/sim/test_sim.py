@@ -147,6 +147,41 @@ def test_rates_and_accelerations_are_derivatives_of_the_truth(urban):
     )
 
 
+@pytest.mark.parametrize("name", ["walk", "bicycle"])
+def test_carried_sensor_motion_is_consistent_and_as_described(name):
+    """The walk's hand motion and the bicycle's lean and sway (trajectory.Sway) are in the
+    truth as exact derivatives: an ideal IMU integrates back to it, and the finite
+    differences of position, velocity and attitude give the velocity, acceleration and rates."""
+    truth = tr.SCENARIOS[name](duration_s=120.0, seed=0)
+    k0, k1 = truth.index(30.0), truth.index(90.0)
+    q, v, p = _rk4_closure(truth, k0, k1)
+    assert np.linalg.norm(p - truth.p_n[k1]) < 1e-3
+    assert np.linalg.norm(v - truth.v_n[k1]) < 1e-4
+    assert _angle_between(q, truth.q_bn[k1]) < 1e-6
+    dt = truth.dt_s
+    c = tr.euler_to_dcm(truth.ypr)
+    skew = np.einsum("nji,njk->nik", c[1:-1], (c[2:] - c[:-2]) / (2 * dt))
+    w_fd = np.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], axis=-1)
+    assert np.abs(w_fd - truth.w_nb_b[1:-1]).max() < 1e-3
+    # a centred difference errs by (w dt)^2 / 6 of the 2 Hz bob's 4.7 m/s^2: 3e-3
+    assert np.abs((truth.v_n[2:] - truth.v_n[:-2]) / (2 * dt) - truth.a_n[1:-1]).max() < 1e-2
+    moving = truth.speed_m_s > 0.5
+    speed = np.linalg.norm(truth.v_n[:, :2], axis=1)
+    # the heading is not the course: a hand wobbles it, a rider's frame sways
+    course_yaw = np.arctan2(-truth.v_n[:, 0], truth.v_n[:, 1])
+    off_deg = np.degrees(np.abs(tr.wrap_pi(truth.ypr[:, 0] - course_yaw)))[moving]
+    if name == "walk":
+        assert 1.0 <= speed[moving].mean() <= 1.6 and speed.max() < 2.0
+        assert 5.0 < off_deg.max() < 20.0  # 4 deg of wobble, sway at ~0.2 m/s
+        bob = truth.p_n[moving, 2] - truth.p_n[0, 2]
+        assert 0.01 < np.ptp(bob) < 0.1
+    else:
+        assert speed.max() < 7.5 and speed[moving].mean() > 2.5
+        roll = np.degrees(np.abs(truth.ypr[moving, 2]))
+        assert roll.max() > 5.0  # leaning into the turns
+        assert off_deg.max() < 5.0
+
+
 def test_rotations_match_the_firmware_conventions(urban):
     ypr = urban.ypr[::997]
     assert np.abs(ref_rot.euler_to_dcm(ypr) - tr.euler_to_dcm(ypr)).max() < 1e-6
@@ -410,7 +445,14 @@ def test_same_seed_same_data_and_shorter_runs_are_prefixes():
 
 
 def test_scenarios_are_registered_with_descriptions():
-    assert set(tr.SCENARIOS) == {"static", "urban_drive", "quick_start", "highway_outage"}
+    assert set(tr.SCENARIOS) == {
+        "static",
+        "urban_drive",
+        "quick_start",
+        "highway_outage",
+        "walk",
+        "bicycle",
+    }
     for name, build in tr.SCENARIOS.items():
         assert build.description and "\n" not in build.description
         truth = build(2.0, seed=0)
