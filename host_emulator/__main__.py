@@ -6,7 +6,8 @@
     run --stimulus FILE --out DIR   replay a stimulus file through the firmware
     parity --scenario NAME --duration S   firmware (CPython or M4F) vs the NumPy model, bit for bit
     replay --dataset drive_0708 --out DIR   a real recording through the firmware, evaluated
-    replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout
+    replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout (your own
+                                    recording: docs/formats.md; no outages, scored from t0)
     export --scenario NAME | --dataset drive_0708 --out DIR   KF-GINS files + RTKLIB .pos
     session record|replay ...       record a board's output; replay it bit for bit
     virtual-board --fs DIR          a board on pseudo-terminals (raw REPL, RS485 frames)
@@ -27,6 +28,7 @@ message and exits non-zero.
 """
 
 import argparse
+import dataclasses
 import importlib
 import sys
 
@@ -127,12 +129,17 @@ def _kernels(args):
     return None if runtimes.get(args.runtime).name == "model" else args.kernels
 
 
-def _replay_options(args, has_gnss):
-    from host_emulator.replay import replay_run, to_stimulus
+def _replay_options(args, ds):
+    """ReplayOptions of the command line. The defaults depend on the source: drive_0708 keeps
+    the protocol of its published figures (to_stimulus.ReplayOptions()), a KF-GINS dataset
+    runs as it is (replay_run.kfgins_options())."""
+    from host_emulator.replay import board, replay_run, to_stimulus
 
+    base = replay_run.kfgins_options(ds) if args.kf_gins else to_stimulus.ReplayOptions()
     noise = args.gnss_noise
     if noise is None:
-        noise = None if has_gnss else 1.5  # a recorded GNSS file as it is; else the protocol
+        # a recorded GNSS file as it is; else the protocol's noise on the reference
+        noise = None if ds.gnss is not None else 1.5
     elif noise < 0:
         raise EmulatorError("--gnss-noise must be 0 or more")
     seed = 1 if args.seed is None else args.seed
@@ -140,32 +147,52 @@ def _replay_options(args, has_gnss):
         raise EmulatorError("--seed must be 0 or more")
     if args.gnss_velocity is not None and not args.gnss_velocity >= 0:
         raise EmulatorError("--gnss-velocity must be 0 or more")
-    return to_stimulus.ReplayOptions(
+    skip = base.skip_s if args.score_from is None else args.score_from
+    if not skip >= 0:
+        raise EmulatorError("--score-from must be 0 or more (seconds after t0)")
+    settings = tuple(board.parse(text) for text in args.set)
+    return dataclasses.replace(
+        base,
         gnss_rate_hz=args.gnss_rate,
         gnss_noise_m=noise,
-        outages=replay_run.parse_outages(args.outages),
+        outages=base.outages if args.outages is None else replay_run.parse_outages(args.outages),
+        skip_s=skip,
         seed=seed,
         duration_s=args.duration,
         gnss_velocity_sigma=args.gnss_velocity,
+        config=settings,
     )
 
 
 def _add_replay_options(p):
-    p.add_argument("--gnss-rate", type=float, default=1.0, help="GNSS epochs per second (1)")
     p.add_argument(
-        "--gnss-noise", type=float, default=None,
+        "--gnss-rate", type=float, default=1.0, metavar="HZ",
+        help="GNSS epochs per second at most: 1, 2, 4, 5 or 10 (default 1); epochs on that "
+        "rate's grid if the data has them, else at their own times (docs/formats.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--gnss-noise", type=float, default=None, metavar="M",
         help="white noise sigma per horizontal axis, m (vertical twice); default 1.5 when the "
         "GNSS input is made from the reference, none for a recorded GNSS file",
     )  # fmt: skip
     p.add_argument(
-        "--outages", default=None,
-        help="GNSS outages START+LENGTH,... in s after the first epoch t0 (default "
-        "60+15,200+15,400+15), or none",
+        "--outages", default=None, metavar="START+LENGTH,...",
+        help="GNSS outages in s after the first epoch t0, or none (default: drive_0708 "
+        "60+15,200+15,400+15, its protocol; --kf-gins none)",
+    )  # fmt: skip
+    p.add_argument(
+        "--score-from", type=float, default=None, metavar="S",
+        help="score from S seconds after t0 (default: drive_0708 30, its protocol; --kf-gins 0)",
+    )  # fmt: skip
+    p.add_argument(
+        "--set", action="append", default=[], metavar="NAME=VALUE",
+        help="a board setting (ins.cfg) for this run, as `python -m tools.flash config set` "
+        "takes it; repeatable; applied after the dataset's own (`--set help` lists them)",
     )  # fmt: skip
     p.add_argument(
         "--gnss-velocity", type=float, default=None, metavar="SIGMA",
-        help="also send the reference velocity with this noise (m/s) as RMC speed/course "
-        "(default: positions only)",
+        help="also send the GNSS source's velocity (the GNSS file's, or the reference's) "
+        "with this noise (m/s) as RMC speed/course (default: positions only)",
     )  # fmt: skip
     p.add_argument("--duration", type=float, default=None, help="replay the first seconds")
     p.add_argument(
@@ -175,6 +202,15 @@ def _add_replay_options(p):
     p.add_argument("--gnss-pos", help="an RTKLIB .pos to use as the GNSS input")
     p.add_argument("--truth-pos", help="an RTKLIB .pos to use as the reference (antenna)")
     p.add_argument("--data", help="drive_0708's directory (default ../shared/data/drive_0708)")
+
+
+def _settings_help():
+    """`--set help`: every ins.cfg setting with its default (and range, for the floats)."""
+    from host_emulator.replay import board
+
+    print("--set NAME=VALUE, the board settings (firmware/lib/config.py) and their defaults:")
+    for name, value, limits in board.catalogue():
+        print(f"  {name} = {value}" + (f"   ({limits})" if limits else ""))
 
 
 def _load(args):
@@ -193,9 +229,12 @@ def _replay(args):
     injected = _faults(args)
     if injected is None:
         return 0
+    if any(t.strip().lower() == "help" for t in args.set):
+        _settings_help()
+        return 0
     ds = _load(args)
     m = replay_run.replay(
-        ds, _replay_options(args, ds.gnss is not None), args.runtime, args.out,
+        ds, _replay_options(args, ds), args.runtime, args.out,
         show_progress=not args.quiet, kernels=_kernels(args), faults=injected,
     )  # fmt: skip
     print(demo.summary(m, args.out))
@@ -214,8 +253,11 @@ def _export(args):
         cli_args.check_seed(seed)
         written = replay_run.export_scenario(args.scenario, args.duration, seed, args.out)
     else:
+        if any(t.strip().lower() == "help" for t in args.set):
+            _settings_help()
+            return 0
         ds = _load(args)
-        written = replay_run.export_replay(ds, _replay_options(args, ds.gnss is not None), args.out)
+        written = replay_run.export_replay(ds, _replay_options(args, ds), args.out)
     for path in written:
         print(path)
     return 0
@@ -245,7 +287,11 @@ def main(argv=None):
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
     src = rp.add_mutually_exclusive_group(required=True)
     src.add_argument("--dataset", help="a built-in recording: drive_0708")
-    src.add_argument("--kf-gins", help="a directory in the KF-GINS layout (docs/formats.md)")
+    src.add_argument(
+        "--kf-gins", metavar="DIR",
+        help="a directory in the KF-GINS layout, e.g. your own recording (docs/formats.md): "
+        "replayed as it is (no outages, scored from t0)",
+    )  # fmt: skip
     _add_replay_options(rp)
     rp.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     cli_args.add_kernels_option(rp)

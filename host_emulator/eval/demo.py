@@ -28,12 +28,13 @@ def summary(m, out_dir):
         ("roll / pitch / yaw error (RMS)", att + " deg", "", "0.5/0.5/3 deg"),
     ]  # fmt: skip
     w = [max(len(r[i]) for r in rows) for i in range(4)]
-    lines = [
-        "",
-        f"{m['scenario']}: {m['duration_s']:g} s simulated drive (seed {m['seed']}), "
-        f"firmware on {m['runtime']}",
-        "",
-    ]
+    if m.get("source") == "recording":  # a replay: no simulation; a seed only for added noise
+        noise = m.get("gnss_noise_m")
+        added = f", GNSS noise {noise:g} m (seed {m['seed']})" if noise else ""
+        what = f"recording {m['dataset']}: {m['duration_s']:.1f} s{added}"
+    else:
+        what = f"{m['scenario']}: {m['duration_s']:g} s simulated drive (seed {m['seed']})"
+    lines = ["", f"{what}, firmware on {m['runtime']}", ""]
     lines += ["  ".join(c.ljust(w[i]) for i, c in enumerate(r)).rstrip() for r in rows]
     lines.append("")
     if m["align_time_s"] is None:

@@ -30,6 +30,47 @@ def _firmware_config():
     return config
 
 
+def parse_setting(text):
+    """(name, value) of one `NAME=VALUE` board setting as `config set` and `replay --set`
+    take it: an int setting in Python's integer syntax (0x.. too), a float setting as n
+    comma-separated numbers (a float for n = 1, a list otherwise), a calibration matrix also
+    as `identity`. ConfigError (one sentence) for a malformed one; the values' ranges are the
+    firmware's to check (`from_values`, BoardConfig.validate)."""
+    config = _firmware_config()
+    if "=" not in text:
+        raise ConfigError(f"expected NAME=VALUE, got {text!r}.")
+    name, value = (s.strip() for s in text.split("=", 1))
+    schema = {row[1]: row for row in config._SCHEMA}
+    if name not in schema:
+        raise ConfigError(f"unknown setting {name!r}; the settings are: {', '.join(schema)}.")
+    _rid, _name, kind, n, _default = schema[name]
+    try:
+        if kind == config._INT:
+            return name, int(value, 0)
+        if name.endswith("_matrix") and value.lower() in ("identity", "none", ""):
+            return name, None
+        values = [float(x) for x in value.split(",")]
+    except ValueError:
+        what = "an integer" if kind == config._INT else f"{n} comma-separated number(s)"
+        raise ConfigError(f"{name} must be {what}, got {value!r}.") from None
+    if len(values) != n:
+        raise ConfigError(f"{name} takes {n} comma-separated numbers, got {len(values)}.")
+    return name, values[0] if n == 1 else values
+
+
+def format_setting(value, digits=9):
+    """A setting's value as text, the inverse of parse_setting: `identity` for a calibration
+    matrix that is None, numbers comma-separated, floats to `digits` significant digits (9
+    give a float32 back exactly)."""
+    if value is None:
+        return "identity"
+    if isinstance(value, list):
+        return ",".join(f"{x:.{digits}g}" for x in value)
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
 def default_output_baud():
     """The RS485 baud rate of a board without a configuration file."""
     return _firmware_config().BoardConfig().output_baud

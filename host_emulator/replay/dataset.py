@@ -97,3 +97,7 @@ class Dataset:
     # board configuration for this installation's sensor (noise, standstill thresholds:
     # names of firmware/lib/config.py), as a user would set it for their board
     board_config: dict = field(default_factory=dict)
+    # where the parts came from, for messages: "imu", "truth", "gnss" -> a file name, and the
+    # GPS week a KF-GINS dataset's sow columns count from (its dataset.yaml gpsweek)
+    files: dict = field(default_factory=dict)
+    gpsweek: int | None = None

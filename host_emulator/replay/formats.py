@@ -87,10 +87,22 @@ def read_lines(path, what):
         raise FormatError(f"{path}: cannot read ({what}): {e.strerror}") from None
 
 
+def _separator_hint(line):
+    """What to say about a row whose columns did not split on whitespace."""
+    for sep, name in ((",", "commas"), (";", "semicolons"), ("|", "bars")):
+        if sep in line:
+            return (
+                f": the line holds {name}, the columns must be separated by spaces or tabs "
+                f"(e.g. tr '{sep}' ' ' < in.csv > out.txt)"
+            )
+    return ""
+
+
 def parse_table(path, lines, counts, what, comment="#"):
     """Whitespace-separated numeric rows -> ((N, cols) float64 array, (N,) 1-based line
     numbers). Blank lines and lines starting with a `comment` character are skipped; every
-    other row must have the same number of columns, one of `counts`."""
+    other row must have the same number of columns, one of `counts`. The messages say when a
+    line holds another separator (commas: a CSV) or the first row is a header."""
     rows = []
     line_no = []
     cols = None
@@ -101,10 +113,15 @@ def parse_table(path, lines, counts, what, comment="#"):
         n = len(parts)
         if cols is None:
             if n not in counts:
-                raise FormatError(f"{path}:{i}: {n} columns, {what} rows have {_counts(counts)}")
+                raise FormatError(
+                    f"{path}:{i}: {n} columns, {what} rows have {_counts(counts)}"
+                    + _separator_hint(line)
+                )
             cols = n
         elif n != cols:
-            raise FormatError(f"{path}:{i}: {n} columns, the rows before have {cols}")
+            raise FormatError(
+                f"{path}:{i}: {n} columns, the rows before have {cols}" + _separator_hint(line)
+            )
         rows.append(parts)
         line_no.append(i)
     if not rows:
@@ -112,13 +129,20 @@ def parse_table(path, lines, counts, what, comment="#"):
     try:
         table = np.array(rows, dtype=np.float64)
     except ValueError:
-        for parts, i in zip(rows, line_no, strict=True):
+        for r, (parts, i) in enumerate(zip(rows, line_no, strict=True)):
             for col, token in enumerate(parts, 1):
                 try:
                     float(token)
                 except ValueError:
+                    hint = ""
+                    if r == 0 and any(ch.isalpha() for ch in token):
+                        hint = (
+                            ": a header line? The files have none (delete it, or start it with #)"
+                        )
+                    elif "," in token:
+                        hint = ": a decimal comma? Numbers take a point"
                     raise FormatError(
-                        f"{path}:{i}: column {col} is {token!r}, not a number"
+                        f"{path}:{i}: column {col} is {token!r}, not a number{hint}"
                     ) from None
         raise
     return table, np.asarray(line_no)

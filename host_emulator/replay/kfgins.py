@@ -32,6 +32,10 @@ YAML subset (`key: value` lines, `#` comments, numbers, strings, `[a, b, c]` lis
     installangle  [roll, pitch, yaw] deg, sensor axes -> body FRD as `Dataset.mount_rpy_deg`
                   (ours; default [0, 0, 0]: KF-GINS's IMU axes already are the body's)
     gravity       m/s^2 (optional, information)
+    board         (optional) an indented block of the board's ins.cfg settings, one
+                  `name: value` per line as `config set NAME=VALUE` takes them (firmware/lib/
+                  config.py: noise, profile, thresholds, ...; a list for a vector); the
+                  replay runs the firmware with them, after the settings it derives itself
 
 `read` returns a `Dataset` in `dataset.py`'s conventions (GPST seconds, mean rates in sensor
 axes); `write` writes the four files from one (body-FRD IMU file, installangle [0, 0, 0]);
@@ -47,6 +51,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 
+from host_emulator.errors import EmulatorError
 from host_emulator.sim.trajectory import euler_to_dcm
 
 from .dataset import SWAP_FRD_RFU, WEEK_S, Dataset, Imu, Positions, mount_matrix
@@ -83,6 +88,7 @@ _KEYS = {
     "antlever": ("vec3", True),
     "installangle": ("vec3", False),
     "gravity": ("number", False),
+    "board": ("board", False),
 }
 
 # Formats of the written columns (the time columns are written as "%.6f": 1 us).
@@ -171,23 +177,56 @@ def _value(text, where):
 
 def parse_description(path):
     """{key: (value, line number)} of a description file (the YAML subset of the module doc:
-    `key: value` lines, `#` comments, numbers, quoted or bare strings, one-line lists)."""
+    `key: value` lines, `#` comments, numbers, quoted or bare strings, one-line lists, and a
+    key with no value followed by indented `name: value` lines, whose value is then
+    {name: (text as written, line number)})."""
     path = Path(path)
     out = {}
+    block = None  # the key whose indented lines follow
     for i, raw in enumerate(read_lines(path, "dataset description"), 1):
         line = _strip_comment(raw).rstrip()
         if not line.strip():
             continue
         where = f"{path}:{i}"
-        if line[0] in " \t" or line.lstrip().startswith("- "):
-            raise FormatError(f"{where}: indented or block lines are not supported: {raw.strip()}")
-        key, sep, rest = line.partition(":")
+        indented = line[0] in " \t"
+        if line.lstrip().startswith("- ") or (indented and block is None):
+            raise FormatError(
+                f"{where}: indented or block lines are not supported (only under board:): "
+                f"{raw.strip()}"
+            )
+        key, sep, rest = line.strip().partition(":")
         key = key.strip()
         if not sep or not _KEY_RE.match(key):
             raise FormatError(f"{where}: expected 'key: value', got {raw.strip()!r}")
+        if indented:
+            entries = out[block][0] if out[block][0] is not None else {}
+            if key in entries:
+                raise FormatError(
+                    f"{where}: {block}: {key} given twice (first on line {entries[key][1]})"
+                )
+            entries[key] = (rest.strip(), i)
+            out[block] = (entries, out[block][1])
+            continue
         if key in out:
             raise FormatError(f"{where}: {key} given twice (first on line {out[key][1]})")
         out[key] = (_value(rest, where), i)
+        block = key if out[key][0] is None else None
+    return out
+
+
+def _board_settings(path, entries):
+    """{name: value} of a board: block, each line parsed as `config set NAME=VALUE` parses it
+    and checked by the firmware's own validation (FormatError naming the line)."""
+    from host_emulator.replay import board
+
+    out = {}
+    for name, (text, line) in entries.items():
+        value = text[1:-1] if text.startswith("[") and text.endswith("]") else text
+        try:
+            key, parsed = board.parse(f"{name}={value}", where="board:")
+        except EmulatorError as e:
+            raise FormatError(f"{path}:{line}: {e}") from None
+        out[key] = parsed
     return out
 
 
@@ -204,6 +243,15 @@ def _typed(path, raw):
     out = {}
     for key, (kind, required) in _KEYS.items():
         value, line = raw.get(key, (None, None))
+        if isinstance(value, dict) and kind != "board":
+            raise FormatError(f"{path}:{line}: {key} takes its value on its line, not a block")
+        if kind == "board":
+            if value is not None and not isinstance(value, dict):
+                raise FormatError(
+                    f"{path}:{line}: board takes indented 'name: value' lines below it"
+                )
+            out[key] = _board_settings(path, value or {})
+            continue
         if value is None:
             if required:
                 raise FormatError(f"{path}: missing key {key!r}")
@@ -291,16 +339,88 @@ def _triple_or_none(a):
     return None if np.isnan(a).all() else a
 
 
+# What a vehicle's IMU shows (the checks that catch rates written instead of increments)
+_GRAVITY_BAND = (4.9, 20.0)  # m/s^2: the median specific force of a drive is about g
+_GYRO_MAX_RAD_S = math.radians(2000.0)  # the BMI055's largest range
+
+
+def _check_imu_rows(path, desc, sow, tab, dt, keep):
+    """FormatError naming the likely mistake when the IMU rows cannot be a vehicle's
+    increments: rows spaced unlike imudatarate (sow in ms?), velocity increments whose
+    specific force is not about g (accelerations written instead of increments, or g
+    units), gyro increments beyond any gyro range (rates written instead)."""
+    rate = desc["imudatarate"]
+    if sow.size > 1:
+        step = float(np.median(np.diff(sow)))
+        if not 1.0 / 1.5 <= step * rate <= 1.5:
+            hint = (
+                ": is sow in milliseconds? It counts seconds of the GPS week"
+                if 500.0 < step * rate < 2000.0
+                else f": set imudatarate to {1.0 / step:.6g}"
+            )
+            raise FormatError(
+                f"{path}: the rows are {step:.6g} s apart (median), imudatarate {rate:g} Hz "
+                f"says {1.0 / rate:.6g} s{hint}"
+            )
+    dv, dth, dt = tab[keep, 4:7], tab[keep, 1:4], dt[keep, None]
+    f_m_s2 = float(np.median(np.linalg.norm(dv / dt, axis=1)))
+    lo, hi = _GRAVITY_BAND
+    if not lo <= f_m_s2 <= hi:
+        raw = float(np.median(np.linalg.norm(dv, axis=1)))
+        interval = f"1/imudatarate = {1.0 / rate:.6g} s"
+        if lo <= raw <= hi:
+            cause = (
+                "the dv columns look like accelerations in m/s^2 rather than velocity "
+                f"increments (m/s) over the row's interval ({interval}): multiply them by the "
+                "interval (dv = f dt), and the gyro columns too (dtheta = w dt, rad)"
+            )
+        elif 0.5 <= raw <= 2.0:
+            cause = (
+                "the dv columns look like accelerations in g rather than velocity increments "
+                f"(m/s) over the row's interval ({interval}): multiply them by 9.80665 and by "
+                "the interval, and the gyro columns by the interval (dtheta = w dt, rad)"
+            )
+        elif 0.5 <= f_m_s2 <= 2.0:
+            cause = "the dv columns look like increments in g s: multiply them by 9.80665"
+        else:
+            cause = "the dv columns must be velocity increments in m/s over each row's interval"
+        raise FormatError(
+            f"{path}: the velocity increments give a median specific force of {f_m_s2:.4g} "
+            f"m/s^2, where gravity alone is about 9.8: {cause}"
+        )
+    w = np.linalg.norm(dth / dt, axis=1)
+    if w.size and float(w.max()) > _GYRO_MAX_RAD_S:
+        k = int(np.argmax(w))
+        raw = float(np.linalg.norm(dth[k]))
+        # a vehicle turns at up to ~1 rad/s: values of a few units are rad/s, tens deg/s
+        unit = "rad/s" if raw < 3.0 else "deg/s" if raw <= 2000.0 else None
+        cause = (
+            f"the gyro columns look like rates (in {unit}, by their size) rather than angle "
+            f"increments (rad) over the row's interval: "
+            f"{'' if unit == 'rad/s' else 'convert them to rad/s and '}multiply them by the "
+            "interval (dtheta = w dt)"
+            if unit
+            else "the gyro columns must be angle increments in rad over each row's interval"
+        )
+        raise FormatError(
+            f"{path}: a gyro increment of {raw:.4g} over {float(dt[k, 0]):.4g} s is "
+            f"{math.degrees(float(w[k])):.4g} deg/s, beyond any gyro range (the BMI055's "
+            f"largest is 2000 deg/s): {cause}"
+        )
+
+
 def _read_imu(desc_path, desc):
     path = _data_file(desc_path, desc, "imufile")
     tab, line_no = parse_table(path, read_lines(path, "KF-GINS IMU file"), (7, 8), "IMU")
     sow = tab[:, 0]
     check_increasing(path, sow, line_no, "sow")
-    dt = intervals(sow, desc["imudatarate"])[:, None]
+    dt = intervals(sow, desc["imudatarate"])
     keep = _window(desc, sow)
     if not keep.any():
         raise FormatError(f"{desc_path}: no IMU rows between starttime and endtime ({path})")
+    _check_imu_rows(path, desc, sow, tab, dt, keep)
     t = desc["gpsweek"] * WEEK_S + sow
+    dt = dt[:, None]
     return Imu(t[keep], (tab[:, 1:4] / dt)[keep], (tab[:, 4:7] / dt)[keep])
 
 
@@ -347,6 +467,7 @@ def read(path):
     desc_path = _description_path(path)
     desc = _typed(desc_path, parse_description(desc_path))
     name = desc["name"] if desc["name"] is not None else desc_path.parent.resolve().name
+    files = {key[:-4]: desc[key] for key in ("imufile", "gnssfile", "truthfile") if desc[key]}
     return Dataset(
         name=name,
         imu=_read_imu(desc_path, desc),
@@ -357,6 +478,9 @@ def read(path):
         lever_frd_m=desc["antlever"],
         gravity_m_s2=desc["gravity"],
         description=desc["description"] or "",
+        board_config=desc["board"],
+        files=files,
+        gpsweek=desc["gpsweek"],
     )
 
 
@@ -395,6 +519,7 @@ def _rate_text(sow):
 
 def write(path, dataset, gnss=None, truth=None):
     """Write `dataset` as KF-GINS files plus dataset.yaml into directory `path` (created).
+    Its board_config becomes the description's `board:` block.
 
     The IMU file holds body-FRD increments: the sensor-axes rates are rotated with
     mount_matrix(dataset.mount_rpy_deg), multiplied by each row's interval (`intervals` of the
@@ -481,6 +606,18 @@ def write(path, dataset, gnss=None, truth=None):
     ]
     if dataset.gravity_m_s2 is not None:
         lines.append(f"gravity: {float(dataset.gravity_m_s2)!r}  # m/s^2")
+    if dataset.board_config:
+        lines.append(
+            "board:  # the board's ins.cfg settings for this sensor (firmware/lib/config.py)"
+        )
+        for name, value in dataset.board_config.items():
+            if value is None:
+                text = "identity"
+            elif isinstance(value, (list, tuple)):
+                text = vec(value)
+            else:
+                text = repr(value)
+            lines.append(f"  {name}: {text}")
     (out / DESCRIPTION).write_text("\n".join(lines) + "\n", encoding="utf-8")
     return out
 

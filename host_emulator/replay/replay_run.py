@@ -5,7 +5,15 @@
         recording's reference -> DIR/metrics.json, report.md, *.png, solution.pos
 
 The outputs are those of `run` (scenario_run.py); solution.pos is the firmware's track as an
-RTKLIB solution (10 Hz, at the extended frames) for rtkplot users.
+RTKLIB solution (10 Hz, at the extended frames) for rtkplot users. The console, report.md and
+metrics.json ("notes", "board_config") say what the conversion did with the data (epochs
+left out, PPS or not, outages after the end) and the board settings the firmware ran with;
+a run that never navigated ends in one line saying why (diagnose.py).
+
+Defaults: drive_0708 keeps the protocol its published figures were measured with (1 Hz, 15 s
+outages at t0 + 60/200/400 s, scored from t0 + 30 s: to_stimulus.ReplayOptions()); a KF-GINS
+dataset, someone's own recording, runs as it is (`kfgins_options`: no outages, scored from
+t0).
 """
 
 import json
@@ -19,7 +27,7 @@ from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
 from host_emulator.proto import stream
-from host_emulator.replay import to_stimulus
+from host_emulator.replay import board, diagnose, to_stimulus
 from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
@@ -52,6 +60,16 @@ def parse_outages(spec):
             raise EmulatorError(f"--outages: {part!r} needs START >= 0 and LENGTH > 0")
         out.append((start, length))
     return tuple(out)
+
+
+def kfgins_options(dataset=None, **kw):
+    """ReplayOptions for a KF-GINS dataset: no outages, scored from t0, a recorded GNSS file
+    as it is (no noise added; without one the input is made from the reference with the
+    protocol's noise); keyword arguments override."""
+    base = {"outages": (), "skip_s": 0.0}
+    if dataset is not None and dataset.gnss is not None:
+        base["gnss_noise_m"] = None
+    return to_stimulus.ReplayOptions(**{**base, **kw})
 
 
 def load_dataset(dataset=None, kf_gins=None, data_dir=None, gnss_pos=None, truth_pos=None):
@@ -92,6 +110,7 @@ def evaluate_replay(rep, fw, runtime):
     metrics = {
         "scenario": rep.name,
         "dataset": rep.name,
+        "source": "recording",
         "duration_s": float(rep.stimulus.duration_s),
         "seed": int(opt.seed),
         "runtime": runtime,
@@ -107,6 +126,13 @@ def evaluate_replay(rep, fw, runtime):
         "gnss_noise_m": opt.gnss_noise_m,
         "gnss_velocity_sigma": opt.gnss_velocity_sigma,
         "imu_ranges": rep.ranges,
+        "gnss_epochs": int(g.t_fix_s.size),
+        "gnss_pps": rep.pps,
+        "board_config": rep.stimulus.config,
+        "board_config_sources": {
+            name: rep.sources.get(name, board.REPLAY) for name in rep.stimulus.config
+        },
+        "notes": list(rep.notes),
     }
     return metrics, tr, err
 
@@ -125,20 +151,29 @@ def markdown(m, rep, console=()):
         f"white noise {opt.gnss_noise_m:g}/{opt.gnss_noise_m:g}/{2 * opt.gnss_noise_m:g} m "
         f"(N/E/D, numpy default_rng({opt.seed}))"
     )  # fmt: skip
+    made = (
+        ("the recording's GNSS fixes" + (" with added noise" if opt.gnss_noise_m else ""))
+        if rep.gnss_recorded
+        else "the reference positions degraded into GNSS fixes"
+    )
+    timing = "with PPS" if rep.pps else f"without PPS (gnss_latency_s {rep.latency_s:.3f} s)"
+    rate = f"up to {rep.stimulus.header['gnss_rate_hz']:g} Hz"
     lines = [
         f"# Replay: {m['dataset']} ({m['duration_s']:g} s, {m['runtime']})",
         "",
         "The unmodified firmware loop ran on an emulated board fed from the recording: the "
-        "IMU as BMI055 registers at 200 Hz, the reference positions degraded into NMEA bytes "
-        "on the GNSS UART with PPS. Errors are those of its output frames against the "
-        "recording's reference, at 10 Hz.",
+        f"IMU as BMI055 registers at 200 Hz, {made} as NMEA bytes on the GNSS UART {timing}. "
+        "Errors are those of its output frames against the recording's reference, at 10 Hz.",
         "",
-        f"- GNSS input: {opt.gnss_rate_hz:g} Hz, {noise}, {vel}; outages: {outs}.",
+        f"- GNSS input: {m['gnss_epochs']} epochs at {rate}, {noise}, {vel}; outages: {outs}.",
         f"- t0 (first GNSS epoch) = {m['t0_s']:.1f} s into the run; metrics from "
         f"{m['metrics_from_s']:.1f} s; navigating from {fmt(m['align_time_s'], 1, unit='s')}.",
         f"- IMU ranges: gyro +-{rep.ranges['gyro_range_dps']} deg/s (peak "
         f"{rep.ranges['gyro_peak_dps']:.1f}), accel +-{rep.ranges['accel_range_g']} g (peak "
         f"{rep.ranges['accel_peak_g']:.2f}).",
+        f"- Board settings (ins.cfg) other than the firmware's defaults: "
+        f"{board.describe(rep.stimulus.config, rep.sources)}.",
+        *[f"- {note[0].upper()}{note[1:]}." for note in rep.notes],
         "",
         "| figure | firmware | raw GNSS input |",
         "|---|---|---|",
@@ -229,6 +264,12 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
             (out_dir / name).unlink()
     t0 = time.perf_counter()
     rep = to_stimulus.convert(ds, options)
+    if rep.window_s >= rep.stimulus.duration_s:
+        raise EmulatorError(
+            f"--score-from {options.skip_s:g}: scoring would start {rep.window_s:.1f} s into "
+            f"the run (t0, the first GNSS epoch, is at {rep.t0_s:.1f} s), after its end "
+            f"({rep.stimulus.duration_s:.1f} s)"
+        )
     if faults:
         rep.stimulus = faults_mod.apply(rep.stimulus, faults, options.seed)
     stim_path = out_dir / "stimulus.bin"
@@ -237,6 +278,9 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         f"converted {ds.name}: {rep.stimulus.duration_s:.0f} s, {len(rep.gnss)} GNSS epochs "
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
+    for note in rep.notes:
+        log(f"  {note}")
+    log(f"  board settings: {board.describe(rep.stimulus.config, rep.sources)}")
     for f in rep.stimulus.header.get("faults", []):
         log(f"fault injected: {f}")
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
@@ -244,9 +288,20 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:
-        said = "; ".join(fw.console) or "nothing"
+        if metrics["align_time_s"] is None:
+            raise EmulatorError(
+                f"the firmware never navigated on {ds.name}: {diagnose.why(rep, fw.console)}"
+            )
         raise EmulatorError(
-            f"the firmware never navigated on {ds.name} (its console: {said}): nothing to score"
+            f"the firmware navigated on {ds.name} only after the reference ends "
+            f"({metrics['align_time_s']:.1f} s): nothing to score"
+        )
+    if metrics["horiz_rms_m"] is None:
+        raise EmulatorError(
+            f"nothing to score on {ds.name}: the firmware navigated from "
+            f"{metrics['align_time_s']:.1f} s, scoring starts at {rep.window_s:.1f} s (t0 + "
+            f"--score-from {rep.options.skip_s:g} s) and the run ends at "
+            f"{rep.stimulus.duration_s:.1f} s: lower --score-from"
         )
     g = rep.gnss
     report.plots(
@@ -305,6 +360,7 @@ def export_replay(ds, options, out_dir):
         lever_frd_m=ds.lever_frd_m,
         gravity_m_s2=ds.gravity_m_s2,
         description=f"{ds.description}; replay input (seed {options.seed})",
+        board_config={**ds.board_config, **dict(options.config)},
     )
     out = pathlib.Path(out_dir)
     yaml = kfgins.write(out, cut)

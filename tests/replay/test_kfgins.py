@@ -325,7 +325,9 @@ def test_non_increasing_time(tmp_path):
 
 def test_not_a_number(tmp_path):
     msg = _error(tmp_path, nav=NAV.replace("20.899", "20,899", 1))
-    assert msg.endswith("truth.nav:1: column 5 is '20,899', not a number")
+    assert msg.endswith(
+        "truth.nav:1: column 5 is '20,899', not a number: a decimal comma? Numbers take a point"
+    )
 
 
 def test_window_without_imu_rows(tmp_path):

@@ -111,41 +111,22 @@ def _image(args):
     return 0
 
 
-def _format_value(value):
-    if value is None:
-        return "identity"
-    if isinstance(value, list):
-        return ",".join(f"{x:.9g}" for x in value)
-    if isinstance(value, float):
-        return f"{value:.9g}"
-    return str(value)
-
-
 def _print_config(cfg, config):
+    from host_emulator.proto import config as board_config
+
     for _rid, name, _kind, _n, _default in config._SCHEMA:
-        print(f"{name} = {_format_value(getattr(cfg, name))}")
+        print(f"{name} = {board_config.format_setting(getattr(cfg, name))}")
 
 
 def _parse_setting(text, config):
-    if "=" not in text:
-        raise FlashError(f"expected NAME=VALUE, got {text!r}")
-    name, value = (s.strip() for s in text.split("=", 1))
-    schema = {row[1]: row for row in config._SCHEMA}
-    if name not in schema:
-        raise FlashError(f"unknown setting {name!r}; the settings are: {', '.join(schema)}.")
-    _rid, _name, kind, n, _default = schema[name]
+    """(name, value) of a NAME=VALUE (host_emulator/proto/config.py's parser, which `replay
+    --set` shares)."""
+    from host_emulator.proto import config as board_config
+
     try:
-        if kind == config._INT:
-            return name, int(value, 0)
-        if name.endswith("_matrix") and value.lower() in ("identity", "none", ""):
-            return name, None
-        values = [float(x) for x in value.split(",")]
-    except ValueError:
-        what = "an integer" if kind == config._INT else f"{n} comma-separated number(s)"
-        raise FlashError(f"{name} must be {what}, got {value!r}.") from None
-    if len(values) != n:
-        raise FlashError(f"{name} takes {n} comma-separated numbers, got {len(values)}.")
-    return name, values[0] if n == 1 else values
+        return board_config.parse_setting(text)
+    except board_config.ConfigError as e:
+        raise FlashError(str(e)) from None
 
 
 def _config(args):
@@ -201,8 +182,11 @@ def _config(args):
     else:
         deploy.write_config(args.port, args.baud, data)
         print("a soft reset applies it: the board was soft-reset and loads it now")
+    from host_emulator.proto import config as board_config
+
     for name, value in changes:
-        print(f"{name} = {_format_value(getattr(cfg, name) if value is not None else None)}")
+        text = board_config.format_setting(getattr(cfg, name) if value is not None else None)
+        print(f"{name} = {text}")
     return 0
 
 
