@@ -52,6 +52,7 @@ SOMIGLIANA_K = 1.93185265241e-3
 FREE_AIR_M_S2_PER_M = -3.086e-6
 
 TWO_PI = 2.0 * np.pi
+CAR_ANTENNA_B_M = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna on a car's roof, body axes (r, f, u), m
 
 
 @dataclass(frozen=True)
@@ -247,7 +248,7 @@ class DriveScript:
         self.bank = Ramps(bank0_rad)
         self.t_s = 0.0
         self.sway = None  # a Sway: the carried sensor's own motion on the path
-        self.antenna_b_m = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna, body axes: a car's roof
+        self.antenna_b_m = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes
         self.board_profile = 0  # the board's profile setting for it: 0 car, 1 handheld
 
     @property
@@ -351,7 +352,7 @@ class Truth:
     h_m: np.ndarray  # (N,) ellipsoidal height, m
     w_ie_n: np.ndarray  # (3,) Earth rate in ENU, rad/s
     outages: tuple = field(default=())  # GNSS outage windows ((start_s, length_s), ...)
-    antenna_b_m: tuple = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna, body axes (sim.gnss's default)
+    antenna_b_m: tuple = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes (sim.gnss uses it)
     board_profile: int = 0  # the board's profile setting (config.py): 0 car, 1 handheld
 
     dt_s = DT_S
