@@ -169,7 +169,7 @@ class App:
         self._heap_tick = 0  # the navigator's tick at the last aligning heap check
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
-        self.ext = records.ExtFrame()
+        self.ext = records.ExtFrame(self.nav.cv)
         self.raw = records.RawRecord()
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self._led = False

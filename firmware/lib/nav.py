@@ -249,7 +249,15 @@ _M_INIT = const(1615)  # the initial P diagonal (eskf.N): self._init
 _M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._ns
 _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
-_NM = const(1644)
+_M_CN = const(1644)  # the receiver's unseen error (_CN_*, _NCN): _consistency
+_NM = const(1649)
+# mem's _M_CN: the receiver's unseen error (_consistency)
+_CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
+_CN_MH = const(1)  # running mean of y^2/S, east and north
+_CN_MV = const(2)  # ... up
+_CN_VH = const(3)  # unseen variance per horizontal axis, m^2 (Navigator.cv[0])
+_CN_VV = const(4)  # ... vertical, m^2 (Navigator.cv[1])
+_NCN = const(5)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
@@ -291,6 +299,9 @@ class Navigator(Alignment, Aiding):
         self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
         self._ns = f32.view(m, _M_NS, 3)
         self._init_motion = f32.view(m, _M_INIT + eskf.IX_VEL, 6)  # for widen
+        # the receiver's error variance the filter cannot see (east/north per axis, up; m^2):
+        # what the extended frame adds to P's position diagonal (_consistency)
+        self.cv = f32.view(m, _M_CN + _CN_VH, 2)
         self._trk = None  # nav_align: the track anchors, made at the first fix without a course
         # configuration derived once
         c[_C_T_PROP] = _ticks(cfg.prop_period_s, dt)
@@ -758,8 +769,10 @@ class Navigator(Alignment, Aiding):
             # diverged vertical channel is reset alone)
             mask = kf.i[eskf.I_GATE_MASK]
             ki = kf.i
-            if _drift_watch(kf.e, self.mem, ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]):
+            n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
+            if _drift_watch(kf.e, self.mem, n):
                 c[_C_DRIFT_UNTIL] = c[_C_TICK] + 5 * c[_C_T_SECOND]
+            _consistency(kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
             else:
@@ -876,9 +889,15 @@ class Navigator(Alignment, Aiding):
         return self.ypr
 
     def p_diag(self, out):
+        """The covariance diagonal as the extended frame reports it: P's, the position's
+        plus the receiver's error the filter cannot see (self.cv, _consistency)."""
         p = self.kf.P
         for i in range(eskf.N):
             out[i] = p[i * (eskf.N + 1)]
+        cv = self.cv
+        out[0] = out[0] + cv[0]
+        out[1] = out[1] + cv[0]
+        out[2] = out[2] + cv[1]
 
     def lat_lon(self, out_e7):
         """Integrated position into out_e7: lat (1e-7 deg), lon as (degrees, 1e-7 deg
@@ -1042,6 +1061,58 @@ def _drift_watch(e, mem, n):
         for m in range(_BW_N):
             bw[m] = 0.0
     return hit
+
+
+# The receiver's error that a white-noise filter cannot see (docs/navigation.md, "Correlated
+# GNSS errors"). The filter takes each fix's error as independent of the last one's, with the
+# variance R its sigma gives. A receiver's error is partly slow (multipath, atmosphere: tens of
+# seconds); consecutive fixes share that part, the filter follows it as if it were position,
+# and P never holds it. The innovations show it by its absence: when fixes scatter about the
+# INS prediction less than S = HPH' + R says, the missing share of R is error the estimate
+# carries along. So the running mean m of y^2/S over the last fixes estimates what R leaves
+# unseen: (1 - m) R, per axis, reported on top of P (nothing changes in the filter itself).
+_CN_N = f32.f32(64)  # the running means' length in fixes (1/k weights up to it: a true mean)
+_CN_CLIP = f32.f32(25)  # one y^2/S counts at most this much (_BW_CLIP squared)
+
+
+def _consistency(e, mem, n, mask):
+    """After a GNSS update of n scalars (E_Z/E_R: each one's innovation y and variance S)
+    whose gate mask is `mask`: when its three position rows were accepted, the running means
+    of y^2/S east/north and up in mem's _M_CN, and from them and the fix's sigmas (mem's _M_US)
+    the unseen variances _CN_VH, _CN_VV: (1 - mean) sigma^2, or 0 when the fixes scatter as
+    much as S says or more."""
+    if n < 3 or mask & 7:
+        return
+    z = f32.view(e, eskf.E_Z, 3)
+    r = f32.view(e, eskf.E_R, 3)
+    if not (r[0] > 0.0 and r[1] > 0.0 and r[2] > 0.0):
+        return
+    cn = f32.view(mem, _M_CN, _NCN)
+    k = cn[_CN_K] + 1.0
+    if k > _CN_N:
+        k = _CN_N
+    cn[_CN_K] = k
+    a = 1.0 / k
+    qe = z[0] * z[0] / r[0]
+    if qe > _CN_CLIP:
+        qe = _CN_CLIP
+    qn = z[1] * z[1] / r[1]
+    if qn > _CN_CLIP:
+        qn = _CN_CLIP
+    qu = z[2] * z[2] / r[2]
+    if qu > _CN_CLIP:
+        qu = _CN_CLIP
+    qh = (qe + qn) * 0.5
+    cn[_CN_MH] = cn[_CN_MH] + a * (qh - cn[_CN_MH])
+    cn[_CN_MV] = cn[_CN_MV] + a * (qu - cn[_CN_MV])
+    s = mem[_M_US + 5]  # nav_aid's _US_SIG_H
+    cn[_CN_VH] = 0.0
+    if cn[_CN_MH] < 1.0:
+        cn[_CN_VH] = (1.0 - cn[_CN_MH]) * (s * s)
+    s = mem[_M_US + 6]  # _US_SIG_V
+    cn[_CN_VV] = 0.0
+    if cn[_CN_MV] < 1.0:
+        cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
 
 
 def _ring_put_py(ring_p, ring_v, x, corr, b):

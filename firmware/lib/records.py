@@ -10,7 +10,8 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
      1 navigation state u8, 2 configuration status u8 (config.OK/MISSING/CORRUPT/INVALID)
      3 flags u8: bit 0 GNSS valid, bit 1 standstill, bit 2 IMU saturated
      4 worst tick us u16, 6 mean tick us u16, 8 overruns u16 (wrapping), 10 GC runs u16
-    12 P diagonal, 15 x f32 (seed 001 state order)
+    12 P diagonal, 15 x f32 (seed 001 state order); the position's three hold P's plus the
+       receiver's error the filter cannot see (Navigator.cv, nav._consistency)
     72 gyro bias rad/s 3 x f32, 84 accel bias m/s^2 3 x f32
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32
        (1e-7 deg; the integrated lat/lon is the origin plus the position, through geo.py)
@@ -75,9 +76,10 @@ def seal(buf, mv, n):
     frame.put_i32(buf, n, crc32(mv) & 0xFFFFFFFF)
 
 
-def _ext_pack_py(d, fi, p, x, coef):
+def _ext_pack_py(d, fi, p, x, coef, cv):
     """The extended frame into d (EXT_LEN bytes) from its int fields fi (EF_*), the covariance
-    P (15 x 15), the navigation state x (ins.x) and the origin's coefficients; the reference
+    P (15 x 15), the navigation state x (ins.x), the origin's coefficients and the unseen
+    GNSS variances cv (horizontal, vertical: added to P's position diagonal); the reference
     of the native kernel `ext_pack` (which also computes the CRC without allocating)."""
     _head(d, EXT_TYPE, EXT_PAYLOAD + 1, fi[EF_COUNTER])
     d[4] = fi[EF_HEALTH]
@@ -89,6 +91,9 @@ def _ext_pack_py(d, fi, p, x, coef):
         frame.put_u16(d, 8 + 2 * k, v if v < 65535 else 65535)
     for i in range(15):
         struct.pack_into("<f", d, 16 + 4 * i, p[16 * i])  # P[i][i]
+    struct.pack_into("<f", d, 16, p[0] + cv[0])
+    struct.pack_into("<f", d, 20, p[16] + cv[0])
+    struct.pack_into("<f", d, 24, p[32] + cv[1])
     for i in range(3):
         struct.pack_into("<f", d, 76 + 4 * i, x[ins.X_BG + i])
         struct.pack_into("<f", d, 88 + 4 * i, x[ins.X_BA + i])
@@ -106,14 +111,17 @@ ext_pack = kern.pick("ext_pack", _ext_pack_py)
 
 class ExtFrame:
     """Preallocated extended frame: fill `fields` (EF_*), then `pack`; `data` is what to send.
-    The overflow counters wrap at 16 bits, the tick times saturate at 65535 us."""
+    The overflow counters wrap at 16 bits, the tick times saturate at 65535 us. `cv`: the
+    navigator's unseen GNSS variances (Navigator.cv), bound once: one argument more to `pack`
+    would put its frame on the heap at every call (tests/runtimes/test_frames.py)."""
 
-    def __init__(self):
+    def __init__(self, cv):
         self.data = bytearray(EXT_LEN)
         self.fields = array("i", bytes(4 * NEF))
+        self.cv = cv
 
     def pack(self, p, x, coef):
-        ext_pack(self.data, self.fields, p, x, coef)
+        ext_pack(self.data, self.fields, p, x, coef, self.cv)
 
 
 class RawRecord:

@@ -125,7 +125,7 @@ static void put_f32(uint8_t *buf, int off, float x) {
 #define EXT_LEN 136
 
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x,
-    const float *coef) {
+    const float *coef, const float *cv) {
     buf[0] = 0xEB;
     buf[1] = 0x91;
     buf[2] = EXT_LEN - 7; /* payload bytes after the head, the counter included */
@@ -141,6 +141,10 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     for (int i = 0; i < 15; i++) {
         put_f32(buf, 16 + 4 * i, p[16 * i]);
     }
+    /* the position's: P's plus the receiver's unseen error (nav._consistency) */
+    put_f32(buf, 16, p[0] + cv[0]);
+    put_f32(buf, 20, p[16] + cv[0]);
+    put_f32(buf, 24, p[32] + cv[1]);
     for (int i = 0; i < 3; i++) {
         put_f32(buf, 76 + 4 * i, x[X_BG + i]);
         put_f32(buf, 88 + 4 * i, x[X_BA + i]);

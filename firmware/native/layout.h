@@ -275,7 +275,15 @@
 #define M_NS 1630
 #define M_LVL 1633
 #define M_BW 1639
-#define NM 1644
+#define M_CN 1644
+#define NM 1649
+/* nav.py: the receiver's unseen error, m + M_CN (_consistency) */
+#define CN_K 0
+#define CN_MH 1
+#define CN_MV 2
+#define CN_VH 3
+#define CN_VV 4
+#define NCN 5
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4

@@ -24,7 +24,8 @@ void navk_inject(float *x, float *e, float *corr);
 void navk_euler(float *ypr, const float *c_bn);
 void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, const int32_t *lat, const int32_t *lon, const float *ypr, const float *v_n, const float *p_n, float ypr_cdeg_scale);
 void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, float *m);
-void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x, const float *coef);
+void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x, const float *coef,
+    const float *cv);
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid);
 void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi);
 int32_t navk_fix_usable(int32_t *c, float *m);

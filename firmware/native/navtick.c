@@ -21,6 +21,8 @@
 #define BW_LIMIT 3.0f /* nav._BW_LIMIT */
 #define BW_CLIP 5.0f /* nav._BW_CLIP */
 #define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
+#define CN_LEN 64.0f /* nav._CN_N */
+#define CN_CLIP 25.0f /* nav._CN_CLIP */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -288,6 +290,51 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
     return hit;
 }
 
+/* nav._consistency: after a GNSS update whose position rows were all accepted, the running
+ * means of y^2/S and from them the receiver's error variance the filter cannot see */
+static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
+    if (n < 3 || (mask & 7)) {
+        return;
+    }
+    const float *z = e + E_Z;
+    const float *r = e + E_R;
+    if (!(r[0] > 0.0f && r[1] > 0.0f && r[2] > 0.0f)) {
+        return;
+    }
+    float *cn = m + M_CN;
+    float k = cn[CN_K] + 1.0f;
+    if (k > CN_LEN) {
+        k = CN_LEN;
+    }
+    cn[CN_K] = k;
+    float a = 1.0f / k;
+    float qe = z[0] * z[0] / r[0];
+    if (qe > CN_CLIP) {
+        qe = CN_CLIP;
+    }
+    float qn = z[1] * z[1] / r[1];
+    if (qn > CN_CLIP) {
+        qn = CN_CLIP;
+    }
+    float qu = z[2] * z[2] / r[2];
+    if (qu > CN_CLIP) {
+        qu = CN_CLIP;
+    }
+    float qh = (qe + qn) * 0.5f;
+    cn[CN_MH] = cn[CN_MH] + a * (qh - cn[CN_MH]);
+    cn[CN_MV] = cn[CN_MV] + a * (qu - cn[CN_MV]);
+    float s = m[M_US + US_SIG_H];
+    cn[CN_VH] = 0.0f;
+    if (cn[CN_MH] < 1.0f) {
+        cn[CN_VH] = (1.0f - cn[CN_MH]) * (s * s);
+    }
+    s = m[M_US + US_SIG_V];
+    cn[CN_VV] = 0.0f;
+    if (cn[CN_MV] < 1.0f) {
+        cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
+    }
+}
+
 /* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
 static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
@@ -300,9 +347,11 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
         return 0;
     }
     int32_t mask = ki[I_GATE_MASK];
-    if (drift_watch(e, m, ki[I_ACCEPTED] + ki[I_REJECTED])) {
+    int32_t n = ki[I_ACCEPTED] + ki[I_REJECTED];
+    if (drift_watch(e, m, n)) {
         c[C_DRIFT_UNTIL] = c[C_TICK] + 5 * c[C_T_SECOND];
     }
+    consistency(e, m, n, mask);
     if (mask & 4) {
         c[C_V_REJECTS] += 1;
     } else {

@@ -79,19 +79,20 @@ def markdown(results):
         "t0+400 s, metrics from t0+30 s. `python -m host_emulator replay --dataset drive_0708 "
         "--out DIR` runs the first row with report and plots.",
         "",
-        "| run | horizontal RMS with GNSS | vertical RMS | velocity RMS | end of outages 1/2/3 |",
-        "|---|---|---|---|---|",
+        "| run | horizontal RMS with GNSS | vertical RMS | velocity RMS | end of outages 1/2/3 "
+        "| inside 3 sigma (E, N) | NEES |",
+        "|---|---|---|---|---|---|---|",
     ]
     for key, label, _opt in CASES:
         m = d[key]
         lines.append(
             f"| {label} | {fmt(m['horiz_rms_gnss_m'], unit='m')} | "
             f"{fmt(m['vert_rms_m'], unit='m')} | {fmt(m['vel_rms_m_s'], 3, unit='m/s')} | "
-            f"{_outs(m)} m |"
+            f"{_outs(m)} m | {_pct(m.get('pos_3sigma_coverage'))} | {fmt(m.get('pos_nees_h'))} |"
         )
     lines += [
         f"| raw 1 Hz GNSS input (ours) | {fmt(p['gnss_horiz_rms_m'], unit='m')} | "
-        f"{fmt(p['gnss_vert_rms_m'], unit='m')} | | |",
+        f"{fmt(p['gnss_vert_rms_m'], unit='m')} | | | | |",
         "",
         "Other filters under the same protocol (DESIGN.md 10, not re-run here):",
         "",
@@ -108,18 +109,23 @@ def markdown(results):
         "",
         "## Simulated scenarios (seed 0, realistic GNSS, BMI055 model)",
         "",
-        "| scenario | horizontal RMS | raw GNSS | vertical | velocity | yaw RMS | outage ends |",
-        "|---|---|---|---|---|---|---|",
+        "| scenario | horizontal RMS | raw GNSS | vertical | velocity | yaw RMS | outage ends "
+        "| inside 3 sigma (E, N) | NEES |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, m in results["simulated"].items():
         lines.append(
             f"| {name} ({m['duration_s']:g} s) | {fmt(m['horiz_rms_m'], unit='m')} | "
             f"{fmt(m['gnss_horiz_rms_m'], unit='m')} | {fmt(m['vert_rms_m'], unit='m')} | "
             f"{fmt(m['vel_rms_m_s'], 3, unit='m/s')} | {fmt(m['yaw_rms_deg'], unit='deg')} | "
-            f"{_outs(m)} m |"
+            f"{_outs(m)} m | {_pct(m.get('pos_3sigma_coverage'))} | {fmt(m.get('pos_nees_h'))} |"
         )
     lines += ["", LIMITS, ""]
     return "\n".join(lines)
+
+
+def _pct(x):
+    return "n/a" if x is None else f"{100 * x:.1f} %"
 
 
 LIMITS = """## What limits accuracy (drive_0708)

@@ -42,7 +42,7 @@ class NavRun:
     ypr: np.ndarray
     bg: np.ndarray
     ba: np.ndarray
-    p_sigma: np.ndarray  # sqrt of P's diagonal (15)
+    p_sigma: np.ndarray  # sqrt of the reported diagonal (15): P's, the position's plus nav.cv
     state: np.ndarray
     health: np.ndarray
     ticks: int
@@ -179,7 +179,11 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
         align_time_s=align_t,
         gnss_updates=nav.updates,
         resets=nav.resets,
-        extra={"reanchors": nav.reanchors, "p_n_final": [float(x) for x in nav.ins.p_n]},
+        extra={
+            "reanchors": nav.reanchors,
+            "p_n_final": [float(x) for x in nav.ins.p_n],
+            "cv_final": [float(x) for x in nav.cv],  # the receiver's unseen variances, m^2
+        },
     )
 
 

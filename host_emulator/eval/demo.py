@@ -41,6 +41,12 @@ def summary(m, out_dir):
         lines.append("navigating after       never: no heading without motion (no magnetometer)")
     else:
         lines.append(f"navigating after       {m['align_time_s']:.1f} s from power-on")
+    if m.get("pos_3sigma_coverage") is not None:
+        nees = m.get("pos_nees_h")
+        lines.append(
+            f"position inside 3-sigma {100 * m['pos_3sigma_coverage']:.1f} % of the time"
+            + ("" if nees is None else f" (NEES {nees:.2f}: 1 when the reported sigma is right)")
+        )
     for o in m["outages"]:
         lines.append(
             f"GNSS outage            {o['length_s']:g} s at {o['start_s']:g} s: "

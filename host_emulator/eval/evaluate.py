@@ -138,6 +138,8 @@ def accuracy(err, outages=(), skip_s=0.0, from_s=None):
     deg = 180.0 / np.pi
     sig = err.sigma[keep]
     inside = np.abs(dp[:, :2]) <= 3 * sig[:, :2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nees = np.square(dp[:, :2] / sig[:, :2])  # 1 on average when the sigma is right
     res = {
         "horiz_rms_m": rms(horiz),
         "horiz_rms_gnss_m": rms(horiz[ok]),
@@ -149,6 +151,7 @@ def accuracy(err, outages=(), skip_s=0.0, from_s=None):
         "pitch_rms_deg": None if not da.size else rms(da[:, 1]) * deg,
         "roll_rms_deg": None if not da.size else rms(da[:, 2]) * deg,
         "pos_3sigma_coverage": float(inside.mean()) if inside.size else None,
+        "pos_nees_h": float(np.mean(nees[np.isfinite(nees)])) if np.isfinite(nees).any() else None,
         "outages": [],
     }
     for start, length in outages:

@@ -180,7 +180,9 @@ def markdown(m, description="", console=(), notes=()):
         f"{fmt(m['pitch_rms_deg'], unit='deg')} | WMH601 spec 0.5 deg |",
         f"| yaw RMS | {fmt(m['yaw_rms_deg'], unit='deg')} | WMH601 spec 3 deg |",
         f"| position inside 3-sigma (E, N) | {fmt(m.get('pos_3sigma_coverage'), 3)} | "
-        "0.997 if the filter's covariance were right |",
+        "0.997 if the reported covariance were right |",
+        f"| mean (error / sigma)^2, E and N (NEES) | {fmt(m.get('pos_nees_h'))} | "
+        "1 when the reported sigma is right, < 1 larger than the errors, > 1 too small |",
         f"| time to navigation | {fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]

@@ -123,6 +123,7 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
         "horiz_max_m": acc["horiz_max_m"],
         "vel_rms_gnss_m_s": acc["vel_rms_gnss_m_s"],
         "pos_3sigma_coverage": acc["pos_3sigma_coverage"],
+        "pos_nees_h": acc["pos_nees_h"],
         "frame_error_detail": fe,
         "ext_frames": len(decoded.ext),
         "nmea_rejected": fw.stats.get("nmea_rejected"),

@@ -143,7 +143,7 @@ def ext_frame(counter, health, state, cfg_status, flags, model, causes, overruns
     """The extended frame (proto/records.py) of the model's state after this tick; overruns:
     the ticks the loop missed so far (on the emulator, whose loop takes no virtual time, only
     injected stalls)."""
-    kf, ins = model.kf, model.ins
+    ins = model.ins
     return records.encode_ext(
         counter,
         {
@@ -156,7 +156,7 @@ def ext_frame(counter, health, state, cfg_status, flags, model, causes, overruns
             "mean_tick_us": 0,
             "overruns": overruns & 0xFFFF,
             "gc_runs": 0,
-            "p_diag": np.diagonal(kf.P),
+            "p_diag": model.p_diag(),
             "gyro_bias_rad_s": ins.bg,
             "accel_bias_m_s2": ins.ba,
             "pos_enu_m": ins.p_n,

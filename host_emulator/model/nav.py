@@ -176,6 +176,9 @@ class NavModel(AlignmentModel, AidingModel):
         self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
         self.drift_until = 0
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
+        # the receiver's unseen error (nav._consistency): fixes counted, the running means of
+        # y^2/S east/north and up, the unseen variances per horizontal axis and vertical
+        self.consistency = np.zeros(fw_nav._NCN, F32)
         self.since_prop = 0
         self.since_zupt = 0
         self.since_nhc = 0
@@ -480,6 +483,7 @@ class NavModel(AlignmentModel, AidingModel):
         if self.job == JOB_GNSS:
             if self._drift_watch(kf.innov):
                 self.drift_until = self.tick + 5 * self.ticks_second
+            self._consistency(kf.innov, kf.gate_mask)
             self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
                 self.rejects += 1
@@ -510,6 +514,35 @@ class NavModel(AlignmentModel, AidingModel):
         if hit:
             bw[:] = ZERO
         return hit
+
+    def _consistency(self, innov, mask):
+        """nav._consistency: after a fix whose three position rows were accepted, the running
+        means of y^2/S (east/north, up) and the unseen variances (1 - mean) sigma^2."""
+        if len(innov) < 3 or mask & 7:
+            return
+        (ye, se), (yn, sn), (yu, su) = innov[:3]
+        if not (se > 0.0 and sn > 0.0 and su > 0.0):
+            return
+        cn = self.consistency
+        k = min(cn[fw_nav._CN_K] + ONE, fw_nav._CN_N)
+        cn[fw_nav._CN_K] = k
+        a = ONE / k
+        qe = min(ye * ye / se, fw_nav._CN_CLIP)
+        qn = min(yn * yn / sn, fw_nav._CN_CLIP)
+        qu = min(yu * yu / su, fw_nav._CN_CLIP)
+        qh = (qe + qn) * HALF
+        cn[fw_nav._CN_MH] = cn[fw_nav._CN_MH] + a * (qh - cn[fw_nav._CN_MH])
+        cn[fw_nav._CN_MV] = cn[fw_nav._CN_MV] + a * (qu - cn[fw_nav._CN_MV])
+        for m_i, v_i, sig in ((fw_nav._CN_MH, fw_nav._CN_VH, self.used[5]),
+                              (fw_nav._CN_MV, fw_nav._CN_VV, self.used[6])):  # fmt: skip
+            cn[v_i] = (ONE - cn[m_i]) * (sig * sig) if cn[m_i] < ONE else ZERO
+
+    def p_diag(self):
+        """The covariance diagonal as the extended frame reports it (Navigator.p_diag)."""
+        d = np.diagonal(self.kf.P).copy()
+        cn = self.consistency
+        d[0:3] = d[0:3] + np.array([cn[fw_nav._CN_VH], cn[fw_nav._CN_VH], cn[fw_nav._CN_VV]], F32)
+        return d
 
     def _fault_reset(self):
         ins = self.ins
@@ -606,6 +639,7 @@ class NavModel(AlignmentModel, AidingModel):
             "ring_v": self.ring_v,
             "corr": self.corr,
             "drift_watch": self.drift_watch,
+            "consistency": self.consistency,
             "gnss_p": self.gnss_p,
             "fix": self.fix,
             "used_fix": self.used,

@@ -186,6 +186,7 @@ def markdown(m, rep, console=()):
         f"| yaw / pitch / roll RMS | {fmt(m['yaw_rms_deg'])} / {fmt(m['pitch_rms_deg'])} / "
         f"{fmt(m['roll_rms_deg'], unit='deg')} | |",
         f"| position inside 3-sigma | {fmt(m['pos_3sigma_coverage'], 3)} | |",
+        f"| mean (error / sigma)^2, E and N (NEES) | {fmt(m.get('pos_nees_h'))} | |",
         "",
     ]
     if m["outages"]:

@@ -117,13 +117,59 @@ def test_drive_aligns_once_moving_and_tracks_the_truth(drive_run):
 
 def test_reported_sigma_covers_the_error(drive_run):
     """P is honest about what it models: with white GNSS errors the horizontal and velocity
-    errors stay inside 3 sigma nearly all the time."""
+    errors stay inside 3 sigma nearly all the time, and the innovations find (almost) no error
+    the filter cannot see."""
     truth, _, run = drive_run
     i = np.rint(run.t_s / DT).astype(int)
     err = np.abs(run.p_n[:, :2] - truth.p_n[i, :2])
     assert np.mean(err < 3 * run.p_sigma[:, :2]) > 0.95
     verr = np.abs(run.v_n[:, :2] - truth.v_n[i, :2])
     assert np.mean(verr < 3 * run.p_sigma[:, 3:5]) > 0.95
+    # white errors of 2 m: y^2/S averages about 1, so (almost) nothing is unseen (of 4 m^2)
+    assert run.extra["cv_final"][0] < 0.6, run.extra["cv_final"]
+
+
+def test_correlated_gnss_errors_are_found_and_reported():
+    """Half the receiver's variance a 60 s Gauss-Markov process (2 of 4 m^2 per horizontal
+    axis, 8 of 16 m^2 up): the filter follows it like position, so P alone is too small; the
+    innovations' deficit finds it (Navigator.cv) and the reported sigma covers the error."""
+    truth, imu, gnss = scenario(
+        "urban_drive", 170, seed=3, gnss_model=sim_gnss.GnssModel(white_fraction=0.5)
+    )
+    run = nav_runner.run(truth, imu, gnss)
+    cv_h, cv_v = run.extra["cv_final"]
+    assert 0.8 < cv_h < 3.2 and 3.0 < cv_v < 13.0, (cv_h, cv_v)
+    i = np.rint(run.t_s / DT).astype(int)
+    err = np.abs(run.p_n[:, :2] - truth.p_n[i, :2])
+    assert np.mean(err < 3 * run.p_sigma[:, :2]) > 0.95
+    # P alone: the reported variance without the unseen part of the last fix (cv changes
+    # slowly; what matters is that P is clearly short of the error)
+    p_only = np.sqrt(np.maximum(run.p_sigma[:, :2] ** 2 - cv_h, 1e-6))
+    assert np.mean(err < 3 * p_only) < 0.9
+
+
+def test_consistency_estimates_the_innovations_deficit():
+    """nav._consistency on made-up innovations: y^2/S of 0.25 east and north (mean 0.25) and
+    1.5 up give (1 - 0.25) sigma_h^2 unseen horizontally and nothing vertically; a fix with a
+    gated position row, or fewer than three rows, changes nothing."""
+    nav = Navigator(navcfg.NavConfig("car"))
+    e, mem = nav.kf.e, nav.mem
+    z = f32.view(e, eskf.E_Z, 3)
+    r = f32.view(e, eskf.E_R, 3)
+    mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
+    mem[fw_nav._M_US + 6] = 4.0
+    for k in range(100):
+        r[0], r[1], r[2] = 4.0, 4.0, 16.0
+        z[0], z[1], z[2] = 1.0 if k % 2 else -1.0, 1.0, 4.0 * F32(1.5) ** 0.5
+        fw_nav._consistency(e, mem, 5, 0)
+    assert float(nav.cv[0]) == pytest.approx(0.75 * 4.0, rel=1e-5)
+    assert float(nav.cv[1]) == 0.0
+    assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(fw_nav._CN_N)
+    before = np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN])
+    z[0] = 100.0
+    fw_nav._consistency(e, mem, 5, 1)  # east gated
+    fw_nav._consistency(e, mem, 2, 0)  # no height row
+    assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
 
 
 def navigating(seconds=110, seed=3, **gnss_kw):

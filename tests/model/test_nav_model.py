@@ -222,6 +222,7 @@ def firmware_snapshot(nav):
         "ring_v": nav._ring_v,
         "corr": nav._corr,
         "drift_watch": f32.view(nav.mem, nav_mod._M_BW, nav_mod._BW_N),
+        "consistency": f32.view(nav.mem, nav_mod._M_CN, nav_mod._NCN),
         "gnss_p": nav._gp,
         "fix": nav._fx,
         "used_fix": nav._used,

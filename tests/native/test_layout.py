@@ -29,6 +29,8 @@ RULES = (
     ("NCAL", "nav", "_NCAL"),
     ("C_", "nav", "_C_"),
     ("NC", "nav", "_NC"),
+    ("CN_", "nav", "_CN_"),
+    ("NCN", "nav", "_NCN"),
     ("M_", "nav", "_M_"),
     ("NM", "nav", "_NM"),
     ("OPT_", "nav", "_OPT_"),

@@ -84,18 +84,22 @@ def _firmware_ext(counter, tick):
     p = f32.zeros(225)
     p[:] = rng.normal(size=225).astype(np.float32)
     p[16] = np.float32(np.nan)  # a NaN variance: its bits must survive
-    x, coef = f32.zeros(ins.NX), f32.zeros(12)
-    for b in (x, coef):
+    x, coef, cv = f32.zeros(ins.NX), f32.zeros(12), f32.zeros(2)
+    for b in (x, coef, cv):
         b[:] = rng.normal(size=len(b)).astype(np.float32)
-    e = records.ExtFrame()
+    e = records.ExtFrame(cv)
     e.fields[:] = array("i", (counter, 1, 2, 3, 5, 70000, 1234, 65535, 7, -338688000, -151,
                               -2093000, tick, 0xCBC5))  # fmt: skip
     e.pack(p, x, coef)
     ref = bytearray(records.EXT_LEN)  # the Python reference of the (native) kernel
-    records._ext_pack_py(ref, e.fields, p, x, coef)
+    records._ext_pack_py(ref, e.fields, p, x, coef, cv)
     assert ref == e.data
     bg, ba, pos = (x[i : i + 3] for i in (ins.X_BG, ins.X_BA, ins.X_P))
-    return bytes(e.data), p, bg, ba, pos, coef
+    # the diagonal as sent: the position's three with the unseen GNSS variances added
+    diag = np.diagonal(np.asarray(p).reshape(15, 15)).copy()
+    diag[0:3] = diag[0:3] + np.array([cv[0], cv[0], cv[1]], np.float32)
+    assert diag[0] != p[0] and diag[2] != p[32]  # the random cv is not 0
+    return bytes(e.data), diag, bg, ba, pos, coef
 
 
 def test_the_firmwares_extended_frame_is_the_record_layout():
@@ -124,7 +128,7 @@ def test_the_firmwares_extended_frame_is_the_record_layout():
         "uncertain", "gnss_late", "config_defaults", "overrun",
     ]  # fmt: skip
     assert rec_schema.cause_names(0x10001) == ["imu_saturated", "0x10000"]  # a bit not known
-    fields = dict(d, p_diag=np.diagonal(p.reshape(15, 15)), gyro_bias_rad_s=bg,
+    fields = dict(d, p_diag=p, gyro_bias_rad_s=bg,
                   accel_bias_m_s2=ba, pos_enu_m=pos, origin_h_m=coef[geo.H0])  # fmt: skip
     assert rec_schema.encode_ext(9, fields) == data  # the NaN's bits included
     # an older firmware's frame, without the causes, still decodes

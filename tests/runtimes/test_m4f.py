@@ -291,7 +291,7 @@ def test_the_runs_metrics_carry_the_board_cost(quick):
     acc = dict.fromkeys(
         ("horiz_rms_m", "vert_rms_m", "vel_rms_m_s", "roll_rms_deg", "pitch_rms_deg",
          "yaw_rms_deg", "horiz_rms_gnss_m", "horiz_max_m", "vel_rms_gnss_m_s",
-         "pos_3sigma_coverage"),
+         "pos_3sigma_coverage", "pos_nees_h"),
     )  # fmt: skip
     acc["outages"] = []
     m = firmware_metrics(fw, decoded, Track(), acc, stim.duration_s)
