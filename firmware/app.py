@@ -32,7 +32,9 @@ import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
 from micropython import const
-from nav import NAVIGATING, Navigator, nav_frame
+from nav import MEM_FLOATS, NAVIGATING, Navigator, nav_frame
+
+import f32
 
 _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
@@ -129,6 +131,10 @@ CAUSE_OVERRUN = const(0x8000)
 
 class App:
     def __init__(self, board_module, console=print):
+        # the navigator's 6.6 KB state block before anything else, while the heap still has
+        # long free runs: made after the configuration and the board, it failed to find one
+        # when the heap held other objects before the firmware started (test_m4f's padding)
+        mem = f32.zeros(MEM_FLOATS)
         self.console = console
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
         console(msg)
@@ -140,11 +146,8 @@ class App:
         self._out_uart = self.board.out_uart
         self._wdt = None  # the board's watchdog once started
         nav_cfg = cfg.nav_config()
-        # the start-up's garbage (the file's decoding, the settings' conversion) collected
-        # first, so that the navigator's 6.5 KB state block finds a free run even when the
-        # heap held other objects before the firmware started (tests/runtimes/test_m4f.py)
-        gc.collect()
-        self.nav = Navigator(nav_cfg)
+        gc.collect()  # the start-up's garbage (the file's decoding, the settings' conversion)
+        self.nav = Navigator(nav_cfg, mem)
         self.nav.heap_check = self._heap_room
         # what completes an epoch: 2 (auto) the receiver's sentences decide (GGA+RMC, RMC
         # only, GGA only, ...: drivers/gnss.py "Epochs"); 1 and 0 force GGA + RMC/VTG, GGA

@@ -48,6 +48,7 @@ _SCHEMA = (
     (9, "gnss_need_speed", _INT, 1, 2),
     (10, "coning", _INT, 1, 0),  # 1: two-sample coning and sculling corrections (navcfg)
     (11, "slices_per_tick", _INT, 1, 1),  # slices of filter work per tick (1..4, eskf.py)
+    (12, "gnss_lag_learn", _INT, 1, 1),  # 1: learn and apply the fixes' lag (nav._consistency)
     (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
     (21, "accel_bias0", _FLOAT, 3, None),  # m/s^2
     (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)
@@ -132,6 +133,7 @@ class BoardConfig:
                 setattr(nav, name, b)
         nav.coning = self.coning == 1
         nav.slices_per_tick = self.slices_per_tick
+        nav.gnss_lag_learn = self.gnss_lag_learn == 1
         _apply_mounting(nav, self.mount_ypr_deg)
         # the sensor ranges set the raw-count scale (BMI055 datasheet sensitivities)
         nav.gyro_counts_per_rad_s = f32.ratio(GYRO_LSB_X10[self.gyro_range_dps], 10) / _DEG
@@ -161,6 +163,8 @@ class BoardConfig:
             return "coning must be 0 or 1"
         if not 1 <= self.slices_per_tick <= 4:
             return "slices_per_tick must be 1..4"
+        if self.gnss_lag_learn not in (0, 1):
+            return "gnss_lag_learn must be 0 or 1"
         for _id, name, kind, _n, _default in _SCHEMA:
             value = getattr(self, name)
             if kind != _FLOAT or value is None:

@@ -221,12 +221,14 @@ _C_RESET_UNTIL = const(62)  # CAUSE_RESET until this tick (a reset: until a fix 
 _C_DATA_UNTIL = const(63)  # CAUSE_GNSS_DATA until this tick
 _C_INFLATE = const(64)  # 1: the IMU came back after a dead spell; widen P at the next job
 _C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
-_NC = const(66)
+_C_LAG_TICK = const(66)  # the tick of the last fix the lag learned from (_consistency)
+_NC = const(67)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
 _OPT_NHC = const(2)
 _OPT_CONING = const(4)
+_OPT_LAG = const(8)  # learn the fixes' lag (cfg.gnss_lag_learn)
 # self.mem: every float buffer a tick touches, in one (layout.h M_*), so that the native
 # `nav_tick` takes few arguments: a call of many arguments makes its caller's frame too large
 # for the C stack, and MicroPython then allocates the frame on the heap at every call
@@ -249,15 +251,23 @@ _M_INIT = const(1615)  # the initial P diagonal (eskf.N): self._init
 _M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._ns
 _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
-_M_CN = const(1644)  # the receiver's unseen error (_CN_*, _NCN): _consistency
-_NM = const(1649)
+_M_CN = const(1644)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
+_NM = const(1656)
+MEM_FLOATS = const(_NM)  # Navigator(cfg, mem): a caller may make the block first (app.py)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
 _CN_MV = const(2)  # ... up
 _CN_VH = const(3)  # unseen variance per horizontal axis, m^2 (Navigator.cv[0])
 _CN_VV = const(4)  # ... vertical, m^2 (Navigator.cv[1])
-_NCN = const(5)
+_CN_KL = const(5)  # fixes in the lag's running means so far (float, up to _CN_N)
+_CN_LN = const(6)  # running mean of y0 . a (m^2/s^3): y0 the velocity innovation, lag put back
+_CN_LD = const(7)  # running mean of a . a (m^2/s^4)
+_CN_LAG = const(8)  # the estimated lag of the fixes behind their stamps, s
+_CN_LAGT = const(9)  # the lag applied, ticks (float; 0 until it is clear of 0, see _consistency)
+_CN_PVE = const(10)  # the velocity east, north at the last fix the lag learned from, m/s
+_CN_PVN = const(11)
+_NCN = const(12)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
@@ -271,10 +281,11 @@ def _ticks(seconds, dt):
 
 
 class Navigator(Alignment, Aiding):
-    def __init__(self, cfg):
+    def __init__(self, cfg, mem=None):
+        """mem: a float32 buffer of MEM_FLOATS zeros to hold the state (made here if None)."""
         self.cfg = cfg
         dt = cfg.dt_s
-        self.mem = m = f32.zeros(_NM)
+        self.mem = m = f32.zeros(_NM) if mem is None else mem
         self.ins = Ins(dt, cfg.earth_terms, cfg.coning, f32.view(m, _M_X, ins_mod.NX))
         self.kf = eskf.Eskf(cfg.earth_terms, f32.view(m, _M_E, eskf.NE))
         self.frame = geo.LocalFrame()
@@ -318,6 +329,7 @@ class Navigator(Alignment, Aiding):
             (_OPT_ZUPT if cfg.zupt else 0)
             | (_OPT_NHC if cfg.nhc else 0)
             | (_OPT_CONING if self.ins.coning else 0)
+            | (_OPT_LAG if cfg.gnss_lag_learn else 0)
         )
         c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
         c[_C_T_TRACK] = max(1, _ticks(cfg.track_max_s, dt))
@@ -745,7 +757,8 @@ class Navigator(Alignment, Aiding):
         ring holds the last RING ticks)."""
         c = self.ctl
         c[_C_FIX_QUEUED] = 0
-        age = c[_C_TICK] - c[_C_FIX_TICK]
+        # a receiver whose fixes are older than their stamps: its learned lag (_consistency)
+        age = c[_C_TICK] - c[_C_FIX_TICK] + int(self.mem[_M_CN + _CN_LAGT])
         if age < 0:
             age = 0
         elif age > RING - 1:
@@ -772,7 +785,7 @@ class Navigator(Alignment, Aiding):
             n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
             if _drift_watch(kf.e, self.mem, n):
                 c[_C_DRIFT_UNTIL] = c[_C_TICK] + 5 * c[_C_T_SECOND]
-            _consistency(kf.e, self.mem, n, mask)
+            _consistency(c, kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
             else:
@@ -1073,18 +1086,24 @@ def _drift_watch(e, mem, n):
 # unseen: (1 - m) R, per axis, reported on top of P (nothing changes in the filter itself).
 _CN_N = f32.f32(64)  # the running means' length in fixes (1/k weights up to it: a true mean)
 _CN_CLIP = f32.f32(25)  # one y^2/S counts at most this much (_BW_CLIP squared)
+_LAG_V2 = f32.f32(4)  # the lag learns from fixes above 2 m/s (speed squared, m^2/s^2)
+_LAG_MIN = f32.ratio(1, 50)  # applied from 20 ms (4 ticks)
+_LAG_MAX = f32.ratio(2, 5)  # at most 0.4 s (the delay ring holds 0.64 s with the latency)
+_LAG_K0 = f32.f32(16)  # applied once this many fixes are in the means
+_LAG_Q2 = f32.f32(9)  # 3 sigma, squared: the innovations used, the estimate applied
 
 
-def _consistency(e, mem, n, mask):
+def _consistency(c, e, mem, n, mask):
     """After a GNSS update of n scalars (E_Z/E_R: each one's innovation y and variance S)
     whose gate mask is `mask`: when its three position rows were accepted, the running means
     of y^2/S east/north and up in mem's _M_CN, and from them and the fix's sigmas (mem's _M_US)
     the unseen variances _CN_VH, _CN_VV: (1 - mean) sigma^2, or 0 when the fixes scatter as
-    much as S says or more."""
+    much as S says or more. Then, when the fix had a velocity: the fixes' lag behind their
+    stamps (_CN_LAG, s) and the ticks applied to the next fixes (_CN_LAGT), see below."""
     if n < 3 or mask & 7:
         return
-    z = f32.view(e, eskf.E_Z, 3)
-    r = f32.view(e, eskf.E_R, 3)
+    z = f32.view(e, eskf.E_Z, 5)
+    r = f32.view(e, eskf.E_R, 5)
     if not (r[0] > 0.0 and r[1] > 0.0 and r[2] > 0.0):
         return
     cn = f32.view(mem, _M_CN, _NCN)
@@ -1113,6 +1132,55 @@ def _consistency(e, mem, n, mask):
     cn[_CN_VV] = 0.0
     if cn[_CN_MV] < 1.0:
         cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
+    # The lag. A fix measured dt_lag before its stamp reports the velocity of then, behind
+    # the state's by a dt_lag (a: the acceleration), so its velocity innovation (state - fix)
+    # is a dt_lag on average plus what the applied lag took away (y0 = y + a lag_applied):
+    # the lag is mean(y0 . a) / mean(a . a) over fixes in motion. (The position innovation
+    # says v dt_lag, but the filter takes a steady v dt_lag for a position error and follows
+    # it: on urban_drive it shows a tenth of a 0.15 s lag, the velocity's more than half.)
+    # Its sigma is about sigma_vel / sqrt(k mean(a . a)); applied once 3 of them from 0 and
+    # at least _LAG_MIN.
+    ve = mem[_M_X + ins_mod.X_V]
+    vn = mem[_M_X + ins_mod.X_V + 1]
+    t = c[_C_TICK] - c[_C_LAG_TICK]
+    c[_C_LAG_TICK] = c[_C_TICK]
+    pe = cn[_CN_PVE]
+    pn = cn[_CN_PVN]
+    cn[_CN_PVE] = ve
+    cn[_CN_PVN] = vn
+    if n < 5 or mask & 0x18 or t < 1 or t > 2 * c[_C_T_SECOND] or not c[_C_OPTS] & _OPT_LAG:
+        return  # no velocity rows or one gated out, no fix of the last 2 s before, or off
+    if not (r[3] > 0.0 and r[4] > 0.0) or not ve * ve + vn * vn > _LAG_V2:
+        return
+    ye = z[3]
+    yn = z[4]
+    if ye * ye > _LAG_Q2 * r[3] or yn * yn > _LAG_Q2 * r[4]:
+        return  # beyond 3 sigma: teaches nothing
+    dt = mem[_M_X + ins_mod.X_DT]
+    ts = f32.f32(t) * dt
+    ae = (ve - pe) / ts
+    an = (vn - pn) / ts
+    k = cn[_CN_KL] + 1.0
+    if k > _CN_N:
+        k = _CN_N
+    cn[_CN_KL] = k
+    a = 1.0 / k
+    lag = cn[_CN_LAGT] * dt
+    u = (ye + ae * lag) * ae + (yn + an * lag) * an
+    cn[_CN_LN] = cn[_CN_LN] + a * (u - cn[_CN_LN])
+    cn[_CN_LD] = cn[_CN_LD] + a * ((ae * ae + an * an) - cn[_CN_LD])
+    if not cn[_CN_LD] > 0.0:
+        return
+    lag = cn[_CN_LN] / cn[_CN_LD]
+    if lag < 0.0:
+        lag = 0.0
+    elif lag > _LAG_MAX:
+        lag = _LAG_MAX
+    cn[_CN_LAG] = lag
+    cn[_CN_LAGT] = 0.0
+    s = mem[_M_AID + _AID_VEL_SIGMA]
+    if lag >= _LAG_MIN and k >= _LAG_K0 and lag * lag * (k * cn[_CN_LD]) >= _LAG_Q2 * (s * s):
+        cn[_CN_LAGT] = f32.f32(int(lag / dt + 0.5))
 
 
 def _ring_put_py(ring_p, ring_v, x, corr, b):

@@ -254,7 +254,8 @@
 #define C_DATA_UNTIL 63
 #define C_INFLATE 64
 #define C_DRIFT_UNTIL 65
-#define NC 66
+#define C_LAG_TICK 66
+#define NC 67
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52
@@ -276,17 +277,25 @@
 #define M_LVL 1633
 #define M_BW 1639
 #define M_CN 1644
-#define NM 1649
+#define NM 1656
 /* nav.py: the receiver's unseen error, m + M_CN (_consistency) */
 #define CN_K 0
 #define CN_MH 1
 #define CN_MV 2
 #define CN_VH 3
 #define CN_VV 4
-#define NCN 5
+#define CN_KL 5
+#define CN_LN 6
+#define CN_LD 7
+#define CN_LAG 8
+#define CN_LAGT 9
+#define CN_PVE 10
+#define CN_PVN 11
+#define NCN 12
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
+#define OPT_LAG 8
 #define JOB_NONE 0
 #define JOB_GNSS 1
 #define JOB_AID 2

@@ -23,6 +23,11 @@
 #define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
 #define CN_LEN 64.0f /* nav._CN_N */
 #define CN_CLIP 25.0f /* nav._CN_CLIP */
+#define LAG_V2 4.0f /* nav._LAG_V2 */
+#define LAG_MIN (1.0f / 50.0f) /* nav._LAG_MIN */
+#define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
+#define LAG_K0 16.0f /* nav._LAG_K0 */
+#define LAG_Q2 9.0f /* nav._LAG_Q2 */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -213,7 +218,7 @@ static void still_update(int32_t *c, float *st, const float *f, const float *w, 
  * against the state at its measurement time (the delay ring holds the last RING ticks) */
 static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
     c[C_FIX_QUEUED] = 0;
-    int32_t age = c[C_TICK] - c[C_FIX_TICK];
+    int32_t age = c[C_TICK] - c[C_FIX_TICK] + (int32_t)m[M_CN + CN_LAGT];
     if (age < 0) {
         age = 0;
     } else if (age > RING - 1) {
@@ -291,8 +296,9 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
 }
 
 /* nav._consistency: after a GNSS update whose position rows were all accepted, the running
- * means of y^2/S and from them the receiver's error variance the filter cannot see */
-static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
+ * means of y^2/S and from them the receiver's error variance the filter cannot see; then,
+ * from its velocity rows, the fixes' lag behind their stamps */
+static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t mask) {
     if (n < 3 || (mask & 7)) {
         return;
     }
@@ -333,6 +339,55 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     if (cn[CN_MV] < 1.0f) {
         cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
     }
+    /* the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows) */
+    float ve = m[M_X + X_V];
+    float vn = m[M_X + X_V + 1];
+    int32_t t = c[C_TICK] - c[C_LAG_TICK];
+    c[C_LAG_TICK] = c[C_TICK];
+    float pe = cn[CN_PVE];
+    float pn = cn[CN_PVN];
+    cn[CN_PVE] = ve;
+    cn[CN_PVN] = vn;
+    if (n < 5 || (mask & 0x18) || t < 1 || t > 2 * c[C_T_SECOND] || !(c[C_OPTS] & OPT_LAG)) {
+        return;
+    }
+    if (!(r[3] > 0.0f && r[4] > 0.0f) || !(ve * ve + vn * vn > LAG_V2)) {
+        return;
+    }
+    float ye = z[3];
+    float yn = z[4];
+    if (ye * ye > LAG_Q2 * r[3] || yn * yn > LAG_Q2 * r[4]) {
+        return;
+    }
+    float dt = m[M_X + X_DT];
+    float ts = (float)t * dt;
+    float ae = (ve - pe) / ts;
+    float an = (vn - pn) / ts;
+    k = cn[CN_KL] + 1.0f;
+    if (k > CN_LEN) {
+        k = CN_LEN;
+    }
+    cn[CN_KL] = k;
+    a = 1.0f / k;
+    float lag = cn[CN_LAGT] * dt;
+    float u = (ye + ae * lag) * ae + (yn + an * lag) * an;
+    cn[CN_LN] = cn[CN_LN] + a * (u - cn[CN_LN]);
+    cn[CN_LD] = cn[CN_LD] + a * ((ae * ae + an * an) - cn[CN_LD]);
+    if (!(cn[CN_LD] > 0.0f)) {
+        return;
+    }
+    lag = cn[CN_LN] / cn[CN_LD];
+    if (lag < 0.0f) {
+        lag = 0.0f;
+    } else if (lag > LAG_MAX) {
+        lag = LAG_MAX;
+    }
+    cn[CN_LAG] = lag;
+    cn[CN_LAGT] = 0.0f;
+    s = m[M_AID + AID_VEL_SIGMA];
+    if (lag >= LAG_MIN && k >= LAG_K0 && lag * lag * (k * cn[CN_LD]) >= LAG_Q2 * (s * s)) {
+        cn[CN_LAGT] = (float)(int32_t)(lag / dt + 0.5f);
+    }
 }
 
 /* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
@@ -351,7 +406,7 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     if (drift_watch(e, m, n)) {
         c[C_DRIFT_UNTIL] = c[C_TICK] + 5 * c[C_T_SECOND];
     }
-    consistency(e, m, n, mask);
+    consistency(c, e, m, n, mask);
     if (mask & 4) {
         c[C_V_REJECTS] += 1;
     } else {

@@ -183,6 +183,9 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
             "reanchors": nav.reanchors,
             "p_n_final": [float(x) for x in nav.ins.p_n],
             "cv_final": [float(x) for x in nav.cv],  # the receiver's unseen variances, m^2
+            # the fixes' lag behind their stamps: estimated (s) and applied (ticks), at the end
+            "lag_s": float(nav.mem[nav_mod._M_CN + nav_mod._CN_LAG]),
+            "lag_ticks": int(nav.mem[nav_mod._M_CN + nav_mod._CN_LAGT]),
         },
     )
 

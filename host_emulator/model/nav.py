@@ -179,6 +179,7 @@ class NavModel(AlignmentModel, AidingModel):
         # the receiver's unseen error (nav._consistency): fixes counted, the running means of
         # y^2/S east/north and up, the unseen variances per horizontal axis and vertical
         self.consistency = np.zeros(fw_nav._NCN, F32)
+        self.lag_tick = 0  # the tick of the last fix the lag learned from
         self.since_prop = 0
         self.since_zupt = 0
         self.since_nhc = 0
@@ -442,7 +443,8 @@ class NavModel(AlignmentModel, AidingModel):
         if self.fix_queued and not overdue:
             self.fix_queued = False
             # the state at the fix's measurement time: the ring holds the last RING ticks
-            age = min(max(self.tick - self.fix_tick, 0), RING - 1)
+            age = self.tick - self.fix_tick + int(self.consistency[fw_nav._CN_LAGT])
+            age = min(max(age, 0), RING - 1)
             self._start_gnss_update((self.tick - age) % RING)
             self.job = JOB_GNSS
             self.updates += 1
@@ -536,6 +538,41 @@ class NavModel(AlignmentModel, AidingModel):
         for m_i, v_i, sig in ((fw_nav._CN_MH, fw_nav._CN_VH, self.used[5]),
                               (fw_nav._CN_MV, fw_nav._CN_VV, self.used[6])):  # fmt: skip
             cn[v_i] = (ONE - cn[m_i]) * (sig * sig) if cn[m_i] < ONE else ZERO
+        # the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows)
+        ve, vn = self.ins.v_n[0], self.ins.v_n[1]
+        t = self.tick - self.lag_tick
+        self.lag_tick = self.tick
+        pe, pn = cn[fw_nav._CN_PVE], cn[fw_nav._CN_PVN]
+        cn[fw_nav._CN_PVE] = ve
+        cn[fw_nav._CN_PVN] = vn
+        if (len(innov) < 5 or mask & 0x18 or t < 1 or t > 2 * self.ticks_second
+                or not self.cfg.gnss_lag_learn):  # fmt: skip
+            return
+        (yve, sve), (yvn, svn) = innov[3:5]
+        if not (sve > 0.0 and svn > 0.0) or not ve * ve + vn * vn > fw_nav._LAG_V2:
+            return
+        if yve * yve > fw_nav._LAG_Q2 * sve or yvn * yvn > fw_nav._LAG_Q2 * svn:
+            return
+        dt = self.ins.dt
+        ts = F32(t) * dt
+        ae = (ve - pe) / ts
+        an = (vn - pn) / ts
+        k = min(cn[fw_nav._CN_KL] + ONE, fw_nav._CN_N)
+        cn[fw_nav._CN_KL] = k
+        a = ONE / k
+        lag = cn[fw_nav._CN_LAGT] * dt
+        u = (yve + ae * lag) * ae + (yvn + an * lag) * an
+        cn[fw_nav._CN_LN] = cn[fw_nav._CN_LN] + a * (u - cn[fw_nav._CN_LN])
+        cn[fw_nav._CN_LD] = cn[fw_nav._CN_LD] + a * ((ae * ae + an * an) - cn[fw_nav._CN_LD])
+        if not cn[fw_nav._CN_LD] > 0.0:
+            return
+        lag = min(max(cn[fw_nav._CN_LN] / cn[fw_nav._CN_LD], ZERO), fw_nav._LAG_MAX)
+        cn[fw_nav._CN_LAG] = lag
+        cn[fw_nav._CN_LAGT] = ZERO
+        sv = F32(self.cfg.gnss_vel_sigma)
+        if (lag >= fw_nav._LAG_MIN and k >= fw_nav._LAG_K0
+                and lag * lag * (k * cn[fw_nav._CN_LD]) >= fw_nav._LAG_Q2 * (sv * sv)):  # fmt: skip
+            cn[fw_nav._CN_LAGT] = F32(int(lag / dt + HALF))
 
     def p_diag(self):
         """The covariance diagonal as the extended frame reports it (Navigator.p_diag)."""
@@ -683,6 +720,7 @@ class NavModel(AlignmentModel, AidingModel):
             "n_same_a": self.n_same_a,
             "inflate": self.inflate,
             "drift_until": self.drift_until,
+            "lag_tick": self.lag_tick,
             "since_prop": self.since_prop,
             "since_zupt": self.since_zupt,
             "since_nhc": self.since_nhc,

@@ -58,6 +58,9 @@ class GnssModel:
     excursion_hdop: tuple = (2.0, 4.0)
     latency_s: float = 0.1
     latency_jitter_s: float = 0.03
+    # the solution is this much older than its stamp (a receiver whose fixes are late against
+    # their epoch and PPS: position and velocity of t - stamp_lag_s reported as t's)
+    stamp_lag_s: float = 0.0
     # IMU -> antenna, body axes (right, forward, up); None: the scenario's (Truth.antenna_b_m)
     lever_b_m: tuple | None = None
     ttff_s: float = 0.0  # no fix before this time
@@ -115,7 +118,7 @@ class GnssData:
     # Truth, for evaluation only:
     p_ant_n: np.ndarray  # (M, 3) true antenna ENU position, m
     v_ant_n: np.ndarray  # (M, 3) true antenna ENU velocity, m/s
-    err_n_m: np.ndarray  # (M, 3) position error applied (ENU), m
+    err_n_m: np.ndarray  # (M, 3) position error against the antenna at the stamp (ENU), m
     outages: tuple
     model: GnssModel
 
@@ -170,11 +173,16 @@ def simulate(truth, model=None, seed=0, outages=None):
     for start, length in outages:
         fix &= ~((t >= start) & (t < start + length))
 
-    # Truth of the antenna.
-    c_bn = euler_to_dcm(truth.ypr[idx])
-    lever = np.asarray(model.lever_b_m, dtype=float)
-    p_ant = truth.p_n[idx] + body_to_nav(c_bn, lever)
-    v_ant = truth.v_n[idx] + body_to_nav(c_bn, np.cross(truth.w_nb_b[idx], lever))
+    # Truth of the antenna, at the stamps and at the moments the receiver measured.
+    def antenna(i):
+        c_bn = euler_to_dcm(truth.ypr[i])
+        lever = np.asarray(model.lever_b_m, dtype=float)
+        p = truth.p_n[i] + body_to_nav(c_bn, lever)
+        return p, truth.v_n[i] + body_to_nav(c_bn, np.cross(truth.w_nb_b[i], lever))
+
+    p_ant, v_ant = antenna(idx)
+    lag = int(round(model.stamp_lag_s * RATE_HZ))
+    p_meas, v_true_meas = antenna(np.maximum(idx - lag, 0)) if lag else (p_ant, v_ant)
 
     # Errors (drawn for every epoch, fix or not, so outages do not shift the random stream).
     dt = 1.0 / model.rate_hz
@@ -186,7 +194,7 @@ def simulate(truth, model=None, seed=0, outages=None):
         rng, m, dt, model.error_tau_s, 1.0, (3,)
     )
     err = scale[:, None] * sigma * unit
-    v_meas = v_ant + scale[:, None] * model.sigma_vel_m_s * rng.standard_normal((m, 3))
+    v_meas = v_true_meas + scale[:, None] * model.sigma_vel_m_s * rng.standard_normal((m, 3))
     nsat = np.clip(np.rint(11.0 / hdop + 0.7 * rng.standard_normal(m)), 4, 20)
     nsat_nofix = rng.integers(0, 4, m)
     latency = model.latency_s + rng.uniform(-1.0, 1.0, m) * model.latency_jitter_s
@@ -200,7 +208,8 @@ def simulate(truth, model=None, seed=0, outages=None):
     for start, length in zip(starts, lengths, strict=True):
         dgps |= (t >= start) & (t < start + length)
 
-    lat_e7, lon_e7, h_m = truth.origin.to_geodetic(p_ant + err)
+    lat_e7, lon_e7, h_m = truth.origin.to_geodetic(p_meas + err)
+    err = err + (p_meas - p_ant)  # as evaluated: against the antenna at the stamp
     speed = np.hypot(v_meas[:, 0], v_meas[:, 1])
     course = np.degrees(np.arctan2(v_meas[:, 0], v_meas[:, 1])) % 360.0
     course[course >= 360.0] = 0.0  # -1e-17 % 360 rounds to 360

@@ -156,20 +156,60 @@ def test_consistency_estimates_the_innovations_deficit():
     e, mem = nav.kf.e, nav.mem
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
+    nav.ctl[fw_nav._C_OPTS] &= ~fw_nav._OPT_LAG  # the lag's part: the next test
     mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
     mem[fw_nav._M_US + 6] = 4.0
     for k in range(100):
         r[0], r[1], r[2] = 4.0, 4.0, 16.0
         z[0], z[1], z[2] = 1.0 if k % 2 else -1.0, 1.0, 4.0 * F32(1.5) ** 0.5
-        fw_nav._consistency(e, mem, 5, 0)
+        fw_nav._consistency(nav.ctl, e, mem, 5, 0)
     assert float(nav.cv[0]) == pytest.approx(0.75 * 4.0, rel=1e-5)
     assert float(nav.cv[1]) == 0.0
     assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(fw_nav._CN_N)
     before = np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN])
     z[0] = 100.0
-    fw_nav._consistency(e, mem, 5, 1)  # east gated
-    fw_nav._consistency(e, mem, 2, 0)  # no height row
+    fw_nav._consistency(nav.ctl, e, mem, 5, 1)  # east gated
+    fw_nav._consistency(nav.ctl, e, mem, 2, 0)  # no height row
     assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
+
+
+def _lag_run(stamp_lag_s, learn):
+    truth, imu, gnss = scenario(
+        "urban_drive",
+        240,
+        seed=3,
+        gnss_model=sim_gnss.GnssModel(white_fraction=1.0, stamp_lag_s=stamp_lag_s),
+    )
+    cfg = navcfg.NavConfig("car")
+    cfg.gnss_lag_learn = learn
+    run = nav_runner.run(truth, imu, gnss, cfg=cfg)
+    # scored from 40 s after navigation starts: the lag is learned from about 20 s of fixes
+    return run, nav_runner.metrics(run, truth, skip_s=40.0)
+
+
+@pytest.fixture(scope="module")
+def lag_runs():
+    keys = ((0.0, True), (0.0, False), (0.15, True), (0.15, False))
+    return {key: _lag_run(*key) for key in keys}
+
+
+def test_fixes_late_against_their_stamps_are_learned_and_compared_in_time(lag_runs):
+    """A receiver whose fixes are 0.15 s older than their stamps (and PPS): the velocity
+    innovations against the acceleration give the lag; compared with the state of that moment,
+    the error comes back near the correctly-timed figure (without: about twice it). A
+    correctly-timed receiver never gets a lag applied: its track is the same bit for bit as
+    with the learning off."""
+    run_ok, m_ok = lag_runs[(0.0, True)]
+    run_off, _ = lag_runs[(0.0, False)]
+    assert run_ok.extra["lag_ticks"] == 0 and run_ok.extra["lag_s"] < 0.02
+    assert np.array_equal(run_ok.p_n, run_off.p_n)
+    run_late, m_late = lag_runs[(0.15, True)]
+    _, m_late_off = lag_runs[(0.15, False)]
+    assert 0.12 < run_late.extra["lag_s"] < 0.17, run_late.extra  # measured 0.133 s
+    assert 24 <= run_late.extra["lag_ticks"] <= 34, run_late.extra
+    # measured: 0.71 m correctly timed, 0.88 m late and learned, 1.53 m late without
+    assert m_late["horiz_rms_m"] < 1.35 * m_ok["horiz_rms_m"], (m_late, m_ok)
+    assert m_late_off["horiz_rms_m"] > 1.8 * m_ok["horiz_rms_m"], (m_late_off, m_ok)
 
 
 def navigating(seconds=110, seed=3, **gnss_kw):

@@ -55,10 +55,11 @@ class Drive:
         self.accel = self.imu.accel_counts.astype(int).tolist()
 
 
-def simulate(script, duration_s, seed, outages=(), origin=trajectory.ORIGIN_XIAN):
+def simulate(script, duration_s, seed, outages=(), origin=trajectory.ORIGIN_XIAN,
+             gnss_model=None):  # fmt: skip
     truth = trajectory.truth_from_script(script, duration_s, outages=outages, origin=origin)
     imu = sim_imu.simulate(truth, seed=seed)
-    gnss = sim_gnss.simulate(truth, seed=seed, outages=outages)
+    gnss = sim_gnss.simulate(truth, gnss_model, seed=seed, outages=outages)
     return truth, imu, list(gnss)
 
 
@@ -268,6 +269,7 @@ def firmware_snapshot(nav):
         "n_same_a": nav_runner.control(nav, "n_same_a"),
         "inflate": nav_runner.control(nav, "inflate"),
         "drift_until": nav_runner.control(nav, "drift_until"),
+        "lag_tick": nav_runner.control(nav, "lag_tick"),
         "since_prop": nav_runner.control(nav, "since_prop"),
         "since_zupt": nav_runner.control(nav, "since_zupt"),
         "since_nhc": nav_runner.control(nav, "since_nhc"),
@@ -563,3 +565,36 @@ def test_model_of_the_start_from_the_gnss_track():
     assert nav_runner.control(nav, "speed_tick") == -1000000  # no fix had a speed
     assert len(seen.accepted_gnss) >= 15 and seen.zupts >= 3 and seen.still_ticks >= 400
     assert nav.resets == 0 and nav.state == NAVIGATING
+
+
+def test_model_of_a_receiver_whose_fixes_are_late():
+    """Fixes 0.15 s older than their stamps, stop-and-go: the lag's running means, its
+    estimate, and the fixes compared with the state of that moment once it is applied, bit
+    for bit."""
+    s = trajectory.DriveScript(yaw0_rad=-0.4)
+    s.add_road(np.random.default_rng(5), 1500.0, 0.02, 0.01, (60.0, 150.0), (20.0, 50.0))
+    s.hold(4.0)
+    for _ in range(4):
+        s.speed_to(12.0, 2.0)
+        s.hold(3.0)
+        s.turn(0.3 * math.pi, 0.4)
+        s.speed_to(3.0, 2.0)
+        s.hold(2.0)
+    duration = s.t_s + 2.0
+    s.hold(2.0)
+    truth, imu, fixes = simulate(s, duration, seed=8,
+                                 gnss_model=sim_gnss.GnssModel(stamp_lag_s=0.15))  # fmt: skip
+    drive = Drive(truth, imu, fixes, ())
+    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1,
+                     gnss_lag_learn=True)  # fmt: skip
+    applied = []
+
+    def tick(nav, model, k):
+        nav.imu_raw(drive.gyro[k], drive.accel[k])
+        model.imu_raw(drive.gyro[k], drive.accel[k])
+        applied.append(int(nav.mem[nav_mod._M_CN + nav_mod._CN_LAGT]))
+
+    n = len(truth.t_s) - 1
+    nav, _, _ = side_by_side(drive, cfg, n, hooks=dict.fromkeys(range(n), tick))
+    assert nav.state == NAVIGATING and max(applied) > 0, max(applied)
+    assert sum(a > 0 for a in applied) > 2000  # applied over 10 s at least
