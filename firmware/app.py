@@ -32,9 +32,7 @@ import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
 from micropython import const
-from nav import MEM_FLOATS, NAVIGATING, Navigator, nav_frame
-
-import f32
+from nav import NAVIGATING, Navigator, nav_frame
 
 _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
@@ -133,8 +131,10 @@ class App:
     def __init__(self, board_module, console=print):
         # the navigator's 6.6 KB state block before anything else, while the heap still has
         # long free runs: made after the configuration and the board, it failed to find one
-        # when the heap held other objects before the firmware started (test_m4f's padding)
-        mem = f32.zeros(MEM_FLOATS)
+        # when the heap held other objects before the firmware started (test_m4f's padding).
+        # Through Navigator, not f32 and nav.MEM_FLOATS: two more globals in this module made
+        # every navigating tick dearer (the trial is in issue 17's notes)
+        mem = Navigator.memory()
         self.console = console
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
         console(msg)

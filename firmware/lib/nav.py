@@ -253,7 +253,6 @@ _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
 _M_CN = const(1644)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
 _NM = const(1656)
-MEM_FLOATS = const(_NM)  # Navigator(cfg, mem): a caller may make the block first (app.py)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -281,8 +280,13 @@ def _ticks(seconds, dt):
 
 
 class Navigator(Alignment, Aiding):
+    @staticmethod
+    def memory():
+        """A zeroed block for Navigator(cfg, mem): a caller may make it first (app.py)."""
+        return f32.zeros(_NM)
+
     def __init__(self, cfg, mem=None):
-        """mem: a float32 buffer of MEM_FLOATS zeros to hold the state (made here if None)."""
+        """mem: Navigator.memory(), the block that holds the state (made here if None)."""
         self.cfg = cfg
         dt = cfg.dt_s
         self.mem = m = f32.zeros(_NM) if mem is None else mem
@@ -1076,8 +1080,8 @@ def _drift_watch(e, mem, n):
     return hit
 
 
-# The receiver's error that a white-noise filter cannot see (docs/navigation.md, "Correlated
-# GNSS errors"). The filter takes each fix's error as independent of the last one's, with the
+# The receiver's error that a white-noise filter cannot see (docs/navigation.md, "The reported
+# covariance"). The filter takes each fix's error as independent of the last one's, with the
 # variance R its sigma gives. A receiver's error is partly slow (multipath, atmosphere: tens of
 # seconds); consecutive fixes share that part, the filter follows it as if it were position,
 # and P never holds it. The innovations show it by its absence: when fixes scatter about the
@@ -1137,7 +1141,7 @@ def _consistency(c, e, mem, n, mask):
     # is a dt_lag on average plus what the applied lag took away (y0 = y + a lag_applied):
     # the lag is mean(y0 . a) / mean(a . a) over fixes in motion. (The position innovation
     # says v dt_lag, but the filter takes a steady v dt_lag for a position error and follows
-    # it: on urban_drive it shows a tenth of a 0.15 s lag, the velocity's more than half.)
+    # it, so the positions show only a small part of the lag.)
     # Its sigma is about sigma_vel / sqrt(k mean(a . a)); applied once 3 of them from 0 and
     # at least _LAG_MIN.
     ve = mem[_M_X + ins_mod.X_V]
@@ -1150,6 +1154,8 @@ def _consistency(c, e, mem, n, mask):
     cn[_CN_PVN] = vn
     if n < 5 or mask & 0x18 or t < 1 or t > 2 * c[_C_T_SECOND] or not c[_C_OPTS] & _OPT_LAG:
         return  # no velocity rows or one gated out, no fix of the last 2 s before, or off
+    if c[_C_TICK] < c[_C_DRIFT_UNTIL] or c[_C_TICK] < c[_C_GATED_UNTIL]:
+        return  # the INS drifting away (a sensor fault) or fixes gated: not the receiver's lag
     if not (r[3] > 0.0 and r[4] > 0.0) or not ve * ve + vn * vn > _LAG_V2:
         return
     ye = z[3]

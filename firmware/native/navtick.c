@@ -351,6 +351,9 @@ static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t
     if (n < 5 || (mask & 0x18) || t < 1 || t > 2 * c[C_T_SECOND] || !(c[C_OPTS] & OPT_LAG)) {
         return;
     }
+    if (c[C_TICK] < c[C_DRIFT_UNTIL] || c[C_TICK] < c[C_GATED_UNTIL]) {
+        return; /* a sensor fault's drift, or fixes gated: not the receiver's lag */
+    }
     if (!(r[3] > 0.0f && r[4] > 0.0f) || !(ve * ve + vn * vn > LAG_V2)) {
         return;
     }

@@ -1,7 +1,7 @@
 """Plots (PNG) and report.md of one emulator run.
 
     trajectory.png  truth, the firmware's track and the GNSS fixes; outages in red
-    errors.png      position and velocity errors (E, N, U) with the filter's own 3-sigma
+    errors.png      position and velocity errors (E, N, U) with the reported 3-sigma
     attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw against truth
     biases.png      gyro and accel bias estimates with 3-sigma against the simulated biases
 GNSS outages are shaded in every time plot.
@@ -86,7 +86,7 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     _err_panel(axs[0], t, err.dp, err.sigma[:, 0:3], "ENU", "position, m", outages, t_end)
     _err_panel(axs[1], t, err.dv, err.sigma[:, 3:6], "ENU", "velocity, m/s", outages, t_end)
-    axs[0].set_title(f"{title}: errors (dashed: the filter's 3-sigma)")
+    axs[0].set_title(f"{title}: errors (dashed: the reported 3-sigma)")
     axs[1].set_xlabel("time, s")
     fig.tight_layout()
     fig.savefig(out_dir / "errors.png", dpi=110)

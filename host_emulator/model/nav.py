@@ -176,8 +176,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
         self.drift_until = 0
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
-        # the receiver's unseen error (nav._consistency): fixes counted, the running means of
-        # y^2/S east/north and up, the unseen variances per horizontal axis and vertical
+        # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
         self.lag_tick = 0  # the tick of the last fix the lag learned from
         self.since_prop = 0
@@ -519,7 +518,8 @@ class NavModel(AlignmentModel, AidingModel):
 
     def _consistency(self, innov, mask):
         """nav._consistency: after a fix whose three position rows were accepted, the running
-        means of y^2/S (east/north, up) and the unseen variances (1 - mean) sigma^2."""
+        means of y^2/S (east/north, up) and the unseen variances (1 - mean) sigma^2; then, from
+        the velocity rows, the fixes' lag behind their stamps and the ticks applied."""
         if len(innov) < 3 or mask & 7:
             return
         (ye, se), (yn, sn), (yu, su) = innov[:3]
@@ -547,6 +547,8 @@ class NavModel(AlignmentModel, AidingModel):
         cn[fw_nav._CN_PVN] = vn
         if (len(innov) < 5 or mask & 0x18 or t < 1 or t > 2 * self.ticks_second
                 or not self.cfg.gnss_lag_learn):  # fmt: skip
+            return
+        if self.tick < self.drift_until or self.tick < self.gated_until:
             return
         (yve, sve), (yvn, svn) = innov[3:5]
         if not (sve > 0.0 and svn > 0.0) or not ve * ve + vn * vn > fw_nav._LAG_V2:
