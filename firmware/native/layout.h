@@ -278,7 +278,7 @@
 #define M_BW 1639
 #define M_CN 1644
 #define NM 1656
-/* nav.py: the receiver's unseen error, m + M_CN (_consistency) */
+/* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency) */
 #define CN_K 0
 #define CN_MH 1
 #define CN_MV 2
