@@ -182,7 +182,9 @@ def simulate(truth, model=None, seed=0, outages=None):
 
     p_ant, v_ant = antenna(idx)
     lag = int(round(model.stamp_lag_s * RATE_HZ))
-    p_meas, v_true_meas = antenna(np.maximum(idx - lag, 0)) if lag else (p_ant, v_ant)
+    p_meas, v_true_meas = (p_ant, v_ant)
+    if lag:  # the receiver measured `lag` truth samples before each stamp (after: negative)
+        p_meas, v_true_meas = antenna(np.clip(idx - lag, 0, len(truth.t_s) - 1))
 
     # Errors (drawn for every epoch, fix or not, so outages do not shift the random stream).
     dt = 1.0 / model.rate_hz
