@@ -52,7 +52,7 @@ _K_NMEA_BAD = const(6)  # CAUSE_NMEA until this tick
 _K_EDGES_OK = const(7)  # regular PPS edges in a row that each had an epoch after them
 _K_OVERDUE = const(8)  # the tick from which the last edge's epoch is overdue (_pps_seen)
 _K_MSL_MM = const(9)  # the last height the receiver gave, above mean sea level, mm (0 before one)
-_K_H_MM = const(10)  # ... and above the ellipsoid (_fix_fields); _NEVER: none yet
+_K_H_MM = const(10)  # ... and above the ellipsoid (_fix_fields); _FI_NO_HEIGHT: none yet
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
@@ -105,6 +105,7 @@ _FI_SPEED_MM_S = const(6)
 _FI_COURSE_CDEG = const(7)
 _FI_TICK = const(8)
 _NFI = const(9)
+_FI_NO_HEIGHT = const(0x3FFFFFFF)  # _FI_ALT_MM of a receiver that never gave a height
 _C_TICK = const(0)  # nav._C_*: the navigator's control state, Navigator.ctl
 _C_STATE = const(1)
 _C_HEALTH = const(2)
@@ -165,7 +166,7 @@ class App:
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
         # they made every navigating tick dearer (issue 16's notes)
-        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _NEVER))
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -367,8 +368,6 @@ class App:
             self._fix_fields(g, self.nav.fix_in)
             if self.nav.fix_in[_FI_TICK] == _LATE:  # the receiver's fix, too old to use
                 self._no_fix(self.nav.fix_in, 0)
-            elif self.nav.fix_in[_FI_ALT_MM] == _NEVER:  # no height yet (an RMC-only receiver)
-                self._no_fix(self.nav.fix_in, 0)
         else:
             self._fields[_F_VALID] = 0
             self._no_fix(self.nav.fix_in, 0)
@@ -389,9 +388,8 @@ class App:
         unknown, unlike a standing receiver's speed 0.00 with an empty course. An epoch without
         height (an RMC's fix, a GGA with an empty altitude) carries the last height the
         receiver gave (a GGA-and-RMC-in-alternate-seconds receiver: a second old), not 0;
-        until a receiver gives one (RMC only: never), the fix is shown in the frame (height 0)
-        but the navigator gets none (_deliver_fix: it has no height-less update, so a height
-        of 0 would pull it hundreds of metres down; docs/gnss.md)."""
+        until a receiver gives one (RMC only: never), the frame shows height 0 and the
+        navigator gets _FI_NO_HEIGHT: east and north alone (docs/gnss.md)."""
         ff = self._fields
         # geo.split_into and frame.round_div written out: a Python call less for each
         v = g.epoch_lat_e7

@@ -47,7 +47,7 @@ import ins as ins_mod
 import kern
 from ins import Ins
 from micropython import const
-from nav_aid import Aiding
+from nav_aid import NO_HEIGHT_VAR, Aiding
 from nav_align import Alignment
 
 import f32
@@ -98,7 +98,7 @@ _FX_HDOP = const(1)
 _FX_SPEED = const(2)  # m/s, < 0 if unknown
 _FX_COURSE = const(3)  # rad clockwise from north, < 0 if unknown
 _FX_SIG_H = const(4)  # 1-sigma horizontal error, m (0: from HDOP)
-_FX_SIG_V = const(5)  # 1-sigma vertical error, m (0: from the horizontal one)
+_FX_SIG_V = const(5)  # 1-sigma vertical error, m (0: from the horizontal one; < 0: no height)
 # self._st: standstill detector
 _ST_FX = const(0)  # low-passed specific force (3)
 _ST_VAR = const(3)  # low-passed |f - f_lp|^2
@@ -144,13 +144,14 @@ _NAID = const(13)
 FI_LAT_E7 = const(0)
 FI_LON_DEG = const(1)  # longitude: whole degrees and 1e-7 deg fraction with their sign
 FI_LON_FRAC = const(2)
-FI_ALT_MM = const(3)  # height above the ellipsoid, mm
+FI_ALT_MM = const(3)  # height above the ellipsoid, mm; FI_NO_HEIGHT: none (RMC only)
 FI_QUALITY = const(4)  # GGA fix quality, 0 none
 FI_HDOP_X100 = const(5)  # < 0 if unknown
 FI_SPEED_MM_S = const(6)  # < 0 if unknown
 FI_COURSE_CDEG = const(7)  # < 0 if unknown
 FI_TICK = const(8)  # measurement tick (< 0: arrival less the configured latency)
 NFI = const(9)
+FI_NO_HEIGHT = const(0x3FFFFFFF)  # fix_in[FI_ALT_MM] of a receiver that never gave a height
 # fix_check's result bits
 _FC_USABLE = const(1)  # HDOP acceptable
 _FC_SPEED = const(2)  # ... and the fix has a speed (now in self._st)
@@ -577,8 +578,10 @@ class Navigator(Alignment, Aiding):
         lon (whole degrees and 1e-7 deg fraction of the same sign: geo.split_e7), height (m),
         fix quality (0 none), HDOP, speed (m/s, < 0 if unknown) and course over ground (rad
         clockwise from north, < 0 if unknown), the tick of its measurement time (the PPS tick;
-        < 0: arrival - latency), and optional 1-sigma errors (0: from HDOP). Processed at the
-        next tick. The board's app uses `gnss_fix` (ints, no allocation)."""
+        < 0: arrival - latency), and optional 1-sigma errors (0: from HDOP; sigma_v_m < 0: the
+        fix has no height, and h_m serves only as the origin's and the start's, as the app's 0
+        does). Processed at the next tick. The board's app uses `gnss_fix` (ints, no
+        allocation)."""
         fx = self._fx
         fx[_FX_H] = h_m
         fx[_FX_HDOP] = hdop
@@ -673,7 +676,7 @@ class Navigator(Alignment, Aiding):
             if not kf.diagonal_ok():
                 self._fault_reset()
                 return
-            c[_C_UNCERTAIN] = _uncertain(kf.e, self._aid)
+            c[_C_UNCERTAIN] = _uncertain(kf.e, self._aid, self.mem)
         if not ins_finite(x):
             self._fault_reset()
 
@@ -1030,16 +1033,17 @@ def _finite6(w, f):
     return s - s == 0.0
 
 
-def _uncertain(e, aid):
+def _uncertain(e, aid, mem):
     """1 if the covariance (Eskf.e's P) puts the position's east or north 1-sigma beyond
-    aid[_AID_FAULT_SIGMA], or its vertical one beyond aid[_AID_FAULT_SIGMA_V]."""
+    aid[_AID_FAULT_SIGMA], or its vertical one beyond aid[_AID_FAULT_SIGMA_V] (not while the
+    receiver gives no height: the newest fix's _FX_SIG_V < 0)."""
     lim = aid[_AID_FAULT_SIGMA]
     lim2 = lim * lim
     p = f32.view(e, eskf.E_P, eskf.N * eskf.N)
     if p[0] > lim2 or p[eskf.N + 1] > lim2:
         return 1
     lim = aid[_AID_FAULT_SIGMA_V]
-    if p[2 * (eskf.N + 1)] > lim * lim:
+    if p[2 * (eskf.N + 1)] > lim * lim and mem[_M_FX + _FX_SIG_V] >= 0.0:
         return 1
     return 0
 
@@ -1127,15 +1131,17 @@ def _consistency(c, e, mem, n, mask):
         qu = _CN_CLIP
     qh = (qe + qn) * 0.5
     cn[_CN_MH] = cn[_CN_MH] + a * (qh - cn[_CN_MH])
-    cn[_CN_MV] = cn[_CN_MV] + a * (qu - cn[_CN_MV])
     s = mem[_M_US + 5]  # nav_aid's _US_SIG_H
     cn[_CN_VH] = 0.0
     if cn[_CN_MH] < 1.0:
         cn[_CN_VH] = (1.0 - cn[_CN_MH]) * (s * s)
-    s = mem[_M_US + 6]  # _US_SIG_V
-    cn[_CN_VV] = 0.0
-    if cn[_CN_MV] < 1.0:
-        cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
+    s = mem[_M_US + 6]  # _US_SIG_V; < 0: the fix had no height, and the state's is unknown
+    cn[_CN_VV] = NO_HEIGHT_VAR
+    if s > 0.0:
+        cn[_CN_MV] = cn[_CN_MV] + a * (qu - cn[_CN_MV])
+        cn[_CN_VV] = 0.0
+        if cn[_CN_MV] < 1.0:
+            cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
     # The lag. A fix measured dt_lag before its stamp reports the velocity of then, behind
     # the state's by a dt_lag (a: the acceleration), so its velocity innovation (state - fix)
     # is a dt_lag on average plus what the applied lag took away (y0 = y + a lag_applied):
@@ -1237,7 +1243,12 @@ ins_step = ins_mod.step
 def _fix_in_py(fx, fi, aid):
     """The receiver's integers fi (FI_*) as the fix's floats fx (_FX_*): unknown HDOP is the
     worst accepted one, unknown speed or course -1.0."""
-    fx[_FX_H] = f32.ratio(fi[FI_ALT_MM], 1000)
+    fx[_FX_SIG_V] = 0.0
+    if fi[FI_ALT_MM] == FI_NO_HEIGHT:  # no height: nav_aid holds the vertical velocity instead
+        fx[_FX_H] = 0.0
+        fx[_FX_SIG_V] = -1.0
+    else:
+        fx[_FX_H] = f32.ratio(fi[FI_ALT_MM], 1000)
     if fi[FI_HDOP_X100] >= 0:
         fx[_FX_HDOP] = f32.ratio(fi[FI_HDOP_X100], 100)
     else:
@@ -1249,7 +1260,6 @@ def _fix_in_py(fx, fi, aid):
         if fi[FI_COURSE_CDEG] >= 0:
             fx[_FX_COURSE] = f32.f32(fi[FI_COURSE_CDEG]) * RAD_PER_CDEG
     fx[_FX_SIG_H] = 0.0
-    fx[_FX_SIG_V] = 0.0
 
 
 def _fix_check_py(st, fx, x, aid):

@@ -4,7 +4,9 @@ A mixin of `nav.Navigator` (its methods run on the Navigator's buffers, made in 
 nav.py decides when each runs: `_schedule`, `_inject`):
 - `_start_gnss_update`: the antenna position p + C_bn l against the fix, compared with the
   state at the fix's measurement time (from the GNSS delay ring, nav.py), and with a course the
-  horizontal antenna velocity v + C_bn (w x l) against speed (sin, cos course);
+  horizontal antenna velocity v + C_bn (w x l) against speed (sin, cos course); a fix
+  without height (an RMC-only receiver: fix_in's _FX_SIG_V < 0) compares east and north, and
+  its vertical row is v_U = 0 (1 m/s): nothing else holds the vertical channel of a walker;
 - `_start_zupt`: the zero-velocity update at standstill, z = v_n;
 - `_start_nhc`: the non-holonomic constraint of a car, body lateral and vertical velocity 0;
 - `_reset_to_gnss`: position and velocity from the fix the filter last rejected;
@@ -21,6 +23,7 @@ started; the filter works them off over the next ticks.
 import eskf
 from micropython import const
 
+import f32
 from fmath import cos, sin
 
 # Indices into self._fx, the pending fix's floats, as nav.py defines them (an underscore const
@@ -45,7 +48,8 @@ _US_P = const(0)  # antenna position in the frame (3)
 _US_SPEED = const(3)
 _US_COURSE = const(4)
 _US_SIG_H = const(5)
-_US_SIG_V = const(6)
+_US_SIG_V = const(6)  # < 0: the fix had no height (its magnitude: the sigma it would have had)
+NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance without one, (10 km)^2
 
 
 class Aiding:
@@ -98,22 +102,30 @@ class Aiding:
         gp = self._gp
         fx = self._fx
         used = self._used
+        lx = ln[0]
+        ly = ln[1]
+        lz = ln[2]
+        used[_US_SIG_V] = sv
+        if fx[_FX_SIG_V] < 0.0:
+            # a fix without height (RMC only): its height is the state's own (a reset keeps
+            # it), and the vertical row holds the vertical velocity at 0 +- 1 m/s instead
+            gp[2] = rp[b + 2] + corr[2] + lz
+            used[_US_SIG_V] = -sv
         for i in range(3):
             used[_US_P + i] = gp[i]
         used[_US_SPEED] = fx[_FX_SPEED]
         used[_US_COURSE] = fx[_FX_COURSE]
         used[_US_SIG_H] = sh
-        used[_US_SIG_V] = sv
-        lx = ln[0]
-        ly = ln[1]
-        lz = ln[2]
         # z = (p + C l) - p_gnss = dp + [(C l) x] phi
         z = (rp[b] + corr[0] + lx) - gp[0]
         kf.add_scalar(z, rh, 3, 0, 1.0, eskf.IX_ATT + 1, -lz, eskf.IX_ATT + 2, ly)
         z = (rp[b + 1] + corr[1] + ly) - gp[1]
         kf.add_scalar(z, rh, 3, 1, 1.0, eskf.IX_ATT, lz, eskf.IX_ATT + 2, -lx)
-        z = (rp[b + 2] + corr[2] + lz) - gp[2]
-        kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
+        if used[_US_SIG_V] > 0.0:
+            z = (rp[b + 2] + corr[2] + lz) - gp[2]
+            kf.add_scalar(z, rv_, 3, 2, 1.0, eskf.IX_ATT, -ly, eskf.IX_ATT + 1, lx)
+        else:  # z = v_U = dv_U: a level world's vertical velocity, 1-sigma 1 m/s
+            kf.add_scalar(rv[b + 2] + corr[5], 1.0, 1, eskf.IX_VEL + 2, 1.0)
         course = fx[_FX_COURSE]
         sp = fx[_FX_SPEED]
         if course >= 0.0:

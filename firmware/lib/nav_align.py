@@ -27,6 +27,7 @@ from array import array
 
 import kern
 from micropython import const
+from nav_aid import NO_HEIGHT_VAR
 
 import f32
 import rot
@@ -57,6 +58,9 @@ _IX_YAW = const(8)  # eskf.IX_ATT + 2: the yaw's row of the covariance
 _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
+_FX_SIG_V = const(5)
+_M_CN = const(1644)  # self.mem: the consistency block, and in it
+_CN_VV = const(4)  # the vertical variance the filter does not hold, m^2
 
 # self._trk: the track anchors (heading from GNSS positions, see _track), used only here: a
 # float array, 3 floats per anchor, oldest first, and an int array of their measurement ticks,
@@ -167,9 +171,11 @@ class Alignment:
             c[_C_TRK_SET] = 0
             return
         course = fx[_FX_COURSE]
-        if course >= 0.0:
+        if course >= 0.0 or 0.0 <= fx[_FX_SPEED] < self.cfg.heading_speed_m_s:
+            # the receiver's course, or its speed says it (nearly) stands: the track's chord
+            # would be the fixes' noise (an RMC's course is empty at a standstill)
             c[_C_TRK_SET] = 0
-            if fx[_FX_SPEED] >= self.cfg.heading_speed_m_s:
+            if course >= 0.0 and fx[_FX_SPEED] >= self.cfg.heading_speed_m_s:
                 self._course_start(course)
         else:
             self._track()
@@ -293,6 +299,8 @@ class Alignment:
         Natively
         one kernel (`nav_start`), which mirrors `_start_navigation_py` and `_restart`."""
         self._yaw_var(var_course)
+        if self._fx[_FX_SIG_V] < 0.0:  # a receiver without height: the height is unknown
+            self.mem[_M_CN + _CN_VV] = NO_HEIGHT_VAR
         if _nav_start is None:
             self._start_navigation_py(course, sp, sigma_vel)
             return

@@ -161,7 +161,7 @@ static float sigma_v(const float *fx, const float *aid, float sh) {
 }
 
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
-    const float *ring_v, const float *corr, const float *gp, const float *fx, float *used,
+    const float *ring_v, const float *corr, float *gp, const float *fx, float *used,
     const float *w, const float *aid, int32_t b) {
     const float *c = x + X_C;
     const float *lv = aid + AID_LEVER;
@@ -172,19 +172,27 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     float sv = sigma_v(fx, aid, sh);
     float rh = sh * sh;
     float rv = sv * sv;
+    used[US_SIG_V] = sv;
+    if (fx[FX_SIG_V] < 0.0f) { /* no height: the state's own, and v_U held at 0 instead */
+        gp[2] = ring_p[b + 2] + corr[2] + lz;
+        used[US_SIG_V] = -sv;
+    }
     for (int i = 0; i < 3; i++) {
         used[US_P + i] = gp[i];
     }
     used[US_SPEED] = fx[FX_SPEED];
     used[US_COURSE] = fx[FX_COURSE];
     used[US_SIG_H] = sh;
-    used[US_SIG_V] = sv;
     float z = (ring_p[b] + corr[0] + lx) - gp[0];
     add_scalar(e, ii, z, rh, 3, 0, 1.0f, IX_ATT + 1, -lz, IX_ATT + 2, ly);
     z = (ring_p[b + 1] + corr[1] + ly) - gp[1];
     add_scalar(e, ii, z, rh, 3, 1, 1.0f, IX_ATT, lz, IX_ATT + 2, -lx);
-    z = (ring_p[b + 2] + corr[2] + lz) - gp[2];
-    add_scalar(e, ii, z, rv, 3, 2, 1.0f, IX_ATT, -ly, IX_ATT + 1, lx);
+    if (used[US_SIG_V] > 0.0f) {
+        z = (ring_p[b + 2] + corr[2] + lz) - gp[2];
+        add_scalar(e, ii, z, rv, 3, 2, 1.0f, IX_ATT, -ly, IX_ATT + 1, lx);
+    } else {
+        add_scalar(e, ii, ring_v[b + 2] + corr[5], 1.0f, 1, IX_VEL + 2, 1.0f, 0, 0.0f, 0, 0.0f);
+    }
     float course = fx[FX_COURSE];
     float sp = fx[FX_SPEED];
     if (course >= 0.0f) {

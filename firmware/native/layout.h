@@ -173,6 +173,7 @@
 #define FI_SPEED_MM_S 6
 #define FI_COURSE_CDEG 7
 #define FI_TICK 8
+#define FI_NO_HEIGHT 1073741823 /* 0x3FFFFFFF */
 #define NFI 9
 #define FC_USABLE 1
 #define FC_SPEED 2

@@ -122,7 +122,13 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
         uint32_t u;
         float f;
     } rad_per_cdeg = {0x393702D3u}; /* nav.RAD_PER_CDEG: pi / 18000 */
-    fx[FX_H] = (float)fi[FI_ALT_MM] / 1000.0f;
+    fx[FX_SIG_V] = 0.0f;
+    if (fi[FI_ALT_MM] == FI_NO_HEIGHT) { /* no height: gnss_rows holds v_U instead */
+        fx[FX_H] = 0.0f;
+        fx[FX_SIG_V] = -1.0f;
+    } else {
+        fx[FX_H] = (float)fi[FI_ALT_MM] / 1000.0f;
+    }
     fx[FX_HDOP] = fi[FI_HDOP_X100] >= 0 ? (float)fi[FI_HDOP_X100] / 100.0f : aid[AID_HDOP_MAX];
     fx[FX_SPEED] = -1.0f;
     fx[FX_COURSE] = -1.0f;
@@ -133,7 +139,6 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
         }
     }
     fx[FX_SIG_H] = 0.0f;
-    fx[FX_SIG_V] = 0.0f;
 }
 
 /* Navigator._fix_usable: fix_check's bits when the quality is acceptable, and the tick of a

@@ -28,6 +28,7 @@
 #define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
 #define LAG_K0 16.0f /* nav._LAG_K0 */
 #define LAG_Q2 9.0f /* nav._LAG_Q2 */
+#define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -118,7 +119,7 @@ static int32_t finite6(const float *w, const float *f) {
 }
 
 /* nav._uncertain */
-static int32_t uncertain(const float *e, const float *aid) {
+static int32_t uncertain(const float *e, const float *aid, const float *m) {
     float lim = aid[AID_FAULT_SIGMA];
     float lim2 = lim * lim;
     const float *p = e + E_P;
@@ -126,7 +127,7 @@ static int32_t uncertain(const float *e, const float *aid) {
         return 1;
     }
     lim = aid[AID_FAULT_SIGMA_V];
-    return p[2 * (N + 1)] > lim * lim ? 1 : 0;
+    return p[2 * (N + 1)] > lim * lim && m[M_FX + FX_SIG_V] >= 0.0f ? 1 : 0;
 }
 
 /* nav_align._level: roll and pitch from the mean specific force, the gyro bias from the
@@ -328,16 +329,19 @@ static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t
     }
     float qh = (qe + qn) * 0.5f;
     cn[CN_MH] = cn[CN_MH] + a * (qh - cn[CN_MH]);
-    cn[CN_MV] = cn[CN_MV] + a * (qu - cn[CN_MV]);
     float s = m[M_US + US_SIG_H];
     cn[CN_VH] = 0.0f;
     if (cn[CN_MH] < 1.0f) {
         cn[CN_VH] = (1.0f - cn[CN_MH]) * (s * s);
     }
-    s = m[M_US + US_SIG_V];
-    cn[CN_VV] = 0.0f;
-    if (cn[CN_MV] < 1.0f) {
-        cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
+    s = m[M_US + US_SIG_V]; /* < 0: the fix had no height, and the state's is unknown */
+    cn[CN_VV] = NO_HEIGHT_VAR;
+    if (s > 0.0f) {
+        cn[CN_MV] = cn[CN_MV] + a * (qu - cn[CN_MV]);
+        cn[CN_VV] = 0.0f;
+        if (cn[CN_MV] < 1.0f) {
+            cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
+        }
     }
     /* the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows) */
     float ve = m[M_X + X_V];
@@ -515,7 +519,7 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
                 if (!navk_eskf_diagonal_ok(e)) {
                     return stop(c, PH_HEALTH, EV_FAULT);
                 }
-                c[C_UNCERTAIN] = uncertain(e, m + M_AID);
+                c[C_UNCERTAIN] = uncertain(e, m + M_AID, m);
             }
             if (!navk_ins_finite(x)) {
                 return stop(c, PH_HEALTH, EV_FAULT);

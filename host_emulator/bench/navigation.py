@@ -64,6 +64,21 @@ LATE_RECEIVERS = {
 }
 
 
+# receivers by the sentences they print (white GNSS, each scenario's profile): label ->
+# sentences; GGA + RMC is the accuracy tables' own run (not run again)
+RECEIVERS = {
+    "GGA + RMC": ("GGA", "GSA", "RMC"),
+    "RMC only": ("RMC", "GSA"),
+    "GGA only": ("GGA", "GSA"),
+}
+RECEIVER_SCENARIOS = ("urban_drive", "bicycle", "walk")
+
+
+def _receiver_task(label):
+    """The task's profile field of a receiver row."""
+    return "receiver: " + label
+
+
 def _on_time(lag_s, learn):
     """A late-receiver row that is the default configuration's own run."""
     return lag_s == 0.0 and learn
@@ -91,7 +106,13 @@ def _one(task):
     truth = trajectory.SCENARIOS[name](seed=seed)
     imu = sim_imu.simulate(truth, seed=seed)
     _, lag_s, learn = LATE_RECEIVERS.get(profile, (name, 0.0, True))
-    model = sim_gnss.GnssModel(white_fraction=1.0 if white else 0.5, stamp_lag_s=lag_s)
+    sentences = sim_gnss.GnssModel.sentences
+    if profile.startswith(_receiver_task("")):
+        sentences = RECEIVERS[profile[len(_receiver_task("")) :]]
+        profile = SCENARIO_PROFILES[name]
+    model = sim_gnss.GnssModel(
+        white_fraction=1.0 if white else 0.5, stamp_lag_s=lag_s, sentences=sentences
+    )
     gnss = sim_gnss.simulate(truth, model, seed=seed)
     cfg = navcfg.NavConfig("handheld" if profile == "handheld" else "car")
     for key, value in PROFILES.get(profile, {}).items():
@@ -268,6 +289,34 @@ def report(results, vm, footprint, seeds, wall):
             )
     lines += [
         "",
+        "## Receivers by the sentences they print",
+        "",
+        "White GNSS, each scenario's profile. RMC only: no height and no HDOP (the worst "
+        "accepted, `gnss_hdop_max`, is assumed: a 4 m sigma), so the filter corrects east and "
+        "north only and keeps its own height (docs/gnss.md); GGA only: no speed or course, so "
+        "no velocity update and the heading at start comes from the track.",
+        "",
+        "| scenario (profile) | receiver | horiz RMS m | vert RMS m | vel RMS m/s | yaw deg "
+        "| navigating after the first move s | end of outages m | inside 3 sigma | NEES |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name in RECEIVER_SCENARIOS:
+        for label in RECEIVERS:
+            prof = SCENARIO_PROFILES[name]
+            own = label == "GGA + RMC"
+            rows = _rows(results, name, True, prof if own else _receiver_task(label))
+            if rows:
+                outs = " / ".join(f"{v:.2f}" for v in _outage_means(rows))
+                lines.append(
+                    f"| {name} ({prof}) | {label} | {_mean(rows, 'horiz_rms_m'):.2f} | "
+                    f"{_mean(rows, 'vert_rms_m'):.2f} | {_mean(rows, 'vel_rms_m_s'):.3f} | "
+                    f"{_mean(rows, 'yaw_rms_deg'):.2f} | "
+                    f"{_mean(rows, 'nav_after_move_s'):.1f} | {outs} | "
+                    f"{100 * _mean(rows, 'pos_3sigma_cover'):.0f} % | "
+                    f"{_mean(rows, 'pos_nees_h'):.2f} |"
+                )
+    lines += [
+        "",
         "## Against the targets (urban_drive, white GNSS)",
         "",
         "| metric | target | measured | met |",
@@ -345,6 +394,13 @@ def main(argv=None):
         (n, s, True, r)
         for r, (n, lag_s, learn) in LATE_RECEIVERS.items()
         if not _on_time(lag_s, learn)
+        for s in range(args.seeds)
+    ]
+    tasks += [
+        (n, s, True, _receiver_task(r))
+        for n in RECEIVER_SCENARIOS
+        for r in RECEIVERS
+        if r != "GGA + RMC"
         for s in range(args.seeds)
     ]
     results = {}

@@ -80,16 +80,25 @@ def gnss_e7(nav, lat_e7, lon_e7, *args, **kwargs):
     nav.gnss(lat_e7, *geo.split_e7(lon_e7), *args, **kwargs)
 
 
-def deliver_fix(nav, fx, dt_s):
-    """Hand one simulated fix to the navigator as the board's loop will (fix_args)."""
-    args, fix_tick = fix_args(fx, dt_s)
-    gnss_e7(nav, *args, fix_tick=fix_tick)
+def deliver_fix(nav, fx, dt_s, sentences=("GGA", "RMC")):
+    """Hand one simulated fix to the navigator as the board's loop will (fix_args), with what
+    a receiver printing `sentences` gives: no GGA, no height and no HDOP (the worst accepted
+    is assumed, as app.py does); neither RMC nor VTG, no speed and course."""
+    args, fix_tick = fix_args(fx, dt_s, velocity="RMC" in sentences or "VTG" in sentences)
+    if "GGA" in sentences:
+        gnss_e7(nav, *args, fix_tick=fix_tick)
+        return
+    lat, lon, _, quality, _, speed, course = args
+    hdop = nav.cfg.gnss_hdop_max
+    gnss_e7(nav, lat, lon, 0.0, quality, hdop, speed, course, fix_tick=fix_tick, sigma_v_m=-1.0)
 
 
 def feed(nav, imu, gnss, k0, k1, on_tick=None):
     """Ticks k0..k1-1: the fixes available by each tick, then the tick's IMU counts;
-    on_tick(nav, k) after each tick."""
+    on_tick(nav, k) after each tick. The fixes carry what the simulated receiver prints
+    (its model's `sentences`)."""
     dt = float(nav.cfg.dt_s)
+    sentences = getattr(getattr(gnss, "model", None), "sentences", ("GGA", "RMC"))
     gyro = imu.gyro_counts[k0:k1].astype(int).tolist()
     accel = imu.accel_counts[k0:k1].astype(int).tolist()
     sat = imu.saturated[k0:k1].tolist()
@@ -97,7 +106,7 @@ def feed(nav, imu, gnss, k0, k1, on_tick=None):
     fi = 0
     for j, k in enumerate(range(k0, k1)):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * dt + 1e-9:
-            deliver_fix(nav, fixes[fi], dt)
+            deliver_fix(nav, fixes[fi], dt, sentences)
             fi += 1
         nav.imu_raw(gyro[j], accel[j], sat[j])
         if on_tick:

@@ -220,8 +220,8 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
         pps["bad"] = ticks + fw_app._SECOND_TICKS
-    if alt_mm is None:  # no height yet (an RMC-only receiver): app._deliver_fix
-        model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)
+    if alt_mm is None:  # no height yet (an RMC-only receiver): nav._fix_in_py
+        model.gnss(lat, lon, 0.0, g.epoch_quality, hdop, speed, course, fix_tick, sigma_v_m=-1.0)
         return
     h = F32(alt_mm) / F32(1000)
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)

@@ -389,7 +389,9 @@ class NavModel(AlignmentModel, AidingModel):
             lim2 = self.cfg.fault_sigma_m * self.cfg.fault_sigma_m
             lim2_v = self.cfg.fault_sigma_v_m * self.cfg.fault_sigma_v_m
             P = kf.P
-            self.uncertain = 1 if max(P[0, 0], P[1, 1]) > lim2 or P[2, 2] > lim2_v else 0
+            # the height is not checked while the receiver gives none (the newest fix's sigma < 0)
+            vert = P[2, 2] > lim2_v and self.fix[5] >= 0.0
+            self.uncertain = 1 if max(P[0, 0], P[1, 1]) > lim2 or vert else 0
         p, v = ins.p_n, ins.v_n
         s = sum_left([p[0], p[1], p[2], v[0], v[1], v[2], ins.q_bn[0]])
         if s - s != 0.0:
@@ -534,10 +536,17 @@ class NavModel(AlignmentModel, AidingModel):
         qu = min(yu * yu / su, fw_nav._CN_CLIP)
         qh = (qe + qn) * HALF
         cn[fw_nav._CN_MH] = cn[fw_nav._CN_MH] + a * (qh - cn[fw_nav._CN_MH])
-        cn[fw_nav._CN_MV] = cn[fw_nav._CN_MV] + a * (qu - cn[fw_nav._CN_MV])
-        for m_i, v_i, sig in ((fw_nav._CN_MH, fw_nav._CN_VH, self.used[5]),
-                              (fw_nav._CN_MV, fw_nav._CN_VV, self.used[6])):  # fmt: skip
-            cn[v_i] = (ONE - cn[m_i]) * (sig * sig) if cn[m_i] < ONE else ZERO
+        sig = self.used[5]
+        cn[fw_nav._CN_VH] = ZERO
+        if cn[fw_nav._CN_MH] < ONE:
+            cn[fw_nav._CN_VH] = (ONE - cn[fw_nav._CN_MH]) * (sig * sig)
+        sig = self.used[6]  # < 0: the fix had no height, and the state's is unknown
+        cn[fw_nav._CN_VV] = fw_nav.NO_HEIGHT_VAR
+        if sig > 0.0:
+            cn[fw_nav._CN_MV] = cn[fw_nav._CN_MV] + a * (qu - cn[fw_nav._CN_MV])
+            cn[fw_nav._CN_VV] = ZERO
+            if cn[fw_nav._CN_MV] < ONE:
+                cn[fw_nav._CN_VV] = (ONE - cn[fw_nav._CN_MV]) * (sig * sig)
         # the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows)
         ve, vn = self.ins.v_n[0], self.ins.v_n[1]
         t = self.tick - self.lag_tick

@@ -56,15 +56,22 @@ class AidingModel:
         rh = sh * sh
         rv = sv * sv
         gp = self.gnss_p
-        self.used = np.array([gp[0], gp[1], gp[2], self.fix[2], self.fix[3], sh, sv], F32)
+        sv_used = sv
+        if self.fix[5] < 0.0:  # no height: the state's own, and v_U held at 0 instead
+            gp[2] = (p_then[2] + corr[2]) + lz
+            sv_used = -sv
+        self.used = np.array([gp[0], gp[1], gp[2], self.fix[2], self.fix[3], sh, sv_used], F32)
         self.used_tick = self.fix_tick
         att = IX_ATT
         z = (p_then[0] + corr[0] + lx) - gp[0]
         kf.add_scalar(z, rh, [(0, ONE), (att + 1, -lz), (att + 2, ly)])
         z = (p_then[1] + corr[1] + ly) - gp[1]
         kf.add_scalar(z, rh, [(1, ONE), (att, lz), (att + 2, -lx)])
-        z = (p_then[2] + corr[2] + lz) - gp[2]
-        kf.add_scalar(z, rv, [(2, ONE), (att, -ly), (att + 1, lx)])
+        if sv_used > 0.0:
+            z = (p_then[2] + corr[2] + lz) - gp[2]
+            kf.add_scalar(z, rv, [(2, ONE), (att, -ly), (att + 1, lx)])
+        else:  # a level world's vertical velocity, 1-sigma 1 m/s
+            kf.add_scalar(v_then[2] + corr[5], ONE, [(IX_VEL + 2, ONE)])
         course = self.fix[3]
         sp = self.fix[2]
         if course >= 0.0:

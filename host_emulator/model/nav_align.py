@@ -86,10 +86,11 @@ class AlignmentModel:
             self.trk_set = 0
             return
         course = self.fix[3]
-        if course >= 0.0:  # the receiver's course over ground
+        sp = self.fix[2]
+        # the receiver's course over ground, or its speed says it (nearly) stands: no track
+        if course >= 0.0 or 0.0 <= sp < cfg.heading_speed_m_s:
             self.trk_set = 0
-            sp = self.fix[2]
-            if sp >= cfg.heading_speed_m_s:
+            if course >= 0.0 and sp >= cfg.heading_speed_m_s:
                 s = cfg.gnss_vel_sigma / sp
                 self._start_navigation(course, sp, cfg.init_vel_sigma, s * s)
         else:
@@ -155,6 +156,8 @@ class AlignmentModel:
         y = self.cfg.init_yaw_sigma
         y = y * y
         self.init_diag[IX_ATT + 2] = var_course if var_course > y else y
+        if self.fix[5] < 0.0:  # a receiver without height: the height is unknown
+            self.consistency[fw_nav._CN_VV] = fw_nav.NO_HEIGHT_VAR
         ins = self.ins
         ypr = ref_rot.dcm_to_euler(ins.c_bn)
         ypr[fw_rot.YAW] = -course

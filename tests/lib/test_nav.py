@@ -48,7 +48,7 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     underscore const is inlined and exists only in its own module on the board); on CPython
     they are module attributes, so the copies can be checked against nav.py's."""
     copies = {
-        nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE"],
+        nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_V", "_M_CN", "_CN_VV"],
         nav_aid: ["_FX_HDOP", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_H", "_FX_SIG_V"],
     }
     for module, names in copies.items():
@@ -65,7 +65,8 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     # every layout index a mixin defines is one of these copies or a buffer it owns
     owned = {nav_align: "_TR_", nav_aid: "_US_"}
     for module, names in copies.items():
-        consts = {n for n in vars(module) if n.startswith(("_FX_", "_ST_", "_TR_", "_US_"))}
+        prefixes = ("_FX_", "_ST_", "_TR_", "_US_", "_M_", "_CN_")
+        consts = {n for n in vars(module) if n.startswith(prefixes)}
         assert consts == set(names) | {n for n in consts if n.startswith(owned[module])}
         assert not any(n.startswith(owned[module]) for n in vars(fw_nav))
 
@@ -469,6 +470,32 @@ def test_a_walk_and_a_bicycle_ride_navigate(name, profile, yaw_max_deg):
     raw_h = float(np.sqrt(np.mean(np.sum(gnss.err_n_m[ok, :2] ** 2, axis=1))))
     assert m["horiz_rms_m"] < 0.4 * raw_h, (m["horiz_rms_m"], raw_h)
     assert m["yaw_rms_deg"] < yaw_max_deg, m["yaw_rms_deg"]
+
+
+def test_an_rmc_only_receiver_navigates_a_walk():
+    """A receiver that prints RMC only (no height, no HDOP: 4 m assumed) on the walk, board in
+    hand: navigation starts after the first move, not from the chord of standing fixes (whose
+    RMC speed says they stand; HDOP 3.2 fixes at 29-34 s, which a GGA would have had refused,
+    made a 13 m chord and a start 130 deg off before the walker moved), east and north beat
+    the fixes, the vertical velocity is held (1 m/s) and the height is reported unknown."""
+    model = sim_gnss.GnssModel(white_fraction=1.0, sentences=("RMC", "GSA"))
+    truth, imu, gnss = scenario("walk", 120, seed=0, gnss_model=model)
+    run = nav_runner.run(truth, imu, gnss, cfg=navcfg.NavConfig("handheld"))
+    moved = truth.t_s[np.argmax(truth.speed_m_s > 0.1)]
+    # measured: 1.5 s after the move, 0.75 m against the fixes' 3.0 m, yaw 2.3 deg, vertical
+    # velocity 0.10 m/s RMS (0.27 with GGA's heights: the hold suits a walker)
+    assert run.align_time_s is not None and 0.0 < run.align_time_s - moved < 5.0
+    assert run.resets == 0
+    m = nav_runner.metrics(run, truth, skip_s=10.0)
+    ok = gnss.quality > 0
+    raw_h = float(np.sqrt(np.mean(np.sum(gnss.err_n_m[ok, :2] ** 2, axis=1))))
+    assert m["horiz_rms_m"] < 0.4 * raw_h, (m["horiz_rms_m"], raw_h)
+    assert m["yaw_rms_deg"] < 5.0, m["yaw_rms_deg"]
+    i = np.rint(run.t_s / DT).astype(int)
+    dv_up = run.v_n[:, 2] - truth.v_n[i, 2]
+    assert float(np.sqrt(np.mean(dv_up**2))) < 0.3
+    assert np.all(run.p_sigma[:, 2] >= 1e4)  # the height: unknown (nav_aid.NO_HEIGHT_VAR)
+    assert set(run.health) <= {0, 1, 2} and np.mean(run.health == 2) < 0.02
 
 
 def test_position_only_straight_drive_starts_from_the_track():

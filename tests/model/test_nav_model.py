@@ -362,7 +362,9 @@ def observe(seen, nav, before):
     seen.propagations += nav_runner.control(nav, "since_prop") == 0 and kf.job == 1
     seen.unusable_fixes += new_fix and not nav._fix_usable()
     injected_gnss = before["job"] == 1 and nav_runner.control(nav, "job") == 0
-    if injected_gnss and kf.gate_mask & 7 == 7:
+    # rejected: every position row gated (east and north when the fix had no height)
+    full = 7 if nav._used[6] >= 0.0 else 3
+    if injected_gnss and kf.gate_mask & full == full:
         seen.rejected_gnss += 1
     elif injected_gnss:
         seen.accepted_gnss.append(t)
@@ -375,7 +377,7 @@ def observe(seen, nav, before):
     seen.ceiled += bool(np.any(np.abs(d - kf.p_ceiling) <= 1e-5 * kf.p_ceiling))
 
 
-def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
+def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True, heights=True):
     """Feed firmware and model identically for n_ticks, comparing all state after every tick.
     hooks: {tick index k: fn(nav, model, k)} runs instead of tick k's IMU input (the same
     input or edit to both); setup(nav, model) runs once at the start; pps=False hands the
@@ -397,8 +399,12 @@ def side_by_side(drive, cfg, n_ticks, hooks=None, setup=None, pps=True):
     for k in range(n_ticks):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * DT + 1e-9:
             args, fix_tick = nav_runner.fix_args(fixes[fi], DT, pps=pps)
-            nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick)
-            model.gnss(*args, fix_tick=fix_tick)
+            kw = {}
+            if not heights:  # an RMC-only receiver's fix (nav.gnss: sigma_v_m < 0)
+                args = (*args[:2], 0.0, *args[3:])
+                kw["sigma_v_m"] = -1.0
+            nav_runner.gnss_e7(nav, *args, fix_tick=fix_tick, **kw)
+            model.gnss(*args, fix_tick=fix_tick, **kw)
             fi += 1
         before = {
             "last_fix_tick": nav_runner.control(nav, "last_fix_tick"),
@@ -489,7 +495,27 @@ def test_model_follows_re_anchoring_across_the_180th_meridian():
     assert nav.resets == 0
 
 
-def test_model_of_the_simple_board_model_and_the_recovery_paths():
+def test_model_of_a_receiver_without_height():
+    """The city drive from a receiver that gives no height (RMC only): east and north rows,
+    the vertical velocity held at 0 in place of the height row, the unseen-error means kept
+    for east and north only, the height reported unknown, and no health fault for the
+    vertical variance the filter cannot bound; bit for bit."""
+    drive = city_drive(80.0)
+    n = len(drive.truth.t_s) - 1
+    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1)
+    nav, _, seen = side_by_side(drive, cfg, n, heights=False)
+    assert seen.nav_ticks * DT > 60.0
+    assert_gnss_seen(seen, drive.outage)
+    assert seen.rejected_gnss >= 1 and seen.zupts >= 3
+    assert nav._used[6] < 0.0  # nav_aid._US_SIG_V: the last fix had no height
+    pd = f32.zeros(15)
+    nav.p_diag(pd)
+    assert float(pd[2]) >= 1e8 and float(pd[0]) < 10.0  # the height is unknown, east is not
+    assert 2 not in seen.health
+
+
+@pytest.mark.parametrize("heights", [True, False], ids=["gga", "rmc_only"])
+def test_model_of_the_simple_board_model_and_the_recovery_paths(heights):
     """earth_terms=False and coning=False (the board's simple model), fixes without their
     PPS tick (arrival minus the configured latency), and the recovery paths: fixes without a
     position while aligning, five rejected fixes (reset to GNSS, twice), a non-finite IMU
@@ -519,7 +545,7 @@ def test_model_of_the_simple_board_model_and_the_recovery_paths():
 
     hooks = {round(23.0 / DT): nan_sample, round(32.0 / DT): saturated}
     hooks[round(41.0 / DT)] = blow_up
-    nav, model, seen = side_by_side(drive, cfg, n, hooks, pps=False)
+    nav, model, seen = side_by_side(drive, cfg, n, hooks, pps=False, heights=heights)
     assert seen.unusable_aligning >= 2
     assert seen.nav_tick is not None and len(seen.accepted_gnss) >= 5
     assert seen.rejected_gnss >= 5 and nav.resets >= 3  # reset to GNSS twice, fault reset
