@@ -6,7 +6,7 @@ so a bad scenario or duration reads the same in `run`, `parity`, `export` and th
 import argparse
 import sys
 
-from host_emulator.errors import EmulatorError, FirmwareError
+from host_emulator.errors import EmulatorError, FirmwareError, os_error_text, quiet_broken_pipe
 
 MAX_DURATION_S = 24 * 3600.0
 
@@ -23,7 +23,8 @@ class Parser(argparse.ArgumentParser):
 def run_reporting(command, bad_input_status=2):
     """command()'s exit status, with what a user must not see as a traceback said in one
     paragraph on stderr: the firmware raised (1), bad input or a failed run (bad_input_status),
-    Ctrl-C (130)."""
+    a file that cannot be written or read (a full disk, a read-only directory:
+    bad_input_status), Ctrl-C (130); a closed output pipe (`| head`) ends it quietly (141)."""
     try:
         return command()
     except FirmwareError as e:
@@ -35,6 +36,11 @@ def run_reporting(command, bad_input_status=2):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        return quiet_broken_pipe()
+    except OSError as e:  # a full disk, a read-only directory: the file and the reason
+        print(f"error: {os_error_text(e)}", file=sys.stderr)
+        return bad_input_status
 
 
 KERNELS_HELP = (

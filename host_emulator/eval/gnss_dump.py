@@ -15,6 +15,7 @@ import json
 import sys
 
 from host_emulator import firmware_env
+from host_emulator.errors import quiet_broken_pipe
 
 firmware_env.install()
 
@@ -146,6 +147,6 @@ def main(argv=None):
             print(json.dumps(row) if args.json else _text(row))
         sys.stdout.flush()
     except BrokenPipeError:  # e.g. piped into `head`
-        sys.stdout = None
+        return quiet_broken_pipe()
     print("gnss-dump: " + summary(p), file=sys.stderr)
     return 0

@@ -23,7 +23,7 @@ import numpy as np
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.bench import board_cost
-from host_emulator.errors import EmulatorError
+from host_emulator.errors import EmulatorError, write_atomic
 from host_emulator.eval import evaluate, report
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.proto import stream
@@ -185,8 +185,8 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
         (sim.imu.t_s, sim.imu.bg_rad_s, sim.imu.ba_m_s2),
     )
     desc = trajectory.SCENARIOS[sim.name].description
-    (out_dir / "report.md").write_text(report.markdown(metrics, desc, console))
-    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_atomic(out_dir / "report.md", report.markdown(metrics, desc, console))
+    write_atomic(out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n")
 
 
 def _log_faults(stim, log):
@@ -221,7 +221,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     _log_faults(sim.stimulus, log)
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, stim_path, prog, kernels)
-    (out_dir / "frames.bin").write_bytes(fw.out)
+    write_atomic(out_dir / "frames.bin", fw.out)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
         raise EmulatorError("the firmware sent no extended frames: nothing to evaluate")
@@ -252,7 +252,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, local, prog, kernels)
-    (out_dir / "frames.bin").write_bytes(fw.out)
+    write_atomic(out_dir / "frames.bin", fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
         if not faults and sim.stimulus.to_bytes() != stim.to_bytes():
@@ -278,5 +278,5 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         "note": "no truth for this stimulus: accuracy not evaluated",
         "faults": list(h.get("faults", [])),
     }
-    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_atomic(out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     return metrics

@@ -186,8 +186,10 @@ class Stimulus:
         return body + struct.pack("<I", crc32(body))
 
     def write(self, path):
-        with open(path, "wb") as f:
-            f.write(self.to_bytes())
+        """The stimulus file, whole or not at all (errors.write_atomic)."""
+        from host_emulator.errors import write_atomic
+
+        write_atomic(path, self.to_bytes())
 
 
 def from_bytes(data, name="stimulus"):

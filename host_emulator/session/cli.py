@@ -1,5 +1,6 @@
-"""`python -m host_emulator session record|replay`: exit status 0 (done, identical), 1 (the
-replay differs, or the firmware raised), 2 (bad input)."""
+"""`python -m host_emulator session record|replay|repair`: exit status 0 (done, identical), 1
+(the replay differs, or the firmware raised), 2 (bad input, or a recording the disk cut
+short)."""
 
 import sys
 import tempfile
@@ -7,6 +8,7 @@ from pathlib import Path
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
+from host_emulator.proto import session_file
 from host_emulator.session.record import record
 from host_emulator.session.replay import replay
 
@@ -40,6 +42,11 @@ def main(argv=None):
     )  # fmt: skip
     s.add_argument("--until-gap", action="store_true", help="replay up to the first gap")
     s.add_argument("--out", help="directory for stimulus.bin and replayed.bin (kept)")
+    f = sub.add_parser(
+        "repair", help="keep what survived of a cut or damaged session file in a new one"
+    )
+    f.add_argument("session", help="the cut or damaged session file (it is not changed)")
+    f.add_argument("--out", required=True, help="the session file to write")
     try:
         args = p.parse_args(argv)
         if args.command == "record":
@@ -50,7 +57,20 @@ def main(argv=None):
         return 2
     if args.command == "record":
         return cli_args.run_reporting(lambda: _main_record(args, seconds, baud))
+    if args.command == "repair":
+        return cli_args.run_reporting(lambda: _main_repair(args))
     return cli_args.run_reporting(lambda: _main_replay(args))
+
+
+def _main_repair(args):
+    if Path(args.out).resolve() == Path(args.session).resolve():
+        print("error: --out must be another file: the damaged one is kept as it is")
+        return 2
+    s = session_file.repair(args.session, args.out)
+    for line in s.problems(args.session) or [f"{args.session}: intact, nothing was lost"]:
+        print(line)
+    print(f"wrote {len(s.data)} captured bytes into {args.out}")
+    return 0
 
 
 def _main_record(args, seconds, baud):

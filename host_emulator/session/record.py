@@ -1,6 +1,6 @@
 """Recording a board's output into a session file (proto/session_file.py): from a serial
 port, a named pipe, standard input or a file holding a capture. The file is closed properly on
-Ctrl-C and on a port failure, so what was captured is kept."""
+Ctrl-C, on a port failure and on a full disk, so what was captured is kept."""
 
 import datetime
 import os
@@ -114,8 +114,9 @@ def record(source, out_path, seconds=None, progress=None, config=None, baud=None
             chunk = read(0.2)
             if chunk == b"":
                 break
-            if chunk:
-                w.write(chunk)
+            if chunk and not w.write(chunk):  # a full disk: what was written is kept
+                stopped = "write failed"
+                break
             if progress and now - t_report >= 1.0:
                 t_report = now
                 progress(w.n, now - t_start)
@@ -131,4 +132,6 @@ def record(source, out_path, seconds=None, progress=None, config=None, baud=None
         progress(w.n, elapsed)
     if failure is not None:
         raise SessionError(f"{failure}; the {w.n} bytes captured before are saved in {out_path}")
+    if w.failed:
+        raise SessionError(w.failed)
     return {"path": str(out_path), "bytes": w.n, "seconds": elapsed, "stopped": stopped}

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from host_emulator import runtimes
 from host_emulator.proto import config as board_config
-from host_emulator.proto.session_file import SessionError, read_session
+from host_emulator.proto.session_file import SessionError, load
 from host_emulator.session.compare import Comparison, compare
 from host_emulator.session.rebuild import to_stimulus
 from host_emulator.session.walk import TICK_US, Recording, board_cfg, parse
@@ -20,6 +20,7 @@ class ReplayResult:
     run: object  # runtimes.FirmwareRun
     comparison: Comparison
     config_source: str
+    file_problems: list  # what a cut or damaged session file lost (session_file.Session)
 
     @property
     def identical(self):
@@ -28,10 +29,11 @@ class ReplayResult:
     def summary(self):
         rec = self.recording
         n = len(rec)
-        lines = [
+        lines = ["warning: " + p for p in self.file_problems]
+        lines.append(
             f"session: {n} ticks ({n * TICK_US * 1e-6:.3f} s) from byte {rec.start_offset}, "
-            f"configuration from {self.config_source}",
-        ]
+            f"configuration from {self.config_source}"
+        )
         if rec.gap:
             lines.append(f"replayed up to the first gap: {rec.gap}")
         for note in self.stimulus.header.get("notes", []):
@@ -70,7 +72,8 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     first gap instead of failing. runtime: a name of host_emulator.runtimes; one that is not
     bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the firmware raises."""
     rt = runtimes.get(runtime)
-    header, data = read_session(session_path)
+    sf = load(session_path)
+    header, data = sf.header, sf.data
     values, source = _session_config(header, config, session_path)
     rec = parse(data, values, until_gap)
     stim = to_stimulus(rec, values)
@@ -79,4 +82,4 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     run = rt.run(stim, workdir, progress=progress)
     cfg = board_cfg(values)
     c = compare(rec.stream, run.out, cfg.output_every_ticks, cfg.ext_every_ticks, rt.bit_exact)
-    return ReplayResult(rec, stim, run, c, source)
+    return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)))

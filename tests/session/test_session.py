@@ -229,20 +229,98 @@ def test_a_dropped_record_is_a_gap_and_until_gap_replays_the_ticks_before_it(
     assert "replayed up to the first gap" in r.summary()
 
 
-def test_a_truncated_or_damaged_session_file_is_refused(session_path, tmp_path):
+def test_a_cut_session_file_keeps_what_came_before_the_cut(session_path, capture, tmp_path):
+    """A recorder killed, a cable pulled, a disk full: the file has no end marker. Every
+    chunk before the cut is kept (the chunk being filled is lost), the readers say so, and the
+    strict reader refuses it with the way out."""
     data = session_path.read_bytes()
-    (tmp_path / "cut.ins").write_bytes(data[: len(data) // 2])
-    with pytest.raises(session_file.SessionError, match="truncated .no end marker.: the recording"):
+    for cut in (len(data) - 3, len(data) // 2, len(data) // 7 + 5):
+        (tmp_path / "cut.ins").write_bytes(data[:cut])
+        s = session_file.load(tmp_path / "cut.ins")
+        assert s.cut and not s.lost and s.header["config"] is not None
+        assert capture.startswith(s.data)
+        # the chunk being filled at the cut is lost, and no more (chunks of CHUNK_BYTES)
+        assert len(s.data) >= min(len(capture), cut - 200 - 2 * session_file.CHUNK_BYTES)
+        (msg,) = s.problems("cut.ins")
+        assert "recording was cut (no end marker" in msg and f"the {len(s.data)} bytes" in msg
+    with pytest.raises(session_file.SessionError, match="was cut .* session repair"):
         session_file.read_session(tmp_path / "cut.ins")
-    bad = bytearray(data)
+    with pytest.raises(session_file.SessionError, match="cannot read session"):
+        session_file.load(tmp_path / "missing.ins")
+
+
+def test_a_damaged_session_file_loses_only_the_damaged_chunk(session_path, capture, tmp_path):
+    """One flipped byte costs the chunk it is in (its CRC fails): the bytes before and after
+    are kept, the loss is counted from the chunks' offsets, and `session repair` writes what
+    survived into an intact file whose replay stops at the gap, with --until-gap."""
+    data = bytearray(session_path.read_bytes())
+    data[len(data) // 2] ^= 0x04
+    (tmp_path / "bad.ins").write_bytes(bytes(data))
+    s = session_file.load(tmp_path / "bad.ins")
+    assert not s.cut and len(s.lost) == 1
+    off, k = s.lost[0]
+    assert 0 < k <= session_file.CHUNK_BYTES
+    assert s.data == capture[:off] + capture[off + k :]
+    (msg,) = s.problems("bad.ins")
+    assert f"1 damaged part(s) skipped: {k} of {len(capture)} captured bytes lost" in msg
+    assert cli.main(["repair", str(tmp_path / "bad.ins"), "--out", str(tmp_path / "ok.ins")]) == 0
+    header, fixed = session_file.read_session(tmp_path / "ok.ins")
+    assert fixed == s.data and header["repaired"]["lost"] == [[off, k]]
+    assert header["config"] == session_file.load(session_path).header["config"]
+    r = replay.replay(tmp_path / "ok.ins", tmp_path / "w", until_gap=True)
+    assert r.identical and 0 < len(r.recording) and r.recording.gap
+
+
+def test_a_format_1_session_file_still_reads(capture, values, tmp_path):
+    """The files of before (one CRC at the end): intact ones read as they were, a cut one up
+    to the cut, a damaged one whole with a warning that it cannot say where."""
+    import json
+
+    from host_emulator.proto.crc import crc32
+
+    head = json.dumps({"format": 1, "config": values}).encode()
+    body = b"INSSESS1" + struct.pack("<I", len(head)) + head + capture
+    body += b"END1" + struct.pack("<Q", len(capture))
+    v1 = body + struct.pack("<I", crc32(body))
+    (tmp_path / "v1.ins").write_bytes(v1)
+    assert session_file.read_session(tmp_path / "v1.ins") == ({"format": 1, "config": values},
+                                                              capture)  # fmt: skip
+    (tmp_path / "cut.ins").write_bytes(v1[:-100])
+    s = session_file.load(tmp_path / "cut.ins")
+    assert s.cut and capture.startswith(s.data) and len(s.data) > len(capture) - 100
+    bad = bytearray(v1)
     bad[len(bad) // 2] ^= 1
     (tmp_path / "bad.ins").write_bytes(bytes(bad))
-    with pytest.raises(
-        session_file.SessionError, match="CRC mismatch, the session file is damaged"
-    ):
-        session_file.read_session(tmp_path / "bad.ins")
-    with pytest.raises(session_file.SessionError, match="cannot read session"):
-        session_file.read_session(tmp_path / "missing.ins")
+    s = session_file.load(tmp_path / "bad.ins")
+    assert len(s.data) == len(capture) and "damaged somewhere" in s.problems("bad.ins")[0]
+
+
+def test_a_full_disk_ends_the_recording_cleanly(capture, values, tmp_path, monkeypatch):
+    """ENOSPC halfway through: the recording stops with one line (no traceback), and the file
+    holds every chunk written before, readable as a cut recording."""
+    import errno
+
+    (tmp_path / "capture.bin").write_bytes(capture)
+    real = session_file.SessionWriter._out
+    budget = {"n": len(capture) // 2}
+
+    def out(self, b):
+        budget["n"] -= len(b)
+        if budget["n"] < 0:
+            self.f.write = _raise_enospc
+        real(self, b)
+
+    def _raise_enospc(_b):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(session_file.SessionWriter, "_out", out)
+    with pytest.raises(session_file.SessionError, match="No space left on device.*the recording"):
+        record.record(tmp_path / "capture.bin", tmp_path / "full.ins", config=values)
+    s = session_file.load(tmp_path / "full.ins")
+    assert s.cut and capture.startswith(s.data) and len(s.data) > len(capture) // 3
+    budget["n"] = len(capture) // 2
+    argv = ["record", str(tmp_path / "capture.bin"), "--out", str(tmp_path / "full2.ins")]
+    assert cli.main(argv) == 2
 
 
 def test_the_replay_starts_at_the_boards_first_tick(capture, values):

@@ -200,6 +200,57 @@ def _stream(master, data, baud, done, opened, then_interrupt=True):
         _thread.interrupt_main()
 
 
+def test_a_cut_or_damaged_recording_is_shown_with_what_it_lost(board, tmp_path):
+    """A session file cut short, or with a flipped byte, is decoded up to the cut or around
+    the damage, with a warning that says what was lost."""
+    data, path, cfg = board
+    session_file.write_session(tmp_path / "s.ins", data, config=None)
+    whole = (tmp_path / "s.ins").read_bytes()
+    (tmp_path / "cut.ins").write_bytes(whole[: len(whole) * 2 // 3])
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(tmp_path / "cut.ins"), "--quiet"], out=out, err=err) == 0
+    assert "was cut (no end marker" in err.getvalue() and "Traceback" not in err.getvalue()
+    n = session_file.load(tmp_path / "cut.ins").data
+    assert f"{len(stream.decode(n).frames)} frames" in out.getvalue()
+    bad = bytearray(whole)
+    bad[len(bad) // 2] ^= 0x40
+    (tmp_path / "bad.ins").write_bytes(bytes(bad))
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(tmp_path / "bad.ins"), "--quiet"], out=out, err=err) == 0
+    assert "1 damaged part(s) skipped" in err.getvalue()
+
+
+def test_a_full_disk_stops_the_recording_not_the_monitor(board, tmp_path, monkeypatch):
+    """ENOSPC while the monitor records: one warning, the monitor goes on to the end of its
+    input, the session file holds what was written (a cut recording), the exit status is 1."""
+    import errno
+
+    data, path, cfg = board
+    calls = {"n": 0}
+    real = session_file.SessionWriter._out
+
+    def out_(self, b):
+        calls["n"] += 1
+        if calls["n"] > 3:
+            raise_ = OSError(errno.ENOSPC, "No space left on device")
+
+            def full(_b):
+                raise raise_
+
+            self.f.write = full
+        real(self, b)
+
+    monkeypatch.setattr(session_file.SessionWriter, "_out", out_)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["--file", str(path), "--record", str(tmp_path / "r.ins"), "--config", str(cfg)]
+    assert cli.main([*argv, "--quiet"], out=out, err=err) == 1
+    e = err.getvalue()
+    assert e.count("No space left on device") == 1 and "Traceback" not in e, e
+    assert "800 frames" in out.getvalue() and "stopped early" in out.getvalue()
+    s = session_file.load(tmp_path / "r.ins")
+    assert s.cut and data.startswith(s.data) and len(s.data) > 0
+
+
 def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_opened):
     data, _path, cfg = board
     master, slave, name = _pty(BAUD)
@@ -283,7 +334,7 @@ def test_user_mistakes_give_one_clear_message(tmp_path):
     session_file.write_session(bad, b"\xeb\x90" * 100)
     bad.write_bytes(bad.read_bytes()[:-10])
     rc, msg = _err(["--file", str(bad)])
-    assert rc == 1 and "truncated" in msg
+    assert rc == 1 and "was cut (no end marker" in msg and "200 bytes but no frames" in msg
     rc, msg = _err(["--file", str(junk), "--csv", str(tmp_path / "no_dir" / "x.csv")])
     assert rc == 1 and "cannot write" in msg
     with pytest.raises(SystemExit) as e:  # argparse: usage and status 2

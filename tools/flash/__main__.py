@@ -8,6 +8,7 @@ import pathlib
 import sys
 import tempfile
 
+from host_emulator.errors import os_error_text, quiet_broken_pipe, write_atomic
 from tools.flash.errors import FlashError
 
 
@@ -150,7 +151,7 @@ def _config(args):
                 )  # fmt: skip
                 print(f"# {source}")
         if args.out and data is not None:
-            pathlib.Path(args.out).write_bytes(data)
+            write_atomic(args.out, data)
         _print_config(cfg, config)
         return 0
     # set
@@ -177,7 +178,7 @@ def _config(args):
         raise FlashError(f"invalid setting: {problem}. Nothing was written.")
     data = config.encode(cfg)
     if args.file:
-        pathlib.Path(args.file).write_bytes(data)
+        write_atomic(args.file, data)
         print(f"wrote {args.file} ({len(data)} bytes); deploy it with deploy --config")
     else:
         deploy.write_config(args.port, args.baud, data)
@@ -202,8 +203,8 @@ def _parser():
     b.add_argument("--strip-lines", action="store_true", help="mpy-cross -X no-source-lines")
     b.set_defaults(func=_build)
     d = sub.add_parser("deploy", help="copy the firmware to a board over its USB REPL")
-    d.add_argument("--port", required=True)
-    d.add_argument("--baud", type=_positive, default=115200)
+    d.add_argument("--port", required=True, help=PORT_HELP)
+    d.add_argument("--baud", type=_positive, default=115200, help=BAUD_HELP)
     d.add_argument("--config", help="configuration file to upload as /flash/ins.cfg")
     d.add_argument("--flash-kb", type=_positive, help="check the build against this budget")
     d.add_argument("--frames-port", help="RS485 port: confirm frames arrive after the reset")
@@ -225,18 +226,29 @@ def _parser():
     i.set_defaults(func=_image)
     c = sub.add_parser("config", help="read or change the persisted configuration")
     csub = c.add_subparsers(dest="action", required=True)
+    helps = {
+        "get": "print the configuration of a board (/flash/ins.cfg) or of a file",
+        "set": "change settings on a board (it is soft-reset to load them) or in a file",
+    }
     for name in ("get", "set"):
-        a = csub.add_parser(name)
+        a = csub.add_parser(name, help=helps[name], description=helps[name])
         where = a.add_mutually_exclusive_group(required=True)
-        where.add_argument("--port", help="the board's USB port")
+        where.add_argument("--port", help=PORT_HELP)
         where.add_argument("--file", help="a local configuration file instead of a board")
-        a.add_argument("--baud", type=_positive, default=115200)
+        a.add_argument("--baud", type=_positive, default=115200, help=BAUD_HELP)
         if name == "get":
             a.add_argument("--out", help="also save the board's file here")
         else:
-            a.add_argument("settings", nargs="*", metavar="NAME=VALUE")
+            a.add_argument(
+                "settings", nargs="*", metavar="NAME=VALUE",
+                help="settings to change (firmware/lib/config.py lists them)",
+            )  # fmt: skip
         a.set_defaults(func=_config)
     return p
+
+
+PORT_HELP = "the board's USB serial port (its REPL): /dev/ttyACM0, COM4, ..."
+BAUD_HELP = "the REPL's baud rate (115200; a USB CDC port ignores it)"
 
 
 def _positive(text):
@@ -261,6 +273,11 @@ def main(argv=None):
             "interrupted: run the command again (deploy only sends what differs)", file=sys.stderr
         )
         return 130
+    except BrokenPipeError:  # `config get | head`
+        return quiet_broken_pipe()
+    except OSError as e:  # a host file: `--out` into a read-only directory, a full disk
+        print(f"error: {os_error_text(e)}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -41,6 +41,7 @@ def _parser():
 
 def main(argv=None):
     args = _parser().parse_args(argv)
+    from host_emulator.errors import os_error_text, quiet_broken_pipe
     from tools.image.budget import BudgetError
     from tools.image.build import ImageError
     from tools.image.fwid import FirmwareIdError
@@ -55,6 +56,11 @@ def main(argv=None):
         print("interrupted: run the command again (make resumes where it stopped)",
               file=sys.stderr)  # fmt: skip
         return 130
+    except BrokenPipeError:
+        return quiet_broken_pipe()
+    except OSError as e:  # a full disk, a read-only output directory
+        print(f"error: {os_error_text(e)}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import datetime
 import sys
 import time
 
+from host_emulator.errors import os_error_text, quiet_broken_pipe
 from host_emulator.proto import config as board_config
 from host_emulator.proto import session_file
 from host_emulator.proto.stream import EXT, FRAME, StreamDecoder
@@ -30,7 +31,8 @@ class Monitor:
     TickClock; frames before the first extended frame wait (up to PENDING_MAX) so that their
     time is anchored on its tick too."""
 
-    def __init__(self, status, every=1, outputs=(), recorder=None):
+    def __init__(self, status, every=1, outputs=(), recorder=None, warn=None):
+        self.warn = warn or (lambda _msg: None)  # a one-line warning to the user
         self.decoder = StreamDecoder()
         self.clock = TickClock(every)
         self.status = status
@@ -44,8 +46,9 @@ class Monitor:
         return {**self.decoder.counts(), "wrap_losses": self.clock.wrap_losses}
 
     def feed(self, chunk):
-        if self.recorder is not None and chunk:
-            self.recorder.write(chunk)
+        if self.recorder is not None and chunk and not self.recorder.write(chunk):
+            self.warn(self.recorder.failed)  # a full disk: the monitor goes on without it
+            self.recorder = None
         self._handle(self.decoder.feed(chunk))
 
     def finish(self):
@@ -209,7 +212,12 @@ def _open_outputs(args, header_info):
             except OSError as e:
                 raise OSError(f"cannot write {args.record}: {e.strerror}") from None
             closers.append(recorder.close)
-            files.append(lambda r=recorder: f"{r.path} (session file, {r.n} bytes)")
+            files.append(
+                lambda r=recorder: (
+                    f"{r.path} (session file, {r.n} bytes"
+                    + (", stopped early: see the warning)" if r.failed else ")")
+                )
+            )
     except OSError as e:
         _close_all(closers)
         raise MonitorError(str(e)) from None
@@ -268,7 +276,15 @@ def run(args, out=None, err=None):
         src.close()
         raise
     status = view.Status(src.name, baud if src.kind == "serial" else None)
-    mon = Monitor(status, _every(values), outputs, recorder)
+    warnings = []
+
+    def warn(msg):
+        warnings.append(msg)
+        err.write(f"\nwarning: {msg}\n")
+
+    for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
+        warn(msg)
+    mon = Monitor(status, _every(values), outputs, recorder, warn)
     screen = _Screen(out, args.quiet or src.kind == "file")
     t0 = time.monotonic()
     stopped = "end of file"
@@ -315,9 +331,12 @@ def run(args, out=None, err=None):
     out.flush()
     for p in problems:
         err.write(f"error: {p}\n")
+    if recorder is not None and recorder.failed and recorder.failed not in warnings:
+        problems.append(recorder.failed)  # failed on closing
+        err.write(f"error: {recorder.failed}\n")
     if failure is not None:
         raise failure
-    return 1 if problems else 0
+    return 1 if problems or (recorder is not None and recorder.failed) else 0
 
 
 def _run_file(src, mon, args):
@@ -359,4 +378,9 @@ def main(argv=None, out=None, err=None):
         return run(args, out, err)
     except MonitorError as e:
         err.write(f"error: {e}\n")
+        return 1
+    except BrokenPipeError:  # `... | head`
+        return quiet_broken_pipe()
+    except OSError as e:  # an export file on a full disk
+        err.write(f"error: {os_error_text(e)}\n")
         return 1

@@ -67,9 +67,11 @@ class FileSource:
         if p.is_dir():
             raise MonitorError(f"{path} is a directory, not a capture file")
         try:
-            self.header, self.data = session_file.read_session(p)
+            s = session_file.load(p)
         except session_file.SessionError as e:
             raise MonitorError(str(e)) from None
+        self.header, self.data = s.header, s.data
+        self.problems = s.problems(self.name)  # a cut or damaged file: what was lost
         self.is_session = bool(self.header)
         self.baud = self.header.get("baud") if self.header else None
         self._pos = 0

@@ -1,0 +1,155 @@
+"""Every command line meets a full disk, a read-only directory and a closed pipe with one line
+(or, for the pipe, silence) and a non-zero exit status, never a traceback.
+
+A full disk and a read-only directory are injected (the tests may run as root, who writes
+anywhere): every write under a chosen directory fails with ENOSPC or EROFS, as the kernel
+would fail it. The closed pipe is real: the command's stdout is a pipe whose reading end is
+closed before it starts."""
+
+import builtins
+import errno
+import io
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from host_emulator.sim import board_input
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+NMEA = ROOT.parent / "shared" / "data" / "nmea"
+
+
+@pytest.fixture(params=[errno.ENOSPC, errno.EROFS], ids=["full_disk", "read_only"])
+def broken_dir(request, tmp_path, monkeypatch):
+    """A directory every write into fails with the param's errno."""
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    real_open = io.open
+
+    def open_(file, mode="r", *a, **kw):
+        if (
+            isinstance(file, (str, os.PathLike))
+            and ("w" in mode or "a" in mode or "x" in mode)
+            and bad in pathlib.Path(file).absolute().parents
+        ):
+            raise OSError(request.param, os.strerror(request.param), str(file))
+        return real_open(file, mode, *a, **kw)
+
+    monkeypatch.setattr(builtins, "open", open_)
+    monkeypatch.setattr(io, "open", open_)
+    return bad, request.param
+
+
+def _check(capsys, rc, code):
+    err = capsys.readouterr().err
+    assert rc != 0 and "Traceback" not in err, err
+    assert err.count("\n") == 1 and err.startswith("error: ") and os.strerror(code) in err, err
+    return err
+
+
+def _config_file(d):
+    from tools.flash.__main__ import main
+
+    assert main(["config", "set", "--file", str(d / "ins.cfg"), "gnss_hdop_max=3"]) == 0
+    return d / "ins.cfg"
+
+
+def test_run_out_into_a_broken_directory(broken_dir, capsys):
+    from host_emulator.__main__ import main
+
+    bad, code = broken_dir
+    rc = main(["run", "--scenario", "quick_start", "--duration", "2", "--out", str(bad / "r"),
+               "--quiet"])  # fmt: skip
+    _check(capsys, rc, code)
+    assert not [p for p in (bad / "r").glob("*.bin")]  # no part of frames.bin left
+
+
+def test_config_get_out_into_a_broken_directory(broken_dir, tmp_path, capsys):
+    from tools.flash.__main__ import main
+
+    bad, code = broken_dir
+    cfg = _config_file(tmp_path)
+    capsys.readouterr()
+    rc = main(["config", "get", "--file", str(cfg), "--out", str(bad / "copy.cfg")])
+    _check(capsys, rc, code)
+    rc = main(["config", "set", "--file", str(bad / "new.cfg"), "gnss_hdop_max=3"])
+    _check(capsys, rc, code)
+
+
+def test_monitor_exports_into_a_broken_directory(broken_dir, tmp_path, capsys):
+    from tools.monitor.cli import main
+
+    bad, code = broken_dir
+    cap = tmp_path / "cap.bin"
+    cap.write_bytes(b"\x00" * 10)
+    rc = main(["--file", str(cap), "--csv", str(bad / "x.csv")])
+    _check(capsys, rc, code)
+
+
+def test_session_record_into_a_broken_directory(broken_dir, tmp_path, capsys):
+    from host_emulator.session.cli import main
+
+    bad, code = broken_dir
+    cap = tmp_path / "cap.bin"
+    cap.write_bytes(b"\x00" * 10)
+    rc = main(["record", str(cap), "--out", str(bad / "s.ins")])
+    _check(capsys, rc, code)
+
+
+def _closed_pipe(argv):
+    """Run `python argv` with stdout a pipe nobody reads (its reading end closed first)."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run(
+            [sys.executable, *argv], stdout=w, stderr=subprocess.PIPE, cwd=ROOT, timeout=120,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )  # fmt: skip
+    finally:
+        os.close(w)
+    return p.returncode, p.stderr.decode()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["-m", "host_emulator", "scenarios"],
+        ["-m", "host_emulator", "gnss-dump", str(NMEA / "mtk-3301.log")],
+        ["-m", "tools.flash", "config", "get", "--file", "CFG"],
+        ["-m", "tools.monitor", "--file", "CAP"],
+    ],
+    ids=["scenarios", "gnss_dump", "config_get", "monitor"],
+)
+def test_a_closed_pipe_ends_a_command_quietly(argv, tmp_path):
+    cfg = _config_file(tmp_path)
+    stim = board_input.simulate("quick_start", 1.0, seed=0).stimulus
+    cap = tmp_path / "cap.bin"
+    from host_emulator.runtimes import cpython
+
+    cap.write_bytes(cpython.run(stim, tmp_path / "w").out)
+    argv = [str(cfg) if a == "CFG" else str(cap) if a == "CAP" else a for a in argv]
+    rc, err = _closed_pipe(argv)
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert rc == 141, (rc, err)
+
+
+def test_a_write_the_disk_cuts_short_leaves_no_part_of_the_file(tmp_path, monkeypatch):
+    """errors.write_atomic: ENOSPC halfway through leaves the previous file as it was, and no
+    partial file beside it."""
+    from host_emulator.errors import write_atomic
+
+    (tmp_path / "frames.bin").write_bytes(b"old")
+    real = pathlib.Path.write_bytes
+
+    def half(self, data):
+        real(self, data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+
+    monkeypatch.setattr(pathlib.Path, "write_bytes", half)
+    with pytest.raises(OSError, match="No space left"):
+        write_atomic(tmp_path / "frames.bin", b"new bytes" * 1000)
+    assert (tmp_path / "frames.bin").read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["frames.bin"]
