@@ -3,11 +3,15 @@ firmware's GNSS driver (firmware/drivers/gnss.py) and print what it accepted.
 
 One line per accepted GGA/RMC/VTG/GSA sentence, in stream order, with the columns
     type utc_s lat_e7 lon_e7 alt_m quality nsat hdop speed_m_s course_deg valid
-("-" where the sentence type has no such field or the field was empty; with --json one object
-per line, null instead of "-"). `valid` is: GGA position present and quality > 0; RMC status A
-with a position; VTG mode not N and a speed; GSA fix type 2 or 3. At the end, a summary of the
-driver's counters goes to stderr. Lines starting with '#' are comments in gpsd-style logs and
-are skipped unless --raw is given (then every byte goes to the driver, as from a UART).
+("-" where the sentence type has no such field or the field was empty). With --json, one
+object per line: numbers as numbers, null for "-", and lat_deg/lon_deg (degrees) beside the
+1e-7 integers. `valid` is: GGA position present and quality > 0; RMC status A with a position;
+VTG mode not N and a speed; GSA fix type 2 or 3. At the end, a summary of the driver's
+counters goes to stderr. Lines starting with '#' are comments in gpsd-style logs and are
+skipped unless --raw is given (then every byte goes to the driver, as from a UART).
+
+Exit status 0; 1 when the file cannot be read, is empty, or holds no sentence the driver
+accepts (a binary log, another file: it says so).
 """
 
 import argparse
@@ -121,6 +125,30 @@ def _text(row):
     return " ".join("-" if row[c] is None else str(row[c]) for c in COLUMNS)
 
 
+def _json(row):
+    """The row with its exact decimals as numbers, and lat/lon in degrees too."""
+    out = {k: float(v) if isinstance(v, str) and k != "type" else v for k, v in row.items()}
+    for k in ("lat", "lon"):
+        e7 = row[k + "_e7"]
+        out[k + "_deg"] = None if e7 is None else e7 / 1e7
+    return out
+
+
+def _not_nmea(name, data, p):
+    """Why `data` gave no accepted sentence, in one line."""
+    if not data:
+        return f"gnss-dump: {name} is empty" + (" once its '#' comment lines are skipped"
+                                                if p is not None else "")  # fmt: skip
+    printable = sum(32 <= b < 127 or b in (10, 13) for b in data[:4096]) / min(len(data), 4096)
+    what = "binary data (a UBX, RTCM or SBF log? this reads NMEA-0183 text)"
+    if printable > 0.9:
+        what = "text, but no NMEA sentence the driver accepts ($..GGA/RMC/VTG/GSA with *hh)"
+    return (
+        f"gnss-dump: {name} is not an NMEA log: {len(data)} bytes of {what}; "
+        f"rejected {p.rejected()}, ignored {p.n_ignored}"
+    )
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator gnss-dump",
@@ -137,14 +165,20 @@ def main(argv=None):
     except OSError as e:
         print(f"gnss-dump: cannot read {args.file}: {e.strerror or e}", file=sys.stderr)
         return 1
+    if not data:
+        print(_not_nmea(args.file, data, None), file=sys.stderr)
+        return 1
     if not args.raw:
         data = strip_comments(data)
     out, p = dump(data)
+    if not out:
+        print(_not_nmea(args.file, data, p), file=sys.stderr)
+        return 1
     try:
         if not args.json:
             print("# " + " ".join(COLUMNS))
         for row in out:
-            print(json.dumps(row) if args.json else _text(row))
+            print(json.dumps(_json(row)) if args.json else _text(row))
         sys.stdout.flush()
     except BrokenPipeError:  # e.g. piped into `head`
         return quiet_broken_pipe()

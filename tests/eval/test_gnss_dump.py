@@ -95,10 +95,15 @@ def test_json_lines(capsys):
         "quality": None,
         "nsat": None,
         "hdop": None,
-        "speed_m_s": "0.028",  # 0.1 km/h
-        "course_deg": "0.00",
+        "speed_m_s": 0.028,  # 0.1 km/h
+        "course_deg": 0.0,
         "valid": 1,
+        "lat_deg": None,
+        "lon_deg": None,
     }
+    gga = next(r for r in rows if r["type"] == "GGA" and r["lat_e7"] is not None)
+    assert gga["lat_deg"] == gga["lat_e7"] / 1e7 and gga["lon_deg"] == gga["lon_e7"] / 1e7
+    assert all(not isinstance(v, str) for r in rows for k, v in r.items() if k != "type")
     assert "rejected 46 (bad checksum 30, no checksum 4, malformed 5, overlong 2" in err
 
 
@@ -117,8 +122,8 @@ def test_unreadable_file_is_a_clear_error(tmp_path):
 def test_raw_keeps_comment_lines(tmp_path, capsys):
     f = tmp_path / "c.log"
     f.write_bytes(b"# $GPVTG,,T,,M,0.117,N,0.216,K,A*21\r\n")
-    assert gnss_dump.main([str(f)]) == 0
-    assert capsys.readouterr().out.splitlines()[1:] == []
+    assert gnss_dump.main([str(f)]) == 1
+    assert "empty once its '#' comment lines are skipped" in capsys.readouterr().err
     assert gnss_dump.main([str(f), "--raw"]) == 0
     assert capsys.readouterr().out.splitlines()[1:] == ["VTG - - - - - - - 0.060 - 1"]
 
@@ -126,3 +131,21 @@ def test_raw_keeps_comment_lines(tmp_path, capsys):
 @pytest.mark.parametrize("v, d, s", [(0, 3, "0.000"), (-56100, 3, "-56.100"), (5, 2, "0.05")])
 def test_fixed_point_text(v, d, s):
     assert gnss_dump._fixed(v, d) == s
+
+
+def test_a_file_that_is_not_nmea_says_so(tmp_path, capsys):
+    """A binary log, a text file without sentences and an empty file: exit 1 and one line
+    saying what the file is, not a count of rejected sentences with status 0."""
+    import random
+
+    (tmp_path / "ubx.bin").write_bytes(bytes(random.Random(2).randrange(256) for _ in range(9000)))
+    (tmp_path / "notes.txt").write_bytes(b"lat,lon\n34.1,108.9\n" * 50)
+    (tmp_path / "empty.log").write_bytes(b"")
+    for name, what in (
+        ("ubx.bin", "is not an NMEA log: 9000 bytes of binary data"),
+        ("notes.txt", "is not an NMEA log: 950 bytes of text, but no NMEA sentence"),
+        ("empty.log", "empty.log is empty"),
+    ):
+        assert gnss_dump.main([str(tmp_path / name)]) == 1
+        out, err = capsys.readouterr()
+        assert out == "" and what in err and err.count("\n") == 1, err
