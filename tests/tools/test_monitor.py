@@ -311,6 +311,45 @@ def test_the_live_view_on_a_terminal(board):
     assert f"\x1b[{len(lines)}F\x1b[J" in scr.out.getvalue()  # redrawn in place
 
 
+def test_the_live_view_fits_80_columns_and_says_when_data_stopped(board):
+    """Every line of the live view fits an 80-column terminal, with the widest values a
+    board sends (a long port name is cut, not wrapped); a second without frames shows STALE
+    (the values are old), in the view and in the line-a-second output."""
+    d = stream.decode(board[0])
+    st = view.Status("/dev/serial/by-id/usb-FTDI_FT232R_USB_UART_A50285BI-if00-port0", 921600)
+    f = dict(d.frames[-1])
+    f.update(pos_enu_m=[-123456.78, -123456.78, -1234.5], vel_enu_m_s=[-99.99, -99.99, -9.99],
+             yaw_deg=-179.99, pitch_deg=-89.99, roll_deg=-179.99)  # fmt: skip
+    st.on_frame(1234.5, f)
+    e = dict(d.ext[-1], causes=0xFFFF, tick=123456789)
+    st.on_ext(e)
+    big = {"frames": 10**7, "ext": 10**6, "raw": 10**7, "bytes": 10**10}
+    counts = {**StreamDecoder().counts(), **big, "dropped_frames": 12345, "wrap_losses": 512,
+              "restarts": 3}  # fmt: skip
+    st.sample(100.0, {**counts, "frames": 0})
+    st.sample(101.0, counts)
+    lines = view.render(st, counts, 99999.9, now=101.2)
+    assert all(len(x) <= view.WIDTH for x in lines), [x for x in lines if len(x) > 80]
+    assert not any(x.startswith("STALE") for x in lines)
+    lines = view.render(st, counts, 99999.9, now=103.5)
+    assert lines[1] == "STALE      no frames for 2.5 s: the values below are old"
+    assert "STALE (no frames for 2.5 s)" in view.one_line(st, counts, 100.0, now=103.5)
+
+
+def test_a_board_restart_is_a_restart_not_dropped_frames(board, tmp_path):
+    """A recording across a board restart (the board's output, then the same board from its
+    start again): one restart, no dropped frames, and the board time of both runs."""
+    data = board[0]
+    (tmp_path / "twice.bin").write_bytes(data + data)
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(tmp_path / "twice.bin"), "--quiet"], out=out, err=err) == 0
+    text = out.getvalue()
+    assert "1600 frames" in text and "dropped frames (counter gaps) 0" in text, text
+    assert "board restarts 1" in text and "the board restarted" in err.getvalue()
+    # the first run from its first frame (3.995 s), the second from the board's start (4 s)
+    assert "board time 8.00 s (200.0 frames/s)" in text, text
+
+
 def _err(argv):
     out, err = io.StringIO(), io.StringIO()
     rc = cli.main(argv, out=out, err=err)

@@ -41,9 +41,15 @@ class Monitor:
         self._pending = []
         self.board_limit_s = None  # a file with --seconds: ignore what comes after this
         self.done = False
+        self.restarts = 0  # board restarts seen (an extended frame's tick went back)
+        self._restart_gaps = 0  # the counter gaps they made: not dropped frames
+        self._gap = (0, None)  # the newest counter gap since the last extended frame, and
+        # the board time of the frame before it
 
     def counts(self):
-        return {**self.decoder.counts(), "wrap_losses": self.clock.wrap_losses}
+        c = self.decoder.counts()
+        c["dropped_frames"] -= self._restart_gaps
+        return {**c, "wrap_losses": self.clock.wrap_losses, "restarts": self.restarts}
 
     def feed(self, chunk):
         if self.recorder is not None and chunk and not self.recorder.write(chunk):
@@ -60,7 +66,10 @@ class Monitor:
             if self.done:
                 return
             if kind == FRAME:
+                t_before = self.status.frame_t
                 u = self.clock.frame(rec["counter"])
+                if self.clock.gap:
+                    self._gap = (self.clock.gap, t_before)
                 st = self.status
                 if (
                     self.board_limit_s is not None
@@ -77,11 +86,27 @@ class Monitor:
                     if len(self._pending) >= PENDING_MAX:
                         self._flush()
             elif kind == EXT:
-                self.clock.ext(rec)
+                if self.clock.ext(rec):
+                    self._restart()
+                self._gap = (0, None)
                 self._flush()
                 self.status.on_ext(rec)
                 for o in self.outputs:
                     o.ext(rec)
+
+    def _restart(self):
+        """The board restarted since the last extended frame: the counter gap it made is no
+        loss, and the board time starts again (the runs before it stay in the total)."""
+        gap, t_before = self._gap
+        self.restarts += 1
+        self._restart_gaps += gap
+        st = self.status
+        if t_before is not None and st.first_t is not None:
+            st.frame_t = t_before
+        st.on_restart()
+        if self.clock.u is not None:
+            st.frame_t = self.clock.time_s(self.clock.u)
+        self.warn(f"the board restarted (board time {st.span_before:.1f} s before the restart)")
 
     def _out(self, u, f):
         t = self.clock.time_s(u)
@@ -122,12 +147,12 @@ class _Screen:
     def draw(self, st, counts, elapsed, now):
         self._last = now
         if self.tty:
-            lines = view.render(st, counts, elapsed)
+            lines = view.render(st, counts, elapsed, now=now)
             up = f"\x1b[{self._drawn}F" if self._drawn else ""
             self.out.write(up + "\x1b[J" + "\n".join(lines) + "\n")
             self._drawn = len(lines)
         else:
-            self.out.write(view.one_line(st, counts, elapsed) + "\n")
+            self.out.write(view.one_line(st, counts, elapsed, now) + "\n")
         self.out.flush()
 
 
@@ -276,16 +301,21 @@ def run(args, out=None, err=None):
         src.close()
         raise
     status = view.Status(src.name, baud if src.kind == "serial" else None)
+    screen = _Screen(out, args.quiet or src.kind == "file")
     warnings = []
 
     def warn(msg):
+        """A warning line now on stderr, or, under the live view of a terminal (stderr is the
+        same screen), in the view and after the summary."""
         warnings.append(msg)
-        err.write(f"\nwarning: {msg}\n")
+        if screen.tty and not screen.quiet:
+            status.note = msg
+        else:
+            err.write(f"warning: {msg}\n")
 
     for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
         warn(msg)
     mon = Monitor(status, _every(values), outputs, recorder, warn)
-    screen = _Screen(out, args.quiet or src.kind == "file")
     t0 = time.monotonic()
     stopped = "end of file"
     failure = None
@@ -329,6 +359,9 @@ def run(args, out=None, err=None):
         summary.insert(3, f"  ({cut} of the skipped bytes: a record cut short by the end)")
     out.write("\n".join(summary) + "\n")
     out.flush()
+    if screen.tty and not screen.quiet:
+        for msg in warnings:
+            err.write(f"warning: {msg}\n")
     for p in problems:
         err.write(f"error: {p}\n")
     if recorder is not None and recorder.failed and recorder.failed not in warnings:

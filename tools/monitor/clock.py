@@ -18,6 +18,8 @@ class TickClock:
         self._last = None
         self.offset = 0
         self.anchored = False
+        self.last_tick = None  # the last extended frame's tick field
+        self.gap = 0  # counter gap before the last frame (0: it followed its predecessor)
         # frames lost in whole counter wraps (256 or a multiple in a row): invisible to the
         # counter, seen when the next extended frame's tick is ahead of the frames counted
         self.wrap_losses = 0
@@ -26,21 +28,28 @@ class TickClock:
         """The unwrapped frame number of the next frame, whose counter is `counter`."""
         if self.u is None:
             self.u = counter
+            self.gap = 0
         else:
-            self.u += ((counter - self._last - 1) & 0xFF) + 1
+            self.gap = (counter - self._last - 1) & 0xFF
+            self.u += self.gap + 1
         self._last = counter
         return self.u
 
     def ext(self, rec):
-        """Anchor on an extended frame (after the frames before it were given to `frame`)."""
+        """Anchor on an extended frame (after the frames before it were given to `frame`);
+        True when its tick is below the last one's: the board restarted (its tick count
+        starts again from 0), and the frames from here on are timed from that start."""
+        restart = self.last_tick is not None and rec["tick"] < self.last_tick
+        self.last_tick = rec["tick"]
         if self.u is None:
-            return
+            return restart
         u_anchor = self.u - ((self._last - rec["counter"] + 1) & 0xFF)
         offset = (rec["tick"] // self.every) * self.every - (u_anchor + 1) * self.every
-        if self.anchored and offset > self.offset:
+        if self.anchored and offset > self.offset and not restart:
             self.wrap_losses += (offset - self.offset) // self.every
         self.offset = offset
         self.anchored = True
+        return restart
 
     def tick(self, u):
         return (u + 1) * self.every + self.offset

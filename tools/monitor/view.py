@@ -33,6 +33,9 @@ class Status:
         self.fix_t = None
         self.n_frames = 0  # frames shown (a file with --seconds: those before the limit)
         self._samples = collections.deque()  # (wall s, frames, ext, bytes)
+        self.last_frame_wall = None  # wall time (s) when the frame count last grew
+        self.span_before = 0.0  # board time of the runs before the last restart
+        self.note = None  # the newest warning, shown in the live view
 
     def on_frame(self, t, f):
         self.n_frames += 1
@@ -47,8 +50,24 @@ class Status:
     def on_ext(self, e):
         self.ext = e
 
+    def on_restart(self):
+        """The board restarted: its time starts again from 0; the runs before are kept in
+        the board time (span_before)."""
+        self.span_before += self.board_seconds()
+        self.first_t = 0.0
+        self.fix = None
+
+    def silent_s(self, now):
+        """Seconds since a frame last arrived (None before the first or without `now`)."""
+        if now is None or self.last_frame_wall is None:
+            return None
+        return now - self.last_frame_wall
+
     def sample(self, now, counts):
         s = self._samples
+        if not s or counts["frames"] > s[-1][1]:
+            if counts["frames"]:
+                self.last_frame_wall = now
         s.append((now, counts["frames"], counts["ext"], counts["bytes"]))
         while len(s) > 2 and now - s[1][0] >= self.WINDOW_S:
             s.popleft()
@@ -69,9 +88,11 @@ class Status:
         return ((self.n_frames - 1) / span, counts["ext"] / span, counts["bytes"] / span)
 
     def board_seconds(self):
+        """Board time seen: the span of frames since the first (or the last restart), plus
+        the runs before a restart."""
         if self.first_t is None:
-            return 0.0
-        return self.frame_t - self.first_t
+            return self.span_before
+        return self.span_before + self.frame_t - self.first_t
 
 
 def _f(x, fmt):
@@ -98,7 +119,16 @@ def _ins_latlon(e, f):
     return f"{_latlon(round(lat * 1e7), round(lon * 1e7))}  {h:.1f} m"
 
 
-def error_line(c):
+def error_line(c, short=False):
+    """The error counts (short: the live view's 80 columns)."""
+    if short:
+        text = (
+            f"checksum {c['bad_checksum']}  CRC {c['bad_crc']}  skipped {c['skipped_bytes']} B  "
+            f"dropped {c['dropped_frames']}"
+        )
+        if c.get("wrap_losses"):
+            text += f" + {c['wrap_losses']} in wraps"
+        return text + f"  restarts {c.get('restarts', 0)}"
     return (
         f"checksum failures {c['bad_checksum']}  CRC failures {c['bad_crc']}  "
         f"skipped bytes {c['skipped_bytes']}  dropped frames (counter gaps) {c['dropped_frames']}"
@@ -107,15 +137,28 @@ def error_line(c):
             if c.get("wrap_losses")
             else ""
         )
+        + (f"  board restarts {c['restarts']}" if c.get("restarts") else "")
     )
 
 
-def render(st, counts, elapsed_s, live=True):
-    """The live view's lines (live=False: a whole file, rates are its means over board time)."""
-    src = st.source + (f" @ {st.baud} baud" if st.baud else "")
+WIDTH = 80  # the live view fits an 80-column terminal
+STALE_S = 1.0  # no frame for this long: the view says its values are old
+
+
+def _fit(line):
+    return line if len(line) <= WIDTH else line[: WIDTH - 3] + "..."
+
+
+def render(st, counts, elapsed_s, live=True, now=None):
+    """The live view's lines, at most WIDTH characters each (live=False: a whole file, rates
+    are its means over board time). now: the wall time (s), for the STALE line."""
+    src = st.source + (f" @ {st.baud}" if st.baud else "")
     if live:
-        lines = [f"INS monitor  {src}  {elapsed_s:7.1f} s   (Ctrl-C to stop)"]
+        lines = [f"INS monitor  {src}  {elapsed_s:.1f} s  (Ctrl-C stops)"]
         fr, er, br = st.rates()
+        quiet = st.silent_s(now)
+        if quiet is not None and quiet >= STALE_S:
+            lines.append(f"STALE      no frames for {quiet:.1f} s: the values below are old")
     else:
         lines = [f"INS monitor  {src}  {elapsed_s:.2f} s of board time (end of the file)"]
         fr, er, br = st.mean_rates(counts)
@@ -126,66 +169,73 @@ def render(st, counts, elapsed_s, live=True):
             f"{counts['skipped_bytes']} not decodable"
         )
     else:
-        state = nav_state_name(f["nav_state"])
-        extra = ""
+        line = f"state      {nav_state_name(f['nav_state'])}"
         if e is not None:
-            extra = (
-                f"   health {e['health']} {HEALTH.get(e['health'], '?')}"
-                f"   config {CONFIG_STATUS.get(e['config_status'], e['config_status'])}"
-                f"   board tick {e['tick']}"
+            cfg = CONFIG_STATUS.get(e["config_status"], e["config_status"])
+            line += (
+                f"  health {e['health']} {HEALTH.get(e['health'], '?')}  config {cfg}"
+                f"  tick {e['tick']}"
             )
-        lines.append(f"state      {state:<11}{extra}")
+        lines.append(line)
         if e is not None and e.get("causes"):
             lines.append(f"causes     {' '.join(records.cause_names(e['causes']))}")
-        gnss = "valid" if f["gnss_valid"] else "NO FIX"
         if st.fix is not None:
-            age = st.frame_t - st.fix_t
             fx = st.fix
-            gnss += (
-                f"   last fix {_latlon(fx['lat_e7'], fx['lon_e7'])}  {fx['height_m']:.1f} m"
-                f"   ({age:.1f} s ago)"
+            lines.append(
+                f"GNSS       {'valid ' if f['gnss_valid'] else 'NO FIX'}  last fix "
+                f"{st.frame_t - st.fix_t:.1f} s ago  {fx['height_m']:.1f} m MSL"
             )
+            lines.append(f"  fix      {_latlon(fx['lat_e7'], fx['lon_e7'])}")
         else:
-            gnss += "   no fix received yet"
-        lines.append(f"GNSS       {gnss}")
+            lines.append(
+                f"GNSS       {'valid' if f['gnss_valid'] else 'NO FIX'}  no fix received yet"
+            )
         pe, pn, pu = f["pos_enu_m"]
+        lines.append(f"position   E {pe:10.2f}  N {pn:10.2f}  U {pu:8.1f} m (ENU)")
         ins = _ins_latlon(e, f)
-        lines.append(
-            f"position   E {pe:10.2f}  N {pn:10.2f}  U {pu:7.1f} m"
-            + (f"   INS {ins} (ellipsoidal)" if ins else "")
-        )
+        if ins:
+            lines.append(f"  INS      {ins} ellipsoidal")
         ve, vn, vu = f["vel_enu_m_s"]
         sp = math.hypot(ve, vn)
         lines.append(
-            f"velocity   E {ve:7.2f}  N {vn:7.2f}  U {vu:7.2f} m/s   speed {sp:6.2f} m/s"
-            f" ({sp * 3.6:.1f} km/h)"
+            f"velocity   E {ve:6.2f}  N {vn:6.2f}  U {vu:6.2f} m/s  speed {sp:5.2f} m/s"
+            f" {sp * 3.6:5.1f} km/h"
         )
         lines.append(
             f"attitude   yaw {f['yaw_deg']:7.2f}  pitch {f['pitch_deg']:6.2f}  "
             f"roll {f['roll_deg']:6.2f} deg"
         )
         if e is not None:
-            s = sigmas(e)
+            sg = sigmas(e)
             lines.append(
-                "sigma      pos " + "/".join(_f(x, "{:.2f}") for x in s["pos"]) + " m   vel "
-                + "/".join(_f(x, "{:.3f}") for x in s["vel"]) + " m/s   att "
-                + "/".join(_f(x, "{:.2f}") for x in s["att_deg"]) + " deg (E/N/U)"
+                "sigma      pos " + "/".join(_f(x, "{:.2f}") for x in sg["pos"]) + " m  vel "
+                + "/".join(_f(x, "{:.3f}") for x in sg["vel"]) + " m/s (E/N/U)"
             )  # fmt: skip
+            lines.append(
+                "           att " + "/".join(_f(x, "{:.2f}") for x in sg["att_deg"]) + " deg"
+            )
         else:
             lines.append("sigma      - (no extended frame yet)")
     lines.append(
-        f"rates      {_f(fr, '{:.1f}')} frames/s   {_f(er, '{:.1f}')} ext/s   "
-        f"{_f(br, '{:.0f}')} B/s   ({counts['frames']} frames, {counts['ext']} ext, "
-        f"{counts['raw']} raw, {counts['bytes']} bytes)"
+        f"rates      {_f(fr, '{:.1f}')} frames/s  {_f(er, '{:.1f}')} ext/s  {_f(br, '{:.0f}')} B/s"
     )
-    lines.append(f"errors     {error_line(counts)}")
-    return lines
+    lines.append(
+        f"totals     {counts['frames']} frames  {counts['ext']} ext  {counts['raw']} raw  "
+        f"{counts['bytes']} bytes"
+    )
+    lines.append(f"errors     {error_line(counts, short=True)}")
+    if live and st.note:
+        lines.append(f"note       {st.note}")
+    return [_fit(x) for x in lines]
 
 
-def one_line(st, counts, elapsed_s):
+def one_line(st, counts, elapsed_s, now=None):
     """The view as one line (stdout not a terminal)."""
     fr, _er, br = st.rates()
     head = f"{elapsed_s:6.1f} s  {_f(fr, '{:.1f}')} Hz  {_f(br, '{:.0f}')} B/s"
+    quiet = st.silent_s(now)
+    if quiet is not None and quiet >= STALE_S:
+        head += f"  STALE (no frames for {quiet:.1f} s)"
     f = st.frame
     if f is None:
         body = f"no frames yet ({counts['bytes']} bytes)"
@@ -204,7 +254,7 @@ def one_line(st, counts, elapsed_s):
     c = counts
     errs = (
         f"checksum={c['bad_checksum']} crc={c['bad_crc']} skipped={c['skipped_bytes']} "
-        f"dropped={c['dropped_frames']}"
+        f"dropped={c['dropped_frames']} restarts={c.get('restarts', 0)}"
     )
     return f"{head}  {body}  {errs}"
 
