@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
 .PHONY: demo test toolchain native lint accuracy bench-nav bench-board bench-faults cpi accuracy-report \
-	digests replay build-flash deploy monitor virtual-board image flash-image clean
+	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
 $(STAMP): requirements.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -83,6 +83,10 @@ deploy: $(STAMP) native
 		"[FRAMES_PORT=/dev/ttyUSB0]" >&2; exit 2; }
 	$(BIN)/python -m tools.flash deploy --port $(PORT) $(if $(CONFIG),--config $(CONFIG)) \
 		$(if $(FRAMES_PORT),--frames-port $(FRAMES_PORT))
+
+console: $(STAMP)
+	@test -n "$(PORT)" || { echo "usage: make console PORT=/dev/ttyACM0" >&2; exit 2; }
+	$(BIN)/python -m tools.flash console --port $(PORT)
 
 monitor: $(STAMP)
 	@test -n "$(PORT)" || { echo "usage: make monitor PORT=/dev/ttyUSB0 [RECORD=run.ins]" \

@@ -12,6 +12,7 @@ firmware id module `fwid`). It is not MicroPython: the virtual board
 import binascii
 import builtins
 import contextlib
+import errno
 import io
 import os as host_os
 import pathlib
@@ -64,6 +65,9 @@ class FakeSerial:
     def in_waiting(self):
         with self.lock:
             return len(self.out)
+
+    def inWaiting(self):  # noqa: N802 (pyserial's older name, which mpremote calls)
+        return self.in_waiting
 
     def read(self, n=1):
         with self.lock:
@@ -155,6 +159,11 @@ class FakeSerial:
         try:
             with contextlib.redirect_stdout(out):
                 exec(compile(code.decode(), "<stdin>", "exec"), ns)
+        except OSError as e:  # as MicroPython prints it: "OSError: [Errno 2] ENOENT"
+            name = errno.errorcode.get(e.errno, str(e.errno))
+            err = (
+                traceback.format_exc().rsplit("\n", 2)[0] + f"\nOSError: [Errno {e.errno}] {name}\n"
+            )
         except Exception:
             err = traceback.format_exc()
         self._emit(out.getvalue().replace("\n", "\r\n").encode() + b"\x04" + err.encode() + b"\x04")

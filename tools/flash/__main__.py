@@ -1,4 +1,5 @@
-"""`python -m tools.flash build|deploy|config|image`: see docs/deploy.md and docs/image.md.
+"""`python -m tools.flash build|deploy|console|config|image`: see docs/deploy.md and
+docs/image.md.
 
 Usage errors exit with status 2, failures with status 1 and one paragraph saying what to do.
 """
@@ -130,6 +131,25 @@ def _parse_setting(text, config):
         raise FlashError(str(e)) from None
 
 
+def _console(args):
+    """The board's console: mpremote's `repl` on the port, as a MicroPython user knows it. The
+    firmware keeps running and what it prints shows; Ctrl-C stops it, Ctrl-D restarts it,
+    Ctrl-] leaves."""
+    import os
+
+    from tools.flash import deploy
+
+    deploy.open_port(args.port, args.baud).close()  # our message for a missing or busy port
+    print(
+        f"console on {args.port} (mpremote repl): Ctrl-C stops the firmware, Ctrl-D restarts "
+        "it (a soft reset), Ctrl-] leaves",
+        file=sys.stderr,
+        flush=True,
+    )
+    # mpremote in this process's place: Ctrl-C is the board's, not a Python of ours to stop
+    os.execv(sys.executable, [sys.executable, "-m", "mpremote", "connect", args.port, "repl"])
+
+
 def _config(args):
     config = _config_module()
     from tools.flash import deploy
@@ -224,6 +244,12 @@ def _parser():
     )  # fmt: skip
     which.add_argument("--file", help="a .dfu file to flash instead")
     i.set_defaults(func=_image)
+    k = sub.add_parser(
+        "console", help="the firmware's console (mpremote repl): what it prints, Ctrl-C/Ctrl-D"
+    )
+    k.add_argument("--port", required=True, help=PORT_HELP)
+    k.add_argument("--baud", type=_positive, default=115200, help=BAUD_HELP)
+    k.set_defaults(func=_console)
     c = sub.add_parser("config", help="read or change the persisted configuration")
     csub = c.add_subparsers(dest="action", required=True)
     helps = {

@@ -5,7 +5,6 @@ carries this firmware frozen (tools/image: its `fwid` module) gets main.py only,
 kernels lib/navk.mpy (a native module cannot be frozen): built for the architecture the board
 reports (sys.implementation._mpy: armv7emsp on the board, x64 on the virtual board's VM)."""
 
-import binascii
 import pathlib
 import time
 
@@ -19,18 +18,17 @@ from tools.flash.errors import (
     FrozenMismatch,
     TransferCorrupted,
 )
-from tools.flash.rawrepl import RawRepl
+from tools.flash.repl import BoardRepl
 
 ROOT = "/flash"
 CONFIG_NAME = "ins.cfg"
-CHUNK = 512  # raw bytes per board-side write() call
-CHUNKS_PER_EXEC = 4  # 2 KB of file per raw-REPL exec: small enough for the board's heap
+CHUNK = 512  # file bytes per raw-REPL run (up to 2 KB of source: small for the board's heap)
 ATTEMPTS = 3
 
 # Helpers defined once per session in the board's raw-REPL globals.
 BOARD_HELPERS = """
 import os
-from binascii import a2b_base64 as _d, crc32 as _c
+from binascii import crc32 as _c
 _buf = bytearray(512)
 def _crc(p):
     c = 0
@@ -58,8 +56,6 @@ def _mk(p):
         os.mkdir(p)
     except OSError:
         pass
-def _w(s):
-    _f.write(_d(s))
 """
 
 
@@ -154,39 +150,14 @@ class Board:
         return int(self._exec(f"print(_crc({ROOT + '/' + rel!r}))", f"checking {rel}"))
 
     def read(self, rel):
-        """The file's bytes, or None if it does not exist."""
-        out = self._exec(
-            "try:\n"
-            f" _g = open({ROOT + '/' + rel!r}, 'rb')\n"
-            "except OSError:\n"
-            " print('NONE')\n"
-            "else:\n"
-            " from binascii import b2a_base64 as _e\n"
-            " while True:\n"
-            "  _x = _g.read(384)\n"
-            "  if not _x:\n"
-            "   break\n"
-            "  print(_e(_x).decode().strip())\n"
-            " _g.close()\n",
-            f"reading {rel}",
-        )
-        if out.strip() == "NONE":
-            return None
-        return b"".join(binascii.a2b_base64(line) for line in out.split())
+        """The file's bytes, or None if it does not exist (mpremote's fs_readfile)."""
+        data = self.repl.fs("fs_readfile", ROOT + "/" + rel, what=f"reading {rel}", missing=True)
+        return None if data is None else bytes(data)
 
     def write(self, rel, data):
-        """Write data to /flash/rel; the board's CRC-32 of what it wrote."""
-        self._exec(f"_f = open({ROOT + '/' + rel!r}, 'wb')", f"opening {rel} for writing")
-        try:
-            step = CHUNK * CHUNKS_PER_EXEC
-            for i in range(0, len(data), step):
-                lines = []
-                for j in range(i, min(i + step, len(data)), CHUNK):
-                    b64 = binascii.b2a_base64(data[j : j + CHUNK], newline=False).decode()
-                    lines.append(f"_w(b'{b64}')")
-                self._exec("\n".join(lines), f"writing {rel}")
-        finally:
-            self._exec("_f.close()", f"closing {rel}")
+        """Write data to /flash/rel (mpremote's fs_writefile); the board's CRC-32 of what it
+        wrote."""
+        self.repl.fs("fs_writefile", ROOT + "/" + rel, data, CHUNK, what=f"writing {rel}")
         return self.crc(rel)
 
     def write_verified(self, rel, data, log):
@@ -335,7 +306,7 @@ def frozen_plan(manifest, board_id, log, with_config):
 
 def connect(port, baud, timeout=5.0):
     ser = open_port(port, baud)
-    repl = RawRepl(ser, timeout=timeout, port=port)
+    repl = BoardRepl(ser, timeout=timeout, port=port)
     try:
         repl.enter()
     except BaseException:

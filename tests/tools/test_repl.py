@@ -1,15 +1,20 @@
-"""The raw-REPL client against a scripted board (tests/tools/fakeboard.py): banner, raw-paste with
-flow control, the plain raw-mode fallback, board exceptions, silence and garbage."""
+"""The board's raw REPL through mpremote's transport (tools/flash/repl.py) against a scripted
+board (tests/tools/fakeboard.py): getting past a running firmware, raw-paste with flow
+control, the plain raw-mode fallback, board exceptions, silence and garbage, files."""
+
+import time
+import types
 
 import pytest
 from fakeboard import FakeSerial
+from mpremote import transport_serial
 
 from tools.flash import errors
-from tools.flash.rawrepl import RawRepl
+from tools.flash.repl import BoardRepl
 
 
 def _repl(ser, timeout=0.5):
-    repl = RawRepl(ser, timeout=timeout, port="/dev/fake")
+    repl = BoardRepl(ser, timeout=timeout, port="/dev/fake")
     repl.enter()
     return repl
 
@@ -29,7 +34,7 @@ def test_raw_paste_sends_code_longer_than_the_window(window):
     out, err = repl.exec_raw(code)
     assert (out, err) == (b"700 42\r\n", b"")
     assert ser.received[-1] == code.encode()
-    assert repl.use_raw_paste
+    assert repl.transport.use_raw_paste
     assert repl.exec("print('again')") == b"again\r\n"  # the prompt is tracked between runs
 
 
@@ -38,7 +43,7 @@ def test_plain_raw_mode_when_the_board_has_no_raw_paste():
     repl = _repl(ser)
     code = "print(sum(range(" + "1" * 3 + ")))\n" + "# padding\n" * 60
     assert repl.exec(code) == b"6105\r\n"
-    assert not repl.use_raw_paste
+    assert not repl.transport.use_raw_paste
 
 
 def test_board_exception_is_a_board_error_quoting_the_traceback():
@@ -49,13 +54,13 @@ def test_board_exception_is_a_board_error_quoting_the_traceback():
 
 
 def test_silent_port_is_not_responding():
-    repl = RawRepl(FakeSerial(silent=True), timeout=0.2, port="/dev/quiet")
+    repl = BoardRepl(FakeSerial(silent=True), timeout=0.2, port="/dev/quiet")
     with pytest.raises(errors.NotResponding, match="does not respond"):
         repl.enter()
 
 
 def test_garbage_is_not_micropython():
-    repl = RawRepl(FakeSerial(garbage=b"\x00\xfe?"), timeout=0.2, port="/dev/noise")
+    repl = BoardRepl(FakeSerial(garbage=b"\x00\xfe?"), timeout=0.2, port="/dev/noise")
     with pytest.raises(errors.NotMicroPython, match="not in MicroPython"):
         repl.enter()
 
@@ -64,6 +69,26 @@ def test_syntax_error_mid_paste_is_reported():
     repl = _repl(FakeSerial(window=16))
     with pytest.raises(errors.BoardError, match="SyntaxError"):
         repl.exec("def f(:\n    pass\n")
+
+
+def test_a_board_that_goes_silent_mid_run_is_not_responding():
+    ser = FakeSerial()
+    repl = _repl(ser, timeout=0.3)
+    ser.silent = True
+    with pytest.raises(errors.NotResponding, match="stopped responding while counting"):
+        repl.exec("print(1)", what="counting")
+
+
+def test_files_through_mpremote(tmp_path):
+    (tmp_path / "lib").mkdir()
+    repl = _repl(FakeSerial(tmp_path))
+    data = bytes(range(256)) * 5
+    repl.fs("fs_writefile", "/flash/lib/x.bin", data, what="writing x.bin")
+    assert (tmp_path / "lib" / "x.bin").read_bytes() == data
+    assert repl.fs("fs_readfile", "/flash/lib/x.bin", what="reading x.bin") == data
+    assert repl.fs("fs_readfile", "/flash/nope", what="reading nope", missing=True) is None
+    with pytest.raises(errors.BoardError, match="reading nope"):
+        repl.fs("fs_readfile", "/flash/nope", what="reading nope")
 
 
 def test_deploy_over_plain_raw_mode(tmp_path, monkeypatch):
@@ -78,6 +103,10 @@ def test_deploy_over_plain_raw_mode(tmp_path, monkeypatch):
     (fs / "lib" / "stale.py").write_text("x = 1\n")
     fake = FakeSerial(fs, raw_paste=False, corrupt_writes=1)
     monkeypatch.setattr(deploy, "open_port", lambda port, baud: fake)
+    # plain raw mode paces its writes for a board's buffer (256 bytes per 10 ms): the scripted
+    # board needs no pacing
+    fast = types.SimpleNamespace(sleep=lambda _s: None, monotonic=time.monotonic)
+    monkeypatch.setattr(transport_serial, "time", fast)
     lines = []
     result = deploy.deploy(out, "/dev/fake", log=lines.append, watch_s=2)
     assert result["stale"] == ["lib/stale.py"] and not (fs / "lib" / "stale.py").exists()
