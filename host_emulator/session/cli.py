@@ -41,6 +41,10 @@ def main(argv=None):
         help="where to replay (default cpython, bit-exact; mpy_unix compares to a tolerance)",
     )  # fmt: skip
     s.add_argument("--until-gap", action="store_true", help="replay up to the first gap")
+    s.add_argument(
+        "--from-last-start", action="store_true",
+        help="replay from the board's last start in the recording (it restarted), not its first",
+    )  # fmt: skip
     s.add_argument("--out", help="directory for stimulus.bin and replayed.bin (kept)")
     f = sub.add_parser(
         "repair", help="keep what survived of a cut or damaged session file in a new one"
@@ -98,12 +102,14 @@ def _main_replay(args):
     progress = _progress_printer()
     if args.out:
         work = Path(args.out)
-        res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress)
+        res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress,
+                     args.from_last_start)  # fmt: skip
         res.stimulus.write(work / "stimulus.bin")
         (work / "replayed.bin").write_bytes(res.run.out)
     else:
         with tempfile.TemporaryDirectory(prefix="session-") as d:
-            res = replay(args.session, d, args.runtime, args.config, args.until_gap, progress)
+            res = replay(args.session, d, args.runtime, args.config, args.until_gap, progress,
+                         args.from_last_start)  # fmt: skip
     if progress:
         print(file=sys.stderr)
     print(res.summary())

@@ -64,18 +64,20 @@ def _session_config(header, config, path):
     )
 
 
-def replay(session_path, workdir, runtime="cpython", config=None, until_gap=False, progress=None):
+def replay(session_path, workdir, runtime="cpython", config=None, until_gap=False, progress=None,
+           from_last_start=False):  # fmt: skip
     """Replay a session file through the emulator and compare; a ReplayResult.
 
     config: the board configuration (a path, see proto/config.load, or a dict of values) when
     the session holds none or holds the wrong one. until_gap: replay the ticks before the
-    first gap instead of failing. runtime: a name of host_emulator.runtimes; one that is not
+    first gap instead of failing. from_last_start: replay from the board's last start in the
+    recording (after a restart), not its first. runtime: a name of host_emulator.runtimes; one that is not
     bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the firmware raises."""
     rt = runtimes.get(runtime)
     sf = load(session_path)
     header, data = sf.header, sf.data
     values, source = _session_config(header, config, session_path)
-    rec = parse(data, values, until_gap)
+    rec = parse(data, values, until_gap, from_last_start)
     stim = to_stimulus(rec, values)
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)

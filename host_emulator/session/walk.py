@@ -241,10 +241,11 @@ def rates(values):
     return cfg.output_every_ticks, cfg.ext_every_ticks
 
 
-def parse(data, config_values, until_gap=False):
-    """The Recording in a captured stream: from the board's first tick to the end, or to the
-    first gap. SessionError (naming the byte offset and tick) if the stream holds no start,
-    or has a gap and until_gap is False."""
+def parse(data, config_values, until_gap=False, from_last_start=False):
+    """The Recording in a captured stream: from the board's first tick (from_last_start: from
+    its last start, when it restarted during the recording) to the end, or to the first gap.
+    SessionError (naming the byte offset and tick) if the stream holds no start, or has a gap
+    and until_gap is False."""
     every, ext_every = rates(config_values)
     items = _items(data)
     recs = [i for i, it in enumerate(items) if it[0] == "rec"]
@@ -257,13 +258,15 @@ def parse(data, config_values, until_gap=False):
             "ran with raw_record = 0; set it to 1 in the board's configuration and record again"
         )
     first_type = _expected(0, every, ext_every)[0]
+    starts = [
+        i
+        for i in recs
+        if (items[i][2][1], _counter(items[i][2])) == first_type
+        and _starts_run(items, i, every, ext_every)
+    ]
     start = None
-    for i in recs:
-        rec = items[i][2]
-        counter = _counter(rec)
-        if (rec[1], counter) == first_type and _starts_run(items, i, every, ext_every):
-            start = i
-            break
+    if starts:
+        start = starts[-1] if from_last_start else starts[0]
     if start is None:
         raise SessionError(
             "the recording does not hold the board's first tick: start recording before "
@@ -272,13 +275,24 @@ def parse(data, config_values, until_gap=False):
             "the board's"
         )
     w = _walk(items, start, every, ext_every)
+    later = [items[i][1] for i in starts if i > start]
     if w.stop and not until_gap:
+        hint = f"; --until-gap replays the {len(w.groups)} ticks before it"
+        if later:
+            hint += f", --from-last-start the run that starts at byte {items[starts[-1]][1]}"
         raise SessionError(
             f"{w.stop}. The firmware's state after a gap is unknown, so the session cannot be "
-            f"replayed past it; --until-gap replays the {len(w.groups)} ticks before it"
+            f"replayed past it{hint}"
         )
     rec = _recording(config_values, w.groups, items[start][1], w.end_offset)
     rec.gap = w.stop
+    if len(starts) > 1:
+        at = ", ".join(str(items[i][1]) for i in starts)
+        which = "the last" if start == starts[-1] else "the first (--from-last-start: the last)"
+        rec.notes.append(
+            f"the board started {len(starts)} times in the recording (at bytes {at}): "
+            f"replayed from {which}"
+        )
     if items[start][1]:
         rec.notes.append(f"{items[start][1]} bytes before the board's first tick skipped")
     if w.stray:

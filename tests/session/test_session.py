@@ -349,6 +349,25 @@ def test_a_board_restart_inside_the_recording_is_named(capture, values):
     first = _head(capture, 700)[:-9]  # the board resets while sending tick 699's raw record
     msg = _parse_error(first + _head(capture, 300), values)
     assert "gap at byte" in msg and "tick 699" in msg and "(the board restarted)" in msg
+    assert f"--from-last-start the run that starts at byte {len(first)}" in msg
+
+
+def test_a_recording_across_a_restart_replays_from_its_last_start(capture, values, tmp_path):
+    """The board restarted while recording: --from-last-start replays the run after the
+    restart, byte for byte, and says where the board started; --until-gap the run before."""
+    first = _head(capture, 700)[:-9]
+    session_file.write_session(tmp_path / "restart.ins", first + _head(capture, 1500),
+                               config=values)  # fmt: skip
+    r = replay.replay(tmp_path / "restart.ins", tmp_path / "w1", from_last_start=True)
+    assert r.identical and len(r.recording) == 1500 and r.recording.start_offset == len(first)
+    text = r.summary()
+    assert f"the board started 2 times in the recording (at bytes 0, {len(first)})" in text
+    assert "replayed from the last" in text
+    r = replay.replay(tmp_path / "restart.ins", tmp_path / "w2", until_gap=True)
+    assert r.identical and len(r.recording) == 699
+    assert "replayed from the first (--from-last-start: the last)" in r.summary()
+    argv = ["replay", str(tmp_path / "restart.ins"), "--from-last-start"]
+    assert cli.main(argv) == 0
 
 
 def test_configuration_and_stream_problems_are_clear(capture, values, tmp_path):
