@@ -80,9 +80,9 @@ build-flash: $(STAMP) native
 
 deploy: $(STAMP) native
 	@test -n "$(PORT)" || { echo "usage: make deploy PORT=/dev/ttyACM0 [CONFIG=ins.cfg]" \
-		"[FRAMES_PORT=/dev/ttyUSB0]" >&2; exit 2; }
+		"[SET='raw_record=1 ...'] [FRAMES_PORT=/dev/ttyUSB0]" >&2; exit 2; }
 	$(BIN)/python -m tools.flash deploy --port $(PORT) $(if $(CONFIG),--config $(CONFIG)) \
-		$(if $(FRAMES_PORT),--frames-port $(FRAMES_PORT))
+		$(if $(SET),--set $(SET)) $(if $(FRAMES_PORT),--frames-port $(FRAMES_PORT))
 
 console: $(STAMP)
 	@test -n "$(PORT)" || { echo "usage: make console PORT=/dev/ttyACM0" >&2; exit 2; }

@@ -71,8 +71,9 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     config: the board configuration (a path, see proto/config.load, or a dict of values) when
     the session holds none or holds the wrong one. until_gap: replay the ticks before the
     first gap instead of failing. from_last_start: replay from the board's last start in the
-    recording (after a restart), not its first. runtime: a name of host_emulator.runtimes; one that is not
-    bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the firmware raises."""
+    recording (after a restart), not its first. runtime: a name of host_emulator.runtimes;
+    one that is not bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the
+    firmware raises."""
     rt = runtimes.get(runtime)
     sf = load(session_path)
     header, data = sf.header, sf.data

@@ -127,9 +127,18 @@ def test_config_upload_get_and_set_round_trip(tmp_path, capsys):
         assert "soft reset" in capsys.readouterr().out
         saved = tmp_path / "back.cfg"
         assert main(["config", "get", "--port", vb.port, "--out", str(saved)]) == 0
-        out = capsys.readouterr().out
+        out, err = capsys.readouterr()
         assert "output_every_ticks = 2" in out and "gnss_baud = 38400" in out
         assert saved.read_bytes() == (vb.fs_dir / "ins.cfg").read_bytes()
+        assert "stopped to read its configuration and restarted" in err
+
+        # deploy --set changes the board's configuration (no --config): raw_record for sessions
+        assert main(["deploy", "--port", vb.port, "--set", "raw_record=1"]) == 0
+        deployed = capsys.readouterr().out
+        assert main(["config", "get", "--file", str(vb.fs_dir / "ins.cfg")]) == 0
+        out = capsys.readouterr().out
+        assert "raw_record = 1" in out and "output_every_ticks = 2" in out, deployed
+        assert "gnss_baud = 38400" in out
 
 
 @pytest.mark.parametrize(
@@ -241,6 +250,21 @@ def test_dry_run_writes_nothing(build_dir, tmp_path):
         assert result["dry_run"] and len(result["planned"]) == len(built)
         assert build.NATIVE_PATH in {f["path"] for f in result["planned"]}
         assert list(pathlib.Path(vb.fs_dir).rglob("*")) == []
+        assert not result["restarted"]  # no firmware was running
+
+
+def test_dry_run_leaves_a_running_firmware_running(build_dir, tmp_path):
+    """--dry-run stops the firmware to read the board (Ctrl-C): it restarts it after, and
+    says so; nothing on /flash changes."""
+    with _board(tmp_path) as vb:
+        deploy.deploy(build_dir, vb.port, log=_quiet)
+        before = _crcs(vb.fs_dir)
+        lines = []
+        result = deploy.deploy(build_dir, vb.port, dry_run=True, log=lines.append)
+        assert result["restarted"] and "runs again" in lines[-1]
+        assert _crcs(vb.fs_dir) == before
+        again = deploy.deploy(build_dir, vb.port, dry_run=True, log=_quiet)
+        assert again["restarted"]  # the first dry run left it running
 
 
 def test_a_port_held_by_another_program_is_busy(capsys):

@@ -58,10 +58,38 @@ def _read_config_file(path):
     return data, cfg
 
 
+def _merged_config(changes, config):
+    """config_merge for deploy --set: the changes applied to a configuration file's bytes
+    (--config's, else the board's; None or one the firmware ignores: the defaults)."""
+
+    def merge(base):
+        cfg = config.BoardConfig()
+        if base is not None:
+            try:
+                cfg = _decode_config(base, "the configuration to change", "")
+            except FlashError as e:
+                print(f"{e}It is replaced by the defaults and the changes.")
+        for name, value in changes:
+            setattr(cfg, name, value)
+        problem = cfg.validate()
+        if problem:
+            raise FlashError(f"invalid setting: {problem}. Nothing was written.")
+        return config.encode(cfg)
+
+    return merge
+
+
 def _deploy(args):
     from tools.flash import build, deploy
 
     config_bytes, cfg = _read_config_file(args.config) if args.config else (None, None)
+    merge = None
+    if args.set:
+        config = _config_module()
+        changes = [_parse_setting(x, config) for x in args.set]
+        merge = _merged_config(changes, config)
+        if cfg is not None:  # the output baud the frames check listens at
+            cfg = config.decode(merge(config_bytes))
     with tempfile.TemporaryDirectory(prefix="ins-build-") as tmp:
         manifest = build.build(tmp, args.flash_kb or build.DEFAULT_FLASH_KB, args.strip_lines)
         print(
@@ -76,6 +104,7 @@ def _deploy(args):
             args.port,
             args.baud,
             config_bytes=config_bytes,
+            config_merge=merge,
             frames_port=args.frames_port,
             frames_baud=frames_baud,
             dry_run=args.dry_run,
@@ -83,7 +112,9 @@ def _deploy(args):
             check_budget=(lambda: build.check_budget(manifest)) if args.flash_kb else None,
         )
     if result.get("dry_run"):
-        print("dry run: nothing written")
+        print("dry run: nothing written" + (
+            "; the firmware was stopped to read the board and restarted (a soft reset: it "
+            "aligns again)" if result.get("restarted") else ""))  # fmt: skip
     else:
         print("deploy OK: the firmware is running")
     return 0
@@ -160,6 +191,11 @@ def _config(args):
             print(f"# {args.file}")
         else:
             data = deploy.read_config(args.port, args.baud)
+            print(
+                f"note: the firmware on {args.port} was stopped to read its configuration and "
+                "restarted (a soft reset: it aligns again)",
+                file=sys.stderr,
+            )
             source = f"{args.port}:/flash/ins.cfg"
             if data is None:
                 print(f"# {source}: no configuration file; the firmware uses these defaults")
@@ -228,7 +264,15 @@ def _parser():
     d.add_argument("--config", help="configuration file to upload as /flash/ins.cfg")
     d.add_argument("--flash-kb", type=_positive, help="check the build against this budget")
     d.add_argument("--frames-port", help="RS485 port: confirm frames arrive after the reset")
-    d.add_argument("--dry-run", action="store_true", help="compare and report, write nothing")
+    d.add_argument(
+        "--set", nargs="+", metavar="NAME=VALUE",
+        help="change settings of the configuration deployed (--config's, else the board's), "
+        "e.g. raw_record=1 to record sessions that replay (docs/sessions.md)",
+    )  # fmt: skip
+    d.add_argument(
+        "--dry-run", action="store_true",
+        help="compare and report, write nothing (a running firmware is restarted after)",
+    )  # fmt: skip
     d.add_argument("--strip-lines", action="store_true", help="mpy-cross -X no-source-lines")
     d.add_argument("--watch", type=float, default=15.0, help="seconds to wait for the firmware")
     d.set_defaults(func=_deploy)

@@ -324,6 +324,7 @@ def deploy(
     frames_baud=460800,
     dry_run=False,
     log=print,
+    config_merge=None,
     watch_s=15.0,
     check_budget=None,
 ):
@@ -341,6 +342,9 @@ def deploy(
         ]
         if said:
             log("board said: " + " / ".join(said))
+        if config_merge is not None:  # --set: the changes on --config's or the board's file
+            base = config_bytes if config_bytes is not None else board.read(CONFIG_NAME)
+            config_bytes = config_merge(base)
         manifest = native_plan(manifest, board.native_arch(), log)
         board_id = board.frozen_firmware()
         if board_id is not None:
@@ -360,8 +364,10 @@ def deploy(
         writes, stale, new_dirs = plan(manifest, board_files, board_dirs)
         extra = []
         if config_bytes is not None:
-            cur = board_files.get(CONFIG_NAME, (None, None))[1]
-            if cur != crc32(config_bytes):
+            # compared whole: the file ends with its own CRC-32, so the CRC-32 of any intact
+            # configuration file is the same residue (0x2144df1c) and cannot tell two apart
+            cur = board.read(CONFIG_NAME) if CONFIG_NAME in board_files else None
+            if cur != config_bytes:
                 extra.append((CONFIG_NAME, len(config_bytes)))
         need = space_needed(writes, stale, new_dirs, board_files, fs["cluster"], extra)
         total_fw = sum(build_mod.clusters(f["size"], fs["cluster"]) for f in manifest["files"])
@@ -392,12 +398,20 @@ def deploy(
                 log(f"would write {f['path']} ({f['size']} bytes)")
             for p in stale:
                 log(f"would delete {p}")
+            if extra:
+                log(f"would write {CONFIG_NAME} ({len(config_bytes)} bytes)")
+            # Ctrl-C stopped a running firmware to read the board: it runs again as before
+            running = b"ins: stopped" in repl.console
+            if running:
+                restart(repl, watch_s)
+                log("the firmware, stopped to read the board, runs again (a soft reset)")
             return {
                 "written": [],
                 "stale": stale,
                 "dry_run": True,
                 "planned": writes,
                 "frozen": board_id,
+                "restarted": running,
             }
         why = " (frozen in the image)" if board_id is not None else ""
         for p in stale:
@@ -513,7 +527,8 @@ def valid_frames(data):
 
 
 def read_config(port, baud):
-    """The board's /flash/ins.cfg bytes (None if it has none); restarts the firmware after."""
+    """The board's /flash/ins.cfg bytes (None if it has none); restarts the firmware after
+    (a soft reset: the firmware starts again, and aligns again)."""
     ser, repl = connect(port, baud)
     try:
         data = Board(repl).read(CONFIG_NAME)
@@ -531,7 +546,8 @@ def write_config(port, baud, data, log=print):
     try:
         board = Board(repl)
         board.write_verified(CONFIG_NAME, data, log)
-        log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {crc32(data):08x} OK")
+        # the file's own CRC-32 (of what precedes it): that of the whole file is a constant
+        log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {crc32(data[:-4]):08x} OK")
         repl.exit()
         repl.drain(quiet=0.1, overall=0.5)
         repl.ser.write(b"\x04")
