@@ -70,6 +70,7 @@ class VirtualBoard:
         realtime=True,
         boot_main=False,
         frozen_dir=None,
+        loop=False,
     ):
         self.fs_dir = pathlib.Path(fs_dir).resolve()
         # modules "frozen in the image": a directory both VMs import from as the stm32 port
@@ -84,6 +85,8 @@ class VirtualBoard:
         self.duration_s = float(duration_s)
         self.realtime = bool(realtime)
         self.boot_main = bool(boot_main)  # run main.py at power-up (else: the friendly REPL)
+        self.loop = bool(loop)  # the input used up: the firmware starts again, as after a reset
+        self._fw_ended = False
         self.port = None
         self.rs485_port = None
         self.firmware_runs = 0
@@ -492,10 +495,11 @@ class VirtualBoard:
             self._fw_error = []
         elif kind == b"X":
             if rest == b"ended":
+                self._fw_ended = True
+                again = b"it starts again (a reset)" if self.loop else b"Ctrl-D runs it again"
                 self._send(
-                    b"virtual board: the input ended (simulated %s, %g s, seed %d); "
-                    b"Ctrl-D runs it again\r\n"
-                    % (self.scenario.encode(), self.duration_s, self.seed)
+                    b"virtual board: the input ended (simulated %s, %g s, seed %d); %s\r\n"
+                    % (self.scenario.encode(), self.duration_s, self.seed, again)
                 )
         else:
             self._send(line + b"\r\n")
@@ -510,6 +514,11 @@ class VirtualBoard:
             self._send(STOPPED + b"\r\n")
         self._kill(self._fw)
         self._fw = None
+        ended, self._fw_ended = self._fw_ended, False
+        if ended and self.loop and not stopping:  # endless: the board starts again
+            self._send(b"MPY: soft reboot\r\n")
+            self._start_fw_vm()
+            return
         self._mode = "friendly"
         self._send(BANNER + PROMPT)
         self._drain_pending()
@@ -525,7 +534,11 @@ def main(argv=None):
     p.add_argument("--flash-kb", type=int, default=2048, help="filesystem capacity (KB)")
     p.add_argument("--scenario", default="urban_drive", help="simulated scenario")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--duration", type=float, default=120.0, help="scenario length (s)")
+    p.add_argument(
+        "--duration", type=float, default=120.0,
+        help="scenario length (s); 0: endless (the 120 s scenario again and again, the "
+        "firmware starting anew each time as after a reset)",
+    )  # fmt: skip
     p.add_argument("--corrupt-writes", type=int, default=0, help="corrupt the first N writes")
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
@@ -540,7 +553,8 @@ def main(argv=None):
 
     try:
         cli_args.check_scenario(args.scenario)
-        cli_args.check_duration(args.duration)
+        if args.duration != 0:
+            cli_args.check_duration(args.duration)
         cli_args.check_seed(args.seed)
         if args.flash_kb < 1 or args.corrupt_writes < 0:
             raise EmulatorError("--flash-kb must be 1 or more and --corrupt-writes 0 or more")
@@ -565,9 +579,10 @@ def main(argv=None):
         corrupt_writes=args.corrupt_writes,
         scenario=args.scenario,
         seed=args.seed,
-        duration_s=args.duration,
+        duration_s=args.duration or 120.0,
         realtime=not args.fast,
         boot_main=args.run,
+        loop=args.duration == 0,
     )
     try:
         board.start()

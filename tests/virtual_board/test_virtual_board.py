@@ -235,6 +235,44 @@ def test_firmware_runs_to_the_end_of_its_input(deployed):
         s.close()
 
 
+def test_endless_input_starts_the_firmware_again(deployed):
+    """--duration 0 (loop=True): at the end of its input the board starts the firmware again,
+    as after a reset, instead of going silent; the monitor sees the restarts as restarts."""
+    import threading
+
+    from tools.monitor import cli as monitor_cli
+    from tools.monitor import view
+
+    with VirtualBoard(deployed, realtime=False, duration_s=2.0, loop=True) as vb:
+        rs = serial.Serial(vb.rs485_port, 115200, timeout=0.05)
+        s = serial.Serial(vb.port, 115200, timeout=2)
+        got, done = bytearray(), threading.Event()
+
+        def reader():
+            while not done.is_set():
+                got.extend(rs.read(1 << 16))
+
+        t = threading.Thread(target=reader)
+        t.start()
+        s.write(b"\x03\x04")
+        out = b""
+        t0 = time.monotonic()
+        while out.count(b"it starts again") < 2 and time.monotonic() - t0 < 60:
+            out += s.read(4096)
+        s.write(b"\x03")  # stop it
+        read_until(s, b">>> ", timeout=10)
+        done.set()
+        t.join()
+        assert out.count(b"ins: running") >= 3, out
+        mon = monitor_cli.Monitor(view.Status("rs485"), 1)
+        mon.feed(bytes(got))
+        mon.finish()
+        c = mon.counts()
+        assert c["restarts"] >= 2 and c["frames"] >= 3 * 300, c
+        rs.close()
+        s.close()
+
+
 def test_firmware_realtime_ctrl_c_stops_it(deployed):
     with VirtualBoard(deployed, realtime=True, duration_s=30.0) as vb:
         rs = serial.Serial(vb.rs485_port, 115200, timeout=0.2)
