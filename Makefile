@@ -89,9 +89,10 @@ console: $(STAMP)
 	$(BIN)/python -m tools.flash console --port $(PORT)
 
 monitor: $(STAMP)
-	@test -n "$(PORT)" || { echo "usage: make monitor PORT=/dev/ttyUSB0 [RECORD=run.ins]" \
-		"[CSV=run.csv]" >&2; exit 2; }
+	@test -n "$(PORT)" || { echo "usage: make monitor PORT=/dev/ttyUSB0 [RECORD=run.ins" \
+		"BOARD_PORT=/dev/ttyACM0 | CONFIG=ins.cfg] [CSV=run.csv]" >&2; exit 2; }
 	$(BIN)/python -m tools.monitor --port $(PORT) $(if $(RECORD),--record $(RECORD)) \
+		$(if $(BOARD_PORT),--board-port $(BOARD_PORT)) $(if $(CONFIG),--config $(CONFIG)) \
 		$(if $(CSV),--csv $(CSV))
 
 virtual-board: $(STAMP)

@@ -37,8 +37,10 @@ def main(argv=None):
     s.add_argument("session", help="session file (or a plain capture, with --config)")
     s.add_argument("--config", help="the board's configuration (overrides the session's)")
     s.add_argument(
-        "--runtime", default="cpython", choices=runtimes.names(),
-        help="where to replay (default cpython, bit-exact; mpy_unix compares to a tolerance)",
+        "--runtime", default="auto", choices=["auto", *runtimes.names()],
+        help="where to replay: auto (default) picks the one whose arithmetic is the recording "
+        "board's (cpython, bit-exact, for a board; mpy_unix for the virtual board, whose VM "
+        "computes in double, compared to a tolerance)",
     )  # fmt: skip
     s.add_argument("--until-gap", action="store_true", help="replay up to the first gap")
     s.add_argument(

@@ -21,6 +21,7 @@ class ReplayResult:
     comparison: Comparison
     config_source: str
     file_problems: list  # what a cut or damaged session file lost (session_file.Session)
+    runtime_note: str | None = None  # why the runtime was picked (pick_runtime)
 
     @property
     def identical(self):
@@ -38,6 +39,8 @@ class ReplayResult:
             lines.append(f"replayed up to the first gap: {rec.gap}")
         for note in self.stimulus.header.get("notes", []):
             lines.append("note: " + note)
+        if self.runtime_note:
+            lines.append("note: " + self.runtime_note)
         lines.append(f"replayed on {self.run.runtime} in {self.run.wall_s:.1f} s")
         lines.append(self.comparison.summary())
         if self.identical:
@@ -64,7 +67,7 @@ def _session_config(header, config, path):
     )
 
 
-def replay(session_path, workdir, runtime="cpython", config=None, until_gap=False, progress=None,
+def replay(session_path, workdir, runtime="auto", config=None, until_gap=False, progress=None,
            from_last_start=False):  # fmt: skip
     """Replay a session file through the emulator and compare; a ReplayResult.
 
@@ -74,9 +77,10 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     recording (after a restart), not its first. runtime: a name of host_emulator.runtimes;
     one that is not bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the
     firmware raises."""
-    rt = runtimes.get(runtime)
     sf = load(session_path)
     header, data = sf.header, sf.data
+    runtime, why = pick_runtime(header, runtime)
+    rt = runtimes.get(runtime)
     values, source = _session_config(header, config, session_path)
     rec = parse(data, values, until_gap, from_last_start)
     stim = to_stimulus(rec, values)
@@ -85,4 +89,20 @@ def replay(session_path, workdir, runtime="cpython", config=None, until_gap=Fals
     run = rt.run(stim, workdir, progress=progress)
     cfg = board_cfg(values)
     c = compare(rec.stream, run.out, cfg.output_every_ticks, cfg.ext_every_ticks, rt.bit_exact)
-    return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)))
+    return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)), why)
+
+
+def pick_runtime(header, runtime="auto"):
+    """(runtime name, why or None): "auto" picks the runtime whose arithmetic is the
+    recording's board's: a board that computes in double (the virtual board: a MicroPython VM,
+    which the monitor's --board-port records) replays on mpy_unix, the same VM; a board of
+    float32 (the STM32F411), or one the session does not describe, on cpython, bit-exact."""
+    if runtime != "auto":
+        return runtime, None
+    board = header.get("board") or {}
+    if board.get("floats") == "double":
+        return "mpy_unix", (
+            f"the recording's board ({board.get('machine', '?')}) computes in double, as a "
+            "MicroPython VM does: replayed on mpy_unix, the same VM (--runtime overrides)"
+        )
+    return "cpython", None

@@ -540,6 +540,45 @@ def read_config(port, baud):
         ser.close()
 
 
+# What a recording needs to know of the board besides its configuration: the platform, and
+# whether its floats are float32 (the board) or double (a MicroPython VM: the virtual board)
+FACTS_QUERY = (
+    "import sys\nprint(repr(getattr(sys.implementation, '_machine', sys.platform)))\n"
+    "print(1.0 + 1e-10 != 1.0)\n"
+)
+
+
+class BoardSession:
+    """The board, stopped, for what a recording keeps of it: `config` (its /flash/ins.cfg
+    bytes, None without one) and `facts` ({"machine", "floats": "float32" | "double"});
+    `restart()` soft-resets it, so that a recording begun before holds the firmware's start."""
+
+    def __init__(self, port, baud):
+        self.ser, self.repl = connect(port, baud)
+        try:
+            board = Board(self.repl)
+            self.config = board.read(CONFIG_NAME)
+            out = self.repl.exec(FACTS_QUERY, what="asking which board it is").decode()
+            lines = out.split("\n")
+            machine = lines[0].strip().strip("'")
+            self.facts = {
+                "machine": machine,
+                "floats": "double" if lines[1].strip() == "True" else "float32",
+            }
+        except BaseException:
+            self.ser.close()
+            raise
+
+    def restart(self):
+        """Ctrl-B, Ctrl-D: the firmware starts again (it aligns again)."""
+        try:
+            self.repl.exit()
+            self.repl.drain(quiet=0.1, overall=0.5)
+            self.repl.ser.write(b"\x04")
+        finally:
+            self.ser.close()
+
+
 def write_config(port, baud, data, log=print):
     """Write ins.cfg with CRC verification, then soft-reset so the firmware loads it."""
     ser, repl = connect(port, baud)

@@ -176,6 +176,12 @@ def _parser():
         help="the board's configuration file (or JSON settings): its output_every_ticks sets the "
         "time base; kept in the --record session so it can be replayed",
     )
+    p.add_argument(
+        "--board-port", metavar="PORT",
+        help="the board's USB (REPL) port: read its configuration and which board it is into "
+        "the --record session, then restart its firmware so the recording holds its start "
+        "(what a replay needs)",
+    )  # fmt: skip
     p.add_argument("--record", metavar="FILE", help="write every byte received to a session file")
     p.add_argument("--csv", metavar="FILE", help="frames as CSV (+ FILE_ext.csv: extended frames)")
     p.add_argument("--mdf", metavar="FILE", help="frames and extended frames as MDF4 (.mf4)")
@@ -212,6 +218,38 @@ def _no_data_error(src, counts, waited):
         f"(the board's output_baud setting; this port is at {src.baud}, --baud changes it) and "
         "that this is the board's output port"
     )
+
+
+def _board_session(port, values, err):
+    """(deploy.BoardSession, configuration values, where they came from) of the board on its
+    REPL port: its firmware stopped until the caller restarts it."""
+    from tools.flash import deploy
+    from tools.flash.errors import FlashError
+
+    try:
+        board = deploy.BoardSession(port, 115200)
+    except FlashError as e:
+        raise MonitorError(f"the board's port {port}: {e}") from None
+    where = f"{port}:/flash/ins.cfg"
+    values_given = values is not None
+    if values is None:
+        if board.config is None:
+            values = board_config.values_of(board_config.from_values({}))
+            where = f"{port} (no /flash/ins.cfg: the defaults)"
+        else:
+            try:
+                values = board_config.values_of(board_config.decode(board.config))
+            except board_config.ConfigError as e:
+                board.restart()
+                raise MonitorError(f"the configuration on {port} is {e}") from None
+    if values_given:
+        where = "--config"
+    err.write(
+        f"configuration from {where}, board {board.facts['machine']} "
+        f"({board.facts['floats']} floats); its firmware restarts now, so the recording holds "
+        "its start (it aligns again)\n"
+    )
+    return board, values, where
 
 
 def _open_outputs(args, header_info):
@@ -278,28 +316,44 @@ def run(args, out=None, err=None):
             values = board_config.load(args.config)
         except board_config.ConfigError as e:
             raise MonitorError(str(e)) from None
-    if args.file:
-        src = FileSource(args.file)
-        if values is None:
-            values = src.config_values()
-        baud = src.baud
-    else:
-        baud = args.baud or int((values or {}).get("output_baud", 0))
-        baud = baud or board_config.default_output_baud()
-        src = PortSource(args.port, baud)
+    board = None
+    config_file = str(args.config) if args.config else None
+    if args.board_port:
+        if not args.port:
+            raise MonitorError("--board-port needs --port (the board's frames port)")
+        board, values, where = _board_session(args.board_port, values, err)
+        config_file = config_file or where
+    try:
+        if args.file:
+            src = FileSource(args.file)
+            if values is None:
+                values = src.config_values()
+            baud = src.baud
+        else:
+            baud = args.baud or int((values or {}).get("output_baud", 0))
+            baud = baud or board_config.default_output_baud()
+            src = PortSource(args.port, baud)
+    except BaseException:
+        if board is not None:
+            board.restart()
+        raise
     header = {
         "format": session_file.FORMAT,
         "source": src.name,
         "baud": baud if src.kind == "serial" else None,
         "started_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "config": values,
-        "config_file": str(args.config) if args.config else None,
+        "config_file": config_file,
+        "board": board.facts if board is not None else None,
     }
     try:
         outputs, recorder, closers, files = _open_outputs(args, header)
     except MonitorError:
         src.close()
         raise
+    finally:
+        if board is not None:  # the firmware starts now, with the port open and read
+            board.restart()
     status = view.Status(src.name, baud if src.kind == "serial" else None)
     screen = _Screen(out, args.quiet or src.kind == "file")
     warnings = []
