@@ -1,8 +1,11 @@
 """Plots (PNG) and report.md of one emulator run.
 
-    trajectory.png  truth, the firmware's track and the GNSS fixes; outages in red
+    trajectory.png  truth, the firmware's track and the GNSS fixes; outages in red, and the
+                    end of each of the first three zoomed beside it
     errors.png      position and velocity errors (E, N, U) with the reported 3-sigma
-    attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw against truth
+    attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw (unwrapped) against truth
+Error panels are scaled to the errors and the typical 3-sigma (error_limit), so a large
+sigma at the start runs off the panel instead of flattening the errors.
     biases.png      gyro and accel bias estimates with 3-sigma against the simulated biases
 GNSS outages are shaded in every time plot.
 """
@@ -37,26 +40,108 @@ def _shade(ax, outages, t_end):
             )
 
 
+def error_limit(e, s):
+    """The y half-range of an error panel: from the errors and the typical 3-sigma, not from
+    the largest sigma (the start's heading sigma, +-30 deg, would flatten 0.1 deg errors);
+    what is larger runs off the panel."""
+    e = np.abs(np.asarray(e, float))
+    s3 = 3 * np.abs(np.asarray(s, float))
+    fin_e, fin_s = e[np.isfinite(e)], s3[np.isfinite(s3)]
+    lim = max(
+        np.percentile(fin_e, 99.5) if fin_e.size else 0.0,
+        np.percentile(fin_s, 50) if fin_s.size else 0.0,
+    )
+    return 1.2 * lim if lim > 0 else 1.0
+
+
 def _err_panel(ax, t, e, s, label, unit, outages, t_end, colors=("C0", "C1", "C2")):
     for j, name in enumerate(label):
         ax.plot(t, e[:, j], color=colors[j], lw=0.8, label=f"{name} error")
         ax.plot(t, 3 * s[:, j], color=colors[j], lw=0.6, ls="--")
         ax.plot(t, -3 * s[:, j], color=colors[j], lw=0.6, ls="--")
     _shade(ax, outages, t_end)
+    if len(t):
+        lim = error_limit(e, s)
+        ax.set_ylim(-lim, lim)
     ax.set_ylabel(unit)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=7, ncol=4)
 
 
+def yaw_for_plot(truth_t, truth_yaw, t, yaw):
+    """Truth yaw unwrapped (no jump at +-180 deg) and the firmware's yaw drawn next to it
+    (truth at its time plus the wrapped difference), rad; without a truth yaw (NaN: a
+    recording), the firmware's own yaw unwrapped, and None for the truth."""
+    yaw = np.asarray(yaw, float)
+    ty = np.asarray(truth_yaw, float)
+    ok = np.isfinite(ty)
+    if not ok.any():
+        return None, np.unwrap(yaw) if yaw.size else yaw
+    tu = np.unwrap(ty[ok])
+    at = np.interp(t, np.asarray(truth_t, float)[ok], tu)
+    d = (yaw - at + np.pi) % (2 * np.pi) - np.pi
+    full = np.full(ty.shape, np.nan)
+    full[ok] = tu
+    return full, at + d
+
+
+def _zooms(truth, tr, nav, outages, max_zooms=3):
+    """[(start, length, window)] of the first outages the firmware navigated through: the
+    window (x0, x1, y0, y1) is centred on the truth at the outage's end, wide enough for the
+    error there and the last 10 s of the outage (a long drive hides a few metres of drift)."""
+    out = []
+    for start, length in outages:
+        end = start + length
+        i_t = int(np.searchsorted(truth.t_s, end))
+        sel_f = nav & (tr.t_s >= start) & (tr.t_s <= end + 10.0)
+        if i_t >= len(truth.t_s) or not sel_f.any():
+            continue
+        j = int(np.flatnonzero(sel_f)[np.argmin(np.abs(tr.t_s[sel_f] - end))])
+        c = truth.p_n[i_t, :2]
+        err = float(np.hypot(*(tr.p_n[j, :2] - c)))
+        last = (truth.t_s >= end - 10.0) & (truth.t_s <= end)
+        span = float(np.max(np.hypot(*(truth.p_n[last, :2] - c).T))) if last.any() else 0.0
+        h = max(5.0, 1.5 * err, 0.5 * span)
+        out.append((start, length, (c[0] - h, c[0] + h, c[1] - h, c[1] + h)))
+        if len(out) == max_zooms:
+            break
+    return out
+
+
+def _zoom_panel(ax, truth, tr, nav, start, length, window):
+    x0, x1, y0, y1 = window
+    sel_t = (truth.t_s >= start - 20.0) & (truth.t_s <= start + length + 20.0)
+    sel_f = nav & (tr.t_s >= start - 20.0) & (tr.t_s <= start + length + 20.0)
+    ax.plot(truth.p_n[sel_t, 0], truth.p_n[sel_t, 1], color="k", lw=1.0)
+    out = (truth.t_s >= start) & (truth.t_s < start + length)
+    ax.plot(truth.p_n[out, 0], truth.p_n[out, 1], color="tab:red", lw=3, alpha=0.5)
+    ax.plot(tr.p_n[sel_f, 0], tr.p_n[sel_f, 1], color="C0", lw=0.9)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_title(f"end of the {length:g} s outage at {start:g} s", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(alpha=0.3)
+
+
 def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=None):
-    """Write the PNGs of PLOTS into out_dir. truth: object with t_s, p_n, ypr (truth frame);
-    gnss_fixes: (K, 3) valid fix positions in the truth frame (optional); bias_truth:
-    (t_s, bg (N, 3) rad/s, ba (N, 3) m/s^2) or None."""
+    """Write the PNGs of PLOTS into out_dir. truth: object with t_s, p_n, ypr (truth frame;
+    ypr NaN where there is no truth attitude); gnss_fixes: (K, 3) valid fix positions in the
+    truth frame (optional); bias_truth: (t_s, bg (N, 3) rad/s, ba (N, 3) m/s^2) or None.
+    Returns what was drawn: {"insets", "attitude_ylim", "truth_yaw"}."""
     plt = _plt()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
 
-    fig, ax = plt.subplots(figsize=(8, 7))
+    zooms = _zooms(truth, tr, nav, list(outages))
+    if zooms:  # the drive on the left, the end of each outage zoomed on the right
+        fig = plt.figure(figsize=(11, 7))
+        gs = fig.add_gridspec(len(zooms), 2, width_ratios=(2.2, 1.0))
+        ax = fig.add_subplot(gs[:, 0])
+        for i, z in enumerate(zooms):
+            _zoom_panel(fig.add_subplot(gs[i, 1]), truth, tr, nav, *z)
+    else:
+        fig, ax = plt.subplots(figsize=(8, 7))
     ax.plot(truth.p_n[:, 0], truth.p_n[:, 1], color="k", lw=1.0, label="truth")
     if gnss_fixes is not None and len(gnss_fixes):
         ax.plot(gnss_fixes[:, 0], gnss_fixes[:, 1], ".", ms=2, color="C2", label="GNSS fixes")
@@ -78,6 +163,7 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     ax.set_title(f"{title}: trajectory")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    info = {"insets": len(zooms)}
     fig.tight_layout()
     fig.savefig(out_dir / "trajectory.png", dpi=110)
     plt.close(fig)
@@ -96,11 +182,15 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     tilt = np.sqrt(0.5 * (err.sigma[:, 6] ** 2 + err.sigma[:, 7] ** 2))
     s_att = np.stack([err.sigma[:, 8], tilt, tilt], axis=-1) * _DEG
     _err_panel(axs[0], t, err.da * _DEG, s_att, ("yaw", "pitch", "roll"), "deg", outages, t_end)
+    info["attitude_ylim"] = axs[0].get_ylim()
     nav_t = tr.t_s[nav]
-    axs[1].plot(truth.t_s, truth.ypr[:, 0] * _DEG, color="k", lw=1.0, label="truth yaw")
-    axs[1].plot(nav_t, tr.ypr[nav, 0] * _DEG, color="C0", lw=0.8, label="firmware yaw")
+    truth_yaw, fw_yaw = yaw_for_plot(truth.t_s, truth.ypr[:, 0], nav_t, tr.ypr[nav, 0])
+    info["truth_yaw"] = truth_yaw is not None
+    if truth_yaw is not None:
+        axs[1].plot(truth.t_s, truth_yaw * _DEG, color="k", lw=1.0, label="truth yaw")
+    axs[1].plot(nav_t, fw_yaw * _DEG, color="C0", lw=0.8, label="firmware yaw")
     _shade(axs[1], outages, t_end)
-    axs[1].set_ylabel("yaw, deg (CCW from north)")
+    axs[1].set_ylabel("yaw, deg (CCW from north, unwrapped)")
     axs[1].set_xlabel("time, s")
     axs[1].grid(alpha=0.3)
     axs[1].legend(fontsize=7)
@@ -136,6 +226,7 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     fig.tight_layout()
     fig.savefig(out_dir / "biases.png", dpi=110)
     plt.close(fig)
+    return info
 
 
 def fmt(x, digits=2, unit=""):
