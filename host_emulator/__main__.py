@@ -278,7 +278,7 @@ def main(argv=None):
     src.add_argument("--scenario", help="scenario name (see `scenarios`)")
     src.add_argument("--stimulus", help="replay this stimulus file instead of simulating")
     run.add_argument("--duration", type=float, default=None, help="seconds (default: full)")
-    run.add_argument("--seed", type=int, default=0)
+    run.add_argument("--seed", type=int, default=0, help="the simulation's random seed (0)")
     run.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     cli_args.add_kernels_option(run)
     run.add_argument("--out", required=True, help="output directory")
@@ -308,7 +308,7 @@ def main(argv=None):
     _add_replay_options(ex)
     ex.add_argument("--out", required=True, help="output directory")
     demo = sub.add_parser("demo", help="urban_drive on CPython with a short summary")
-    demo.add_argument("--out", default="out/demo")
+    demo.add_argument("--out", default="out/demo", help="output directory (out/demo)")
     for name, (_, text) in DELEGATED.items():
         sub.add_parser(name, help=text, add_help=False)
     args, rest = parser.parse_known_args(argv)

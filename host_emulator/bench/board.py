@@ -317,7 +317,7 @@ def main(argv=None):
     p = cli_args.Parser(
         prog="python -m host_emulator bench-board", description=__doc__.split("\n\n")[1]
     )
-    p.add_argument("--scenario", default="urban_drive")
+    p.add_argument("--scenario", default="urban_drive", help="simulated scenario (urban_drive)")
     p.add_argument("--duration", default=None, help="seconds (default: the whole scenario)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="markdown file (default %(default)s)")
     cli_args.add_jobs_option(p)

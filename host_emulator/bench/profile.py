@@ -196,7 +196,7 @@ def table(profile, mean_tick_instr=None):
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m host_emulator profile", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("--scenario", default="quick_start")
+    p.add_argument("--scenario", default="quick_start", help="simulated scenario (quick_start)")
     p.add_argument("--duration", default="30", help="seconds of the scenario (default 30)")
     cli_args.add_kernels_option(p)
     p.add_argument("--all-ticks", action="store_true", help="count aligning ticks too")

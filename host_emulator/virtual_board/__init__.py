@@ -533,7 +533,7 @@ def main(argv=None):
     p.add_argument("--fs", required=True, help="host directory holding the board's /flash")
     p.add_argument("--flash-kb", type=int, default=2048, help="filesystem capacity (KB)")
     p.add_argument("--scenario", default="urban_drive", help="simulated scenario")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="the simulation's random seed (0)")
     p.add_argument(
         "--duration", type=float, default=120.0,
         help="scenario length (s); 0: endless (the 120 s scenario again and again, the "
