@@ -51,6 +51,15 @@ FW_HEAP = "512K"
 WRITE_TIMEOUT_S = 1.0  # a console nobody reads drops its output after this
 
 
+# `mpremote mount` serves the host's files over the REPL's own stdin, which the virtual
+# board's code cannot read (its VM's stdin carries this emulation's requests)
+MOUNT_REFUSED = (
+    b'Traceback (most recent call last):\n  File "<stdin>", line 1, in <module>\n'
+    b"OSError: the virtual board cannot serve mpremote mount (its REPL has no channel back "
+    b"to the host); copy files with mpremote cp or deploy them\n"
+)
+
+
 def _cook(data):
     """The stm32 port's stdout: every \\n goes out as \\r\\n."""
     return data.replace(b"\n", b"\r\n")
@@ -391,6 +400,10 @@ class VirtualBoard:
     # ---- code in the REPL VM --------------------------------------------------------------
 
     def _exec(self, code, kind):
+        if b"class RemoteFS" in code:  # mpremote mount's board side: refused, not hung
+            self._busy = kind
+            self._exec_done(MOUNT_REFUSED)
+            return
         self._busy = kind
         mode = b"s" if kind == "friendly" else b"x"
         try:

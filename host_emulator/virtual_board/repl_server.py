@@ -133,7 +133,12 @@ class FlashVfs:
         pass
 
     def ilistdir(self, path):
-        return os.ilistdir(self._host(path))
+        """(name, type, inode, size) as the stm32 port's FAT gives them (the unix port's
+        entries have no size, which `mpremote fs ls` would show as 0)."""
+        host = self._host(path)
+        for entry in os.ilistdir(host):
+            size = 0 if entry[1] == 0x4000 else os.stat(host + "/" + entry[0])[6]
+            yield (entry[0], entry[1], 0, size)
 
     def stat(self, path):
         return os.stat(self._host(path))

@@ -304,3 +304,29 @@ def test_bad_command_line_values_are_one_clear_message(tmp_path, capsys):
     assert "unknown scenario 'nope'; known scenarios:" in capsys.readouterr().err
     assert virtual_board.main(["--fs", str(tmp_path), "--flash-kb", "0"]) == 2
     assert "--flash-kb must be 1 or more" in capsys.readouterr().err
+
+
+def test_mpremote_sees_the_files_and_mount_is_refused_not_hung(tmp_path):
+    """mpremote (the users' tool) on the virtual board: `fs ls` shows each file's size, as
+    on the board's FAT; `mount`, which needs a channel back to the host the virtual board does
+    not have, is refused at once with a message instead of hanging the board."""
+    import sys
+
+    fs = tmp_path / "flash"
+    fs.mkdir()
+    (fs / "hello.txt").write_bytes(b"x" * 1234)
+    with VirtualBoard(fs, realtime=False) as vb:
+        mp = [sys.executable, "-m", "mpremote", "connect", vb.port]
+        r = subprocess.run([*mp, "fs", "ls", ":/flash"], capture_output=True, text=True,
+                           timeout=60)  # fmt: skip
+        assert r.returncode == 0 and "1234 hello.txt" in r.stdout, r
+        t0 = time.monotonic()
+        r = subprocess.run([*mp, "mount", str(tmp_path), "exec", "print(1)"],
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert r.returncode != 0 and time.monotonic() - t0 < 20
+        assert "cannot serve mpremote mount" in r.stderr
+        s = serial.Serial(vb.port, 115200, timeout=2)  # the board still answers
+        s.write(b"\x03\x01")
+        read_until(s, b"raw REPL; CTRL-B to exit\r\n>")
+        assert raw_exec(s, "print(6 * 7)")[0] == b"42\r\n"
+        s.close()
