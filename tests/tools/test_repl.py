@@ -114,3 +114,31 @@ def test_deploy_over_plain_raw_mode(tmp_path, monkeypatch):
     assert any("OK after 2 attempts" in line for line in lines)
     for f in manifest["files"]:
         assert build.crc32((fs / f["path"]).read_bytes()) == int(f["crc32"], 16)
+
+
+def test_ctrl_c_in_the_middle_of_a_transfer_says_interrupted(tmp_path, monkeypatch, capsys):
+    """Ctrl-C while deploy sends a file: "interrupted: run the command again", status 130;
+    not a diagnosis of the port or the cable."""
+    from tools.flash import build, deploy
+    from tools.flash.__main__ import main
+
+    fs = tmp_path / "flash"
+    fs.mkdir()
+    fake = FakeSerial(fs)
+    reads = {"n": 0}
+    read = fake.read
+
+    def interrupted_read(n=1):
+        reads["n"] += 1
+        if reads["n"] == 3000:  # well into the file transfers
+            raise KeyboardInterrupt
+        return read(n)
+
+    fake.read = interrupted_read
+    monkeypatch.setattr(deploy, "open_port", lambda port, baud: fake)
+    monkeypatch.setattr(build, "check_budget", lambda manifest: None)
+    assert main(["deploy", "--port", "/dev/fake"]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted: run the command again" in err
+    assert "another program" not in err and "cable" not in err
+    assert reads["n"] == 3000 and fake.written  # it was writing files
