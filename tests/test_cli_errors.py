@@ -153,3 +153,21 @@ def test_a_write_the_disk_cuts_short_leaves_no_part_of_the_file(tmp_path, monkey
         write_atomic(tmp_path / "frames.bin", b"new bytes" * 1000)
     assert (tmp_path / "frames.bin").read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["frames.bin"]
+
+
+def test_export_into_a_broken_directory(broken_dir, capsys):
+    from host_emulator.__main__ import main
+
+    bad, code = broken_dir
+    rc = main(["export", "--scenario", "quick_start", "--out", str(bad / "x")])
+    _check(capsys, rc, code)
+
+
+def test_session_replay_and_repair_into_a_broken_directory(broken_dir, tmp_path, capsys):
+    from host_emulator.proto import session_file
+    from host_emulator.session.cli import main
+
+    bad, code = broken_dir
+    session_file.write_session(tmp_path / "s.ins", b"\x00" * 100)
+    rc = main(["repair", str(tmp_path / "s.ins"), "--out", str(bad / "fixed.ins")])
+    _check(capsys, rc, code)
