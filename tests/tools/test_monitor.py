@@ -422,3 +422,23 @@ def test_the_view_names_the_causes_of_the_health_code():
     text = "\n".join(view.render(st, counts, 1.0, live=False))
     assert "health 2 FAULT" in text and "causes     imu_dead uncertain" in text
     assert "health=2 (imu_dead,uncertain)" in view.one_line(st, counts, 1.0)
+
+
+def test_recording_without_a_configuration_or_raw_records_is_noted(tmp_path):
+    """Recording a port: a session without the board's configuration, or from a board that
+    sends no raw-input records, would not replay; the monitor says so before it starts."""
+    master, slave, name = _pty(BAUD)
+    try:
+        for extra, note in (
+            ([], "will hold no board configuration"),
+            (["--config", str(tmp_path / "c.json")], "raw_record = 0"),
+        ):
+            (tmp_path / "c.json").write_text('{"raw_record": 0}')
+            err = io.StringIO()
+            argv = ["--port", name, "--record", str(tmp_path / "r.ins"), "--timeout", "0.3",
+                    "--quiet", *extra]  # fmt: skip
+            assert cli.main(argv, out=io.StringIO(), err=err) == 1  # nothing came
+            assert note in err.getvalue(), err.getvalue()
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -337,6 +337,18 @@ def run(args, out=None, err=None):
         if board is not None:
             board.restart()
         raise
+    if args.record and src.kind == "serial":
+        if values is None:
+            err.write(
+                "note: the session will hold no board configuration, which a replay needs "
+                "(give --board-port, the board's USB port, or --config; else replay --config)\n"
+            )
+        elif not values.get("raw_record"):
+            err.write(
+                "note: the configuration has raw_record = 0: the board sends no raw-input "
+                "records, so the recording shows and exports but does not replay (deploy with "
+                "SET='raw_record=1')\n"
+            )
     header = {
         "format": session_file.FORMAT,
         "source": src.name,
