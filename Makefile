@@ -95,8 +95,10 @@ monitor: $(STAMP)
 		$(if $(BOARD_PORT),--board-port $(BOARD_PORT)) $(if $(CONFIG),--config $(CONFIG)) \
 		$(if $(CSV),--csv $(CSV))
 
+# endless by default: the scenario again and again, the firmware restarting (DURATION=120: once)
 virtual-board: $(STAMP)
-	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board $(if $(FROZEN),--frozen)
+	$(BIN)/python -m host_emulator virtual-board --fs out/virtual_board $(if $(FROZEN),--frozen) \
+		--duration $(or $(DURATION),0)
 
 # The firmware image (docs/image.md): MicroPython v1.28.0 with firmware/ frozen, built out of tree
 # in build/image/BOARD (cached), written to out/image/BOARD/ with its budget; BOARD is

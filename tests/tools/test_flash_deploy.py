@@ -285,49 +285,14 @@ def test_the_console_shows_the_firmware_and_takes_ctrl_c_and_ctrl_d(build_dir, t
     """`python -m tools.flash console` (mpremote repl) on the virtual board, from a terminal
     (a pty: mpremote's console wants one): Ctrl-C stops the firmware, which says so; Ctrl-D
     restarts it; Ctrl-] leaves, exit status 0."""
-    import pty
-    import select
-    import sys
-    import time
-
-    from host_emulator.firmware_env import REPO_DIR
+    from console_pty import Console
 
     with _board(tmp_path, realtime=True, duration_s=120.0) as vb:
         deploy.deploy(build_dir, vb.port, log=_quiet)
-        pid, fd = pty.fork()
-        if pid == 0:  # the child: the console, on the pty
-            os.chdir(REPO_DIR)
-            os.execv(sys.executable, [sys.executable, "-m", "tools.flash", "console", "--port",
-                                      vb.port])  # fmt: skip
-        seen = bytearray()
-        done = 0
-
-        def read_until(text, timeout=20.0):
-            t0 = time.monotonic()
-            while text not in seen and time.monotonic() - t0 < timeout:
-                if select.select([fd], [], [], 0.1)[0]:
-                    try:
-                        seen.extend(os.read(fd, 4096))
-                    except OSError:
-                        break
-            return text in seen
-
-        try:
-            assert read_until(b"Use Ctrl-] or Ctrl-x to exit"), bytes(seen)  # mpremote's
-            time.sleep(1.0)  # it puts the terminal in raw mode after that line
-            os.write(fd, b"\x03")
-            assert read_until(b"ins: stopped"), bytes(seen).decode(errors="replace")
-            os.write(fd, b"\x04")
-            assert read_until(b"ins: running"), bytes(seen)
-            os.write(fd, b"\x1d")  # Ctrl-]
-            t0 = time.monotonic()
-            done = 0
-            while time.monotonic() - t0 < 10 and not done:
-                done, status = os.waitpid(pid, os.WNOHANG)
-                read_until(b"\x00never", timeout=0.1)
-            assert done and os.waitstatus_to_exitcode(status) == 0, bytes(seen)
-        finally:
-            if not done:
-                os.kill(pid, 9)
-                os.waitpid(pid, 0)
-            os.close(fd)
+        with Console(vb.port) as c:
+            assert c.ready(), bytes(c.seen)
+            c.send(b"\x03")
+            assert c.read_until(b"ins: stopped"), bytes(c.seen)
+            c.send(b"\x04")
+            assert c.read_until(b"ins: running"), bytes(c.seen)
+            assert c.leave() == 0, bytes(c.seen)

@@ -1,8 +1,9 @@
 """The README's board walk-through, end to end on the virtual board: deploy with raw_record on
-(`make deploy SET=raw_record=1`), the monitor recording with the board's REPL port given
-(`make monitor RECORD=run.ins BOARD_PORT=...`: the configuration and which board it is go into
-the session, and the firmware restarts so that the recording holds its start), then `session
-replay run.ins`, which picks the runtime of the board's arithmetic and says "equal"."""
+(`make deploy SET=raw_record=1`), the console (`make console`), the monitor recording with the
+board's REPL port given (`make monitor RECORD=run.ins BOARD_PORT=...`: the configuration and
+which board it is go into the session, and the firmware restarts so that the recording holds
+its start), then `session replay run.ins`, which picks the runtime of the board's arithmetic
+and says "equal"."""
 
 import io
 
@@ -17,9 +18,14 @@ virtual_board = pytest.importorskip("host_emulator.virtual_board")
 
 
 def test_deploy_record_and_replay_gives_equal(tmp_path, capsys):
+    from console_pty import Console
+
     with virtual_board.VirtualBoard(tmp_path / "flash", realtime=True, duration_s=60.0) as vb:
         assert flash_main(["deploy", "--port", vb.port, "--set", "raw_record=1"]) == 0
         capsys.readouterr()
+        with Console(vb.port) as c:  # `make console`: a look, and the firmware runs on
+            assert c.ready(), bytes(c.seen)
+            assert c.leave() == 0, bytes(c.seen)
         out, err = io.StringIO(), io.StringIO()
         argv = ["--port", vb.rs485_port, "--board-port", vb.port, "--record",
                 str(tmp_path / "run.ins"), "--seconds", "6", "--quiet"]  # fmt: skip
