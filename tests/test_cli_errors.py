@@ -79,23 +79,19 @@ def test_config_get_out_into_a_broken_directory(broken_dir, tmp_path, capsys):
     _check(capsys, rc, code)
 
 
-def test_monitor_exports_into_a_broken_directory(broken_dir, tmp_path, capsys):
-    from tools.monitor.cli import main
+@pytest.mark.parametrize("command", ["monitor", "session_record"])
+def test_a_capture_written_into_a_broken_directory(command, broken_dir, tmp_path, capsys):
+    """The monitor's --csv and session record's --out."""
+    from host_emulator.session.cli import main as session_main
+    from tools.monitor.cli import main as monitor_main
 
     bad, code = broken_dir
     cap = tmp_path / "cap.bin"
     cap.write_bytes(b"\x00" * 10)
-    rc = main(["--file", str(cap), "--csv", str(bad / "x.csv")])
-    _check(capsys, rc, code)
-
-
-def test_session_record_into_a_broken_directory(broken_dir, tmp_path, capsys):
-    from host_emulator.session.cli import main
-
-    bad, code = broken_dir
-    cap = tmp_path / "cap.bin"
-    cap.write_bytes(b"\x00" * 10)
-    rc = main(["record", str(cap), "--out", str(bad / "s.ins")])
+    if command == "monitor":
+        rc = monitor_main(["--file", str(cap), "--csv", str(bad / "x.csv")])
+    else:
+        rc = session_main(["record", str(cap), "--out", str(bad / "s.ins")])
     _check(capsys, rc, code)
 
 

@@ -203,57 +203,56 @@ def _frames(data):
     return found
 
 
+class _Rs485Reader:
+    """Reads the RS485 side while the firmware runs: like a UART, the board drops what nobody
+    takes, and a pty holds only a few kB. `got` is what came; stop() joins."""
+
+    def __init__(self, port):
+        import threading
+
+        self.rs = serial.Serial(port, 115200, timeout=0.05)
+        self.got, self._done = bytearray(), threading.Event()
+        self._t = threading.Thread(target=self._read)
+        self._t.start()
+
+    def _read(self):
+        while not self._done.is_set():
+            self.got.extend(self.rs.read(1 << 16))
+
+    def stop(self):
+        self._done.set()
+        self._t.join()
+        self.rs.close()
+        return bytes(self.got)
+
+
 def test_firmware_runs_to_the_end_of_its_input(deployed):
-    import threading
-
     with VirtualBoard(deployed, realtime=False, duration_s=2.0) as vb:
-        rs = serial.Serial(vb.rs485_port, 115200, timeout=0.05)
+        rs = _Rs485Reader(vb.rs485_port)
         s = serial.Serial(vb.port, 115200, timeout=2)
-        # read the RS485 side while the firmware runs: like a UART, the board drops what
-        # nobody takes, and a pty holds only a few kB
-        got, done = bytearray(), threading.Event()
-
-        def reader():
-            while not done.is_set():
-                got.extend(rs.read(1 << 16))
-
-        t = threading.Thread(target=reader)
-        t.start()
         s.write(b"\x03\x04")
         # Ctrl-C may answer with a prompt of its own before Ctrl-D's soft reset: read prompts
         # until the one after the firmware's end
         out = b""
         while b"input ended" not in out:
             out += read_until(s, b">>> ", timeout=15)
-        done.set()
-        t.join()
+        got = rs.stop()
         assert b"MPY: soft reboot\r\n" in out
         assert b"configuration /flash/ins.cfg loaded\r\n" in out
         assert b"ins: running" in out and b"input ended" in out
-        assert len(_frames(bytes(got))) >= 100  # 2 s at 200 Hz, frames every tick or so
-        rs.close()
+        assert len(_frames(got)) >= 100  # 2 s at 200 Hz, frames every tick or so
         s.close()
 
 
 def test_endless_input_starts_the_firmware_again(deployed):
     """--duration 0 (loop=True): at the end of its input the board starts the firmware again,
     as after a reset, instead of going silent; the monitor sees the restarts as restarts."""
-    import threading
-
     from tools.monitor import cli as monitor_cli
     from tools.monitor import view
 
     with VirtualBoard(deployed, realtime=False, duration_s=2.0, loop=True) as vb:
-        rs = serial.Serial(vb.rs485_port, 115200, timeout=0.05)
+        rs = _Rs485Reader(vb.rs485_port)
         s = serial.Serial(vb.port, 115200, timeout=2)
-        got, done = bytearray(), threading.Event()
-
-        def reader():
-            while not done.is_set():
-                got.extend(rs.read(1 << 16))
-
-        t = threading.Thread(target=reader)
-        t.start()
         s.write(b"\x03\x04")
         out = b""
         t0 = time.monotonic()
@@ -261,15 +260,13 @@ def test_endless_input_starts_the_firmware_again(deployed):
             out += s.read(4096)
         s.write(b"\x03")  # stop it
         read_until(s, b">>> ", timeout=10)
-        done.set()
-        t.join()
+        got = rs.stop()
         assert out.count(b"ins: running") >= 3, out
         mon = monitor_cli.Monitor(view.Status("rs485"), 1)
-        mon.feed(bytes(got))
+        mon.feed(got)
         mon.finish()
         c = mon.counts()
         assert c["restarts"] >= 2 and c["frames"] >= 3 * 300, c
-        rs.close()
         s.close()
 
 
