@@ -57,6 +57,9 @@ def _bounded(t, limit):
 
 
 class BoardRepl:
+    """The board's raw REPL on an open port: enter(), exec()/exec_raw(), fs() (mpremote's file
+    operations), exit(), drain(); every failure a FlashError that says what to do."""
+
     def __init__(self, ser, timeout=5.0, port="the port"):
         self.ser = ser
         self.timeout = timeout  # seconds of silence before the board counts as not responding
