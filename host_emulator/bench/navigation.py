@@ -184,6 +184,20 @@ def _rows(results, name, white=True, profile="car"):
     return [m for (n, _, w, p), m in results.items() if n == name and w == white and p == profile]
 
 
+def _cells(rows, *columns):
+    """Table cells of the runs' means: (metric, decimals), "outages" (the mean error at the
+    end of each outage) or "coverage" (inside 3 sigma, %)."""
+    out = []
+    for c in columns:
+        if c == "outages":
+            out.append(" / ".join(f"{v:.2f}" for v in _outage_means(rows)))
+        elif c == "coverage":
+            out.append(f"{100 * _mean(rows, 'pos_3sigma_cover'):.0f} %")
+        else:
+            out.append(f"{_mean(rows, c[0]):.{c[1]}f}")
+    return " | ".join(out)
+
+
 def _mean(rows, key):
     vals = [r[key] for r in rows if r.get(key) is not None]
     return float(np.mean(vals)) if vals else float("nan")
@@ -279,14 +293,10 @@ def report(results, vm, footprint, seeds, wall):
     for label, (name, lag_s, learn) in LATE_RECEIVERS.items():
         rows = _rows(results, name, True, "car" if _on_time(lag_s, learn) else label)
         if rows:
-            outs = " / ".join(f"{v:.2f}" for v in _outage_means(rows))
-            lines.append(
-                f"| {label} | {_mean(rows, 'horiz_rms_m'):.2f} | "
-                f"{_mean(rows, 'horiz_rms_after_60s_m'):.2f} | "
-                f"{_mean(rows, 'horiz_rms_gnss_m'):.2f} | {_mean(rows, 'vel_rms_m_s'):.3f} | "
-                f"{_mean(rows, 'yaw_rms_deg'):.2f} | {outs} | "
-                f"{_mean(rows, 'lag_s'):.3f} |"
-            )
+            cells = _cells(rows, ("horiz_rms_m", 2), ("horiz_rms_after_60s_m", 2),
+                           ("horiz_rms_gnss_m", 2), ("vel_rms_m_s", 3), ("yaw_rms_deg", 2),
+                           "outages", ("lag_s", 3))  # fmt: skip
+            lines.append(f"| {label} | {cells} |")
     lines += [
         "",
         "## Receivers by the sentences they print",
@@ -306,15 +316,10 @@ def report(results, vm, footprint, seeds, wall):
             own = label == "GGA + RMC"
             rows = _rows(results, name, True, prof if own else _receiver_task(label))
             if rows:
-                outs = " / ".join(f"{v:.2f}" for v in _outage_means(rows))
-                lines.append(
-                    f"| {name} ({prof}) | {label} | {_mean(rows, 'horiz_rms_m'):.2f} | "
-                    f"{_mean(rows, 'vert_rms_m'):.2f} | {_mean(rows, 'vel_rms_m_s'):.3f} | "
-                    f"{_mean(rows, 'yaw_rms_deg'):.2f} | "
-                    f"{_mean(rows, 'nav_after_move_s'):.1f} | {outs} | "
-                    f"{100 * _mean(rows, 'pos_3sigma_cover'):.0f} % | "
-                    f"{_mean(rows, 'pos_nees_h'):.2f} |"
-                )
+                cells = _cells(rows, ("horiz_rms_m", 2), ("vert_rms_m", 2), ("vel_rms_m_s", 3),
+                               ("yaw_rms_deg", 2), ("nav_after_move_s", 1), "outages",
+                               "coverage", ("pos_nees_h", 2))  # fmt: skip
+                lines.append(f"| {name} ({prof}) | {label} | {cells} |")
     lines += [
         "",
         "## Against the targets (urban_drive, white GNSS)",

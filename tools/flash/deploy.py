@@ -468,12 +468,18 @@ def deploy(
         ser.close()
 
 
+def soft_reset(repl, quiet=0.1, overall=0.5):
+    """Leave the raw REPL (Ctrl-B), let the board finish printing, and soft-reset (Ctrl-D):
+    the firmware starts again, and aligns again."""
+    repl.exit()
+    repl.drain(quiet=quiet, overall=overall)
+    repl.ser.write(b"\x04")
+
+
 def restart(repl, watch_s=15.0):
     """Soft-reset into the firmware from the friendly REPL; the console text once it reports
     running. FirmwareNotRunning quoting the console otherwise."""
-    repl.exit()
-    repl.drain(quiet=0.2, overall=1.0)
-    repl.ser.write(b"\x04")
+    soft_reset(repl, quiet=0.2, overall=1.0)
     text = b""
     t0 = time.monotonic()
     done = None
@@ -532,9 +538,7 @@ def read_config(port, baud):
     ser, repl = connect(port, baud)
     try:
         data = Board(repl).read(CONFIG_NAME)
-        repl.exit()
-        repl.drain(quiet=0.1, overall=0.5)
-        repl.ser.write(b"\x04")  # soft reset: the firmware runs again
+        soft_reset(repl)
         return data
     finally:
         ser.close()
@@ -572,9 +576,7 @@ class BoardSession:
     def restart(self):
         """Ctrl-B, Ctrl-D: the firmware starts again (it aligns again)."""
         try:
-            self.repl.exit()
-            self.repl.drain(quiet=0.1, overall=0.5)
-            self.repl.ser.write(b"\x04")
+            soft_reset(self.repl)
         finally:
             self.ser.close()
 
@@ -587,9 +589,7 @@ def write_config(port, baud, data, log=print):
         board.write_verified(CONFIG_NAME, data, log)
         # the file's own CRC-32 (of what precedes it): that of the whole file is a constant
         log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {crc32(data[:-4]):08x} OK")
-        repl.exit()
-        repl.drain(quiet=0.1, overall=0.5)
-        repl.ser.write(b"\x04")
+        soft_reset(repl)
     finally:
         ser.close()
 

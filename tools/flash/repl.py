@@ -9,8 +9,9 @@ said when it stopped, and messages that say what went wrong and what to do.
     (mpremote)              code and files, each run answered with stdout, stderr, ">"
     Ctrl-B                  back to the friendly REPL; Ctrl-D there soft-resets
 
-`ser` is anything with pyserial's write(bytes), read(n), in_waiting and timeout: a
-serial.Serial (deploy.open_port), or a scripted fake in the unit tests.
+`ser` is anything with pyserial's write(bytes), read(n), in_waiting, inWaiting() (mpremote
+asks the older name) and timeout: a serial.Serial (deploy.open_port), or a scripted fake in the
+unit tests.
 """
 
 import contextlib
@@ -25,7 +26,7 @@ from mpremote.transport_serial import SerialTransport
 from tools.flash.errors import BoardError, FlashError, NotMicroPython, NotResponding
 
 BANNER = b"raw REPL; CTRL-B to exit\r\n"
-CTRL_A, CTRL_B, CTRL_C = b"\x01", b"\x02", b"\x03"
+CTRL_A, CTRL_C = b"\x01", b"\x03"
 
 
 def transport(ser, port):
@@ -65,8 +66,6 @@ class BoardRepl:
         self.timeout = timeout  # seconds of silence before the board counts as not responding
         self.port = port
         ser.timeout = timeout  # mpremote's reads of a fixed length wait this long
-        if not hasattr(ser, "inWaiting"):  # mpremote asks pyserial's older name
-            ser.inWaiting = lambda: ser.in_waiting
         self.transport = transport(ser, port)
         self._limit = timeout  # the silence a read of the current operation tolerates
         _bounded(self.transport, lambda: self._limit)
