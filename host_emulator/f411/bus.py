@@ -1,0 +1,267 @@
+"""The twin's address map: which model answers an address, and what happens when none does.
+
+Memory (flash, its alias at 0, SRAM, system memory) is plain Unicorn memory. Every peripheral is
+a `Peripheral` (one file per peripheral of RM0383, the STM32F411 reference manual) mapped as
+MMIO at its base, so each register access is a call into its model. Addresses of the
+peripheral region (0x40000000-0x5FFFFFFF) and the system control space that no model claims
+are not mapped: an access there stops the run with the address, the peripheral it belongs to
+(if RM0383 has one there) and the C function that made it (from the ELF's symbols). So does an
+access to an offset of a modelled peripheral that its model does not declare, or to a
+peripheral whose clock the image has not enabled: never a silent zero.
+
+Bit-band: a word access at 0x42000000 + 32 * (a - 0x40000000) + 4 * b reads or writes bit b of
+the peripheral byte at a (a read-modify-write of the register, as the core's bus does).
+
+Polling: a busy loop that reads the same register and gets the same value again and again
+(uart_wait_flag_set spinning on TXE, flash_wait_for_last_operation on BSY) costs the board the
+time until the flag changes. The bus notices the third identical read of a register by the
+same instruction within a few dozen instructions of the one before, with no other peripheral
+access between them, and moves the clock to the moment the register changes (the
+peripheral's `next_change`) or the next event, whichever is first: the wait costs what it
+costs on the board, without emulating its iterations.
+"""
+
+from host_emulator.errors import EmulatorError
+
+
+class TwinError(EmulatorError):
+    """The emulated chip met something it does not model, or the image faulted."""
+
+
+# Peripherals of RM0383's memory map (table 1), for naming an address nobody models
+RM0383_BLOCKS = (
+    (0x40000000, "TIM2"), (0x40000400, "TIM3"), (0x40000800, "TIM4"), (0x40000C00, "TIM5"),
+    (0x40002800, "RTC_BKP"), (0x40002C00, "WWDG"), (0x40003000, "IWDG"),
+    (0x40003400, "I2S2ext"), (0x40003800, "SPI2_I2S2"), (0x40003C00, "SPI3_I2S3"),
+    (0x40004000, "I2S3ext"), (0x40004400, "USART2"), (0x40005400, "I2C1"),
+    (0x40005800, "I2C2"), (0x40005C00, "I2C3"), (0x40007000, "PWR"), (0x40010000, "TIM1"),
+    (0x40011000, "USART1"), (0x40011400, "USART6"), (0x40012000, "ADC1"),
+    (0x40012C00, "SDIO"), (0x40013000, "SPI1_I2S1"), (0x40013400, "SPI4_I2S4"),
+    (0x40013800, "SYSCFG"), (0x40013C00, "EXTI"), (0x40014000, "TIM9"), (0x40014400, "TIM10"),
+    (0x40014800, "TIM11"), (0x40015000, "SPI5_I2S5"), (0x40020000, "GPIOA"),
+    (0x40020400, "GPIOB"), (0x40020800, "GPIOC"), (0x40020C00, "GPIOD"), (0x40021000, "GPIOE"),
+    (0x40021C00, "GPIOH"), (0x40023000, "CRC"), (0x40023800, "RCC"),
+    (0x40023C00, "FLASH_IF"), (0x40026000, "DMA1"), (0x40026400, "DMA2"),
+    (0x50000000, "USB_OTG_FS"), (0xE0042000, "DBGMCU"),
+)  # fmt: skip
+
+
+def block_name(address):
+    for base, name in RM0383_BLOCKS:
+        if base <= address < base + 0x400 or (name == "USB_OTG_FS" and base <= address < base
+                                                 + 0x40000):  # fmt: skip
+            return name
+    return None
+
+
+class Register:
+    __slots__ = ("name", "offset", "reset", "writable")
+
+    def __init__(self, name, offset, reset=0, writable=0xFFFFFFFF):
+        self.name = name
+        self.offset = offset
+        self.reset = reset
+        self.writable = writable
+
+
+class Peripheral:
+    """A peripheral: its registers (REGISTERS: (name, offset, reset value, writable bits)),
+    stored values in `v` (offset -> u32), and behaviour in methods named after the registers:
+    `read_<NAME>(self) -> value` replaces the stored value on a read; `write_<NAME>(self,
+    value)` replaces the store on a write (the writable bits are applied first unless it
+    is defined: it sees the raw value). `next_change(offset)` says when a lazily computed
+    register will read differently (polling, above). CLOCK: (RCC enable register, bit) that
+    must be set for the peripheral to answer."""
+
+    NAME = "?"
+    BASE = 0
+    SIZE = 0x400
+    REGISTERS = ()
+    CLOCK = None
+
+    def __init__(self, chip):
+        self.chip = chip
+        self.clock = chip.clock
+        self.regs = {}
+        for spec in self.REGISTERS:
+            r = Register(*spec)
+            self.regs[r.offset] = r
+        self.v = {}
+        self._readers = {}
+        self._writers = {}
+        for off, r in self.regs.items():
+            self._readers[off] = getattr(self, "read_" + r.name, None)
+            self._writers[off] = getattr(self, "write_" + r.name, None)
+        self.reset()
+
+    def reset(self):
+        for off, r in self.regs.items():
+            self.v[off] = r.reset
+
+    def name_of(self, off):
+        r = self.regs.get(off & ~3)
+        return f"{self.NAME}_{r.name}" if r else f"{self.NAME}+0x{off:03X}"
+
+    def next_change(self, off):
+        """The cycle at which register `off` will read differently without an access, or None
+        when only an event (on the clock) or an access changes it."""
+        return None
+
+    # -- the bus calls these ------------------------------------------------------------
+
+    def bus_read(self, off, size):
+        w = off & ~3
+        r = self.regs.get(w)
+        if r is None:
+            self.chip.unmodelled("read", self.BASE + off, self.name_of(off))
+        if self.CLOCK is not None:
+            self._check_clock("read", off)
+        fn = self._readers[w]
+        value = fn() if fn is not None else self.v[w]
+        if size == 4:
+            return value & 0xFFFFFFFF
+        return (value >> ((off & 3) * 8)) & ((1 << (size * 8)) - 1)
+
+    def bus_write(self, off, size, value):
+        w = off & ~3
+        r = self.regs.get(w)
+        if r is None:
+            self.chip.unmodelled("write", self.BASE + off, self.name_of(off))
+        if self.CLOCK is not None:
+            self._check_clock("write", off)
+        if size != 4:
+            sh = (off & 3) * 8
+            m = ((1 << (size * 8)) - 1) << sh
+            value = (self.v[w] & ~m) | ((value << sh) & m)
+        fn = self._writers[w]
+        if fn is not None:
+            fn(value & 0xFFFFFFFF)
+        else:
+            self.v[w] = (self.v[w] & ~r.writable) | (value & r.writable)
+
+    def _check_clock(self, what, off):
+        reg, bit = self.CLOCK
+        if not self.chip.rcc.enabled(reg, bit):
+            raise TwinError(
+                f"{what} of {self.name_of(off)} with the peripheral's clock off (RCC {reg} bit "
+                f"{bit} clear) in {self.chip.where()}: on the board it reads 0 and ignores "
+                "writes"
+            )
+
+
+class Bus:
+    """Maps peripherals into the Unicorn engine and watches for polling loops."""
+
+    POLL_REPEATS = 3  # identical reads in a row that make a polling loop
+    POLL_GAP = 64  # at most this many instructions between them
+
+    def __init__(self, chip):
+        self.chip = chip
+        self.uc = chip.cpu.uc
+        self.peripherals = []
+        self._last = None  # (address, value, icount, pc) of the last peripheral read
+        self._repeats = 0
+        self.polls_skipped = 0
+        self.poll_wait_cycles = 0  # cycles the clock moved over polling loops
+
+    def add(self, p):
+        self.peripherals.append(p)
+        base, size = p.BASE, p.SIZE
+
+        fail = self.chip.cpu.fail
+
+        def read(uc, off, sz, _data, p=p, base=base):
+            try:
+                value = p.bus_read(off, sz)
+                self._watch(base + off, value, p)
+                return value
+            except BaseException as e:  # noqa: BLE001  (Unicorn would drop it: cpu.fail keeps it)
+                fail(e)
+                return 0
+
+        def write(uc, off, sz, value, _data, p=p):
+            self._last = None
+            try:
+                p.bus_write(off, sz, value)
+            except BaseException as e:  # noqa: BLE001
+                fail(e)
+
+        self.uc.mmio_map(base, size, read, None, write, None)
+        return p
+
+    def forget_polling(self):
+        """An exception or a stop came between two reads: not one polling loop."""
+        self._last = None
+        self._repeats = 0
+
+    def _watch(self, address, value, p):
+        n = self.chip.cpu.counter.icount
+        last = self._last
+        if last is not None and last[0] == address and last[1] == value and \
+                n - last[2] <= self.POLL_GAP:  # fmt: skip
+            pc = self.chip.cpu.pc()
+            if pc == last[3]:
+                self._repeats += 1
+                self._last = (address, value, n, pc)
+                if self._repeats >= self.POLL_REPEATS - 1:
+                    self._fast_forward(address, p)
+                return
+            self._last = (address, value, n, pc)
+        else:
+            self._last = (address, value, n, None if last is None or last[0] != address
+                          else self.chip.cpu.pc())  # fmt: skip
+        self._repeats = 0
+
+    def _fast_forward(self, address, p):
+        clock = self.chip.clock
+        change = p.next_change(address - p.BASE)
+        ev = clock.next_event()
+        targets = [t for t in (change, ev) if t is not None]
+        if not targets:
+            return  # nothing will ever change it: the loop spins (a timeout will end it)
+        t = min(targets)
+        if t > clock.now():
+            self.poll_wait_cycles += t - clock.now()
+            clock.wait_until(t)
+            self.polls_skipped += 1
+        if ev is not None and t >= ev:
+            self.chip.cpu.stop_soon()  # the event fires before the next read
+        self._repeats = 0
+        self._last = None
+
+    # -- bit-band alias of the peripherals ---------------------------------------------
+
+    def map_bitband(self):
+        def owner(addr):
+            for p in self.peripherals:
+                if p.BASE <= addr < p.BASE + p.SIZE:
+                    return p
+            self.chip.unmodelled("bit-band access", addr, block_name(addr) or "nothing")
+            return None
+
+        fail = self.chip.cpu.fail
+
+        def read(uc, off, sz, _data):
+            try:
+                a = 0x40000000 + off // 32
+                bit = (off % 32) // 4 + (a & 3) * 8
+                p = owner(a)
+                return (p.bus_read((a & ~3) - p.BASE, 4) >> bit) & 1
+            except BaseException as e:  # noqa: BLE001
+                fail(e)
+                return 0
+
+        def write(uc, off, sz, value, _data):
+            try:
+                a = 0x40000000 + off // 32
+                bit = (off % 32) // 4 + (a & 3) * 8
+                p = owner(a)
+                w = (a & ~3) - p.BASE
+                old = p.bus_read(w, 4)
+                new = (old | (1 << bit)) if value & 1 else (old & ~(1 << bit))
+                self._last = None
+                p.bus_write(w, 4, new)
+            except BaseException as e:  # noqa: BLE001
+                fail(e)
+
+        self.uc.mmio_map(0x42000000, 0x02000000, read, None, write, None)
