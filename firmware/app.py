@@ -144,7 +144,7 @@ class App:
         self.config_status = status
         self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)
         self._gnss_uart = self.board.gnss_uart
-        self._out_uart = self.board.out_uart
+        self._out = self.board.out  # the output UART's transmitter (board.py)
         self._wdt = None  # the board's watchdog once started
         nav_cfg = cfg.nav_config()
         gc.collect()  # the start-up's garbage (the file's decoding, the settings' conversion)
@@ -210,16 +210,18 @@ class App:
         is the collector's only retry): it stays on there. The console line starting
         "ins: running" is what deploy tools wait for."""
         b = self.board
+        self.console(
+            "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
+        )
+        # collected before the timer starts: a collection takes ~2 ticks on the board, and
+        # after it the first two ticks overran (measured on the emulated STM32F411)
+        gc.collect()
+        if self._native:
+            gc.disable()
         b.on_pps(self.gnss.pps_isr)
         b.start_tick(self.isr_tick)
         b.start_watchdog()
         self._wdt = b.wdt
-        self.console(
-            "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
-        )
-        gc.collect()
-        if self._native:
-            gc.disable()
 
     def stop(self):
         """After Ctrl-C at the console: no more ticks or PPS interrupts, garbage collection
@@ -235,9 +237,12 @@ class App:
     # ---- per tick --------------------------------------------------------------------
 
     def run(self):
-        """Forever: run each due tick."""
+        """Forever: run each due tick, sleeping until the next interrupt between them (the
+        board's idle: WFI on the board, so the CPU waits instead of spinning)."""
+        idle = self.board.idle
         while True:
             self.service()
+            idle(self)
 
     # Every method below that runs per tick keeps its frame within the VM's on-stack limit of
     # 11 words (locals, arguments and stack): a larger frame is allocated on the heap and freed
@@ -337,7 +342,7 @@ class App:
         raw = self.raw
         raw.pack(self.counter, t0, self.gnss.pps_us, imu.raw_gyro, imu.raw_accel, imu.saturated,
                  self.rx, self.rx_n)  # fmt: skip
-        self._out_uart.write(raw._mv[0 : raw.length])
+        self._out.write(raw._mv[0 : raw.length])
 
     def _gnss_read(self, n):
         """Up to _RX_LEN of the n bytes waiting on the GNSS UART into the parser; how many."""
@@ -472,7 +477,7 @@ class App:
         fi[_F_STATE] = state
         nav_frame(self.out, fi, imu.gyro, imu.accel, self.nav.mem)
         self.counter = (self.counter + 1) & 0xFF
-        self._out_uart.write(self.out)
+        self._out.write(self.out)
         if (state == NAVIGATING) != self._led:
             self._led = state == NAVIGATING
             self.board.navigating_led(self._led)
@@ -554,6 +559,6 @@ class App:
         fi[_EF_LON0_DEG] = fr.lon0_deg
         fi[_EF_LON0_FRAC] = fr.lon0_frac
         self.ext.pack(nav.kf.P, nav.ins.x, fr.coef)
-        self._out_uart.write(self.ext.data)
+        self._out.write(self.ext.data)
         self.t_sum_us = 0
         self._period_ticks = 0

@@ -1,31 +1,65 @@
 """The one file that knows the hardware: pins, buses, baud rates, the timer.
 
-Written for an STM32F411 "Black Pill" (MicroPython board WEACT_F411_BLACKPILL, v1.25+) wired like
-the WMH601 (seed 001 section 4); NUCLEO_F411RE works with the same table (its Arduino-header
-pins carry SPI1 and USART1/2/6). Change the PINS table, nothing else, for another wiring.
+Written for the stm32 port of MicroPython on an STM32F411, wired like the WMH601 (seed 001
+section 4), with one pin table per board the image is built for (docs/image.md); the board is
+told by the name the image gives itself (`sys.implementation._machine`, "NUCLEO-F411RE with
+STM32F411xE"). Change a table, nothing else, for another wiring.
 
-    BMI055 on SPI1 (mode 0, 10 MHz max: 4 MHz used), accel CS and gyro CS active low
-    GNSS NMEA on USART2 (RX PA3, TX PA2), PPS on PB0 (rising edge at the top of the second)
+    BMI055 on SPI1 (mode 0, 10 MHz max: 4 MHz asked, 3 MHz given by the port's power-of-two
+    prescalers at 96 MHz), accel CS and gyro CS active low
+    GNSS NMEA on a UART (USART2 on the Black Pill; USART6 on the NUCLEO, whose USART2 is the
+    REPL through the ST-LINK and cannot be re-created), PPS on PB0 (rising edge at the top of
+    the second, a hard interrupt: its time is taken in the interrupt, not when the VM gets to it)
     RS485 output on USART1 (TX PA9, RX PA10) with the transceiver's driver enable on PA8: the
     board is the bus's only talker, so DE stays high
-    the 5 ms tick from machine.Timer (a virtual timer on the stm32 port)
+    the 5 ms tick from machine.Timer(-1) (a soft timer on SysTick; a hard callback)
 
-Only `machine` APIs of the stm32 port are used, so the host emulator can install a fake
-`machine` module and run this file unchanged.
+Only `machine` calls and keywords the stm32 port accepts are used (its ports/stm32/*.c and
+extmod/machine_*.c are the spec; tests/firmware/test_machine_api.py checks this file against
+them), so the host emulator's stand-in `machine` runs this file unchanged and so does the image
+on the emulated STM32F411.
 """
+
+import sys
 
 import machine
 
-PINS = {
+# Pins and peripherals per board (the keys of BOARDS are the images' MICROPY_HW_BOARD_NAME)
+_BLACKPILL = {
     "spi_id": 1,  # SPI1: SCK PA5, MISO PA6, MOSI PA7
     "cs_accel": "B6",
     "cs_gyro": "B7",
-    "gnss_uart": 2,
+    "gnss_uart": 2,  # USART2: TX PA2, RX PA3
     "pps": "B0",
     "out_uart": 1,
     "rs485_de": "A8",
-    "led": "C13",  # on when navigating (seed 001 5.2 lights an LED too)
+    "led": "C13",  # on when navigating (seed 001 5.2 lights an LED too); active low
 }
+_NUCLEO = {
+    "spi_id": 1,  # SPI1: SCK PA5 (D13; also LED LD2, so no LED), MISO PA6 (D12), MOSI PA7 (D11)
+    "cs_accel": "B6",  # D10
+    "cs_gyro": "B7",  # morpho CN7 pin 21
+    "gnss_uart": 6,  # USART6: TX PC6 (morpho CN10 pin 4), RX PC7 (D9)
+    "pps": "B0",  # A3
+    "out_uart": 1,  # USART1: TX PA9 (D8), RX PA10 (D2)
+    "rs485_de": "A8",  # D7
+    "led": None,  # LD2 is PA5, SPI1's clock; PC13 is the user button
+}
+BOARDS = {"WEACT_F411_BLACKPILL": _BLACKPILL, "NUCLEO-F411RE": _NUCLEO}
+DEFAULT_BOARD = "WEACT_F411_BLACKPILL"  # an image that names no board of BOARDS
+
+
+def board_name():
+    """The BOARDS key of the board this runs on (DEFAULT_BOARD if the image names another)."""
+    machine_name = getattr(sys.implementation, "_machine", "")
+    for name in BOARDS:
+        if machine_name.startswith(name):
+            return name
+    return DEFAULT_BOARD
+
+
+NAME = board_name()
+PINS = BOARDS[NAME]
 SPI_BAUD = 4_000_000
 TICK_HZ = 200
 WDT_TIMEOUT_MS = 1000
@@ -33,8 +67,29 @@ GNSS_RXBUF = 1024  # bytes of the GNSS UART's receive ring: what arrives beyond 
 CONFIG_PATH = "/flash/ins.cfg"
 
 
+class _Direct:
+    """The UART's own write, for a port without the DMA transmitter (poll does nothing)."""
+
+    def __init__(self, uart):
+        self.write = uart.write
+        self.dropped = 0
+
+    def poll(self):
+        pass
+
+
+def _transmitter(uart_id, uart):
+    try:
+        from drivers import uart_dma
+    except ImportError:  # no `stm` module: not the stm32 port
+        return _Direct(uart)
+    if not uart_dma.supported(uart_id):
+        return _Direct(uart)
+    return uart_dma.DmaTx(uart_id)
+
+
 class Board:
-    """The peripherals, created once. Nothing here runs per tick."""
+    """The peripherals, created once. Nothing here runs per tick but `idle`."""
 
     def __init__(self, gnss_baud=9600, out_baud=460800):
         p = PINS
@@ -45,23 +100,41 @@ class Board:
         self.gnss_uart = machine.UART(
             p["gnss_uart"], baudrate=gnss_baud, rxbuf=GNSS_RXBUF, timeout=0
         )
-        self.out_uart = machine.UART(p["out_uart"], baudrate=out_baud, txbuf=512)
+        self.out_uart = machine.UART(p["out_uart"], baudrate=out_baud)
+        # what the loop writes to: the UART's DMA on the stm32 port (a tick then never waits
+        # for the line), else the UART itself (the host emulator's stand-in)
+        self.out = _transmitter(p["out_uart"], self.out_uart)
         self.rs485_de = machine.Pin(p["rs485_de"], machine.Pin.OUT, value=1)
         self.pps = machine.Pin(p["pps"], machine.Pin.IN)
-        self.led = machine.Pin(p["led"], machine.Pin.OUT, value=1)  # active low on the Black Pill
+        self.led = None
+        if p["led"] is not None:
+            self.led = machine.Pin(p["led"], machine.Pin.OUT, value=1)  # off (active low)
         self.timer = None
         self.wdt = None
 
     def start_tick(self, callback):
-        """callback(timer) every 5 ms; it must only set a flag."""
-        self.timer = machine.Timer(-1, mode=machine.Timer.PERIODIC, freq=TICK_HZ, callback=callback)
+        """callback(timer) every 5 ms, in the interrupt (hard): it must only count."""
+        self.timer = machine.Timer(
+            -1, mode=machine.Timer.PERIODIC, freq=TICK_HZ, callback=callback, hard=True
+        )
 
     def on_pps(self, handler):
-        """handler(pin) on each PPS rising edge; it must only record the time."""
-        self.pps.irq(trigger=machine.Pin.IRQ_RISING, handler=handler)
+        """handler(pin) on each PPS rising edge, in the interrupt: it must only record the time."""
+        self.pps.irq(trigger=machine.Pin.IRQ_RISING, handler=handler, hard=True)
 
     def start_watchdog(self):
         self.wdt = machine.WDT(timeout=WDT_TIMEOUT_MS)
+
+    def idle(self, app):
+        """Sleep until the next interrupt unless a tick is due (app.due). The check and the
+        sleep run with interrupts masked, and a pending interrupt still ends the sleep (WFI),
+        so a tick that comes between them is not slept through. Queued output is started
+        first (the DMA transmitter has no interrupt of its own)."""
+        self.out.poll()
+        s = machine.disable_irq()
+        if not app.due:
+            machine.idle()
+        machine.enable_irq(s)
 
     def stop(self):
         """Tick timer and PPS interrupt off; a slow timer keeps feeding a started watchdog."""
@@ -71,7 +144,7 @@ class Board:
         self.pps.irq(handler=None)
         if self.wdt is not None:
             self.timer = machine.Timer(
-                -1, mode=machine.Timer.PERIODIC, freq=4, callback=self._feed_isr
+                -1, mode=machine.Timer.PERIODIC, freq=4, callback=self._feed_isr, hard=True
             )
 
     def _feed_isr(self, _timer):
@@ -82,4 +155,5 @@ class Board:
             self.wdt.feed()
 
     def navigating_led(self, on):
-        self.led.value(0 if on else 1)
+        if self.led is not None:
+            self.led.value(0 if on else 1)

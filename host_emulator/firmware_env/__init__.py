@@ -3,7 +3,9 @@
 On the board `firmware/` is the filesystem root and `firmware/lib/` is on `sys.path`, so the
 portable core is imported as flat modules (`import f32, mat, rot`). `install()` reproduces that
 layout on the desktop and plugs the NumPy float32 backend into the seam; `install_machine()`
-adds the emulated board (board/mpy's `machine` and `time`) beneath it.
+adds the emulated board (board/mpy's `machine`, its BMI055 register model `bmi055_model`, and
+`time`) beneath it. `bmi055_model()` gives the register model alone, for an emulator with a
+clock of its own.
 
 Kernels: the firmware does `import navk` (firmware/lib/kern.py) and falls back to its Python
 kernels on ImportError. `use_kernels("native")` (the default; INS_KERNELS=python in the
@@ -132,11 +134,26 @@ def _load(name, path):
     return module
 
 
+def bmi055_model():
+    """board/mpy/bmi055_model.py, the BMI055 register model, as the module `bmi055_model`
+    (loaded once per process; machine.py imports it under that name). Its dies take a clock
+    (`Bmi055(now_us=...)`); without one they read board/mpy/time.py's, which only
+    install_machine() puts on CPython's `time`."""
+    from host_emulator.board import MPY_DIR
+
+    model = sys.modules.get("bmi055_model")
+    if model is None:
+        model = _load("bmi055_model", MPY_DIR / "bmi055_model.py")
+        sys.modules["bmi055_model"] = model
+    return model
+
+
 def install_machine():
     """The emulated board (board/mpy) on CPython; returns its `machine` module.
 
     Idempotent: the first call loads board/mpy/time.py (its MicroPython-only functions go onto
-    CPython's `time`) and board/mpy/machine.py as the module `machine`, once per process; the
+    CPython's `time`), board/mpy/bmi055_model.py as the module `bmi055_model` and
+    board/mpy/machine.py (which imports it) as the module `machine`, once per process; the
     firmware's modules keep the first ones they import (the BMI055 driver binds
     time.sleep_ms). A run starts a fresh board with `machine.power_on()`."""
     import time
@@ -150,6 +167,7 @@ def install_machine():
             board_time = _load("host_emulator.board.mpy.time", MPY_DIR / "time.py")
             for name in TIME_FUNCTIONS:  # not in CPython's time
                 setattr(time, name, getattr(board_time, name))
+        bmi055_model()
         machine = _load("machine", MPY_DIR / "machine.py")
         sys.modules["machine"] = machine
     import gc

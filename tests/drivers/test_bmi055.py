@@ -1,9 +1,9 @@
 """firmware/drivers/bmi055.py against the emulated board's BMI055 register model
-(host_emulator/board/mpy/machine.py, on CPython) and against a minimal fake bus inside the
-MicroPython VM: start-up (chip IDs, soft reset and its delays, range/bandwidth registers and
-their read-back), clear errors for the usual wiring faults, exact decoding of every count
-including the extremes, the over-range flag at its documented threshold, temperature, and a
-read() that allocates nothing."""
+(host_emulator/board/mpy/bmi055_model.py, through machine.py, on CPython) and against a
+minimal fake bus inside the MicroPython VM: start-up (chip IDs, soft reset and its delays,
+range/bandwidth registers and their read-back), clear errors for the usual wiring faults, exact
+decoding of every count including the extremes, the over-range flag at its documented
+threshold, temperature, and a read() that allocates nothing."""
 
 import json
 import time
@@ -208,7 +208,8 @@ def test_soft_reset_delays_are_requested_after_each_reset():
     model = machine.Bmi055()
     spi = machine.SPI(1, baudrate=8_000_000)
     spi.log = []
-    cs_a, cs_g = machine.Pin("a", value=1), machine.Pin("g", value=1)
+    cs_a = machine.Pin("a", machine.Pin.OUT, value=1)
+    cs_g = machine.Pin("g", machine.Pin.OUT, value=1)
     model.attach(spi, cs_a, cs_g)
     log = []  # (time us, die, first MOSI byte) of every transaction, when its chip select rises
     for die, name in ((model.accel, "accel"), (model.gyro, "gyro")):
@@ -412,6 +413,30 @@ def test_temperature_from_celsius():
     assert bmi055.temperature_half_c(3) == 49  # 24.5 degC
     model.set_temperature_raw(temp_raw(-40))
     assert imu.read_temperature() == -126
+
+
+def test_a_die_runs_on_the_clock_it_is_given():
+    """bmi055_model is machine's BMI055 (re-exported), and a die takes another emulator's
+    clock (`now_us`): its start-up after a soft reset ends on that clock, whatever the board's
+    says; without one it runs on the board's (time.now_us)."""
+    model = firmware_env.bmi055_model()
+    assert machine.Bmi055 is model.Bmi055 and machine.GyroDie is model.GyroDie
+    machine.power_on()
+    now = [1000]
+    imu = model.Bmi055(now_us=lambda: now[0])
+    board = model.Bmi055()
+    for b in (imu, board):
+        for die in (b.gyro, b.accel):
+            die.write_reg(0x14, 0xB6)
+            die.deselect()
+    time.advance_us(40_000)  # the board's clock: past both start-ups
+    assert imu.gyro.busy() and imu.accel.busy()
+    assert not board.gyro.busy() and not board.accel.busy()
+    now[0] = 1000 + 1800  # the accel's 1.8 ms, not yet the gyro's 30 ms
+    assert imu.gyro.busy() and not imu.accel.busy()
+    assert imu.gyro.exchange(0x80) == -1  # silent while starting up
+    now[0] = 1000 + 30_000
+    assert not imu.gyro.busy() and imu.gyro.resets == 1
 
 
 @pytest.mark.parametrize("die_cls", [machine.GyroDie, machine.AccelDie])

@@ -2,8 +2,8 @@
 (MicroPython built for QEMU's mps2-an386 with the board's float32 arithmetic; see
 host_emulator/runtimes/m4f), fed from a stimulus file, counting the instructions of every tick.
 
-Frozen into that build with the firmware, machine.py, time.py and feed.py; the host starts it
-through the raw REPL:
+Frozen into that build with the firmware, machine.py, bmi055_model.py, time.py and feed.py;
+the host starts it through the raw REPL:
 
     import emulate_m4f; emulate_m4f.main(STIM, OFFSET, N_TICKS, TICK_US, CONFIG, OUT_DIR,
                                          BOARD_HEAP, BUILD_HEAP[, NAVK[, SETUP]])
@@ -44,8 +44,9 @@ import sys
 import m4f
 import vfs
 
-# machine (board/mpy/machine.py, frozen as `machine`) and feed are imported in main(), after
-# the heap MicroPython itself holds is measured: their objects are the emulator's
+# machine (board/mpy/machine.py, frozen as `machine`, with bmi055_model) and feed are
+# imported in main(), after the heap MicroPython itself holds is measured: their objects are
+# the emulator's
 
 MASK = 0x3FFFFFFF  # m4f counters are modulo 2**30 (small ints)
 CHUNK = 64  # ticks per write of the per-tick records (small: the heap is the board's)

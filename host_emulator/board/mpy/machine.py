@@ -4,37 +4,46 @@ MicroPython VM and on CPython alike, the one emulated board of every runtime:
 
 - in the VM, host_emulator/board/mpy/emulate.py puts this directory first on sys.path, so the
   firmware's `import machine` (and `import time`) find these files instead of the built-ins;
-- on CPython, host_emulator/firmware_env.install_machine() loads this file as `machine` and
-  puts board/mpy/time.py's MicroPython-only functions on CPython's `time`; several boards run
-  one after another in one process, each starting with `power_on()`.
+- on CPython, host_emulator/firmware_env.install_machine() loads bmi055_model.py and this file
+  as the modules `bmi055_model` and `machine`, and puts board/mpy/time.py's MicroPython-only
+  functions on CPython's `time`; several boards run one after another in one process, each
+  starting with `power_on()`.
+
+The API is the stm32 port's (MicroPython v1.28.0, ports/stm32 and extmod/machine_*.c: the
+spec): a constructor or method takes the arguments its C takes, positional where the C allows
+them positionally, and refuses the rest as the port does (`_parse`, py/argcheck.c's
+mp_arg_parse_all: TypeError "extra keyword arguments given", "extra positional arguments
+given", "'x' argument required"; `txbuf`, which the port has not, is refused). Values the
+port refuses raise its ValueError (pin modes, pulls and alternate functions, UART bits with
+parity, Timer ids, WDT ids and timeouts, SPI pins); constants are the port's (the F4 HAL's).
+tests/firmware/test_machine_api.py derives the port's argument tables from its C source and
+checks these against them, and the firmware's calls too.
 
 The parts:
 
-- `Pin(name, ...)`: one object per pin name (the constructor returns the existing pin and
-  re-initialises it); value()/on()/off()/irq(); `fire()` runs the interrupt handler like an
-  ISR (the emulator calls it for a PPS edge). A chip-select pin tells the die wired to it
-  when it falls (select) and rises (deselect).
-- `SPI(id, ...)`: one bus per id; write/readinto/write_readinto/read clock bytes through the
-  device whose chip select is low (`spi_bus(id).attach(die, pin(name))`). A floating MISO
-  reads `miso_idle` (0xFF); two chip selects low, or none, raises RuntimeError (a driver
-  bug); an SPI mode other than 0/3 or LSB-first shifts every byte by one bit, as a real bus
-  mangles it. `log`: None, or a list that gets [device name, MOSI bytearray, MISO bytearray]
-  for every chip-select assertion on the bus (tests; it allocates).
-- `Bmi055` (both dies, `GyroDie`/`AccelDie`): the register model: chip IDs 0xFA (accel) /
-  0x0F (gyro); range 0x0F and bandwidth 0x10 reset values and writable masks; read-only
-  0x00..0x0E; soft reset (0xB6 to 0x14) when the chip select rises, then silent for the
-  start-up time on the virtual clock (gyro 30 ms, accel 1.8 ms); data 0x02..0x07 set by the
-  emulator exactly as given (new_data bits included), INT_STATUS 0x0A bit 7 set by a new
-  sample and cleared by a data read, the accel axis' new_data bit cleared when either of its
-  bytes is read; temperature 0x08. Faults: `responds`, `chip_id`, `ignore_writes`. `writes`
-  lists the accepted register writes as (reg, value) (start-up only; tests).
-- `UART(id, ...)`: one port per id; a receive ring of `rxbuf` bytes (default 64, as the
-  port); bytes that arrive (`feed`) when it is full are dropped and counted in `overflow`;
-  any()/readinto(buf, n) (None when nothing has arrived); write() appends to a preallocated
-  transmit buffer the emulator empties (`tx`, `tx_n`, `tx_clear()`); what does not fit is
-  counted in `tx_overflow`.
-- `Timer(-1, mode, freq, callback)`: fired by `fire_timers()` (every tick, whatever freq).
-- `WDT(timeout=ms)`: counts feeds; `idle()`.
+- `Pin(name, ...)`: one object per pin name (the constructor returns the existing pin and, given
+  more than the name, re-initialises it: `init(mode, pull=None, af=-1, *, value, alt)`);
+  value()/on()/off()/irq(handler=None, trigger=IRQ_RISING | IRQ_FALLING, hard=False); `fire()`
+  runs the interrupt handler like an ISR (the emulator calls it for a PPS edge). A chip-select
+  pin tells the die wired to it when it falls (select) and rises (deselect).
+- `SPI(id, baudrate=500000, *, polarity, phase, bits, firstbit)`: one bus per id;
+  write/readinto/write_readinto/read clock bytes through the device whose chip select is low
+  (`spi_bus(id).attach(die, pin(name))`). A floating MISO reads `miso_idle` (0xFF); two chip
+  selects low, or none, raises RuntimeError (a driver bug); an SPI mode other than 0/3 or
+  LSB-first shifts every byte by one bit, as a real bus mangles it; 16-bit frames are not
+  emulated (ValueError). `log`: None, or a list that gets [device name, MOSI bytearray, MISO
+  bytearray] for every chip-select assertion on the bus (tests; it allocates).
+- `Bmi055` (both dies, `GyroDie`/`AccelDie`): the BMI055 register model, bmi055_model.py beside
+  this file, re-exported here; its dies run on this board's clock (`time.now_us`).
+- `UART(id, baudrate, bits=8, parity=None, stop=1, *, flow, timeout, timeout_char, rxbuf,
+  read_buf_len)`: one port per id; UART(id) alone returns it unchanged, as the port. A receive
+  ring of `rxbuf` bytes (default 64, as the port); bytes that arrive (`feed`) when it is full
+  are dropped and counted in `overflow`; any()/readinto(buf, n) (None when nothing has
+  arrived); write() appends to a preallocated transmit buffer the emulator empties (`tx`,
+  `tx_n`, `tx_clear()`); what does not fit is counted in `tx_overflow`.
+- `Timer(-1, *, mode, callback, period, tick_hz, freq, hard)` (the port's soft timer, the only
+  id it has): fired by `fire_timers()` (every tick, whatever its period).
+- `WDT(id=0, timeout=5000)`: counts feeds; `idle()`, `disable_irq()`, `enable_irq(state)`.
 
 Emulation is not firmware: on the emulated Cortex-M4F (runtimes/m4f) every method the firmware
 calls per tick runs between `_emu_in()` and `_emu_out()`, the `m4f` module's counter of the
@@ -48,17 +57,27 @@ its call (a frame of more than 11 words is allocated on the heap: py/objfun.c) i
 Time: `time.now_us()` of board/mpy/time.py (us since power-on). Allocation: everything the
 firmware calls per tick (Pin.value, SPI write/readinto, UART any/readinto/write, WDT.feed)
 allocates nothing: integer work on preallocated buffers, index loops, no slices (but the
-stack-allocated slice of a whole-buffer store, and on CPython, where it costs nothing that
-matters, the BMI055's burst read), tuples or bound methods; tests prove it under
-micropython.heap_lock(). Construction allocates.
+stack-allocated slice of a whole-buffer store), tuples or bound methods; tests prove it under
+micropython.heap_lock(). Construction allocates (its argument parsing too).
 """
 
-import sys
 import time
 
-# Slices allocate on MicroPython (the firmware's ticks there must not), not on CPython, where
-# they are the faster way to move bytes
-_SLICES = sys.implementation.name != "micropython"
+from bmi055_model import (  # noqa: F401 (machine.Bmi055 and the rest, as before the split)
+    REG_BW,
+    REG_CHIP_ID,
+    REG_DATA,
+    REG_INT_STATUS,
+    REG_RANGE,
+    REG_SOFTRESET,
+    REG_TEMP,
+    SOFTRESET_CMD,
+    AccelDie,
+    Bmi055,
+    GyroDie,
+    _Die,
+)
+from micropython import const
 
 try:
     from m4f import Periph as _Periph
@@ -141,59 +160,163 @@ def fire_timers():
 
 
 def idle():
-    """Wait for an interrupt: nothing to wait for on the virtual board."""
+    """Wait for an interrupt (WFI): nothing to wait for on the virtual board."""
 
 
 def disable_irq():
+    """Mask interrupts; the state to give enable_irq (PRIMASK before: 0, they were enabled)."""
     return 0
 
 
-def enable_irq(state=0):
-    pass
+def enable_irq(state):
+    """Restore the interrupt mask disable_irq() returned."""
 
 
+# ---- arguments as the port parses them ----------------------------------------------------
+
+# Flags of an argument, py/runtime.h's MP_ARG_*: its kind, required, keyword-only. The argument
+# tables (the classes' _INIT, _NEW, _IRQ and SPI's beside it: (name, flags, default) as the
+# C's `allowed_args[]`, `...` for MP_OBJ_NULL, not given) are literals: frozen on the emulated
+# Cortex-M4F they are ROM objects, not the board's heap, whose free bytes when the firmware
+# starts must be the board's (build.py's EMULATOR_RESERVE_BYTES); hence consts, and few globals.
+_BOOL = const(0x001)
+_INT = const(0x002)
+_OBJ = const(0x003)
+_REQUIRED = const(0x100)
+_KW_ONLY = const(0x200)
+
+
+def _int(v):
+    """mp_obj_get_int: an int (a bool is one), else TypeError."""
+    if isinstance(v, int):
+        return int(v)
+    raise TypeError("can't convert to int")
+
+
+def _parse(allowed, args, kwargs):
+    """The values of the arguments `allowed` ((name, flags, default) in the C's order, as its
+    `mp_arg_t allowed_args[]`) from a call's positional args and keyword kwargs, exactly as
+    py/argcheck.c's mp_arg_parse_all takes them, with its TypeErrors: a keyword-only argument
+    given positionally or too many positionals ("extra positional arguments given"), a missing
+    required one ("'name' argument required"), a keyword nobody takes or one that repeats a
+    positional ("extra keyword arguments given"); an int argument must be an int, a bool one
+    is taken for its truth."""
+    n_pos = len(args)
+    values = []
+    taken = 0  # keywords used
+    for i in range(len(allowed)):
+        name, flags, default = allowed[i]
+        if i < n_pos:
+            if flags & _KW_ONLY:
+                raise TypeError("extra positional arguments given")
+            v = args[i]
+        elif name in kwargs:
+            taken += 1
+            v = kwargs[name]
+        elif flags & _REQUIRED:
+            raise TypeError(f"'{name}' argument required")
+        else:
+            values.append(default)
+            continue
+        kind = flags & 0xFF
+        if kind == _INT:
+            v = _int(v)
+        elif kind == _BOOL:
+            v = bool(v)
+        values.append(v)
+    if n_pos > len(allowed):
+        raise TypeError("extra positional arguments given")
+    if taken < len(kwargs):
+        raise TypeError("extra keyword arguments given")
+    return values
+
+
+# GPIO modes as the F4 HAL defines them (stm32f4xx_hal_gpio.h)
+_GPIO_IN = const(0x00)
+_GPIO_OUT = const(0x01)
+_GPIO_OPEN_DRAIN = const(0x11)
+_GPIO_ALT = const(0x02)
+_GPIO_ALT_OPEN_DRAIN = const(0x12)
+_GPIO_ANALOG = const(0x03)
+_IRQ_RISING = const(0x10110000)  # GPIO_MODE_IT_RISING
+_IRQ_FALLING = const(0x10210000)  # GPIO_MODE_IT_FALLING
 # ---- pins ---------------------------------------------------------------------------------
 
 
 class Pin:
     """machine.Pin: one object per name; `fire()` is a rising edge for the emulator."""
 
-    IN = 0
-    OUT = 1
-    OPEN_DRAIN = 2
-    ALT = 3
-    ANALOG = 4
-    PULL_NONE = 0
+    IN = _GPIO_IN
+    OUT = _GPIO_OUT
+    OPEN_DRAIN = _GPIO_OPEN_DRAIN
+    ALT = _GPIO_ALT
+    ALT_OPEN_DRAIN = _GPIO_ALT_OPEN_DRAIN
+    ANALOG = _GPIO_ANALOG
+    PULL_NONE = 0  # a legacy name the port still has (MICROPY_PY_MACHINE_PIN_LEGACY)
     PULL_UP = 1
     PULL_DOWN = 2
-    IRQ_RISING = 1
-    IRQ_FALLING = 2
+    IRQ_RISING = _IRQ_RISING
+    IRQ_FALLING = _IRQ_FALLING
 
-    def __new__(cls, id, *args, **kwargs):
-        return _handle(pin(id), (id,) + args, kwargs)
+    _INIT = (  # ports/stm32/pin.c pin_obj_init_helper: (mode, pull=None, af=-1, *, value, alt)
+        ("mode", _REQUIRED | _INT, ...),
+        ("pull", _OBJ, None),
+        ("af", _INT, -1),  # legacy
+        ("value", _KW_ONLY | _OBJ, ...),
+        ("alt", _KW_ONLY | _INT, -1),
+    )
+    _IRQ = (  # ports/stm32/pin.c pin_irq
+        ("handler", _OBJ, None),
+        ("trigger", _INT, _IRQ_RISING | _IRQ_FALLING),
+        ("hard", _BOOL, False),
+    )
 
-    def __init__(self, id, mode=-1, pull=-1, value=None, **kwargs):
-        self.init(mode, pull, value)
+    def __new__(cls, *args, **kwargs):
+        if not args:  # mp_arg_check_num(n_args, n_kw, 1, ...): the name, positionally
+            raise TypeError("function missing 1 required positional arguments")
+        return _handle(pin(args[0]), args, kwargs)
+
+    def __init__(self, *args, **kwargs):
+        if len(args) > 1 or kwargs:  # Pin(name) alone leaves the pin as it is
+            self.init(*args[1:], **kwargs)
 
     def _setup(self, name):
         self.id = name
-        self.mode = -1
+        self.mode = -1  # not configured yet
         self.pull = -1
+        self.alt = -1
         self._v = 1
         self._dev = None  # a die whose chip select this is
         self._bus = None  # the SPI bus of that die
         self.edges = 0  # level changes (tests)
         self.irq_handler = None
         self.irq_trigger = 0
+        self.irq_hard = False
         self.fired = 0  # interrupts delivered by fire()
 
-    def init(self, mode=-1, pull=-1, value=None, **kwargs):
-        if mode != -1:
-            self.mode = mode
-        if pull != -1:
-            self.pull = pull
-        if value is not None:
-            self.value(value)
+    def init(self, *args, **kwargs):
+        """init(mode, pull=None, af=-1, *, value, alt): the port's checks (the F4 HAL's
+        IS_GPIO_MODE, IS_GPIO_PULL and, for an alternate function, the STM32F411's IS_GPIO_AF:
+        no AF3, 11, 13 or 14), then the level (value, if given) and the configuration."""
+        mode, pull, af, value, alt = _parse(Pin._INIT, args, kwargs)
+        # IS_GPIO_MODE: these, interrupt on both edges, event on rising, falling or both
+        if mode not in (_GPIO_IN, _GPIO_OUT, _GPIO_OPEN_DRAIN, _GPIO_ALT, _GPIO_ALT_OPEN_DRAIN,
+                        _GPIO_ANALOG, _IRQ_RISING, _IRQ_FALLING,
+                        0x10310000, 0x10120000, 0x10220000, 0x10320000):  # fmt: skip
+            raise ValueError(f"invalid pin mode: {mode}")
+        pull = 0 if pull is None else _int(pull)
+        if pull not in (0, 1, 2):  # GPIO_NOPULL, GPIO_PULLUP, GPIO_PULLDOWN
+            raise ValueError(f"invalid pin pull: {pull}")
+        if alt == -1:
+            alt = af
+        f411_afs = (0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 12, 15)  # IS_GPIO_AF for STM32F411xE
+        if (mode == _GPIO_ALT or mode == _GPIO_ALT_OPEN_DRAIN) and alt not in f411_afs:
+            raise ValueError(f"invalid pin af: {alt}")
+        if value is not ...:
+            self.value(1 if value else 0)  # value=None is low, as the port takes it
+        self.mode = mode
+        self.pull = pull
+        self.alt = alt
 
     def value(self, v=None):
         """The level (0/1), or set it; a chip select's edge selects/deselects its die."""
@@ -231,37 +354,75 @@ class Pin:
     def low(self):
         self.value(0)
 
-    def irq(self, handler=None, trigger=3, hard=False, **kwargs):
-        """Keep the handler for `fire()` (a rising edge)."""
-        self.irq_handler = handler
-        self.irq_trigger = trigger
+    def irq(self, *args, **kwargs):
+        """irq(handler=None, trigger=IRQ_RISING | IRQ_FALLING, hard=False): keep the handler
+        for `fire()` (a rising edge); irq() with no arguments changes nothing (the port's)."""
+        handler, trigger, hard = _parse(Pin._IRQ, args, kwargs)
+        if args or kwargs:
+            self.irq_handler = handler
+            self.irq_trigger = trigger
+            self.irq_hard = hard
         return None
 
     def fire(self):
         """A rising edge on the pin (e.g. PPS): runs the handler like an ISR, if one is set
         for rising edges."""
         h = self.irq_handler
-        if h is not None and self.irq_trigger & 1:
+        if h is not None and (self.irq_trigger & _IRQ_RISING) == _IRQ_RISING:
             self.fired += 1
             _emu_out()
             h(self)
             _emu_in()
 
 
-# ---- SPI and the BMI055 ------------------------------------------------------------------
+# ---- SPI ----------------------------------------------------------------------------------
+
+
+# SPI's tables sit beside its class: its dict (17 entries) is full, one more would grow it
+_SPI_NEW = (  # ports/stm32/machine_spi.c machine_hard_spi_make_new
+    ("id", _REQUIRED | _OBJ, ...),
+    ("baudrate", _INT, 500000),
+    ("polarity", _KW_ONLY | _INT, 0),
+    ("phase", _KW_ONLY | _INT, 0),
+    ("bits", _KW_ONLY | _INT, 8),
+    ("firstbit", _KW_ONLY | _INT, 0),
+    ("sck", _KW_ONLY | _OBJ, ...),
+    ("mosi", _KW_ONLY | _OBJ, ...),
+    ("miso", _KW_ONLY | _OBJ, ...),
+)
+_SPI_INIT = (  # ports/stm32/machine_spi.c machine_hard_spi_init: -1 leaves it as it is
+    ("baudrate", _KW_ONLY | _INT, -1),
+    ("polarity", _KW_ONLY | _INT, -1),
+    ("phase", _KW_ONLY | _INT, -1),
+    ("bits", _KW_ONLY | _INT, -1),
+    ("firstbit", _KW_ONLY | _INT, -1),
+)
 
 
 class SPI:
-    """machine.SPI(id, ...): the emulated bus `id`, set up as asked."""
+    """machine.SPI(id, baudrate=500000, *, polarity=0, phase=0, bits=8, firstbit=MSB): the
+    emulated bus `id`, set up as asked (the port's hardware SPI, ports/stm32/machine_spi.c)."""
 
-    MSB = 0
-    LSB = 1
+    MSB = 0  # SPI_FIRSTBIT_MSB
+    LSB = 0x80  # SPI_FIRSTBIT_LSB (SPI_CR1_LSBFIRST)
 
-    def __new__(cls, id, *args, **kwargs):
-        return _handle(spi_bus(id), (id,) + args, kwargs)
+    def __new__(cls, *args, **kwargs):
+        if not args or args[0] == -1:
+            # SPI() and SPI(-1, ...) are the port's legacy SoftSPI construction
+            # (MP_MACHINE_SPI_CHECK_FOR_LEGACY_SOFTSPI_CONSTRUCTION), whose table has no id:
+            # SPI(id=1) is refused there. SoftSPI is not emulated.
+            if "id" in kwargs:
+                raise TypeError("extra keyword arguments given")
+            raise NotImplementedError("SoftSPI (SPI() or SPI(-1, ...)) is not emulated")
+        return _handle(spi_bus(args[0]), args, kwargs)
 
-    def __init__(self, id, baudrate=1000000, polarity=0, phase=0, bits=8, firstbit=0, **kw):
-        self.init(baudrate, polarity, phase, bits, firstbit)
+    def __init__(self, *args, **kwargs):
+        _, baudrate, polarity, phase, bits, firstbit, sck, mosi, miso = _parse(
+            _SPI_NEW, args, kwargs
+        )
+        if sck is not ... or mosi is not ... or miso is not ...:
+            raise ValueError("explicit choice of sck/mosi/miso is not implemented")
+        self.init(baudrate=baudrate, polarity=polarity, phase=phase, bits=bits, firstbit=firstbit)
 
     def _setup(self, id):
         self.id = id
@@ -269,18 +430,32 @@ class SPI:
         self.bytes_clocked = 0
         self.log = None  # or a list: [device name, MOSI bytearray, MISO bytearray] per selection
         self._devs = []
-        self.init()
+        self.baudrate = 500000
+        self.polarity = 0
+        self.phase = 0
+        self.bits = 8
+        self.firstbit = SPI.MSB
+        self._wrong_edge = False
 
-    def init(self, baudrate=1000000, polarity=0, phase=0, bits=8, firstbit=0, **kw):
-        if bits != 8:
+    def init(self, *args, **kwargs):
+        """init(*, baudrate, polarity, phase, bits, firstbit), as spi_set_params
+        (ports/stm32/spi.c) takes them: what is given changes (-1 leaves a setting as it is);
+        a polarity or phase other than 0 is 1, bits other than 16 are 8."""
+        baudrate, polarity, phase, bits, firstbit = _parse(_SPI_INIT, args, kwargs)
+        if bits == 16:
             raise ValueError("the emulated SPI supports 8-bit transfers only")
-        self.baudrate = baudrate
-        self.polarity = polarity
-        self.phase = phase
-        self.bits = bits
-        self.firstbit = firstbit
-        mode = (polarity << 1) | phase
-        self._wrong_edge = firstbit != 0 or not (mode == 0 or mode == 3)
+        if baudrate != -1:
+            self.baudrate = baudrate
+        if polarity != -1:
+            self.polarity = 0 if polarity == 0 else 1
+        if phase != -1:
+            self.phase = 0 if phase == 0 else 1
+        if bits != -1:
+            self.bits = 8
+        if firstbit != -1:
+            self.firstbit = firstbit
+        mode = (self.polarity << 1) | self.phase
+        self._wrong_edge = self.firstbit != SPI.MSB or not (mode == 0 or mode == 3)
 
     def deinit(self):
         pass
@@ -378,252 +553,6 @@ class SPI:
         return bytes(buf)
 
 
-REG_CHIP_ID = 0x00
-REG_DATA = 0x02
-REG_TEMP = 0x08
-REG_INT_STATUS = 0x0A
-REG_RANGE = 0x0F
-REG_BW = 0x10
-REG_SOFTRESET = 0x14
-SOFTRESET_CMD = 0xB6
-_N_REGS = 0x80
-_READ_ONLY_END = 0x0F  # 0x00..0x0E ignore writes
-
-
-class _Die:
-    """One BMI055 die: register file, SPI protocol (address byte, bit 7 = read, then
-    auto-incremented registers, no dummy byte), soft reset and start-up time, faults
-    (`responds`, `chip_id`, `ignore_writes` as in bmi055_model)."""
-
-    name = "die"
-    CHIP_ID = 0
-    STARTUP_US = 0
-    RANGE_RESET = 0
-    BW_RESET = 0
-    RANGE_MASK = 0xFF
-    BW_MASK = 0xFF
-    BW_ONES = 0x00
-    IS_ACCEL = False
-
-    def __init__(self, chip_id=None):
-        self.chip_id = self.CHIP_ID if chip_id is None else chip_id
-        self.responds = True
-        self.ignore_writes = False
-        self.regs = bytearray(_N_REGS)
-        self.resets = 0  # soft resets performed
-        self.writes = []  # (reg, value) of every accepted write (the driver writes at start-up)
-        self.reads = 0  # register bytes read (not counting the chip ID)
-        self.cs = None
-        self._ready_at = -1  # virtual us when the start-up after a reset ends; -1 ready
-        self._reset_pending = False
-        self._selected = False
-        self._addr = -1  # -1: the next byte is the address
-        self._is_read = False
-        self._load_defaults()
-
-    def _load_defaults(self):
-        regs = self.regs
-        for i in range(_N_REGS):
-            regs[i] = 0
-        regs[REG_RANGE] = self.RANGE_RESET
-        regs[REG_BW] = self.BW_RESET
-        regs[REG_CHIP_ID] = self.chip_id & 0xFF
-
-    def busy(self):
-        """True while the die is starting up after a soft reset."""
-        if self._ready_at < 0:
-            return False
-        if time.now_us() >= self._ready_at:
-            self._ready_at = -1
-            return False
-        return True
-
-    def read_reg(self, reg):
-        """A register as the SPI master reads it (with the read side effects)."""
-        reg &= 0x7F
-        if reg == REG_CHIP_ID:
-            return self.chip_id & 0xFF
-        regs = self.regs
-        value = regs[reg]
-        if REG_DATA <= reg < REG_DATA + 6:
-            regs[REG_INT_STATUS] &= 0x7F
-            if self.IS_ACCEL:
-                regs[REG_DATA + ((reg - REG_DATA) & 0x7E)] &= 0xFE  # the axis' new_data
-        self.reads += 1
-        return value
-
-    def write_reg(self, reg, value):
-        """A register write from the SPI master (masks, read-only registers, soft reset)."""
-        reg &= 0x7F
-        value &= 0xFF
-        if self.ignore_writes or reg < _READ_ONLY_END:
-            return
-        self.writes.append((reg, value))
-        if reg == REG_SOFTRESET:
-            if value == SOFTRESET_CMD:
-                self._reset_pending = True
-            return
-        if reg == REG_RANGE:
-            value &= self.RANGE_MASK
-        elif reg == REG_BW:
-            value = (value & self.BW_MASK) | self.BW_ONES
-        self.regs[reg] = value
-
-    def soft_reset(self):
-        """What 0xB6 written to 0x14 does when the chip select rises."""
-        self.resets += 1
-        self._load_defaults()
-        if self.STARTUP_US > 0:
-            self._ready_at = time.now_us() + self.STARTUP_US
-
-    def set_registers(self, buf, off=0):
-        """Data registers 0x02..0x07 = buf[off:off + 6] exactly (new_data bits included);
-        sets INT_STATUS bit 7 (data_int)."""
-        regs = self.regs  # written out: the emulator's hot path
-        d = REG_DATA
-        regs[d] = buf[off]
-        regs[d + 1] = buf[off + 1]
-        regs[d + 2] = buf[off + 2]
-        regs[d + 3] = buf[off + 3]
-        regs[d + 4] = buf[off + 4]
-        regs[d + 5] = buf[off + 5]
-        regs[REG_INT_STATUS] |= 0x80
-
-    def set_temperature_raw(self, raw):
-        """Temperature register: int8, 0.5 K per LSB, 0 = 23 degC."""
-        if raw < -128 or raw > 127:
-            raise ValueError("temperature register is int8")
-        self.regs[REG_TEMP] = raw & 0xFF
-
-    # -- SPI device --
-
-    def select(self):
-        self._selected = True
-        self._addr = -1
-
-    def deselect(self):
-        self._selected = False
-        self._addr = -1
-        if self._reset_pending:
-            self._reset_pending = False
-            self.soft_reset()
-
-    def exchange(self, mosi):
-        """One byte clocked while selected: the MISO byte, or -1 (floating)."""
-        if not self.responds or self.busy():
-            return -1
-        reg = self._addr
-        if reg < 0:  # the address byte; MISO undefined meanwhile
-            self._is_read = (mosi & 0x80) != 0
-            self._addr = mosi & 0x7F
-            return -1
-        self._addr = (reg + 1) & 0x7F
-        if self._is_read:
-            return self.read_reg(reg)
-        self.write_reg(reg, mosi)
-        return -1
-
-    def transfer(self, wbuf, rbuf, fill, n, idle):
-        """n bytes clocked while selected, exactly as n calls of `exchange`: MOSI from wbuf
-        (None: the byte fill), MISO into rbuf (None: dropped; idle where the die leaves MISO
-        floating). No time passes within a transfer, so whether the die answers is decided
-        once; the state lives in locals meanwhile (the emulator's hot path)."""
-        if not self.responds or (self._ready_at >= 0 and self.busy()):
-            if rbuf is not None:
-                for i in range(n):
-                    rbuf[i] = idle
-            return
-        reg = self._addr
-        is_read = self._is_read
-        if _SLICES and reg < 0 and n > 1 and wbuf is not None and rbuf is not None:
-            r0 = wbuf[0] & 0x7F
-            if wbuf[0] & 0x80 and REG_DATA <= r0 and r0 + n - 1 <= REG_DATA + 6:
-                # a burst read of data registers (the driver's every tick) by slices, with
-                # read_reg's side effects for them: the byte loop gives the same
-                regs = self.regs
-                rbuf[0] = idle
-                rbuf[1:n] = regs[r0 : r0 + n - 1]
-                regs[REG_INT_STATUS] &= 0x7F
-                if self.IS_ACCEL:
-                    for r in range(r0, r0 + n - 1):
-                        regs[REG_DATA + ((r - REG_DATA) & 0x7E)] &= 0xFE
-                self.reads += n - 1
-                self._addr = (r0 + n - 1) & 0x7F
-                self._is_read = True
-                return
-        for i in range(n):
-            mosi = fill if wbuf is None else wbuf[i]
-            v = idle
-            if reg < 0:  # the address byte
-                is_read = (mosi & 0x80) != 0
-                reg = mosi & 0x7F
-            else:
-                if is_read:
-                    v = self.read_reg(reg)
-                else:
-                    self.write_reg(reg, mosi)
-                reg = (reg + 1) & 0x7F
-            if rbuf is not None:
-                rbuf[i] = v
-        self._addr = reg
-        self._is_read = is_read
-
-
-class GyroDie(_Die):
-    """The gyro die: ID 0x0F, range 0x0F resets to 0x00 (+-2000 deg/s, bits 2:0),
-    bandwidth 0x10 to 0x80 (bits 3:0, bit 7 reads 1); 30 ms start-up."""
-
-    name = "bmi055-gyro"
-    CHIP_ID = 0x0F
-    STARTUP_US = 30000
-    RANGE_RESET = 0x00
-    BW_RESET = 0x80
-    RANGE_MASK = 0x07
-    BW_MASK = 0x0F
-    BW_ONES = 0x80
-
-
-class AccelDie(_Die):
-    """The accel die: ID 0xFA, range 0x0F resets to 0x03 (+-2 g, bits 3:0), bandwidth 0x10
-    to 0x0F (bits 4:0); 1.8 ms start-up."""
-
-    name = "bmi055-accel"
-    CHIP_ID = 0xFA
-    STARTUP_US = 1800
-    RANGE_RESET = 0x03
-    BW_RESET = 0x0F
-    RANGE_MASK = 0x0F
-    BW_MASK = 0x1F
-    IS_ACCEL = True
-
-
-class Bmi055:
-    """Both dies of one BMI055 (present=False: neither answers)."""
-
-    def __init__(self, present=True, accel_chip_id=None, gyro_chip_id=None):
-        self.accel = AccelDie(accel_chip_id)
-        self.gyro = GyroDie(gyro_chip_id)
-        if not present:
-            self.accel.responds = False
-            self.gyro.responds = False
-
-    def attach(self, spi, cs_accel, cs_gyro):
-        """Put both dies on an SPI bus behind their chip-select pins."""
-        spi.attach(self.accel, cs_accel)
-        spi.attach(self.gyro, cs_gyro)
-
-    def set_registers(self, buf, gyro_off, accel_off):
-        """The next sample: gyro and accel data registers from buf (6 bytes each at the
-        offsets, LSB first, as a stimulus record holds them)."""
-        self.gyro.set_registers(buf, gyro_off)
-        self.accel.set_registers(buf, accel_off)
-
-    def set_temperature_raw(self, raw):
-        """int8, 0.5 K per LSB, 0 = 23 degC (both dies)."""
-        self.accel.set_temperature_raw(raw)
-        self.gyro.set_temperature_raw(raw)
-
-
 # ---- UART -------------------------------------------------------------------------------
 
 # Transmit buffer bytes of a UART made from now on; the emulator empties it between ticks. The
@@ -632,13 +561,30 @@ TX_CAPACITY = 16384
 
 
 class UART:
-    """machine.UART(id, baudrate, rxbuf=..., ...): the emulated port `id`."""
+    """machine.UART(id, baudrate, bits=8, parity=None, stop=1, *, flow=0, timeout=0,
+    timeout_char=0, rxbuf, read_buf_len=64): the emulated port `id` (ports/stm32/machine_uart.c;
+    UART(id) alone returns it as it is)."""
 
-    def __new__(cls, id, *args, **kwargs):
-        return _handle(uart(id), (id,) + args, kwargs)
+    _INIT = (  # ports/stm32/machine_uart.c mp_machine_uart_init_helper (no txbuf)
+        ("baudrate", _REQUIRED | _INT, 9600),
+        ("bits", _INT, 8),
+        ("parity", _OBJ, None),
+        ("stop", _INT, 1),
+        ("flow", _KW_ONLY | _INT, 0),
+        ("timeout", _KW_ONLY | _INT, 0),
+        ("timeout_char", _KW_ONLY | _INT, 0),
+        ("rxbuf", _KW_ONLY | _INT, -1),
+        ("read_buf_len", _KW_ONLY | _INT, 64),  # legacy
+    )
 
-    def __init__(self, id, baudrate=9600, bits=8, parity=None, stop=1, **kwargs):
-        self.init(baudrate, bits, parity, stop, **kwargs)
+    def __new__(cls, *args, **kwargs):
+        if not args:  # mp_arg_check_num(n_args, n_kw, 1, ...): the id, positionally
+            raise TypeError("function missing 1 required positional arguments")
+        return _handle(uart(args[0]), args, kwargs)
+
+    def __init__(self, *args, **kwargs):
+        if len(args) > 1 or kwargs:
+            self.init(*args[1:], **kwargs)
 
     def _setup(self, id):
         self.id = id
@@ -646,14 +592,35 @@ class UART:
         self.tx_overflow = 0  # written bytes that did not fit the transmit buffer
         self.tx = bytearray(TX_CAPACITY)
         self.tx_n = 0
-        self.init()
+        self.init(9600)
 
-    def init(self, baudrate=9600, bits=8, parity=None, stop=1, rxbuf=64, txbuf=0, **kwargs):
-        """(Re)configure: a new, empty receive ring of rxbuf bytes."""
+    def init(self, *args, **kwargs):
+        """(Re)configure as the port's init helper: baudrate is required; bits counts the data
+        bits (8 or 9, or 7 or 8 with parity: the F4 has no 7-bit word); stop 1, anything else
+        is 2; rxbuf (else read_buf_len, the legacy name) the receive ring's bytes, 0 none. A
+        new, empty receive ring."""
+        baudrate, bits, parity, stop, flow, timeout, timeout_char, rxbuf, read_buf_len = _parse(
+            UART._INIT, args, kwargs
+        )
+        word = bits
+        if parity is not None:
+            parity = _int(parity) & 1  # odd when bit 0 is set, else even
+            word += 1  # ST's word length counts the parity bit
+        if word != 8 and word != 9:
+            raise ValueError("unsupported combination of bits and parity")
+        if rxbuf < 0:
+            rxbuf = read_buf_len
+        if rxbuf < 0:
+            rxbuf = 0
         self.baudrate = baudrate
+        self.bits = bits
+        self.parity = parity
+        self.stop = 1 if stop == 1 else 2
+        self.flow = flow
+        self.timeout = timeout
+        # at least a character's time (13 bits) and 2 ms (the port's SysTick resolution)
+        self.timeout_char = max(timeout_char, (13000 // baudrate if baudrate > 0 else 0) + 2)
         self.rxbuf = rxbuf
-        self.txbuf = txbuf
-        self.timeout = kwargs.get("timeout", 0)
         self._ring = bytearray(rxbuf if rxbuf > 0 else 1)
         self._head = 0  # next byte to read
         self._count = 0
@@ -751,22 +718,62 @@ class UART:
 
 
 class Timer:
-    """machine.Timer(-1, mode=PERIODIC, freq=..., callback=...): fired by fire_timers()."""
+    """machine.Timer(-1, *, mode=PERIODIC, callback, period, tick_hz=1000, freq, hard=False):
+    the port's soft timer (extmod/machine_timer.c; -1 is the only id); fired by fire_timers()
+    while it has a callback. Timer(-1) alone makes one that does not run."""
 
-    ONE_SHOT = 0
-    PERIODIC = 1
+    ONE_SHOT = 1  # SOFT_TIMER_MODE_ONE_SHOT
+    PERIODIC = 2  # SOFT_TIMER_MODE_PERIODIC
 
-    def __init__(self, id=-1, mode=PERIODIC, freq=None, period=None, callback=None, **kw):
+    _INIT = (  # extmod/machine_timer.c machine_timer_init_helper
+        ("mode", _KW_ONLY | _INT, 2),  # SOFT_TIMER_MODE_PERIODIC
+        ("callback", _KW_ONLY | _OBJ, ...),
+        ("period", _KW_ONLY | _INT, -1),  # 0xffffffff, in the C's (32-bit) mp_int_t
+        ("tick_hz", _KW_ONLY | _INT, 1000),
+        ("freq", _KW_ONLY | _OBJ, None),
+        ("hard", _KW_ONLY | _BOOL, False),
+    )
+
+    def __init__(self, *args, **kwargs):
+        id = -1
+        if args:
+            id = _int(args[0])
+            args = args[1:]
+        if id != -1:
+            raise ValueError("Timer doesn't exist")
         self.id = id
+        self.mode = Timer.PERIODIC
+        self.freq = None
+        self.period_ms = 1000
         self.callback = None
-        self.init(mode=mode, freq=freq, period=period, callback=callback)
+        self.hard = False
+        if args or kwargs:
+            self.init(*args, **kwargs)
 
-    def init(self, mode=PERIODIC, freq=None, period=None, callback=None, **kw):
+    def init(self, *args, **kwargs):
+        """Stop, then (re)start with what is given: the period from freq (Hz), else from
+        period / tick_hz, else as before; at least 1 ms. A callback not given stays."""
+        self.deinit()
+        mode, callback, period, tick_hz, freq, hard = _parse(Timer._INIT, args, kwargs)
+        period_ms = self.period_ms
+        if freq is not None:
+            if not isinstance(freq, (int, float)):
+                raise TypeError("can't convert to float")
+            # the port's 1000.0 / freq, cast to uint32 (saturating: 0 Hz is infinitely long)
+            period_ms = int(1000.0 / freq) if freq > 0 else (0 if freq < 0 else 0x40000000)
+        elif period != -1:  # (uint64_t) of a negative period: too large
+            period_ms = period * 1000 // tick_hz if period >= 0 else 0x40000000
+        if period_ms < 1:
+            period_ms = 1
+        elif period_ms >= 0x40000000:
+            raise ValueError("period too large")
         self.mode = mode
         self.freq = freq
-        self.period = period
-        self.callback = callback
-        if self not in _timers:
+        self.period_ms = period_ms
+        if callback is not ...:
+            self.callback = callback
+        self.hard = hard
+        if self.callback is not None:
             _timers.append(self)
 
     def deinit(self):
@@ -775,13 +782,32 @@ class Timer:
 
 
 class WDT:
-    """machine.WDT(timeout=ms): counts feeds and remembers the last one (virtual us)."""
+    """machine.WDT(id=0, timeout=5000): counts feeds and remembers the last one (virtual us).
+    The port's checks: id 0 only; the timeout (ms) must fit the IWDG (1..32767 ms)."""
+
+    _NEW = (  # extmod/machine_wdt.c machine_wdt_make_new
+        ("id", _INT, 0),
+        ("timeout", _INT, 5000),
+    )
 
     def __new__(cls, *args, **kwargs):
         return _handle(object.__new__(cls), args, kwargs)
 
-    def __init__(self, id=0, timeout=5000):
+    def __init__(self, *args, **kwargs):
         global watchdog
+        id, timeout = _parse(WDT._NEW, args, kwargs)
+        if id != 0:
+            raise ValueError(f"WDT({id}) doesn't exist")
+        ticks = timeout  # ports/stm32/machine_wdt.c: prescaler, then 8 ticks per ms
+        prescaler = 0
+        while prescaler < 6 and ticks >= 512:
+            prescaler += 1
+            ticks //= 2
+        ticks *= 8
+        if ticks <= 0:
+            raise ValueError("WDT timeout too short")
+        if ticks > 0xFFF:
+            raise ValueError("WDT timeout too long")
         self.timeout_ms = timeout
         self.feeds = 0
         self.last_feed_us = time.now_us()

@@ -5,8 +5,8 @@ MicroPython v1.28.0 (tools.toolchain's source tree) is built with its qemu port 
 definition (boards/M4F_INS: QEMU's mps2-an386, Cortex-M4 with the single-precision FPU, hard
 float, `MICROPY_FLOAT_IMPL = float`, object representation A: the stm32 port's choices for the
 STM32F411), with the firmware frozen exactly as the board image freezes it (firmware/manifest.py)
-and the emulated board beside it (board/mpy: machine.py, time.py, feed.py and the guest driver
-emulate_m4f.py). See build.py.
+and the emulated board beside it (board/mpy: machine.py, bmi055_model.py, time.py, feed.py and
+the guest driver emulate_m4f.py; manifest.py). See build.py.
 
 QEMU runs it with `-icount shift=0`: one guest instruction is one ns of virtual time, and the
 `m4f` module (usermod/m4f/m4f.c) reads the MPS2's 25 MHz timer, so the guest counts its own

@@ -1,7 +1,8 @@
 # What the emulated Cortex-M4F carries frozen (MicroPython's manifest format): the firmware
 # exactly as the board image freezes it, plus the emulated board (machine, time: found before
-# the built-in modules of those names, as frozen modules come first on sys.path) and the
-# guest driver that feeds it a stimulus (host_emulator/board/mpy).
+# the built-in modules of those names, as frozen modules come first on sys.path; bmi055_model,
+# the BMI055 register model machine imports) and the guest driver that feeds it a stimulus
+# (host_emulator/board/mpy).
 include("../../../firmware/manifest.py")
-for name in ("machine", "time", "feed", "emulate_m4f"):
+for name in ("machine", "bmi055_model", "time", "feed", "emulate_m4f"):
     module(name + ".py", base_path="../../board/mpy")

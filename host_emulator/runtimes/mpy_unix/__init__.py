@@ -5,7 +5,8 @@ allocates.
 The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs board/mpy/emulate.py,
 which imports the firmware's own `board.py`, drivers and `app.py` on top of the emulated
 `machine` and `time` beside it (board/mpy/machine.py, board/mpy/time.py: pins, SPI with the
-BMI055 register model, UARTs, the timer, the watchdog, a virtual clock in us since power-on).
+BMI055 register model of board/mpy/bmi055_model.py, UARTs, the timer, the watchdog, a virtual
+clock in us since power-on).
 Each stimulus record is replayed exactly as the cpython runtime replays it, so both runtimes
 see the same input at the same virtual times.
 
