@@ -108,15 +108,16 @@ def _run(args):
     injected = _faults(args)
     if injected is None:
         return 0
+    cli_args.check_board(args.runtime, args.board)
     if args.stimulus:
         m = scenario_run.run_stimulus(
             args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args),
-            faults=injected,
+            faults=injected, board=args.board,
         )  # fmt: skip
     else:
         m = scenario_run.run(
             args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet,
-            kernels=_kernels(args), faults=injected,
+            kernels=_kernels(args), faults=injected, board=args.board,
         )  # fmt: skip
     from host_emulator.eval import demo
 
@@ -281,6 +282,7 @@ def main(argv=None):
     run.add_argument("--seed", type=int, default=0, help="the simulation's random seed (0)")
     run.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     cli_args.add_kernels_option(run)
+    cli_args.add_board_option(run)
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_fault_option(run)

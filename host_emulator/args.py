@@ -56,6 +56,29 @@ def add_kernels_option(parser):
     )
 
 
+BOARD_HELP = (
+    "the image the f411 runtime runs: WEACT_F411_BLACKPILL (default) or NUCLEO_F411RE; built "
+    "(or brought up to date) first, as `make image BOARD=...` builds it"
+)
+
+
+def add_board_option(parser):
+    """--board NAME, the image of the f411 runtime (the emulated STM32F411)."""
+    from host_emulator.f411 import boards
+
+    parser.add_argument("--board", default=None, choices=tuple(boards.BOARDS), help=BOARD_HELP)
+
+
+def check_board(runtime, board):
+    """UsageError for --board with a runtime that runs no image."""
+    from host_emulator import runtimes
+
+    if board is not None and runtimes.get(runtime).name not in runtimes.BOARD_RUNTIMES:
+        which = " or ".join(runtimes.BOARD_RUNTIMES)
+        raise UsageError(f"--board is for --runtime {which} (the emulated STM32F411 runs a "
+                         f"board's image); {runtime} runs none")  # fmt: skip
+
+
 def _jobs(text):
     try:
         n = int(text)

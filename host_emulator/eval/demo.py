@@ -4,7 +4,7 @@ CPython, and a short table of how well it navigated, for someone new to the proj
 Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
-from host_emulator.bench import board_cost
+from host_emulator.bench import board_cost, board_time
 from host_emulator.eval import scenario_run
 from host_emulator.eval.report import fmt
 
@@ -75,6 +75,9 @@ def summary(m, out_dir):
     if m.get("board_cost"):
         lines.append("board CPU cost         (emulated Cortex-M4F, firmware instructions per tick)")
         lines += [f"  {t}" for t in board_cost.lines(m["board_cost"])]
+    if m.get("board_time"):
+        lines.append("board time per tick    (the image on the emulated STM32F411)")
+        lines += [f"  {t}" for t in board_time.lines(m["board_time"], m.get("board_run"))]
     lines.append(f"frames                 {m['frames']} sent, {m['frame_errors']} errors")
     lines.append("")
     lines.append(f"report: {out_dir}/report.md   plots: {out_dir}/*.png   metrics: "

@@ -109,7 +109,8 @@ def bit_exact_runtimes():
     return tuple(n for n, r in runtimes.RUNTIMES.items() if r.bit_exact and n != "model")
 
 
-def compare(stim, config_overrides=None, progress=None, runtime="cpython", kernels=None):
+def compare(stim, config_overrides=None, progress=None, runtime="cpython", kernels=None,
+            board=None):  # fmt: skip
     """Run the firmware (on `runtime` with `kernels`, "native" or "python", None: the default,
     native; in a temporary flash directory) and the model over `stim` with the same board
     configuration; a ParityResult. progress(k, n) is passed to each side in turn (firmware
@@ -120,7 +121,8 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
             f"{runtime!r}: the unix VM computes in double"
         )
     with tempfile.TemporaryDirectory(prefix="parity-") as d:
-        fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress, kernels)
+        fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress, kernels,
+                                       board)  # fmt: skip
         model = runtimes.get("model").run(stim, Path(d), config_overrides, progress)
     cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
     zeroed = runtimes.get(runtime).own_run_time
@@ -155,12 +157,14 @@ def main(argv=None):
         "--runtime",
         default="cpython",
         choices=bit_exact_runtimes(),
-        help="where the firmware runs (default cpython; m4f: the emulated Cortex-M4F, about "
-        "real time)",
+        help="where the firmware runs (default cpython; m4f: the emulated Cortex-M4F, f411: the "
+        "image on the emulated STM32F411; both about real time)",
     )
     cli_args.add_kernels_option(p)
+    cli_args.add_board_option(p)
     try:
         args = p.parse_args(argv)
+        cli_args.check_board(args.runtime, args.board)
         duration = cli_args.number(args.duration, "--duration")
         cli_args.check_scenario(args.scenario)  # the same input checks as `run`
         cli_args.check_duration(duration)
@@ -175,7 +179,7 @@ def main(argv=None):
             f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed "
             f"{args.seed}, firmware on {args.runtime}, {args.kernels} kernels"
         )
-        r = compare(stim, runtime=args.runtime, kernels=args.kernels)
+        r = compare(stim, runtime=args.runtime, kernels=args.kernels, board=args.board)
         print(r.summary())
         return 0 if r.identical else 1
 

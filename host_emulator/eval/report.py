@@ -12,7 +12,7 @@ GNSS outages are shaded in every time plot.
 
 import numpy as np
 
-from host_emulator.bench import board_cost
+from host_emulator.bench import board_cost, board_time
 
 _DEG = 180.0 / np.pi
 PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")
@@ -314,6 +314,13 @@ def markdown(m, description="", console=(), notes=()):
             "docs/benchmarks/board.md says how to read them):"
         )
         lines += [f"  - {t.strip()}" for t in board_cost.lines(m["board_cost"])]
+    if m.get("board_time"):
+        lines.append(
+            "- Time per tick of the image on the emulated STM32F411 (docs/image.md says what "
+            "it models):"
+        )
+        lines += [f"  - {t.strip()}" for t in board_time.lines(m["board_time"],
+                                                               m.get("board_run"))]  # fmt: skip
     lines += [f"- {n}" for n in notes]
     lines += ["", "## Plots", ""]
     for p in PLOTS:

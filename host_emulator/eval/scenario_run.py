@@ -22,7 +22,7 @@ import numpy as np
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.bench import board_cost
+from host_emulator.bench import board_cost, board_time
 from host_emulator.errors import EmulatorError, write_atomic
 from host_emulator.eval import evaluate, report
 from host_emulator.proto import stimulus as stim_mod
@@ -74,14 +74,15 @@ class Progress:
                 self.stream.flush()
 
 
-def run_firmware(runtime, stim_path, progress=None, kernels=None):
+def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None):
     """FirmwareRun of the stimulus file (read back from disk: the file is the seam) on the
     runtime (a name of host_emulator.runtimes) with `kernels` ("native", "python"; None: the
-    default, native); EmulatorError if the firmware sent nothing at all (its console says why,
-    e.g. the IMU did not start)."""
+    default, native) and, for the f411 runtime, the board's image (None: its default);
+    EmulatorError if the firmware sent nothing at all (its console says why, e.g. the IMU did
+    not start)."""
     rt = runtimes.get(runtime)
     with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
-        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress, kernels=kernels)
+        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress, kernels=kernels, board=board)
     if not fw.out:
         said = "; ".join(fw.console) or "nothing"
         raise EmulatorError(f"the firmware sent no output in {fw.ticks} ticks; its console: {said}")
@@ -135,7 +136,12 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
         m["gc_blocks_per_tick_p99"] = float(np.percentile(blocks, 99))
         m["gc_blocks_by_state"] = fw.stats.get("blocks_by_state")
     per_tick = getattr(fw, "per_tick", None)
-    if per_tick is not None:  # the m4f runtime: instructions per tick on the board's CPU
+    if per_tick is not None and fw.runtime == "f411":  # the image: its time per tick
+        tick_states = board_time.states(fw.out, fw.ticks)
+        m["board_time"] = board_time.summary(per_tick, tick_states, fw.stats["hclk_hz"],
+                                             fw.stats["cpi"])  # fmt: skip
+        m["board_run"] = {k: fw.stats.get(k) for k in board_time.RUN_KEYS}
+    elif per_tick is not None:  # the m4f runtime: instructions per tick on the board's CPU
         m["board_cost"] = board_cost.summary(per_tick)
         m["board_heap"] = {k: fw.stats.get(k) for k in board_cost.HEAP_KEYS}
     return m
@@ -195,7 +201,7 @@ def _log_faults(stim, log):
 
 
 def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print,
-        kernels=None, faults=()):  # fmt: skip
+        kernels=None, faults=(), board=None):  # fmt: skip
     """The whole `run` command; returns the metrics. EmulatorError on bad input or failure.
     faults: sim/faults.py Faults (or specs) injected into the simulated input."""
     cli_args.check_scenario(scenario)
@@ -220,7 +226,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     )
     _log_faults(sim.stimulus, log)
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, stim_path, prog, kernels)
+    fw = run_firmware(runtime, stim_path, prog, kernels, board)
     write_atomic(out_dir / "frames.bin", fw.out)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
@@ -230,7 +236,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
 
 
 def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=None,
-                 faults=()):  # fmt: skip
+                 faults=(), board=None):  # fmt: skip
     """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
     is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
     only the output is checked (frames, frame errors, time to navigation). faults: injected
@@ -251,7 +257,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
     elif src.resolve() != local.resolve():
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, local, prog, kernels)
+    fw = run_firmware(runtime, local, prog, kernels, board)
     write_atomic(out_dir / "frames.bin", fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))

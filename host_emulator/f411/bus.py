@@ -18,7 +18,9 @@ time until the flag changes. The bus notices the third identical read of a regis
 same instruction within a few dozen instructions of the one before, with no other peripheral
 access between them, and moves the clock to the moment the register changes (the
 peripheral's `next_change`) or the next event, whichever is first: the wait costs what it
-costs on the board, without emulating its iterations.
+costs on the board, without emulating its iterations. Only flags whose change the model can
+date are skipped this way (a UART's TXE and TC, SPI's flags, FLASH_SR.BSY, IWDG_SR); any other
+loop runs instruction by instruction.
 """
 
 from host_emulator.errors import EmulatorError
@@ -163,6 +165,7 @@ class Bus:
         self._repeats = 0
         self.polls_skipped = 0
         self.poll_wait_cycles = 0  # cycles the clock moved over polling loops
+        self.poll_wait_by = {}  # ... per peripheral polled (its NAME)
 
     def add(self, p):
         self.peripherals.append(p)
@@ -213,15 +216,21 @@ class Bus:
         self._repeats = 0
 
     def _fast_forward(self, address, p):
+        """A polling loop on a flag that changes at a known cycle (the peripheral's
+        next_change): the clock moves there, or to the next event if that comes first (its
+        interrupt is taken, then the loop reads again). A register whose next change is not
+        known is not skipped: the loop is emulated instruction by instruction, which is
+        always right (a loop that drains a UART's receive ring reads SR once per byte, from
+        one instruction: that is not a wait)."""
         clock = self.chip.clock
         change = p.next_change(address - p.BASE)
+        if change is None:
+            return
         ev = clock.next_event()
-        targets = [t for t in (change, ev) if t is not None]
-        if not targets:
-            return  # nothing will ever change it: the loop spins (a timeout will end it)
-        t = min(targets)
+        t = change if ev is None else min(change, ev)
         if t > clock.now():
             self.poll_wait_cycles += t - clock.now()
+            self.poll_wait_by[p.NAME] = self.poll_wait_by.get(p.NAME, 0) + t - clock.now()
             clock.wait_until(t)
             self.polls_skipped += 1
         if ev is not None and t >= ev:

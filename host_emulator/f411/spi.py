@@ -117,9 +117,13 @@ class Spi(Peripheral):
                 self._busy_until = end + self.byte_cycles()
 
     def next_change(self, off):
-        if off == SR and self._queue:
-            return self._queue[0][0]
-        return None
+        """When RXNE, TXE or BSY will change: the next byte's end, or the end of a block."""
+        if off != SR:
+            return None
+        times = [self._queue[0][0]] if self._queue else []
+        if self.clock.now() < self._busy_until:
+            times.append(self._busy_until)
+        return min(times) if times else None
 
     def _set_ovr(self):
         if not self._flags & OVR:

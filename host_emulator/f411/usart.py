@@ -100,12 +100,12 @@ class Usart(Peripheral):
             fn(b, at)
 
     def next_change(self, off):
+        """When TXE or TC will be set (a transmission in progress): what a polling sender
+        waits for. Reception flags change at arrivals (events), IDLE nobody polls."""
         if off == SR:
             now = self.clock.now()
-            if now < self._shift_end:
+            if self._dr_byte is not None or now < self._shift_end:
                 return self._shift_end
-            if self._last_rx_end is not None and not self._flags & IDLE:
-                return self._last_rx_end + self.char_cycles()
         return None
 
     # -- registers ----------------------------------------------------------------------

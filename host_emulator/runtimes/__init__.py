@@ -16,6 +16,11 @@ sent on its output UART, its console lines and its counters.
               built as for the F411 with the firmware frozen; m4f/): the board's float32
               arithmetic, heap and garbage collection; counts the instructions of every tick;
               about real time
+    f411      the image `make image` builds, executed on an emulated STM32F411 (Unicorn, one
+              model per peripheral: host_emulator/f411), fed as a board is (f411/): the
+              port's drivers, interrupts, DMA and flash as they are; float32 bit for bit;
+              cycles per tick at the image's 96 MHz; about real time. `board`: the image
+              (WEACT_F411_BLACKPILL, the default, or NUCLEO_F411RE)
     model     no firmware: the NumPy float32 model of it (model/app.py through model.py);
               float32 bit for bit; the parity oracle
 
@@ -62,20 +67,28 @@ class Runtime:
     # board), which the model cannot know: parity compares them with those counters zeroed
     own_run_time: bool = False
 
-    def run(self, stim, workdir, config_overrides=None, progress=None, kernels=None):
+    def run(self, stim, workdir, config_overrides=None, progress=None, kernels=None,
+            board=None):  # fmt: skip
         """A FirmwareRun of the stimulus; FirmwareError if the firmware raises, EmulatorError
         if the runtime cannot run it. kernels: the firmware's float32 kernels, "native" (navk
         built for this runtime) or "python" (no navk); None: the default, native unless
-        $INS_KERNELS says python. The model has no kernels: it takes None only."""
+        $INS_KERNELS says python. The model has no kernels: it takes None only. board: the
+        image the f411 runtime runs (None: its default); the others run no image."""
         mod = importlib.import_module(self.module)
+        extra = {}
+        if board is not None:
+            if self.name not in BOARD_RUNTIMES:
+                raise EmulatorError(f"--board is for the {', '.join(BOARD_RUNTIMES)} runtime: "
+                                    f"{self.name} runs no image")  # fmt: skip
+            extra["board"] = board
         if kernels is None:
-            return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress)
+            return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress,
+                           **extra)  # fmt: skip
         if self.name == "model":
             raise EmulatorError("the model runtime has no kernels to choose (it is NumPy)")
         check_kernels(kernels)
-        return mod.run(
-            stim, workdir, config_overrides=config_overrides, progress=progress, kernels=kernels
-        )
+        return mod.run(stim, workdir, config_overrides=config_overrides, progress=progress,
+                       kernels=kernels, **extra)  # fmt: skip
 
 
 RUNTIMES = {
@@ -88,11 +101,15 @@ RUNTIMES = {
         Runtime("m4f", "the firmware on an emulated Cortex-M4F (QEMU), float32 as on the board; "
                 "counts instructions per tick", True, True, True, "host_emulator.runtimes.m4f",
                 own_run_time=True),
+        Runtime("f411", "the image itself on an emulated STM32F411 (Unicorn), its peripherals "
+                "timed; cycles per tick", True, False, True, "host_emulator.runtimes.f411",
+                own_run_time=True),
         Runtime("model", "the NumPy float32 model of the firmware (the parity oracle)", True,
                 False, False, "host_emulator.runtimes.model"),
     )
 }  # fmt: skip
 ALIASES = {"micropython": "mpy_unix"}
+BOARD_RUNTIMES = ("f411",)  # the runtimes that run a board's image (--board)
 KERNELS = ("native", "python")  # the firmware's kernels (firmware_env.KERNELS)
 
 

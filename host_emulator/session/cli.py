@@ -42,6 +42,7 @@ def main(argv=None):
         "board's (cpython, bit-exact, for a board; mpy_unix for the virtual board, whose VM "
         "computes in double, compared to a tolerance)",
     )  # fmt: skip
+    cli_args.add_board_option(s)
     s.add_argument("--until-gap", action="store_true", help="replay up to the first gap")
     s.add_argument(
         "--from-last-start", action="store_true",
@@ -55,6 +56,8 @@ def main(argv=None):
     f.add_argument("--out", required=True, help="the session file to write")
     try:
         args = p.parse_args(argv)
+        if args.command == "replay" and args.runtime != "auto":
+            cli_args.check_board(args.runtime, args.board)
         if args.command == "record":
             seconds = None if args.seconds is None else cli_args.positive(args.seconds, "--seconds")
             baud = None if args.baud is None else int(cli_args.positive(args.baud, "--baud"))
@@ -105,13 +108,13 @@ def _main_replay(args):
     if args.out:
         work = Path(args.out)
         res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress,
-                     args.from_last_start)  # fmt: skip
+                     args.from_last_start, args.board)  # fmt: skip
         res.stimulus.write(work / "stimulus.bin")
         (work / "replayed.bin").write_bytes(res.run.out)
     else:
         with tempfile.TemporaryDirectory(prefix="session-") as d:
             res = replay(args.session, d, args.runtime, args.config, args.until_gap, progress,
-                         args.from_last_start)  # fmt: skip
+                         args.from_last_start, args.board)  # fmt: skip
     if progress:
         print(file=sys.stderr)
     print(res.summary())

@@ -82,7 +82,10 @@ def test_a_peripheral_call_costs_a_c_method_call():
     periph, builtin, python = (int(x) - int(empty) for x in (periph, builtin, python))
     print(f"counted per call: Periph {periph}, built-in method {builtin}, Python part {python}")
     assert kind == "Periph"
-    assert builtin <= periph <= builtin + 200
+    # about the same, either way: MicroPython's map look-up cache (indexed by qstr) makes a
+    # call's count depend by ~80 on which other names share its slots, i.e. on the build's
+    # qstrs (d.get(0) counted 80 more than e.get(0) and than p.value(0) in one build)
+    assert abs(periph - builtin) <= 200
     assert periph < python
 
 
@@ -324,7 +327,7 @@ def test_a_firmware_error_names_the_tick_and_a_driver_error_is_an_emulator_error
 def test_the_registry_offers_it_for_parity_only_where_bits_match():
     rt = runtimes.get("m4f")
     assert rt.bit_exact and rt.counts_instructions and rt.own_run_time
-    assert parity.bit_exact_runtimes() == ("cpython", "m4f")
+    assert parity.bit_exact_runtimes() == ("cpython", "m4f", "f411")
     with pytest.raises(EmulatorError, match="bit-exact runtime"):
         parity.compare(board_input.simulate("static", 0.1).stimulus, runtime="mpy_unix")
 

@@ -119,6 +119,7 @@ def run_make(args, log_path, on_line):
                 stderr=subprocess.STDOUT,
                 text=True,
                 errors="replace",
+                env=toolchain.version_env(),
             )
             for line in proc.stdout:
                 logf.write(line)

@@ -83,12 +83,37 @@ def jobs():
     return str(max(1, len(os.sched_getaffinity(0))))
 
 
+def version_env(src=None):
+    """The environment of a make in the tree with MicroPython's version pinned: its
+    py/makeversionhdr.py otherwise names the build after `git describe` of whatever git
+    repository holds the tree (a vendored copy inside another project would call itself that
+    project's commit), and the banner would not say what the board runs. The tag is the
+    tree's own version (check_version); the hash is the tree's commit when the tree is the top
+    of its own git repository, else none ("<no hash>")."""
+    src = src or micropython_dir()
+    env = dict(os.environ)
+    env["MICROPY_GIT_TAG"] = "v" + ".".join(map(str, micropython_version(src)))
+    env.pop("MICROPY_GIT_HASH", None)
+    try:
+        top = subprocess.run(["git", "-C", str(src), "rev-parse", "--show-toplevel"],
+                             capture_output=True, text=True, timeout=10)  # fmt: skip
+        if top.returncode == 0 and pathlib.Path(top.stdout.strip()).resolve() == src.resolve():
+            h = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+                               capture_output=True, text=True, timeout=10)  # fmt: skip
+            if h.returncode == 0 and h.stdout.strip():
+                env["MICROPY_GIT_HASH"] = h.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return env
+
+
 def make(args, what, log_path):
     """Run make with args; its output goes to log_path. ToolchainError with the log's tail."""
     log_path = pathlib.Path(log_path)
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, "w") as log:
-        proc = subprocess.run(["make", "-j", jobs(), *args], stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.run(["make", "-j", jobs(), *args], stdout=log, stderr=subprocess.STDOUT,
+                              env=version_env())  # fmt: skip
     if proc.returncode != 0:
         tail = "\n".join(log_path.read_text(errors="replace").splitlines()[-25:])
         raise ToolchainError(f"building {what} failed (full log: {log_path}):\n{tail}")

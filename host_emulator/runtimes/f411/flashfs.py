@@ -1,0 +1,149 @@
+"""The board's filesystem in the twin: the flash sectors the port keeps it in, as a board
+holds it after `deploy`.
+
+The stm32 port keeps /flash in internal flash sectors 1-3 of the F411 (48 KB from 0x08004000,
+96 blocks of 512 bytes: the linker symbols _micropy_hw_internal_flash_storage_start/end,
+ports/stm32/flashbdev.c), formats it on its first boot when it finds no filesystem there (a
+FAT volume, FatFs's f_mkfs, labelled with the board's name, holding the port's factory
+boot.py and main.py) and writes through its own FAT driver.
+
+So the twin makes it the same way: `formatted(image)` boots the image on an erased flash until
+it prints its REPL prompt and is quiet, and keeps the sectors as the port wrote them (cached in
+build/f411/fs/ by the image's hash: formatting takes the twin ~10 s of board time, two of them
+flash erases); `with_files(partition, files)` writes the files deploy writes (main.py, ins.cfg,
+lib/navk.mpy) into that volume with MicroPython's own FAT driver (VfsFat of the unix VM from
+PyPI: the same oofatfs code as the board's), as deploy's writes through the board's REPL would.
+"""
+
+import hashlib
+import pathlib
+import subprocess
+import tempfile
+
+from host_emulator.errors import EmulatorError
+
+PART_BASE = 0x08004000
+PART_SIZE = 48 * 1024
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+CACHE = ROOT / "build" / "f411" / "fs"
+FORMAT_LIMIT_S = 30  # board seconds to wait for the first boot's prompt
+
+_VM_SCRIPT = """
+import vfs, os
+class Dev:
+    def __init__(self, path):
+        f = open(path, 'rb')
+        self.data = bytearray(f.read())
+        f.close()
+    def readblocks(self, n, buf):
+        buf[:] = self.data[n * 512 : n * 512 + len(buf)]
+    def writeblocks(self, n, buf):
+        self.data[n * 512 : n * 512 + len(buf)] = buf
+    def ioctl(self, op, arg):
+        if op == 4:
+            return len(self.data) // 512
+        if op == 5:
+            return 512
+        return 0
+d = Dev(PART)
+vfs.mount(vfs.VfsFat(d), '/fl')
+for rel, src in FILES:
+    parts = rel.split('/')
+    p = '/fl'
+    for name in parts[:-1]:
+        p += '/' + name
+        try:
+            os.mkdir(p)
+        except OSError:
+            pass
+    f = open(src, 'rb')
+    data = f.read()
+    f.close()
+    g = open('/fl/' + rel, 'wb')
+    g.write(data)
+    g.close()
+vfs.umount('/fl')
+f = open(OUT, 'wb')
+f.write(d.data)
+f.close()
+print('OK', len(FILES))
+"""
+
+
+def with_files(partition, files):
+    """The partition's bytes with `files` ({board path: bytes}) written into its volume."""
+    from host_emulator.runtimes.mpy_unix.vm import micropython_exe
+
+    if len(partition) != PART_SIZE:
+        raise EmulatorError(f"a filesystem partition of {len(partition)} bytes, not {PART_SIZE}")
+    with tempfile.TemporaryDirectory(prefix="f411fs-") as d:
+        d = pathlib.Path(d)
+        (d / "part.img").write_bytes(partition)
+        listed = []
+        for i, (rel, data) in enumerate(sorted(files.items())):
+            src = d / f"file{i}"
+            src.write_bytes(data)
+            listed.append((rel, str(src)))
+        script = (f"PART = {str(d / 'part.img')!r}\nOUT = {str(d / 'out.img')!r}\n"
+                  f"FILES = {listed!r}\n" + _VM_SCRIPT)  # fmt: skip
+        (d / "fs.py").write_text(script)
+        proc = subprocess.run([str(micropython_exe()), str(d / "fs.py")], capture_output=True,
+                              text=True, timeout=60)  # fmt: skip
+        if proc.returncode != 0 or not proc.stdout.startswith("OK"):
+            raise EmulatorError(
+                "writing the board's files into its filesystem failed (MicroPython's VfsFat): "
+                + (proc.stdout + proc.stderr).strip()[-400:]
+            )
+        return (d / "out.img").read_bytes()
+
+
+def _image_key(image):
+    return hashlib.sha256(image.data).hexdigest()[:16]
+
+
+def formatted(board, image, log=None):
+    """The partition as the image formats it on its first boot (cached, with what the image
+    printed meanwhile beside it: `first_boot_console`)."""
+    from host_emulator.f411.chip import F411
+
+    path = _cache_path(board, image)
+    if path.is_file() and path.stat().st_size == PART_SIZE and path.with_suffix(".txt").is_file():
+        return path.read_bytes()
+    if log:
+        log(f"f411: first boot of the {board.name} image on an erased flash (the port formats "
+            "its filesystem; cached)")  # fmt: skip
+    chip = F411(board, image)
+    out = bytearray()
+
+    def stdout(c):
+        out.extend(c.cpu.uc.mem_read(c.reg(0), c.reg(1)))
+
+    chip.hook("mp_hal_stdout_tx_strn", stdout)
+    prompt_at = None
+    while True:
+        chip.run_for_ms(50)
+        if prompt_at is None and out.endswith(b">>> "):
+            prompt_at = chip.clock.us()
+        if prompt_at is not None and chip.clock.us() - prompt_at > 6_000_000:
+            break  # the port writes its cached flash sector back after 5 s without writes
+        if chip.clock.us() > FORMAT_LIMIT_S * 1e6:
+            raise EmulatorError(f"the {board.name} image did not reach its REPL prompt within "
+                                f"{FORMAT_LIMIT_S} s of board time; it printed: "
+                                f"{out.decode(errors='replace')[-300:]!r}")  # fmt: skip
+    part = chip.flash_bytes(PART_BASE, PART_SIZE)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.with_suffix(".txt").write_bytes(bytes(out))
+    tmp = path.with_suffix(".tmp")
+    tmp.write_bytes(part)
+    tmp.replace(path)
+    return part
+
+
+def _cache_path(board, image):
+    return CACHE / f"{board.name}-{_image_key(image)}.img"
+
+
+def first_boot_console(board, image):
+    """What the image printed on its first boot (its banner and REPL prompt), formatting."""
+    formatted(board, image)
+    return _cache_path(board, image).with_suffix(".txt").read_text(errors="replace")
