@@ -342,7 +342,7 @@ class App:
         raw = self.raw
         raw.pack(self.counter, t0, self.gnss.pps_us, imu.raw_gyro, imu.raw_accel, imu.saturated,
                  self.rx, self.rx_n)  # fmt: skip
-        self._out.write(raw._mv[0 : raw.length])
+        self._out.write(raw.data, raw.length)
 
     def _gnss_read(self, n):
         """Up to _RX_LEN of the n bytes waiting on the GNSS UART into the parser; how many."""

@@ -68,11 +68,18 @@ CONFIG_PATH = "/flash/ins.cfg"
 
 
 class _Direct:
-    """The UART's own write, for a port without the DMA transmitter (poll does nothing)."""
+    """The UART's own write, for a port without the DMA transmitter (poll does nothing).
+    write(buf, n): buf's first n bytes (all of it when n < 0); a shorter part is a memoryview
+    slice, a heap object (the raw record's, when on)."""
 
     def __init__(self, uart):
-        self.write = uart.write
+        self._write = uart.write
         self.dropped = 0
+
+    def write(self, buf, n=-1):
+        if n < 0 or n == len(buf):
+            return self._write(buf)
+        return self._write(memoryview(buf)[0:n])
 
     def poll(self):
         pass

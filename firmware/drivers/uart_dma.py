@@ -3,8 +3,9 @@
 The stm32 port's `UART.write` puts each byte into the data register itself and spins until the
 last one has left (ports/stm32/uart.c, uart_tx_data): at 460800 baud the 52-byte frame holds the
 CPU 1.13 ms every tick, the extended frame 2.95 ms (measured on the emulated STM32F411:
-docs/image.md). Here the DMA moves the bytes while the loop goes on: `write(buf)` copies buf
-into one of two buffers and, when the stream is idle, starts it on what is queued; what comes
+docs/image.md). Here the DMA moves the bytes while the loop goes on: `write(buf, n)` copies
+buf's first n bytes into one of two buffers and, when the stream is idle, starts it on what is
+queued; what comes
 while it sends waits in the other buffer, started by the next `write` or `poll` (board.idle
 polls before every sleep, and the core wakes at least every millisecond). A write that does not
 fit the buffer is dropped whole (never half a frame) and counted in `dropped`.
@@ -18,6 +19,7 @@ start. Nothing here allocates: the addresses above 2**30 are module-level ints m
 everything else is a small int (stm.mem32 reads and writes, uctypes.addressof).
 """
 
+import kern
 import stm
 import uctypes
 from micropython import const
@@ -36,6 +38,16 @@ _DMAT = const(1 << 7)
 _EN = const(1)
 _CR = const(0x400 | 0x40 | 0x10000)  # MINC, memory to peripheral, medium priority
 BUF_BYTES = 512  # each of the two buffers: a tick's frame, extended frame and raw record
+
+
+def _copy_py(dst, off, src, n):
+    """n bytes of src into dst from dst[off]: the reference of the native `bytes_copy` (a
+    memoryview slice of src would be a heap object every tick)."""
+    for i in range(n):
+        dst[off + i] = src[i]
+
+
+_copy = kern.pick("bytes_copy", _copy_py)
 
 
 def supported(uart_id):
@@ -65,15 +77,19 @@ class DmaTx:
         m[self._cr] = 0  # the stream stopped
         m[cr3] = m[cr3] | _DMAT
 
-    def write(self, buf):
-        """Queue buf (sent in order after what is queued); the bytes queued, or 0 if it did not
-        fit (dropped)."""
-        n = len(buf)
+    def write(self, buf, n=-1):
+        """Queue buf's first n bytes (all of it when n < 0), sent in order after what is
+        queued; the bytes queued, or 0 if they did not fit (dropped)."""
+        if n < 0:
+            n = len(buf)
         k = self._n
         if k + n > self._size:
             self.dropped += n
             return 0
-        self._bufs[self._fill][k : k + n] = buf
+        if n == len(buf):
+            self._bufs[self._fill][k : k + n] = buf  # a stack slice: no heap object
+        else:
+            _copy(self._bufs[self._fill], k, buf, n)
         self._n = k + n
         self.poll()
         return n

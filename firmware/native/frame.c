@@ -158,6 +158,20 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     put_i32(buf, EXT_LEN - 4, (int32_t)crc32(buf, EXT_LEN - 4));
 }
 
+/* records._raw_seal_py: the CRC-32 of buf[0:n] into buf[n:n + 4] (the raw-input record's
+ * variable length: in Python a slice, a heap object every tick) */
+void navk_raw_seal(uint8_t *buf, int32_t n) {
+    put_i32(buf, n, (int32_t)crc32(buf, n));
+}
+
+/* drivers/uart_dma._copy_py: n bytes of src into dst from dst[off] (the DMA transmitter's
+ * queue; a memoryview slice would be a heap object every tick) */
+void navk_bytes_copy(uint8_t *dst, int32_t off, const uint8_t *src, int32_t n) {
+    for (int32_t i = 0; i < n; i++) {
+        dst[off + i] = src[i];
+    }
+}
+
 /* nav._nav_frame_py: the frame of the navigator's state in m (Navigator.mem), the attitude as
  * yaw, pitch, roll into m's ypr first; the fix's latitude and longitude from fields. */
 void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro,

@@ -48,6 +48,7 @@ class ParityResult:
     firmware_stats: dict = field(default_factory=dict)  # the firmware runtime's counters
     runtime: str = "cpython"  # where the firmware ran
     run_time_zeroed: bool = False  # extended frames compared with their run-time counters 0
+    clock_zeroed: bool = False  # raw-input records compared with their board times 0
     out_firmware: bytes = field(default=b"", repr=False)  # the two streams compared
     out_model: bytes = field(default=b"", repr=False)
 
@@ -67,6 +68,11 @@ class ParityResult:
                 f"{', '.join(records.EXT_TIMING_FIELDS)}, are the board's own: 0 in both "
                 f"streams before comparing; the firmware collected garbage "
                 f"{self.firmware_stats.get('app_gc_runs', '?')} times)"
+            )
+        if self.clock_zeroed and self.raw.counts != (0, 0):
+            lines.append(
+                "(the raw-input records' times, t0_us and pps_us, are the board's clock since its "
+                "reset: 0 in both streams before comparing)"
             )
         if self.identical:
             lines.append(f"PARITY: identical, {self.bytes_firmware} bytes")
@@ -129,10 +135,15 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
     fw_out, model_out = fw.out, model.out
     if zeroed:
         fw_out, model_out = stream.without_run_time(fw_out), stream.without_run_time(model_out)
+    clock = runtimes.get(runtime).own_clock
+    if clock:
+        fw_out = stream.without_board_clock(fw_out)
+        model_out = stream.without_board_clock(model_out)
     r = compare_streams(
         fw_out, model_out, cfg.output_every_ticks, cfg.ext_every_ticks, bool(cfg.raw_record)
     )
     r.run_time_zeroed = zeroed
+    r.clock_zeroed = clock
     r.tick_us = stim.tick_us
     r.wall_firmware_s = fw.wall_s
     r.wall_model_s = model.wall_s

@@ -191,6 +191,27 @@ def split(data):
     return out[FRAME_TYPE], out[EXT_TYPE], out[RAW_TYPE], err
 
 
+RAW_CLOCK_FIELDS = ("t0_us", "pps_us")  # the board's time.ticks_us in a raw-input record
+
+
+def without_board_clock(data):
+    """A copy of the stream with the raw-input records' times (RAW_CLOCK_FIELDS: the board's
+    ticks_us at the tick's start and at the PPS edge) set to 0 and their CRC renewed: a board,
+    or the image on the emulated STM32F411, reads a clock that started at its reset and runs
+    on through its start-up, which the emulators' virtual clock and the model do not share.
+    What the record says about the tick (the registers read, the GNSS bytes) stays."""
+    out = bytearray(data)
+    for t, i, end in _cuts(data):
+        if t is None:
+            break
+        if t == RAW_TYPE:
+            for name in RAW_CLOCK_FIELDS:
+                at = i + records.RAW_OFFSETS[name]
+                out[at : at + 4] = bytes(4)
+            out[i:end] = records.seal(out[i : end - records.CRC_LEN])
+    return bytes(out)
+
+
 def without_run_time(data):
     """A copy of the stream with the board's run-time counters of every extended frame
     (records.EXT_TIMING_FIELDS: tick times, overruns, gc_runs; the overrun cause, and the

@@ -66,6 +66,9 @@ class Runtime:
     # its extended frames carry run-time counters of its own (garbage collections as on the
     # board), which the model cannot know: parity compares them with those counters zeroed
     own_run_time: bool = False
+    # its raw-input records carry a clock of its own (the board's ticks_us from its reset):
+    # parity compares them with those times zeroed
+    own_clock: bool = False
 
     def run(self, stim, workdir, config_overrides=None, progress=None, kernels=None,
             board=None):  # fmt: skip
@@ -103,7 +106,7 @@ RUNTIMES = {
                 own_run_time=True),
         Runtime("f411", "the image itself on an emulated STM32F411 (Unicorn), its peripherals "
                 "timed; cycles per tick", True, False, True, "host_emulator.runtimes.f411",
-                own_run_time=True),
+                own_run_time=True, own_clock=True),
         Runtime("model", "the NumPy float32 model of the firmware (the parity oracle)", True,
                 False, False, "host_emulator.runtimes.model"),
     )

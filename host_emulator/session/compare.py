@@ -15,7 +15,7 @@ from host_emulator.proto.records import CRC_LEN, EXT_OFFSETS, RAW_OFFSETS
 from host_emulator.session.walk import TICK_US
 
 LABELS = ("recorded", "replayed")
-RAW_TIME_FIELDS = ("t0_us", "pps_us")
+RAW_TIME_FIELDS = stream.RAW_CLOCK_FIELDS  # the board's own clock
 VM_FLOAT_STEPS = 2  # mpy_unix: frame attitude/velocity/position within this many steps
 _TIMING = slice(EXT_OFFSETS["worst_tick_us"], EXT_OFFSETS["p_diag"])
 _EXT_INT_TAIL = slice(EXT_OFFSETS["origin_lat_e7"], EXT_OFFSETS["origin_h_m"])  # lat, lon, tick

@@ -71,3 +71,20 @@ def test_the_twins_wiring_is_the_firmwares_pin_table():
             "rs485_de": bd.rs485_de, "led": bd.led,
         }, name  # fmt: skip
     assert board_py.DEFAULT_BOARD == f411.DEFAULT_BOARD
+
+
+def test_a_recorded_session_replays_on_the_image(tmp_path):
+    """session replay --runtime f411: a board's recording (raw records on; here the CPython
+    runtime's output stands for the board's) rebuilt into its input and run on the image: the
+    same stream, the board's own clock in the raw records aside."""
+    from host_emulator.proto import config as board_config
+    from host_emulator.runtimes import cpython
+    from host_emulator.session import record, replay
+
+    sim = board_input.simulate("urban_drive", 3.0, seed=0).stimulus
+    values = board_config.run_values(sim, {"raw_record": 1})
+    (tmp_path / "capture.bin").write_bytes(cpython.run(sim, tmp_path / "b", {"raw_record": 1}).out)
+    record.record(tmp_path / "capture.bin", tmp_path / "drive.ins", config=values)
+    res = replay.replay(tmp_path / "drive.ins", tmp_path / "r", runtime="f411")
+    assert res.identical, res.summary()
+    assert res.run.runtime == "f411" and len(res.run.per_tick) == len(sim)

@@ -209,3 +209,38 @@ def test_the_emulated_cortex_m4f_gives_the_firmware_this_images_heap(weact_image
 def test_the_image_has_no_fused_multiply_add(weact_image):
     """Built with tools.toolchain.C_FLOAT_FLAGS, as the emulated Cortex-M4F is."""
     assert toolchain.fused_multiply_adds(weact_image[0]["elf"]) == []
+
+
+def _git(*args, cwd):
+    import subprocess
+
+    subprocess.run(["git", *args], cwd=cwd, check=True, capture_output=True,
+                   env={"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME":
+                        "t", "GIT_COMMITTER_EMAIL": "t@t", "PATH": "/usr/bin:/bin"})  # fmt: skip
+
+
+def test_the_build_pins_micropythons_version_whatever_repository_holds_the_tree(tmp_path):
+    """py/makeversionhdr.py names a build after `git describe` of the repository the tree is
+    in: a copy vendored inside another project would say that project's commit. The build
+    passes the tree's own version (and its own commit only when the tree is a repository of
+    its own)."""
+    from tools import toolchain
+
+    src = toolchain.micropython_dir() / "py" / "mpconfig.h"
+    outer = tmp_path / "project"
+    tree = outer / "vendor" / "micropython"
+    (tree / "py").mkdir(parents=True)
+    (tree / "py" / "mpconfig.h").write_text(src.read_text())
+    _git("init", "-q", cwd=outer)
+    _git("add", ".", cwd=outer)
+    _git("commit", "-q", "-m", "x", cwd=outer)
+    _git("tag", "v9.9.9", cwd=outer)
+    env = toolchain.version_env(tree)
+    assert env["MICROPY_GIT_TAG"] == "v1.28.0"  # not the outer repository's v9.9.9
+    assert "MICROPY_GIT_HASH" not in env
+    _git("init", "-q", cwd=tree)
+    _git("add", ".", cwd=tree)
+    _git("commit", "-q", "-m", "x", cwd=tree)
+    env = toolchain.version_env(tree)
+    assert env["MICROPY_GIT_TAG"] == "v1.28.0"
+    assert len(env["MICROPY_GIT_HASH"]) >= 7

@@ -150,7 +150,8 @@ class World:
             k = max(self._tick_k, 0)
             if progress and self.error is None:
                 progress(min(k + 1, n), n)
-        self._account(n)
+        if self.error is None:
+            self._account(n)
 
     def _inputs(self, k):
         """Record k's GNSS bytes and PPS edge, scheduled in (T_(k-1), T_k]."""
