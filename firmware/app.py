@@ -58,14 +58,16 @@ _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 H
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
 _E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
-# gc.mem_free() scans the heap (~250,000 instructions on the board, more than a whole native
-# tick). With the native kernels an aligning tick allocates only when a fix is screened
-# (nav_align._align_fix, Python floats; measured: tests/runtimes/test_m4f.py), so while
-# aligning the heap is checked in the tick after a fix's, at most once every _HEAP_TICKS,
-# against the low water plus what the fixes until the next check may allocate; while
-# navigating only before a step that allocates (_heap_room). The Python kernels: every tick.
-_ALIGN_BYTES = const(6 * 1024)
-_HEAP_TICKS = const(200)
+# gc.mem_free() scans the heap: ~160,000 instructions on the board, 4 ms at 96 MHz (the image
+# on the emulated STM32F411), so a tick that checks runs past the next tick's moment. With the
+# native kernels an aligning tick allocates only when a fix is screened (nav_align._align_fix,
+# Python floats: 32 bytes a fix, once 848; tests/runtimes/test_m4f.py holds them to
+# _FIX_BYTES), so a check that finds F bytes free leaves room for (F - low water) / _FIX_BYTES
+# fixes, and the heap is checked again only after them, in the tick after a fix's (on a fresh
+# heap one check in about eight fixes, where a check every second made 47 late ticks in the
+# 76 s urban_drive stands still); while navigating only before a step that allocates
+# (_heap_room). The Python kernels: every tick.
+_FIX_BYTES = const(1024)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -95,6 +97,11 @@ _EF_LON0_DEG = const(10)
 _EF_LON0_FRAC = const(11)
 _EF_TICK = const(12)
 _EF_CAUSES = const(13)
+_RF_COUNTER = const(0)  # records.RF_*: the raw-input record's int fields
+_RF_T0_US = const(1)
+_RF_PPS_US = const(2)
+_RF_SATURATED = const(3)
+_RF_N = const(4)
 _FI_LAT_E7 = const(0)  # nav.FI_*: a fix in ints, Navigator.fix_in
 _FI_LON_DEG = const(1)
 _FI_LON_FRAC = const(2)
@@ -170,7 +177,7 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
-        self._heap_tick = 0  # the navigator's tick at the last aligning heap check
+        self._heap_left = 0  # bytes the screened fixes may still allocate before a heap check
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame(self.nav.cv)
@@ -214,8 +221,10 @@ class App:
             "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
         )
         # collected before the timer starts: a collection takes ~2 ticks on the board, and
-        # after it the first two ticks overran (measured on the emulated STM32F411)
+        # after it the first two ticks overran (measured on the emulated STM32F411); the room
+        # it leaves is counted here, while a heap scan delays no tick (_account)
         gc.collect()
+        self._heap_left = gc.mem_free() - _GC_LOW_WATER
         if self._native:
             gc.disable()
         b.on_pps(self.gnss.pps_isr)
@@ -324,24 +333,34 @@ class App:
                 # (_heap_room); so nothing is checked here, not even when navigation starts
                 return
             c = self.nav.ctl
-            t = c[_C_TICK]
-            if t - 1 != c[_C_LAST_FIX_TICK] or t - self._heap_tick < _HEAP_TICKS:
-                return  # the last check left room for the fixes until this one
-            self._heap_tick = t
-            low = _GC_LOW_WATER + _ALIGN_BYTES
-        self._heap_room(low)
+            if c[_C_TICK] - 1 != c[_C_LAST_FIX_TICK]:
+                return  # an aligning tick allocates only when a fix is screened
+            left = self._heap_left - _FIX_BYTES
+            if left >= 0:
+                self._heap_left = left  # the last check left room for this fix
+                return
+            low = _GC_LOW_WATER + _FIX_BYTES
+        self._heap_left = self._heap_room(low) - _GC_LOW_WATER
 
     def _heap_room(self, low=_GC_LOW_WATER):
         """At least `low` bytes of heap free (automatic collection is off); the navigator's
-        heap_check, before a navigating step that allocates."""
-        if gc.mem_free() < low:
+        heap_check, before a navigating step that allocates. The bytes free after it."""
+        free = gc.mem_free()
+        if free < low:
             gc.collect()
             self.gc_runs += 1
+            free = gc.mem_free()
+        return free
 
     def _send_raw(self, imu, t0):
         raw = self.raw
-        raw.pack(self.counter, t0, self.gnss.pps_us, imu.raw_gyro, imu.raw_accel, imu.saturated,
-                 self.rx, self.rx_n)  # fmt: skip
+        f = raw.fields
+        f[_RF_COUNTER] = self.counter
+        f[_RF_T0_US] = t0
+        f[_RF_PPS_US] = self.gnss.pps_us
+        f[_RF_SATURATED] = 1 if imu.saturated else 0
+        f[_RF_N] = self.rx_n
+        raw.pack(imu.raw_gyro, imu.raw_accel, self.rx)
         self._out.write(raw.data, raw.length)
 
     def _gnss_read(self, n):

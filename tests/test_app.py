@@ -101,8 +101,8 @@ def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():
 
     frame_copies = {n for n in vars(app) if n.startswith("_F_")}
     assert frame_copies == {"_" + n for n in vars(frame) if n.startswith("F_")}
-    ext_copies = {n for n in vars(app) if n.startswith("_EF_")}
-    assert ext_copies == {"_" + n for n in vars(records) if n.startswith("EF_")}
+    ext_copies = {n for n in vars(app) if n.startswith(("_EF_", "_RF_"))}
+    assert ext_copies == {"_" + n for n in vars(records) if n.startswith(("EF_", "RF_"))}
     for name in frame_copies | ext_copies:
         source = frame if name.startswith("_F_") else records
         assert getattr(app, name) == getattr(source, name[1:]), name

@@ -25,10 +25,10 @@ Raw-input record, type 0x92 (every tick when `raw_record`; what a bit-exact repl
 
 Allocation: the extended frame is one native kernel call (`ext_pack`, CRC included) that
 allocates nothing; its Python reference boxes floats and binascii.crc32's result (a long int
-on the board for three values in four). So is the raw record's seal (`raw_seal`: its CRC over
-its variable length, which in Python takes a slice: a heap object every tick, and with the
-garbage collector off while navigating the heap ran out after ~2 s on the board's image:
-measured on the emulated STM32F411).
+on the board for three values in four). So is the raw record (`raw_pack`: its CRC over its
+variable length takes a slice in Python, a heap object every tick; with the garbage collector
+off while navigating, the heap ran out after ~2 s on the board's image: measured on the
+emulated STM32F411).
 """
 
 import struct
@@ -64,6 +64,13 @@ EF_LON0_FRAC = const(11)
 EF_TICK = const(12)
 EF_CAUSES = const(13)
 NEF = const(14)
+# The int fields of the raw-input record (`RawRecord.fields`; firmware/native/layout.h repeats them)
+RF_COUNTER = const(0)
+RF_T0_US = const(1)  # the tick's start, time.ticks_us
+RF_PPS_US = const(2)  # the parser's PPS edge time
+RF_SATURATED = const(3)  # 1 if the IMU saturated
+RF_N = const(4)  # GNSS bytes fed to the parser this tick
+NRF = const(5)
 
 
 def _head(buf, rtype, n, counter):
@@ -111,13 +118,25 @@ def _ext_pack_py(d, fi, p, x, coef, cv):
 ext_pack = kern.pick("ext_pack", _ext_pack_py)
 
 
-def _raw_seal_py(d, n):
-    """The CRC of d[0:n] into d[n:n + 4]; the reference of the native `raw_seal`, which
-    allocates nothing (the slice here is a heap object on the board)."""
-    seal(d, memoryview(d)[0:n], n)
+def _raw_pack_py(d, fi, raw_gyro, raw_accel, rx):
+    """The raw-input record into d from its int fields fi (RF_*), the data registers as read
+    and the GNSS bytes rx[0:fi[RF_N]]; the reference of the native `raw_pack`, which also takes
+    the CRC without allocating (the slice here is a heap object on the board)."""
+    n = fi[RF_N]
+    _head(d, RAW_TYPE, 23 + n, fi[RF_COUNTER])
+    frame.put_i32(d, 4, fi[RF_T0_US])
+    frame.put_i32(d, 8, fi[RF_PPS_US])
+    for i in range(6):
+        d[12 + i] = raw_gyro[i]
+        d[18 + i] = raw_accel[i]
+    d[24] = 1 if fi[RF_SATURATED] else 0
+    d[25] = n
+    for i in range(n):
+        d[26 + i] = rx[i]
+    seal(d, memoryview(d)[0 : 26 + n], 26 + n)
 
 
-raw_seal = kern.pick("raw_seal", _raw_seal_py)
+raw_pack = kern.pick("raw_pack", _raw_pack_py)
 
 
 class ExtFrame:
@@ -136,23 +155,14 @@ class ExtFrame:
 
 
 class RawRecord:
-    """Preallocated raw-input record of variable length (up to RAW_MAX_GNSS GNSS bytes)."""
+    """Preallocated raw-input record of variable length (up to RAW_MAX_GNSS GNSS bytes): fill
+    `fields` (RF_*), then `pack`; data[0:length] is what to send."""
 
     def __init__(self):
         self.data = bytearray(RAW_MAX_LEN)
-        self.length = 0  # of the record in data: what to send
+        self.fields = array("i", bytes(4 * NRF))
+        self.length = 0
 
-    def pack(self, counter, t0_us, pps_us, raw_gyro, raw_accel, saturated, rx, n):
-        d = self.data
-        _head(d, RAW_TYPE, 23 + n, counter)
-        frame.put_i32(d, 4, t0_us)
-        frame.put_i32(d, 8, pps_us)
-        for i in range(6):
-            d[12 + i] = raw_gyro[i]
-            d[18 + i] = raw_accel[i]
-        d[24] = 1 if saturated else 0
-        d[25] = n
-        for i in range(n):
-            d[26 + i] = rx[i]
-        raw_seal(d, 26 + n)
-        self.length = 30 + n
+    def pack(self, raw_gyro, raw_accel, rx):
+        raw_pack(self.data, self.fields, raw_gyro, raw_accel, rx)
+        self.length = 30 + self.fields[RF_N]

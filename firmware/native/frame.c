@@ -158,10 +158,28 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     put_i32(buf, EXT_LEN - 4, (int32_t)crc32(buf, EXT_LEN - 4));
 }
 
-/* records._raw_seal_py: the CRC-32 of buf[0:n] into buf[n:n + 4] (the raw-input record's
- * variable length: in Python a slice, a heap object every tick) */
-void navk_raw_seal(uint8_t *buf, int32_t n) {
-    put_i32(buf, n, (int32_t)crc32(buf, n));
+/* records._raw_pack_py: the raw-input record of a tick from its int fields (RF_*), the data
+ * registers as read and the GNSS bytes fed to the parser, CRC included (in Python the CRC
+ * over the record's variable length takes a slice: a heap object every tick) */
+void navk_raw_pack(uint8_t *buf, const int32_t *fields, const uint8_t *raw_gyro,
+    const uint8_t *raw_accel, const uint8_t *rx) {
+    int32_t n = fields[RF_N];
+    buf[0] = 0xEB;
+    buf[1] = 0x92;
+    buf[2] = (uint8_t)(23 + n);
+    buf[3] = (uint8_t)(fields[RF_COUNTER] & 0xFF);
+    put_i32(buf, 4, fields[RF_T0_US]);
+    put_i32(buf, 8, fields[RF_PPS_US]);
+    for (int i = 0; i < 6; i++) {
+        buf[12 + i] = raw_gyro[i];
+        buf[18 + i] = raw_accel[i];
+    }
+    buf[24] = fields[RF_SATURATED] ? 1 : 0;
+    buf[25] = (uint8_t)n;
+    for (int32_t i = 0; i < n; i++) {
+        buf[26 + i] = rx[i];
+    }
+    put_i32(buf, 26 + n, (int32_t)crc32(buf, 26 + n));
 }
 
 /* drivers/uart_dma._copy_py: n bytes of src into dst from dst[off] (the DMA transmitter's

@@ -130,6 +130,13 @@
 #define EF_TICK 12
 #define EF_CAUSES 13
 #define NEF 14
+/* records.py: the int fields of the raw-input record, RawRecord.fields */
+#define RF_COUNTER 0
+#define RF_T0_US 1
+#define RF_PPS_US 2
+#define RF_SATURATED 3
+#define RF_N 4
+#define NRF 5
 /* drivers/bmi055.py: the counts that mean over range */
 #define BMI055_GYRO_SAT_HI 32766
 #define BMI055_GYRO_SAT_LO -32767

@@ -26,7 +26,7 @@ void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro, c
 void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro, const int16_t *accel, float *m);
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x, const float *coef,
     const float *cv);
-void navk_raw_seal(uint8_t *buf, int32_t n);
+void navk_raw_pack(uint8_t *buf, const int32_t *fields, const uint8_t *raw_gyro, const uint8_t *raw_accel, const uint8_t *rx);
 void navk_bytes_copy(uint8_t *dst, int32_t off, const uint8_t *src, int32_t n);
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid);
 void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi);

@@ -54,6 +54,8 @@ RULES = (
     ("NF", "frame", "NF"),
     ("EF_", "records", "EF_"),
     ("NEF", "records", "NEF"),
+    ("RF_", "records", "RF_"),
+    ("NRF", "records", "NRF"),
     ("GEO_", "geo", ""),
     ("BMI055_", "drivers.bmi055", ""),
     ("NMEA_MAXLEN", "drivers.gnss", "MAXLEN"),
