@@ -8,10 +8,15 @@ by phase, the emulation set apart, garbage collection, time per tick at 100 MHz 
 range, overruns) together with the heap, the start-up and the firmware image's budget, to
 FILE (default docs/benchmarks/board.md; the numbers in a .json and a plot beside it).
 
-The emulated board runs at about real time, so the default (urban_drive, 600 s, two
-configurations on two processes) takes about 11 minutes. It is a benchmark: the design budget
-(DESIGN.md 4: p99 <= 50,000 and max <= 100,000 instructions per tick, no gc.collect while
-navigating) is reported against, not asserted.
+Beside it, the image itself on the emulated STM32F411 (runtimes/f411) over the same drive,
+raw-input records off and on: the time each tick takes at the image's 96 MHz, the port's
+drivers, interrupts and DMA included (bench/board_time.py).
+
+The emulated Cortex-M4F runs at about real time, the emulated STM32F411 at 0.4-1x, so the
+default (urban_drive, 600 s, four runs on two processes) takes about 35 minutes. It is a
+benchmark: the design budget (DESIGN.md 4: p99 <= 50,000 and max <= 100,000 instructions per
+tick, no gc.collect while navigating) and the image's targets (a navigating tick at most 2.5 ms
+at p99 and 4 ms at most, no tick late or missed) are reported against, not asserted.
 """
 
 import json
@@ -33,6 +38,12 @@ VARIANTS = (
     ("default (coning off, 1 slice per tick)", {}),
     ("coning on, 2 slices per tick", {"coning": 1, "slices_per_tick": 2}),
 )
+# the image itself on the emulated STM32F411 (runtimes/f411): the default configuration with
+# the raw-input records off and on (the output's heaviest load)
+TWIN_VARIANTS = (
+    ("image, raw_record off", {}),
+    ("image, raw_record on", {"raw_record": 1}),
+)
 # each variant's configuration in `make bench-nav` (docs/benchmarks/navigation.json), whose
 # accuracy the report sets beside the cost
 NAV_PROFILES = {
@@ -46,10 +57,10 @@ BUDGET = {"mean": 30_000, "p99": 50_000, "max": 100_000}
 DEFAULT_OUT = REPO_DIR / "docs" / "benchmarks" / "board.md"
 
 
-def _one(task):
-    """One variant on the m4f runtime: (label, overrides, scenario, duration) -> result dict."""
-    label, overrides, scenario, duration = task
-    from host_emulator.runtimes import m4f
+def _run_runtime(runtime, label, overrides, scenario, duration):
+    """(stimulus, FirmwareRun) of one configuration on `runtime`, progress every 10 %; or
+    (stimulus, the error's message): what the board would do is a finding."""
+    from host_emulator import runtimes
     from host_emulator.sim import board_input
 
     stim = board_input.simulate(scenario, duration, 0).stimulus
@@ -64,10 +75,18 @@ def _one(task):
 
     try:
         with tempfile.TemporaryDirectory(prefix="bench-board-") as d:
-            fw = m4f.run(stim, pathlib.Path(d), overrides, progress)
-    except EmulatorError as e:  # a firmware exception on the board's heap is a finding
+            return stim, runtimes.get(runtime).run(stim, pathlib.Path(d), overrides, progress)
+    except EmulatorError as e:
         print(f"  {label}: failed: {e}", flush=True)
-        return {"label": label, "overrides": overrides, "error": str(e)}
+        return stim, str(e)
+
+
+def _one(task):
+    """One variant on the m4f runtime: (label, overrides, scenario, duration) -> result dict."""
+    label, overrides, scenario, duration = task
+    stim, fw = _run_runtime("m4f", label, overrides, scenario, duration)
+    if isinstance(fw, str):  # e.g. a firmware exception on the board's heap
+        return {"label": label, "overrides": overrides, "error": fw}
     return {
         "label": label,
         "overrides": overrides,
@@ -80,6 +99,33 @@ def _one(task):
         "per_tick_state": fw.per_tick["state"].tolist(),
         "per_tick_collected": fw.per_tick["collected"].tolist(),
     }
+
+
+def _one_twin(task):
+    """One configuration on the f411 runtime (the image on the emulated STM32F411)."""
+    label, overrides, scenario, duration = task
+    from host_emulator.bench import board_time
+
+    stim, fw = _run_runtime("f411", label, overrides, scenario, duration)
+    if isinstance(fw, str):  # e.g. the chip reset by its watchdog
+        return {"label": label, "overrides": overrides, "error": fw, "twin": True}
+    states = board_time.states(fw.out, fw.ticks)
+    hz = fw.stats["hclk_hz"]
+    return {
+        "label": label,
+        "overrides": overrides,
+        "twin": True,
+        "ticks": fw.ticks,
+        "wall_s": fw.wall_s,
+        "time": board_time.summary(fw.per_tick, states, hz, fw.stats["cpi"], stim.tick_us),
+        "run": {k: fw.stats.get(k) for k in board_time.RUN_KEYS},
+        "per_tick_busy_ms": (fw.per_tick["busy_cycles"] * 1000.0 / hz).round(4).tolist(),
+        "per_tick_state": states.tolist(),
+    }
+
+
+def _run_task(task):
+    return _one_twin(task[1:]) if task[0] == "f411" else _one(task[1:])
 
 
 def image_budget():
@@ -97,7 +143,9 @@ def image_budget():
     return lines, None
 
 
-def _plot(results, path):
+def _per_tick_figure(results, path, key, scale, ylabel, xlabel, title, decorate):
+    """One panel per run: results[i][key] per tick (x scale), aligning and navigating ticks in
+    their colours; decorate(ax, run) adds the run's lines."""
     if not results:
         return
     import matplotlib
@@ -108,23 +156,131 @@ def _plot(results, path):
     fig, axes = plt.subplots(len(results), 1, figsize=(10, 3.2 * len(results)), sharex=True)
     axes = np.atleast_1d(axes)
     for ax, r in zip(axes, results, strict=True):
-        fw = np.array(r["per_tick_fw"]) / 1e3
+        y = np.array(r[key]) * scale
         state = np.array(r["per_tick_state"])
-        t = np.arange(len(fw)) * 0.005
+        t = np.arange(len(y)) * 0.005
         for s, name, color in ((1, "aligning", "C1"), (2, "navigating", "C0")):
             m = state == s
-            ax.plot(t[m], fw[m], ".", ms=1, color=color, label=name)
-        gc = np.array(r["per_tick_collected"]) > 0
-        ax.plot(t[gc], fw[gc], ".", ms=2, color="C3", label="tick with gc.collect")
-        ax.axhline(BUDGET["p99"] / 1e3, color="k", ls="--", lw=0.8, label="budget p99 50k")
-        ax.set_ylabel("thousand instructions")
+            ax.plot(t[m], y[m], ".", ms=1, color=color, label=name)
+        decorate(ax, r, t, y)
+        ax.set_ylabel(ylabel)
         ax.set_title(r["label"])
         ax.legend(loc="upper right", markerscale=6, fontsize=8)
-    axes[-1].set_xlabel("time since power-on, s")
-    fig.suptitle("Firmware instructions per 5 ms tick on the emulated Cortex-M4F")
+    axes[-1].set_xlabel(xlabel)
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def _plot(results, path):
+    def decorate(ax, r, t, y):
+        gc = np.array(r["per_tick_collected"]) > 0
+        ax.plot(t[gc], y[gc], ".", ms=2, color="C3", label="tick with gc.collect")
+        ax.axhline(BUDGET["p99"] / 1e3, color="k", ls="--", lw=0.8, label="budget p99 50k")
+
+    _per_tick_figure(results, path, "per_tick_fw", 1e-3, "thousand instructions",
+                     "time since power-on, s",
+                     "Firmware instructions per 5 ms tick on the emulated Cortex-M4F",
+                     decorate)  # fmt: skip
+
+
+def _plot_twin(results, path):
+    from host_emulator.bench import board_time
+
+    def decorate(ax, r, t, y):
+        for key, ls in (("p99", "--"), ("max", ":")):
+            v = board_time.TARGET_MS[key]
+            ax.axhline(v, color="k", ls=ls, lw=0.8, label=f"target {key} {v:g} ms")
+        ax.axhline(5.0, color="C3", lw=0.8, label="the 5 ms tick")
+
+    _per_tick_figure(results, path, "per_tick_busy_ms", 1.0, "ms", "time since the first tick, s",
+                     "Busy time per 5 ms tick of the image on the emulated STM32F411 (96 MHz)",
+                     decorate)  # fmt: skip
+
+
+def twin_lines(twin, m4f_results):
+    """The section on the image executed on the emulated STM32F411."""
+    from host_emulator.bench import board_time
+
+    if not twin:
+        return []
+    ok = [r for r in twin if "error" not in r]
+    cpi = ok[0]["time"]["cpi"] if ok else 0
+    lines = [
+        "",
+        "## The image on the emulated STM32F411",
+        "",
+        "The same drive on `--runtime f411` (docs/image.md): the image `make image` builds "
+        "(WEACT_F411_BLACKPILL), executed instruction by instruction on the emulated STM32F411 "
+        "with deploy's main.py, ins.cfg and navk.mpy on its filesystem: MicroPython's own "
+        "drivers, interrupts and DMA run as on the board, on the clock the image sets (96 MHz). "
+        f"Time = instructions x CPI {cpi:g} (cpi.md's highest) + waits + 12 cycles per "
+        "exception entry and return. Busy: from the tick's timer interrupt to the loop's return "
+        "to WFI (the IMU read by SPI and DMA, the NMEA bytes, the navigator, the frames handed "
+        "to the DMA); late: still busy at the next tick's moment (a tick is missed only when "
+        "two periods pass: the firmware's own count). Instructions: everything the core "
+        "executed in the tick's 5 ms, of which in interrupt handlers and in the port's UART and "
+        "SPI/DMA C code; polled waits: what the core spent spinning on a peripheral's flag.",
+        "",
+        "| configuration | phase | ticks | busy ms mean | p50 | p99 | max | late | over 4 ms | "
+        "instructions mean / p99 | in interrupts | UART code | SPI/DMA code | polled waits ms "
+        "mean / max |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in ok:
+        for phase, ph in r["time"]["phases"].items():
+            b = ph["busy_ms"]
+            top = ">= 5 (late)" if ph["late_ticks"] else f"{b['max']:.2f}"
+            lines.append(
+                f"| {r['label']} | {phase} | {ph['ticks']} | {b['mean']:.2f} | {b['p50']:.2f} | "
+                f"{b['p99']:.2f} | {top} | {ph['late_ticks']} | {ph['over_4ms']} | "
+                f"{ph['instr']['mean']:,.0f} / {ph['instr']['p99']:,.0f} | "
+                f"{ph['handler_instr']['mean']:,.0f} | {ph['uart_instr']['mean']:,.0f} | "
+                f"{ph['spi_dma_instr']['mean']:,.0f} | {ph['poll_wait_ms']['mean']:.3f} / "
+                f"{ph['poll_wait_ms']['max']:.3f} |"
+            )
+    for r in twin:
+        if "error" in r:
+            lines += ["", f"**{r['label']}: the run failed:**", "", "```", r["error"], "```"]
+    if not ok:
+        return lines
+    lines += ["", "![busy time per tick](board_time.png)", "", "### Against the targets", ""]
+    t = board_time.TARGET_MS
+    for r in ok:
+        nav = r["time"]["phases"].get("navigating")
+        run = r["run"]
+        if nav is None:
+            lines.append(f"- {r['label']}: never navigated.")
+            continue
+        b = nav["busy_ms"]
+        met = [b["p99"] <= t["p99"], b["max"] <= t["max"] and not nav["late_ticks"],
+               not run["overruns"] and not run["late_ticks"]]  # fmt: skip
+        lines.append(
+            f"- {r['label']}: navigating busy p99 {b['p99']:.2f} ms (target <= {t['p99']:g}), "
+            f"max {b['max']:.2f} ms (<= {t['max']:g}); {run['overruns']} ticks missed and "
+            f"{run['late_ticks']} late in the whole run (target 0); the watchdog fed at most "
+            f"{run['watchdog_longest_gap_ms']:.1f} ms apart (timeout "
+            f"{run['watchdog_timeout_ms']:g} ms). "
+            + ("Met." if all(met) else f"Not met ({len(met) - sum(met)} of {len(met)}).")
+        )
+    m4f_nav = [r["cost"]["phases"]["navigating"]["firmware_instr"]["mean"]
+               for r in m4f_results if "error" not in r
+               and "navigating" in r["cost"]["phases"]][:1]  # fmt: skip
+    nav0 = ok[0]["time"]["phases"].get("navigating")
+    if m4f_nav and nav0:
+        lines += [
+            "",
+            f"Beside the emulated Cortex-M4F above: a navigating tick of the default "
+            f"configuration there counts {m4f_nav[0]:,.0f} firmware instructions (the emulated "
+            f"peripherals left out); the image executes {nav0['instr']['mean']:,.0f} in the "
+            "tick's 5 ms: the port's C drivers, the interrupts (SysTick every millisecond, the "
+            "UART's every character, the DMA's), the loop's wake-ups between ticks and the DMA "
+            "transmitter's Python.",
+        ]
+    lines += ["", "Wall time of the emulation: "
+              + ", ".join(f"{r['label']} {r['wall_s']:.0f} s" for r in ok) + "."]  # fmt: skip
+    return lines
 
 
 def _ticks(n):
@@ -190,7 +346,8 @@ def _overruns(t):
     return f"{n} ({100 * t['overrun_share']:.3g} %)" if n else "0"
 
 
-def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_JSON):
+def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_JSON,
+             twin=()):  # fmt: skip
     low, central, high, source = board_cost.cpi_range()
     lines = [
         "# What a tick costs the board",
@@ -276,6 +433,7 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
     else:
         lines.append("The firmware never navigated in this run: no navigating figures.")
     lines += accuracy_cost_lines(results, nav_json)
+    lines += twin_lines(list(twin), results)
     h = results[0]["heap"]
     own_live = h["live_after_start"] - h["emulator_bytes"] - h["ballast_bytes"] - h["system_bytes"]
     lines += [
@@ -332,35 +490,46 @@ def main(argv=None):
         return 2
 
     def command():
+        from host_emulator.runtimes import f411
         from host_emulator.runtimes.m4f import build as m4f_build
         from host_emulator.sim import trajectory
 
         m4f_build.build()  # once, before the parallel runs
+        f411.image_files(f411.DEFAULT_BOARD, print)  # likewise the image
         dur = duration or trajectory.SCENARIOS[args.scenario].default_duration_s
         print(f"bench-board: {args.scenario} {dur:g} s on the emulated Cortex-M4F, "
-              f"{len(VARIANTS)} configurations (about real time each)")  # fmt: skip
-        tasks = [(label, ov, args.scenario, dur) for label, ov in VARIANTS]
+              f"{len(VARIANTS)} configurations (about real time each), and the image on the "
+              f"emulated STM32F411, {len(TWIN_VARIANTS)} configurations (0.4-1x real time "
+              "each)")  # fmt: skip
+        tasks = [("f411", label, ov, args.scenario, dur) for label, ov in TWIN_VARIANTS]
+        tasks += [("m4f", label, ov, args.scenario, dur) for label, ov in VARIANTS]
         with ProcessPoolExecutor(max_workers=min(args.jobs, len(tasks))) as ex:
-            results = list(ex.map(_one, tasks))
+            done = list(ex.map(_run_task, tasks))
+        twin = [r for r in done if r.get("twin")]
+        results = [r for r in done if not r.get("twin")]
         budget, why = image_budget()
         cmd = "python -m host_emulator bench-board" + (f" --scenario {args.scenario}"
               if args.scenario != "urban_drive" else "") + (f" --duration {dur:g}"
               if duration else "")  # fmt: skip
         out = pathlib.Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
-        text = markdown(results, args.scenario, dur, budget, why, cmd)
+        text = markdown(results, args.scenario, dur, budget, why, cmd, twin=twin)
         out.write_text(text)
         _plot([r for r in results if "error" not in r], out.with_name("board_ticks.png"))
+        _plot_twin([r for r in twin if "error" not in r], out.with_name("board_time.png"))
         slim = [{k: v for k, v in r.items() if not k.startswith("per_tick")} for r in results]
+        twin_slim = [{k: v for k, v in r.items() if not k.startswith("per_tick")} for r in twin]
         out.with_suffix(".json").write_text(
             json.dumps(
-                {"scenario": args.scenario, "duration_s": dur, "results": slim, "image": budget},
+                {"scenario": args.scenario, "duration_s": dur, "results": slim,
+                 "image_on_f411": twin_slim, "image": budget},
                 indent=2,
             )
             + "\n"  # fmt: skip
         )
         print(text)
-        print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_name('board_ticks.png')}")
+        print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_name('board_ticks.png')}, "
+              f"{out.with_name('board_time.png')}")  # fmt: skip
         return 0
 
     return cli_args.run_reporting(command)

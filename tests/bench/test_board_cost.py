@@ -124,3 +124,44 @@ def test_the_page_sets_each_configuration_s_accuracy_beside_its_cost(tmp_path, m
     assert "`make bench-nav` writes them" in "\n".join(
         board.accuracy_cost_lines([result], tmp_path / "x")
     )
+
+
+def _twin_ticks(busy_ms, states, late=()):
+    from host_emulator.runtimes.f411 import PER_TICK
+
+    t = np.zeros(len(busy_ms), PER_TICK)
+    t["busy_cycles"] = (np.asarray(busy_ms) * 96_000).astype(np.int64)
+    t["instr"] = 50_000
+    t["handler_instr"] = 1_500
+    t["late"][list(late)] = 1
+    return t, np.asarray(states, np.uint8)
+
+
+def test_the_images_time_per_tick_is_stated_against_its_targets():
+    """bench/board_time.py and the page's section on the emulated STM32F411: busy time per
+    phase, late ticks, and the targets (navigating p99 <= 2.5 ms, max <= 4 ms, none late or
+    missed), met or not."""
+    from host_emulator.bench import board, board_time
+
+    busy = [1.0] * 100 + [1.2] * 95 + [3.0] * 4 + [3.9]  # navigating: p99 3.0, max 3.9
+    t, states = _twin_ticks([4.0] * 10 + busy, [1] * 10 + [2] * 200, late=[3])
+    s = board_time.summary(t, states, 96_000_000, 2.4106)
+    nav = s["phases"]["navigating"]
+    assert nav["ticks"] == 200 and nav["busy_ms"]["max"] == pytest.approx(3.9)
+    assert nav["late_ticks"] == 0 and s["phases"]["aligning"]["late_ticks"] == 1
+    assert s["phases"]["aligning"]["over_4ms"] == 0  # 4.0 is not over
+    run = {"board": "B", "overruns": 0, "late_ticks": 1, "watchdog_longest_gap_ms": 7.5,
+           "watchdog_timeout_ms": 1000.0}  # fmt: skip
+    text = "\n".join(board.twin_lines([{"label": "img", "time": s, "run": run,
+                                        "wall_s": 5.0}], []))  # fmt: skip
+    assert "| img | navigating | 200 | " in text and "| img | aligning | 10 | " in text
+    assert ">= 5 (late)" in text  # a late tick's busy time is only known to be the period
+    assert "navigating busy p99 3.00 ms (target <= 2.5), max 3.90 ms (<= 4)" in text
+    assert "0 ticks missed and 1 late in the whole run (target 0)" in text
+    assert "Not met (2 of 3)." in text  # p99, and the late tick
+    ok, states = _twin_ticks([1.0] * 200, [2] * 200)
+    s = board_time.summary(ok, states, 96_000_000, 2.4106)
+    run = dict(run, late_ticks=0)
+    text = "\n".join(board.twin_lines([{"label": "img", "time": s, "run": run,
+                                        "wall_s": 5.0}], []))  # fmt: skip
+    assert "Met." in text
