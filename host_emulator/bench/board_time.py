@@ -19,7 +19,7 @@ from host_emulator.proto import stream
 TARGET_MS = {"p99": 2.5, "max": 4.0}
 # the f411 runtime's run figures a report keeps (runtimes/f411/world.py's stats)
 RUN_KEYS = ("board", "overruns", "late_ticks", "watchdog_longest_gap_ms", "watchdog_timeout_ms",
-            "gnss_rx_lost", "gnss_bytes_compressed", "poll_wait_ms_by_peripheral",
+            "gnss_rx_lost", "gnss_bytes_compressed", "rs485_muted", "poll_wait_ms_by_peripheral",
             "realtime_factor")  # fmt: skip
 PHASES = {1: "aligning", 2: "navigating"}
 

@@ -50,6 +50,7 @@ def test_both_images_run_the_firmware_to_its_frames(board, quick_start_1s, tmp_p
     assert fw.stats["watchdog_longest_gap_ms"] < 50 < fw.stats["watchdog_timeout_ms"]
     assert fw.stats["gnss_rx_bytes"] == len(quick_start_1s.uart_bytes)
     assert fw.stats["gnss_rx_lost"] == 0
+    assert fw.stats["rs485_muted"] == 0  # the transceiver's DE pin was high for every byte
 
 
 def test_the_blackpill_images_frames_equal_the_models_over_30_s(tmp_path):

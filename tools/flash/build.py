@@ -208,5 +208,5 @@ def check_budget(manifest):
         "ins.cfg, and the 31 KB are no longer a limit; or use a board with SPI flash (e.g. a "
         "WeAct BlackPill with a W25Q flash chip, whose MicroPython build puts the filesystem "
         "there) and pass its size, e.g. --flash-kb 4096. --strip-lines (mpy-cross -X "
-        "no-source-lines) saves about 4 KB but not enough, and tracebacks lose line numbers."
+        "no-source-lines) saves about 5 KB but not enough, and tracebacks lose line numbers."
     )

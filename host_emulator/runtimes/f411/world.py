@@ -14,8 +14,9 @@
   at that baud rate arrive faster (counted: `gnss_bytes_compressed`). The receiver's baud
   must match the UART's (within 3 %), else the run stops: a board would read garbage.
 - The PPS: a rising edge at T_k - pps_before_us on PB0 (EXTI), 100 ms high.
-- The RS485 transceiver: every character the output USART starts is the output stream, in
-  order (a character counts once its start bit is on the line).
+- The RS485 transceiver: every character the output USART starts while the transceiver's
+  driver enable (DE) is high is the output stream, in order (a character counts once its start
+  bit is on the line); one started with DE low never reaches the bus (counted: `rs485_muted`).
 - The console: what MicroPython prints (mp_hal_stdout_tx_strn), whichever port it goes to.
 
 Per tick, from T_k to T_(k+1): busy = from T_k to the loop's first WFI after it (the tick's
@@ -52,7 +53,9 @@ class World:
         spi.attach(self.imu.accel, *chip.pin(board.cs_accel))
         spi.attach(self.imu.gyro, *chip.pin(board.cs_gyro))
         self.out = []  # (start cycle, byte) off the RS485 USART
-        chip.usart[board.out_uart].on_tx.append(lambda b, at: self.out.append((at, b)))
+        self.rs485_muted = 0  # characters sent while the transceiver's driver was disabled
+        self._de = chip.pin(board.rs485_de)
+        chip.usart[board.out_uart].on_tx.append(self._rs485)
         self.gnss = chip.usart[board.gnss_uart]
         self.pps_gpio, self.pps_pin = chip.pin(board.pps)
         self.pps_gpio.drive(self.pps_pin, 0)
@@ -73,6 +76,13 @@ class World:
         self.per_tick = None
 
     # -- observing the image ------------------------------------------------------------
+
+    def _rs485(self, byte, at):
+        gpio, pin = self._de
+        if gpio.level(pin):
+            self.out.append((at, byte))
+        else:  # DE low: the transceiver does not drive the bus, the character is lost
+            self.rs485_muted += 1
 
     def _stdout(self, chip):
         self._console.extend(chip.cpu.uc.mem_read(chip.reg(0), chip.reg(1)))
@@ -260,6 +270,7 @@ class World:
             "gnss_rx_bytes": self.gnss.rx_bytes,
             "gnss_rx_lost": self.gnss.rx_lost,
             "gnss_bytes_compressed": self.gnss_bytes_compressed,
+            "rs485_muted": self.rs485_muted,
             "watchdog_longest_gap_ms": margin[0] if margin else None,
             "watchdog_timeout_ms": margin[1] if margin else None,
             "resets": [r for r in self.resets],
