@@ -108,7 +108,6 @@ def _run(args):
     injected = _faults(args)
     if injected is None:
         return 0
-    cli_args.check_board(args.runtime, args.board)
     if args.stimulus:
         m = scenario_run.run_stimulus(
             args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args),
@@ -236,7 +235,7 @@ def _replay(args):
     ds = _load(args)
     m = replay_run.replay(
         ds, _replay_options(args, ds), args.runtime, args.out,
-        show_progress=not args.quiet, kernels=_kernels(args), faults=injected,
+        show_progress=not args.quiet, kernels=_kernels(args), faults=injected, board=args.board,
     )  # fmt: skip
     print(demo.summary(m, args.out))
     return 0
@@ -297,6 +296,7 @@ def main(argv=None):
     _add_replay_options(rp)
     rp.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     cli_args.add_kernels_option(rp)
+    cli_args.add_board_option(rp)
     rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
     rp.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_fault_option(rp)
@@ -327,6 +327,12 @@ def _command(parser, args, rest):
         return _scenarios()
     if args.command == "runtimes":
         return _runtimes()
+    if args.command in ("run", "replay"):
+        try:
+            cli_args.check_board(args.runtime, args.board)
+        except cli_args.UsageError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
     if args.command == "run":
         return _run(args)
     if args.command == "replay":

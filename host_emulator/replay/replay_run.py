@@ -247,7 +247,7 @@ def write_solution_pos(path, rep, tr):
 
 
 def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progress=True,
-           log=print, kernels=None, faults=()):  # fmt: skip
+           log=print, kernels=None, faults=(), board=None):  # fmt: skip
     """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
     input or when the firmware never navigates. faults: sim/faults.py Faults (or specs)
     injected into the converted input."""
@@ -285,7 +285,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
     for f in rep.stimulus.header.get("faults", []):
         log(f"fault injected: {f}")
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
-    fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels)
+    fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels, board)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:

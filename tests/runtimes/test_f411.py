@@ -89,3 +89,29 @@ def test_a_recorded_session_replays_on_the_image(tmp_path):
     res = replay.replay(tmp_path / "drive.ins", tmp_path / "r", runtime="f411")
     assert res.identical, res.summary()
     assert res.run.runtime == "f411" and len(res.run.per_tick) == len(sim)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["parity", "--scenario", "quick_start", "--duration", "1", "--board", "NUCLEO_F411RE"],
+        ["run", "--scenario", "quick_start", "--duration", "1", "--runtime", "mpy_unix",
+         "--board", "NUCLEO_F411RE", "--out", "unused"],
+        ["session", "replay", "x.ins", "--runtime", "cpython", "--board", "NUCLEO_F411RE"],
+    ],
+)  # fmt: skip
+def test_a_board_for_a_runtime_that_runs_no_image_is_a_usage_error(argv, capsys, tmp_path):
+    from host_emulator.__main__ import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--board is for --runtime f411" in err and "Traceback" not in err
+
+
+def test_an_unknown_board_is_refused_naming_the_boards(capsys):
+    from host_emulator.eval import parity as parity_cli
+
+    assert parity_cli.main(["--scenario", "quick_start", "--duration", "1", "--runtime", "f411",
+                            "--board", "PYBV11"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "WEACT_F411_BLACKPILL" in err and "NUCLEO_F411RE" in err

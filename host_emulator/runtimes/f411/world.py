@@ -13,7 +13,8 @@
   tick reads them; 5 bytes a tick at 9600 baud leave it 0.8 ms); more than the interval holds
   at that baud rate arrive faster (counted: `gnss_bytes_compressed`). The receiver's baud
   must match the UART's (within 3 %), else the run stops: a board would read garbage.
-- The PPS: a rising edge at T_k - pps_before_us on PB0 (EXTI), 100 ms high.
+- The PPS: a rising edge at T_k - pps_before_us on PB0 (EXTI), 100 ms high (an edge while the
+  line is still high, a spurious one, dips it low first: every edge of the stimulus is one).
 - The RS485 transceiver: every character the output USART starts while the transceiver's
   driver enable (DE) is high is the output stream, in order (a character counts once its start
   bit is on the line); one started with DE low never reaches the bus (counted: `rs485_muted`).
@@ -188,6 +189,8 @@ class World:
             self.clock.at(edge, self._pps_rise)
 
     def _pps_rise(self):
+        if self.pps_gpio.level(self.pps_pin):  # an edge within the last pulse (a spurious
+            self.pps_gpio.drive(self.pps_pin, 0)  # one, injected): the line dips, then rises
         self.pps_gpio.drive(self.pps_pin, 1)
         self.clock.after(self.clock.cycles_for_us(PPS_HIGH_US), self._pps_fall)
 
