@@ -61,13 +61,16 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap: ~160,000 instructions on the board, 4 ms at 96 MHz (the image
 # on the emulated STM32F411), so a tick that checks runs past the next tick's moment. With the
 # native kernels an aligning tick allocates only when a fix is screened (nav_align._align_fix,
-# Python floats: 32 bytes a fix, once 848; tests/runtimes/test_m4f.py holds them to
-# _FIX_BYTES), so a check that finds F bytes free leaves room for (F - low water) / _FIX_BYTES
-# fixes, and the heap is checked again only after them, in the tick after a fix's (on a fresh
-# heap one check in about eight fixes, where a check every second made 47 late ticks in the
-# 76 s urban_drive stands still); while navigating only before a step that allocates
-# (_heap_room). The Python kernels: every tick.
+# Python floats: 848 bytes the first fix, 32 each after; tests/runtimes/test_m4f.py holds each
+# to _FIX_BYTES), so a check that finds F bytes free leaves room for (F - low water) / cost
+# fixes, and the heap is checked again only after them, in the tick after a fix's (_heap_fixes);
+# the cost of a fix is _FIX_BYTES until a check has measured what the fixes since the last one
+# took, then _FIX_MARGIN times that (at least _FIX_MIN). A check every second made 47 late ticks
+# in the 76 s urban_drive stands still. While navigating, the heap is checked only before a step
+# that allocates (_heap_room). The Python kernels: every tick.
 _FIX_BYTES = const(1024)
+_FIX_MARGIN = const(4)
+_FIX_MIN = const(64)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -178,6 +181,9 @@ class App:
         self.t_sum_us = 0
         self.gc_runs = 0
         self._heap_left = 0  # bytes the screened fixes may still allocate before a heap check
+        self._heap_free = 0  # what the last check found free
+        self._fix_cost = _FIX_BYTES  # what a screened fix is assumed to allocate
+        self._fixes = 0  # fixes screened since the last check
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame(self.nav.cv)
@@ -224,7 +230,8 @@ class App:
         # after it the first two ticks overran (measured on the emulated STM32F411); the room
         # it leaves is counted here, while a heap scan delays no tick (_account)
         gc.collect()
-        self._heap_left = gc.mem_free() - _GC_LOW_WATER
+        self._heap_free = gc.mem_free()
+        self._heap_left = self._heap_free - _GC_LOW_WATER
         if self._native:
             gc.disable()
         b.on_pps(self.gnss.pps_isr)
@@ -326,7 +333,7 @@ class App:
         self._period_ticks += 1
         low = _GC_LOW_WATER
         if self._native:
-            # gc.mem_free() scans the heap: ~250,000 instructions on the board
+            # gc.mem_free() scans the heap: ~160,000 instructions, 4 ms (see _FIX_BYTES)
             if state == NAVIGATING:
                 # a navigating tick allocates nothing (tests/runtimes: the allocation proof);
                 # the steps that do (re-anchoring, a reset: Python, rare) ask for room first
@@ -335,22 +342,36 @@ class App:
             c = self.nav.ctl
             if c[_C_TICK] - 1 != c[_C_LAST_FIX_TICK]:
                 return  # an aligning tick allocates only when a fix is screened
-            left = self._heap_left - _FIX_BYTES
+            self._fixes += 1
+            left = self._heap_left - self._fix_cost
             if left >= 0:
                 self._heap_left = left  # the last check left room for this fix
                 return
-            low = _GC_LOW_WATER + _FIX_BYTES
-        self._heap_left = self._heap_room(low) - _GC_LOW_WATER
+            self._heap_fixes()
+            return
+        self._heap_room(low)
 
-    def _heap_room(self, low=_GC_LOW_WATER):
-        """At least `low` bytes of heap free (automatic collection is off); the navigator's
-        heap_check, before a navigating step that allocates. The bytes free after it."""
+    def _heap_fixes(self):
+        """A heap check while aligning, once the fixes may have used the room the last one
+        found: what they took sets the cost of the next ones (see _FIX_BYTES)."""
         free = gc.mem_free()
-        if free < low:
+        if self._fixes:
+            took = (self._heap_free - free) // self._fixes * _FIX_MARGIN
+            self._fix_cost = took if took > _FIX_MIN else _FIX_MIN
+        if free < _GC_LOW_WATER + self._fix_cost:
             gc.collect()
             self.gc_runs += 1
             free = gc.mem_free()
-        return free
+        self._heap_free = free
+        self._fixes = 0
+        self._heap_left = free - _GC_LOW_WATER
+
+    def _heap_room(self, low=_GC_LOW_WATER):
+        """At least `low` bytes of heap free (automatic collection is off); the navigator's
+        heap_check, before a navigating step that allocates."""
+        if gc.mem_free() < low:
+            gc.collect()
+            self.gc_runs += 1
 
     def _send_raw(self, imu, t0):
         raw = self.raw
