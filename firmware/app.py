@@ -382,7 +382,7 @@ class App:
         f[_RF_SATURATED] = 1 if imu.saturated else 0
         f[_RF_N] = self.rx_n
         raw.pack(imu.raw_gyro, imu.raw_accel, self.rx)
-        self._out.write(raw.data, raw.length)
+        self._out.write_n(raw.data, raw.length)
 
     def _gnss_read(self, n):
         """Up to _RX_LEN of the n bytes waiting on the GNSS UART into the parser; how many."""

@@ -68,18 +68,16 @@ CONFIG_PATH = "/flash/ins.cfg"
 
 
 class _Direct:
-    """The UART's own write, for a port without the DMA transmitter (poll does nothing).
-    write(buf, n): buf's first n bytes (all of it when n < 0); a shorter part is a memoryview
-    slice, a heap object (the raw record's, when on)."""
+    """The UART's own write, for a port without the DMA transmitter (poll does nothing):
+    write(buf) is the UART's method itself; write_n(buf, n), buf's first n bytes, slices a
+    memoryview, a heap object (the raw record's, when on)."""
 
     def __init__(self, uart):
-        self._write = uart.write
+        self.write = uart.write
         self.dropped = 0
 
-    def write(self, buf, n=-1):
-        if n < 0 or n == len(buf):
-            return self._write(buf)
-        return self._write(memoryview(buf)[0:n])
+    def write_n(self, buf, n):
+        return self.write(memoryview(buf)[0:n])
 
     def poll(self):
         pass

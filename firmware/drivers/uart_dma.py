@@ -3,9 +3,9 @@
 The stm32 port's `UART.write` puts each byte into the data register itself and spins until the
 last one has left (ports/stm32/uart.c, uart_tx_data): at 460800 baud the 52-byte frame holds the
 CPU 1.13 ms every tick, the extended frame 2.95 ms (measured on the emulated STM32F411:
-docs/image.md). Here the DMA moves the bytes while the loop goes on: `write(buf, n)` copies
-buf's first n bytes into one of two buffers and, when the stream is idle, starts it on what is
-queued; what comes
+docs/image.md). Here the DMA moves the bytes while the loop goes on: `write(buf)` (or
+`write_n(buf, n)`, its first n bytes) copies them into one of two buffers and, when the stream
+is idle, starts it on what is queued; what comes
 while it sends waits in the other buffer, started by the next `write` or `poll` (board.idle
 polls before every sleep, and the core wakes at least every millisecond). A write that does not
 fit the buffer is dropped whole (never half a frame) and counted in `dropped`.
@@ -77,11 +77,13 @@ class DmaTx:
         m[self._cr] = 0  # the stream stopped
         m[cr3] = m[cr3] | _DMAT
 
-    def write(self, buf, n=-1):
-        """Queue buf's first n bytes (all of it when n < 0), sent in order after what is
-        queued; the bytes queued, or 0 if they did not fit (dropped)."""
-        if n < 0:
-            n = len(buf)
+    def write(self, buf):
+        """Queue buf, sent in order after what is queued; the bytes queued, or 0 if it did
+        not fit (dropped)."""
+        return self.write_n(buf, len(buf))
+
+    def write_n(self, buf, n):
+        """Queue buf's first n bytes (write)."""
         k = self._n
         if k + n > self._size:
             self.dropped += n
