@@ -27,7 +27,8 @@ from host_emulator import runtimes
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
 from host_emulator.proto import stream
-from host_emulator.replay import board, diagnose, to_stimulus
+from host_emulator.replay import board as board_settings
+from host_emulator.replay import diagnose, to_stimulus
 from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
@@ -130,7 +131,7 @@ def evaluate_replay(rep, fw, runtime):
         "gnss_pps": rep.pps,
         "board_config": rep.stimulus.config,
         "board_config_sources": {
-            name: rep.sources.get(name, board.REPLAY) for name in rep.stimulus.config
+            name: rep.sources.get(name, board_settings.REPLAY) for name in rep.stimulus.config
         },
         "notes": list(rep.notes),
     }
@@ -172,7 +173,7 @@ def markdown(m, rep, console=()):
         f"{rep.ranges['gyro_peak_dps']:.1f}), accel +-{rep.ranges['accel_range_g']} g (peak "
         f"{rep.ranges['accel_peak_g']:.2f}).",
         f"- Board settings (ins.cfg) other than the firmware's defaults: "
-        f"{board.describe(rep.stimulus.config, rep.sources)}.",
+        f"{board_settings.describe(rep.stimulus.config, rep.sources)}.",
         *[f"- {note[0].upper()}{note[1:]}." for note in rep.notes],
         "",
         "| figure | firmware | raw GNSS input |",
@@ -281,7 +282,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
     )
     for note in rep.notes:
         log(f"  {note}")
-    log(f"  board settings: {board.describe(rep.stimulus.config, rep.sources)}")
+    log(f"  board settings: {board_settings.describe(rep.stimulus.config, rep.sources)}")
     for f in rep.stimulus.header.get("faults", []):
         log(f"fault injected: {f}")
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)

@@ -155,14 +155,24 @@ def test_the_cause_bits_are_the_firmwares():
     assert nav.CAUSE_FAULTS == faults
 
 
-def test_the_firmwares_raw_record_is_the_record_layout():
+@pytest.mark.parametrize("kernel", ["native", "python"])
+def test_the_firmwares_raw_record_is_the_record_layout(kernel, monkeypatch):
+    """RawRecord.pack, through the native raw_pack (the CRC in C: nothing allocated) and its
+    Python reference, gives the record the host's schema encodes."""
     import records
 
+    if kernel == "python":
+        monkeypatch.setattr(records, "raw_pack", records._raw_pack_py)
+    else:
+        assert records.raw_pack is not records._raw_pack_py  # navk's
     r = records.RawRecord()
     for n, sat in ((0, False), (17, True), (records.RAW_MAX_GNSS, False)):
         gnss = bytes(range(n))
         g6, a6 = bytes(range(10, 16)), bytes(range(20, 26))
-        r.pack(200, 0x3FFFFFFF, 12345, g6, a6, sat, bytearray(gnss) + b"x", n)
+        f = r.fields
+        f[records.RF_COUNTER], f[records.RF_T0_US], f[records.RF_PPS_US] = 200, 0x3FFFFFFF, 12345
+        f[records.RF_SATURATED], f[records.RF_N] = int(sat), n
+        r.pack(bytearray(g6), bytearray(a6), bytearray(gnss) + bytearray(b"x" * (233 - n)))
         data = bytes(r.data[: r.length])
         assert data == rec_schema.encode_raw(200, 0x3FFFFFFF, 12345, g6, a6, sat, gnss)
         assert rec_schema.length_ok(data) and rec_schema.crc_ok(data)
