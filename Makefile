@@ -15,8 +15,9 @@ $(STAMP): requirements.txt
 demo: $(STAMP)
 	$(BIN)/python -m host_emulator demo
 
+# on every core (pytest-xdist): builds shared by the tests take a lock (tools/toolchain locked)
 test: $(STAMP) toolchain native
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 # The Debian cross compiler and QEMU for the image and the emulated Cortex-M4F board: installed
 # (pinned) when missing if run as root, else the command to run is printed and make stops.
@@ -42,7 +43,8 @@ bench-nav: $(STAMP)
 	$(BIN)/python -m host_emulator bench-nav
 
 # What a tick costs the board: the app loop on the emulated Cortex-M4F over urban_drive, two
-# configurations (~11 min; writes docs/benchmarks/board.md).
+# configurations, and the image itself on the emulated STM32F411, raw records off and on
+# (~35 min; writes docs/benchmarks/board.md).
 bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
 

@@ -173,7 +173,14 @@ def build(board=DEFAULT_BOARD, out_dir=None, log=print, build_root=BUILD_ROOT, b
     """Build the image for `board` into build_root/<board>, copy it to out_dir (default
     out/image/<board>) and return the report (also out_dir/budget.json). board_dir overrides
     the board definition's folder (tests use it). ImageError when it fails or is over budget;
-    toolchain.ToolchainError when the toolchain or the MicroPython tree is missing."""
+    toolchain.ToolchainError when the toolchain or the MicroPython tree is missing. One build
+    of a board's tree at a time (toolchain.locked)."""
+    _board(board)
+    with toolchain.locked(pathlib.Path(build_root) / f"{board}.lock"):
+        return _build(board, out_dir, log, build_root, board_dir)
+
+
+def _build(board, out_dir, log, build_root, board_dir):
     spec = _board(board)
     t0 = time.monotonic()
     build_dir = pathlib.Path(build_root) / board

@@ -17,8 +17,6 @@ function fails to link, on purpose (the board's libm is not the model's).
 `python -m tools.native` builds all three (make native).
 """
 
-import contextlib
-import fcntl
 import hashlib
 import os
 import pathlib
@@ -62,18 +60,6 @@ def inputs(src_dir=NATIVE_DIR):
 
 def prototypes(src_dir=NATIVE_DIR):
     return bindings.prototypes((pathlib.Path(src_dir) / HEADER.name).read_text())
-
-
-@contextlib.contextmanager
-def _locked(path):
-    """An exclusive lock on `path` (created) for the block: one make per build directory."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
 
 
 def _write_if_changed(path, text):
@@ -125,7 +111,7 @@ def natmod(arch, src_dir=NATIVE_DIR, build_root=BUILD_DIR):
     src_dir = pathlib.Path(src_dir).resolve()
     out = natmod_dir(arch, build_root)
     protos = prototypes(src_dir)
-    with _locked(out / ".lock"):
+    with toolchain.locked(out / ".lock"):
         _write_if_changed(out / "navk_bindings.c", bindings.micropython_module(protos))
         srcs = " ".join(["navk_bindings.c", *(str(p) for p in sources(src_dir))])
         flags = " ".join([f"-I{src_dir}", *FLOAT_FLAGS, "-MMD"])

@@ -14,6 +14,8 @@ Cortex-M4F board (host_emulator/runtimes/m4f):
 Builds are out of tree, under build/ in this repository: the source tree is never written.
 """
 
+import contextlib
+import fcntl
 import os
 import pathlib
 import re
@@ -107,6 +109,21 @@ def version_env(src=None):
     return env
 
 
+@contextlib.contextmanager
+def locked(path):
+    """An exclusive lock on `path` (created) for the block: one build per build directory, so
+    that two processes (pytest's workers, two commands at once) never run make in one tree
+    together; the second waits, then finds the tree up to date."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
 def make(args, what, log_path):
     """Run make with args; its output goes to log_path. ToolchainError with the log's tail."""
     log_path = pathlib.Path(log_path)
@@ -125,11 +142,12 @@ def mpy_cross(build_root=BUILD_ROOT):
     src = micropython_dir()
     check_version(src)
     out = pathlib.Path(build_root) / "mpy-cross"
-    make(
-        ["-C", str(src / "mpy-cross"), f"BUILD={out}"],
-        "mpy-cross",
-        pathlib.Path(build_root) / "logs" / "mpy-cross.log",
-    )
+    with locked(pathlib.Path(build_root) / "locks" / "mpy-cross.lock"):
+        make(
+            ["-C", str(src / "mpy-cross"), f"BUILD={out}"],
+            "mpy-cross",
+            pathlib.Path(build_root) / "logs" / "mpy-cross.log",
+        )
     return out / "mpy-cross"
 
 

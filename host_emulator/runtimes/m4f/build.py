@@ -70,19 +70,20 @@ def build(progress=print, gc_heap_bytes=None):
         f"MICROPY_HEAP_SIZE={heap}",
         f"CFLAGS_EXTRA={toolchain.C_FLOAT_FLAGS}",
     ]  # fmt: skip
-    _clean_if_configuration_changed(args, out)
     elf = out / "firmware.elf"
     t = time.perf_counter()
-    if progress and not elf.exists():
-        progress("building the emulated Cortex-M4F (MicroPython qemu port, once; ~30 s)")
-    try:
-        toolchain.make(
-            args,
-            "the emulated Cortex-M4F (qemu port)",
-            toolchain.BUILD_ROOT / "logs" / f"{out.name}.log",
-        )
-    except toolchain.ToolchainError as e:
-        raise EmulatorError(str(e)) from None
+    with toolchain.locked(toolchain.BUILD_ROOT / "locks" / f"{out.name}.lock"):
+        _clean_if_configuration_changed(args, out)
+        if progress and not elf.exists():
+            progress("building the emulated Cortex-M4F (MicroPython qemu port, once; ~30 s)")
+        try:
+            toolchain.make(
+                args,
+                "the emulated Cortex-M4F (qemu port)",
+                toolchain.BUILD_ROOT / "logs" / f"{out.name}.log",
+            )
+        except toolchain.ToolchainError as e:
+            raise EmulatorError(str(e)) from None
     if progress and time.perf_counter() - t > 5:
         progress(f"built {elf} in {time.perf_counter() - t:.0f} s")
     return elf
