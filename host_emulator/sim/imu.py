@@ -33,6 +33,22 @@ Defaults and their sources (DESIGN.md sections 7 and 10, Bosch BMI055 datasheet 
           the sign of each axis' turn-on bias (the datasheet's typical 0.015 deg/s/K and 1 mg/K
           are for an uncompensated part; the same, deterministic, in every run); the
           temperature register reads round((T - 23) * 2)
+    sampling: at the tick, the truth of that instant
+
+`ImuModel.uncalibrated()` is a student's board as it comes, the datasheet's part with nobody's
+calibration (`model_for` gives it to scenarios whose sensor_grade says so, the realistic walk):
+    turn-on bias per axis uniform in 0.2-1.0 deg/s (gyro; datasheet zero-rate offset +-1 deg/s
+          typ) and 10-50 mg (accel; datasheet zero-g offset +-60 mg typ over life), random sign
+    temperature coefficients per axis 0.3-1 x the datasheet's typical 0.015 deg/s/K and 1 mg/K
+    g-sensitivity of the gyro: a 3x3 matrix, 0.1 deg/s/g (1 sigma) per element (the gyro die's
+          datasheet, BMG160, 0.1 deg/s/g typ): w += G f
+    free-running sample clocks: the dies sample on their own oscillators (the driver sets the
+          gyro to 400 Hz, the accel to 250 Hz data updates), so the sample a tick reads is up
+          to 2.5 ms (gyro) and 4 ms (accel) old, the age sliding as the clocks beat against the
+          timer; each oscillator is off by 1 % (1 sigma; no datasheet figure). The truth at
+          those instants comes from 4-point Lagrange interpolation of the 200 Hz truth (error
+          ~1e-4 of a 10 Hz component). The dies' digital low-pass filters are not modelled.
+The extra draws come from a stream of their own, so the default model's data are unchanged.
 """
 
 from dataclasses import dataclass
@@ -80,6 +96,26 @@ class ImuModel:
     temp_tau_s: float = 400.0
     gyro_tempco_dps_per_k: float = 0.002
     accel_tempco_mg_per_k: float = 0.05
+    tempco_spread: tuple | None = None  # per-axis factor range on the tempcos (None: 1)
+    gyro_g_sensitivity_dps_per_g: float = 0.0  # 1 sigma per element of G
+    gyro_odr_hz: float | None = None  # None: sampled at the tick
+    accel_odr_hz: float | None = None
+    odr_clock_error: float = 0.0  # 1 sigma, relative, per die
+
+    @classmethod
+    def uncalibrated(cls):
+        """The datasheet's part as it comes (see the module docstring)."""
+        return cls(
+            gyro_turn_on_bias_dps=(0.2, 1.0),
+            accel_turn_on_bias_mg=(10.0, 50.0),
+            gyro_tempco_dps_per_k=0.015,
+            accel_tempco_mg_per_k=1.0,
+            tempco_spread=(0.3, 1.0),
+            gyro_g_sensitivity_dps_per_g=0.1,
+            gyro_odr_hz=400.0,
+            accel_odr_hz=250.0,
+            odr_clock_error=0.01,
+        )
 
     @classmethod
     def ideal(cls):
@@ -144,6 +180,7 @@ class ImuData:
     model: ImuModel
     temp_c: np.ndarray = None  # (N,) die temperature, degC
     temp_raw: np.ndarray = None  # (N,) int8 temperature register (0.5 K per LSB, 0 = 23 degC)
+    gyro_g_matrix: np.ndarray = None  # (3, 3) G applied, rad/s per m/s^2 (None: none)
 
 
 def _turn_on(rng, lo_hi, unit):
@@ -163,10 +200,43 @@ def _quantise(x, per_count, lo, hi):
     return np.clip(raw, lo, hi).astype(np.int16), (raw < lo) | (raw > hi)
 
 
+def model_for(truth):
+    """The IMU model that goes with a scenario (its sensor_grade)."""
+    grade = getattr(truth, "sensor_grade", "calibrated")
+    return ImuModel.uncalibrated() if grade == "uncalibrated" else ImuModel()
+
+
+def _sample_ages(rng, t_s, odr_hz, clock_error):
+    """(N,) age in s of the sample a read at each tick gets from a die sampling at odr_hz on an
+    oscillator off by a N(0, clock_error) fraction, from a random phase."""
+    period = 1.0 / (odr_hz * (1.0 + clock_error * rng.standard_normal()))
+    t0 = rng.uniform(0.0, period)
+    return np.mod(t_s - t0, period)
+
+
+def _at(x, t_s, ages):
+    """x (N, 3), sampled at t_s (uniform), at t_s - ages by 4-point Lagrange interpolation
+    (clamped at the ends)."""
+    n = len(t_s)
+    dt = t_s[1] - t_s[0]
+    u = np.clip(t_s - ages, t_s[0], t_s[-1]) / dt
+    i = np.clip(np.floor(u).astype(np.int64), 1, n - 3)
+    f = (u - i)[:, None]
+    xm, x0, x1, x2 = x[i - 1], x[i], x[i + 1], x[i + 2]
+    return (
+        -f * (f - 1.0) * (f - 2.0) / 6.0 * xm
+        + (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0 * x0
+        - (f + 1.0) * f * (f - 2.0) / 2.0 * x1
+        + (f + 1.0) * f * (f - 1.0) / 6.0 * x2
+    )
+
+
 def simulate(truth, model=None, seed=0):
-    """Sample truth.w_ib_b and truth.f_b through the model. Same seed -> same data."""
-    model = ImuModel() if model is None else model
+    """Sample truth.w_ib_b and truth.f_b through the model (None: `model_for(truth)`). Same
+    seed -> same data."""
+    model = model_for(truth) if model is None else model
     rng = np.random.default_rng([seed, _STREAM_IMU])
+    extra = np.random.default_rng([seed, _STREAM_IMU, 2])  # the uncalibrated part's draws
     n = len(truth.t_s)
     g = STANDARD_GRAVITY_M_S2
 
@@ -182,11 +252,25 @@ def simulate(truth, model=None, seed=0):
     )
     temp_c = model.temp_start_c + model.temp_rise_c * -np.expm1(-truth.t_s / model.temp_tau_s)
     warm = (temp_c - model.temp_start_c)[:, None]
-    bg = bg + warm * (model.gyro_tempco_dps_per_k * _DEG) * np.sign(bg0)
-    ba = ba + warm * (model.accel_tempco_mg_per_k * 1e-3 * g) * np.sign(ba0)
+    spread_g = spread_a = 1.0
+    if model.tempco_spread is not None:
+        spread_g, spread_a = extra.uniform(*model.tempco_spread, (2, 3))
+    bg = bg + warm * (model.gyro_tempco_dps_per_k * _DEG) * np.sign(bg0) * spread_g
+    ba = ba + warm * (model.accel_tempco_mg_per_k * 1e-3 * g) * np.sign(ba0) * spread_a
     temp_raw = np.clip(np.rint((temp_c - 23.0) * 2.0), -128, 127).astype(np.int8)
-    w = truth.w_ib_b @ m_g.T + bg + rng.standard_normal((n, 3)) * model.gyro_noise_rad_s
-    f = truth.f_b @ m_a.T + ba + rng.standard_normal((n, 3)) * model.accel_noise_m_s2
+    w_true, f_true = truth.w_ib_b, truth.f_b
+    if model.gyro_odr_hz:
+        ages = _sample_ages(extra, truth.t_s, model.gyro_odr_hz, model.odr_clock_error)
+        w_true = _at(w_true, truth.t_s, ages)
+    if model.accel_odr_hz:
+        ages = _sample_ages(extra, truth.t_s, model.accel_odr_hz, model.odr_clock_error)
+        f_true = _at(f_true, truth.t_s, ages)
+    w = w_true @ m_g.T + bg + rng.standard_normal((n, 3)) * model.gyro_noise_rad_s
+    g_sens = None
+    if model.gyro_g_sensitivity_dps_per_g:
+        g_sens = extra.standard_normal((3, 3)) * (model.gyro_g_sensitivity_dps_per_g * _DEG / g)
+        w = w + f_true @ g_sens.T
+    f = f_true @ m_a.T + ba + rng.standard_normal((n, 3)) * model.accel_noise_m_s2
 
     gyro_counts, gyro_sat = _quantise(w, model.gyro_rad_s_per_count, GYRO_COUNT_MIN, GYRO_COUNT_MAX)
     accel_counts, accel_sat = _quantise(
@@ -206,4 +290,5 @@ def simulate(truth, model=None, seed=0):
         model=model,
         temp_c=temp_c,
         temp_raw=temp_raw,
+        gyro_g_matrix=g_sens,
     )

@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymap3d
 
+from .hand import Hand
+
 RATE_HZ = 200
 DT_S = 1.0 / RATE_HZ
 
@@ -247,7 +249,9 @@ class DriveScript:
         self.grade = Ramps(grade0_rad)
         self.bank = Ramps(bank0_rad)
         self.t_s = 0.0
-        self.sway = None  # a Sway: the carried sensor's own motion on the path
+        self.sway = None  # a Sway or hand.Hand: the carried sensor's own motion on the path
+        # the IMU that goes with it (sim/imu.py `model_for`): "calibrated" or "uncalibrated"
+        self.sensor_grade = "calibrated"
         self.antenna_b_m = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes
         self.board_profile = 0  # the board's profile setting for it: 0 car, 1 handheld
 
@@ -354,6 +358,7 @@ class Truth:
     outages: tuple = field(default=())  # GNSS outage windows ((start_s, length_s), ...)
     antenna_b_m: tuple = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes (sim.gnss uses it)
     board_profile: int = 0  # the board's profile setting (config.py): 0 car, 1 handheld
+    sensor_grade: str = "calibrated"  # the IMU that goes with it (sim/imu.py `model_for`)
 
     dt_s = DT_S
 
@@ -491,6 +496,7 @@ def truth_from_script(
         w_ie_n=w_ie_n,
         antenna_b_m=tuple(script.antenna_b_m),
         board_profile=int(script.board_profile),
+        sensor_grade=str(script.sensor_grade),
         outages=tuple(
             (float(s), float(min(length, duration_s - s)))
             for s, length in outages
@@ -668,14 +674,14 @@ def _phases(rng):
 
 
 @_scenario(
-    "walk",
-    "a walk with the board in hand: 30 s held still, then 1.0-1.6 m/s with the hand's own "
-    "motion (2-3 cm bob and sway, +-4 deg of heading wobble), 90-degree turns both ways, stops "
-    "of 5-15 s; a 10 s GNSS outage",
+    "walk_ideal",
+    "a walk with the board in a perfectly steady hand: 30 s held still, then 1.0-1.6 m/s with "
+    "smooth sinusoidal motion (2-3 cm bob and sway, +-4 deg of heading wobble), 90-degree turns "
+    "both ways, stops of 5-15 s; a 10 s GNSS outage; a calibrated IMU",
     300.0,
     ((150.0, 10.0),),
 )
-def walk(duration_s, seed, outages):
+def walk_ideal(duration_s, seed, outages):
     rng, _ = _streams(seed)
     script = DriveScript(rng.uniform(-np.pi, np.pi))
     script.PITCH_PER_ACCEL = 0.0  # a hand neither squats nor leans like a car body
@@ -698,6 +704,37 @@ def walk(duration_s, seed, outages):
     # rates (0.4 m/s)
     script.antenna_b_m = (0.0, 0.05, 0.0)
     script.board_profile = 1  # handheld: no non-holonomic constraint, no standstill updates
+    _walk_route(script, rng, duration_s, outages)
+    return script
+
+
+@_scenario(
+    "walk",
+    "a walk with the board in hand, as unkind as a real one: 30 s standing with the hand's "
+    "tremor and sway, then 1.0-1.6 m/s with heel strikes of 0.3-1 g at 1.6-2.2 steps/s, the "
+    "hand pitching, rolling and yawing with each step and stride, 90-degree turns both ways, "
+    "stops of 5-15 s; the board held pitched up 10-35 deg; an uncalibrated BMI055 (turn-on "
+    "biases up to the datasheet's, temperature drift, g-sensitivity, free-running sample "
+    "clocks); a 10 s GNSS outage",
+    300.0,
+    ((150.0, 10.0),),
+)
+def walk(duration_s, seed, outages):
+    rng, _ = _streams(seed)
+    hand_rng = np.random.default_rng([seed, 3])  # the walker apart from the route
+    script = DriveScript(rng.uniform(-np.pi, np.pi))
+    script.PITCH_PER_ACCEL = 0.0
+    script.ROLL_PER_ACCEL = 0.0
+    script.sway = Hand.draw(hand_rng)
+    script.antenna_b_m = (0.0, 0.05, 0.0)
+    script.board_profile = 1
+    script.sensor_grade = "uncalibrated"
+    _walk_route(script, rng, duration_s, outages)
+    return script
+
+
+def _walk_route(script, rng, duration_s, outages):
+    """30 s standing, then walking legs with corners and stops (no stop next to an outage)."""
     script.hold(30.0)
     guards = [(s - 3.0, s + length + 3.0) for s, length in outages]
     pattern = ("left", "stop", "right", "right", "stop", "left")
@@ -717,7 +754,6 @@ def walk(duration_s, seed, outages):
             # a corner taken at walking pace: ~0.8 rad/s, a radius of 1-2 m
             angle = 0.5 * np.pi if kind == "left" else -0.5 * np.pi
             script.turn(angle, rng.uniform(0.6, 1.0), ramp_s=rng.uniform(0.4, 0.7))
-    return script
 
 
 @_scenario(

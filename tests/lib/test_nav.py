@@ -449,9 +449,9 @@ class _Start:
 
 @pytest.mark.parametrize(
     "name, profile, yaw_max_deg",
-    # measured: walk 1.5 s, 0.71 m against the fixes' 2.99 m, yaw 2.6 deg; bicycle 2.1 s,
+    # measured: walk_ideal 1.5 s, 0.71 m against the fixes' 2.99 m, yaw 2.6 deg; bicycle 2.1 s,
     # 0.43 m, 0.32 deg
-    [("walk", "handheld", 5.0), ("bicycle", "car", 1.0)],
+    [("walk_ideal", "handheld", 5.0), ("bicycle", "car", 1.0)],
 )
 def test_a_walk_and_a_bicycle_ride_navigate(name, profile, yaw_max_deg):
     """Heading from heading_speed_m_s (0.8 m/s) on: the walk with the board in hand (its
@@ -479,7 +479,7 @@ def test_an_rmc_only_receiver_navigates_a_walk():
     made a 13 m chord and a start 130 deg off before the walker moved), east and north beat
     the fixes, the vertical velocity is held (1 m/s) and the height is reported unknown."""
     model = sim_gnss.GnssModel(white_fraction=1.0, sentences=("RMC", "GSA"))
-    truth, imu, gnss = scenario("walk", 120, seed=0, gnss_model=model)
+    truth, imu, gnss = scenario("walk_ideal", 120, seed=0, gnss_model=model)
     run = nav_runner.run(truth, imu, gnss, cfg=navcfg.NavConfig("handheld"))
     moved = truth.t_s[np.argmax(truth.speed_m_s > 0.1)]
     # measured: 1.5 s after the move, 0.75 m against the fixes' 3.0 m, yaw 2.3 deg, vertical
