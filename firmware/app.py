@@ -150,6 +150,11 @@ class App:
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
         console(msg)
         console(kern.describe())
+        # which profile runs, and why: the file's setting or the default (docs/navigation.md)
+        console(
+            ("profile: 1 (handheld)" if cfg.profile == 1 else "profile: 0 (car)")
+            + (" from ins.cfg" if status == config.OK else ", the default")
+        )
         self.cfg = cfg
         self.config_status = status
         self.board = board_module.Board(gnss_baud=cfg.gnss_baud, out_baud=cfg.output_baud)

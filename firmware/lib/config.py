@@ -98,22 +98,54 @@ _RANGES = (
 )
 
 
-class BoardConfig:
-    """Every persisted setting; floats default to the navigator's defaults (navcfg)."""
+def _nav_defaults(profile):
+    """{name: default} of the float settings the navigator's profile sets (navcfg)."""
+    nav = navcfg.NavConfig("handheld" if profile == 1 else "car")
+    out = {}
+    for _id, name, kind, n, _default in _SCHEMA:
+        if kind != _FLOAT or name in ("gyro_matrix", "accel_matrix", "mount_ypr_deg"):
+            continue
+        v = getattr(nav, name)
+        out[name] = v if n == 1 else [v[i] for i in range(n)]
+    return out
 
-    def __init__(self):
-        nav = navcfg.NavConfig("car")
-        for _id, name, kind, n, default in _SCHEMA:
+
+class BoardConfig:
+    """Every persisted setting; floats default to the navigator's defaults (navcfg) of the
+    profile (the standstill thresholds differ: a hand is never still like a parked car)."""
+
+    def __init__(self, profile=0):
+        nav = _nav_defaults(profile)
+        for _id, name, kind, _n, default in _SCHEMA:
             if kind == _INT:
                 setattr(self, name, default)
             elif name in ("gyro_matrix", "accel_matrix"):
                 setattr(self, name, None)  # identity
             elif name == "mount_ypr_deg":
                 setattr(self, name, [0.0, 0.0, 0.0])  # sensor axes = body axes
-            elif n == 1:
-                setattr(self, name, getattr(nav, name))
             else:
-                setattr(self, name, [getattr(nav, name)[i] for i in range(n)])
+                setattr(self, name, nav[name])
+        self.profile = profile
+
+    def set(self, name, value):
+        """Set one setting. A change of profile also moves every float setting still at the
+        old profile's default to the new one's: a car's standstill thresholds left in a file
+        would stop a hand's zero-velocity updates; values the user chose stay."""
+        if name == "profile" and value != self.profile and value in (0, 1):
+            old = _nav_defaults(self.profile)
+            for key, default in _nav_defaults(value).items():
+                if getattr(self, key) == old[key]:
+                    setattr(self, key, default)
+        setattr(self, name, value)
+
+    def apply(self, changes):
+        """set() each (name, value), the profile first, so that a value given with it stays."""
+        for name, value in changes:
+            if name == "profile":
+                self.set(name, value)
+        for name, value in changes:
+            if name != "profile":
+                self.set(name, value)
 
     def nav_config(self):
         """The navigator's configuration with these settings applied."""
@@ -251,6 +283,7 @@ def decode(data):
     for rid, name, kind, n, _default in _SCHEMA:
         by_id[rid] = (name, kind, n)
     pos = 6
+    changes = []
     for _ in range(data[5]):
         if pos + 3 > len(body):
             raise ValueError("truncated record")
@@ -268,7 +301,8 @@ def decode(data):
         value = values[0] if n == 1 else values
         if name.endswith("_matrix") and value == [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]:
             value = None
-        setattr(cfg, name, value)
+        changes.append((name, value))
+    cfg.apply(changes)  # a record the file lacks: the default of its profile
     return cfg
 
 

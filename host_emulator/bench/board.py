@@ -521,8 +521,13 @@ def main(argv=None):
         twin_slim = [{k: v for k, v in r.items() if not k.startswith("per_tick")} for r in twin]
         out.with_suffix(".json").write_text(
             json.dumps(
-                {"scenario": args.scenario, "duration_s": dur, "results": slim,
-                 "image_on_f411": twin_slim, "image": budget},
+                {
+                    "scenario": args.scenario,
+                    "duration_s": dur,
+                    "results": slim,
+                    "image_on_f411": twin_slim,
+                    "image": budget,
+                },
                 indent=2,
             )
             + "\n"  # fmt: skip

@@ -191,8 +191,16 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
         (sim.imu.t_s, sim.imu.bg_rad_s, sim.imu.ba_m_s2),
     )
     desc = trajectory.SCENARIOS[sim.name].description
-    write_atomic(out_dir / "report.md", report.markdown(metrics, desc, console))
+    notes = [profile_note(sim.stimulus.config, sim.name)]
+    write_atomic(out_dir / "report.md", report.markdown(metrics, desc, console, notes))
     write_atomic(out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+
+
+def profile_note(config, scenario):
+    """Which profile the board ran and why (a simulated scenario sets it)."""
+    if config.get("profile", 0) == 1:
+        return f"Profile 1 (handheld): {scenario} carries the board in a person's hand."
+    return f"Profile 0 (car): {scenario}'s board rides a vehicle."
 
 
 def _log_faults(stim, log):
@@ -224,6 +232,7 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
         f"simulated {scenario}: {sim.stimulus.duration_s:g} s, seed {seed} "
         f"({time.perf_counter() - t0:.1f} s) -> {stim_path}"
     )
+    log("  " + profile_note(sim.stimulus.config, scenario))
     _log_faults(sim.stimulus, log)
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, stim_path, prog, kernels, board)

@@ -182,6 +182,7 @@ class Dma(Peripheral):
             self.v[base] = value & 0x0FEFFFFF
             if value & EN:
                 self._started(st)
+
         return write
 
     def _started(self, st):

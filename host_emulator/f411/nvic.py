@@ -258,6 +258,7 @@ def _make_irq_accessors():
                         self.enabled.add(irq)
                         if 16 + irq in self.pending:
                             self.chip.cpu.stop_soon()
+
         return w
 
     def icer_write(i):
@@ -265,6 +266,7 @@ def _make_irq_accessors():
             for b in range(32):
                 if value >> b & 1:
                     self.enabled.discard(32 * i + b)
+
         return w
 
     def ispr_read(i):
@@ -275,6 +277,7 @@ def _make_irq_accessors():
             for b in range(32):
                 if value >> b & 1 and 32 * i + b < N_IRQ:
                     self.irq(32 * i + b)
+
         return w
 
     def icpr_write(i):
@@ -282,6 +285,7 @@ def _make_irq_accessors():
             for b in range(32):
                 if value >> b & 1:
                     self.pending.discard(16 + 32 * i + b)
+
         return w
 
     def iabr_read(i):

@@ -25,8 +25,17 @@ from host_emulator.f411.bus import Peripheral, TwinError
 
 SR, DR, BRR, CR1, CR2, CR3 = 0x00, 0x04, 0x08, 0x0C, 0x10, 0x14
 PE, FE, NF, ORE, IDLE, RXNE, TC, TXE = 1, 2, 4, 8, 16, 32, 64, 128
-UE, M, PCE, TXEIE, TCIE, RXNEIE, IDLEIE, TE, RE = (1 << 13, 1 << 12, 1 << 10, 1 << 7,
-                                                   1 << 6, 1 << 5, 1 << 4, 1 << 3, 1 << 2)
+UE, M, PCE, TXEIE, TCIE, RXNEIE, IDLEIE, TE, RE = (
+    1 << 13,
+    1 << 12,
+    1 << 10,
+    1 << 7,
+    1 << 6,
+    1 << 5,
+    1 << 4,
+    1 << 3,
+    1 << 2,
+)
 OVER8 = 1 << 15
 DMAT, DMAR = 1 << 7, 1 << 6
 _UNITS = {1: ("APB2ENR", 4, 0x40011000, 37), 2: ("APB1ENR", 17, 0x40004400, 38),

@@ -81,10 +81,10 @@ def from_values(values):
     name or value the firmware does not accept."""
     config = _firmware_config()
     cfg = config.BoardConfig()
-    for name, value in values.items():
+    for name in values:
         if not hasattr(cfg, name):
             raise ConfigError(f"unknown board configuration setting {name!r}")
-        setattr(cfg, name, list(value) if isinstance(value, (list, tuple)) else value)
+    cfg.apply([(k, list(v) if isinstance(v, (list, tuple)) else v) for k, v in values.items()])
     problem = cfg.validate()
     if problem:
         raise ConfigError(f"board configuration rejected by the firmware: {problem}")

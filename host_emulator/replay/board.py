@@ -21,6 +21,7 @@ from host_emulator.errors import EmulatorError
 from host_emulator.proto import config as board_config
 
 REPLAY, DATASET, COMMAND_LINE = "replay", "dataset", "--set"
+DETECTED = "detected"  # chosen from the data (replay/carrier.py: the profile)
 # Settings a scored replay cannot change: the score reads every 52-byte frame (one per tick)
 # and the extended frames (the origin of the frames' positions).
 _SCORED = {

@@ -49,7 +49,7 @@ import pymap3d
 
 from host_emulator.errors import EmulatorError
 from host_emulator.proto import stimulus as stim_mod
-from host_emulator.replay import board
+from host_emulator.replay import board, carrier
 from host_emulator.replay import dataset as ds
 from host_emulator.sim import board_input, nmea, trajectory
 from host_emulator.sim import gnss as gnss_mod
@@ -618,6 +618,7 @@ def convert(dataset, opt=None):
         if "gnss_latency_s" not in user:
             config["gnss_latency_s"] = latency
     notes.append(_gnss_note(plan, m, baud, latency, user, sources))
+    notes.append(_profile(accel_counts, ranges, config, user, sources))
     config.update(user)
     board.check_scorable(config, sources)
     refused = board.problem(config)
@@ -655,6 +656,28 @@ def convert(dataset, opt=None):
         notes=notes, sources=sources, pps=plan.pps, latency_s=latency,
         gnss_recorded=dataset.gnss is not None,
     )  # fmt: skip
+
+
+def _profile(accel_counts, ranges, config, user, sources):
+    """The board's profile for the replay, and the note that says which and why: the one
+    given (dataset or --set), else the one the accelerometer shows (carrier.py: a walker's
+    steps, the handheld profile); a car profile given for a walker's data is said loudly."""
+    lsb = imu_mod.ACCEL_LSB_PER_G_BY_RANGE[int(ranges["accel_range_g"])]
+    gait = carrier.gait(accel_counts / lsb * carrier.G_M_S2, TICK_S)
+    if "profile" not in user:
+        config["profile"] = 1 if gait.walking else 0
+        sources["profile"] = board.DETECTED
+        if gait.walking:
+            return (f"profile 1 (handheld), chosen from the data: {gait.describe()}; "
+                    "--set profile=0 runs it as a vehicle")  # fmt: skip
+        return f"profile 0 (car): {gait.describe()}"
+    given = int(user["profile"])
+    if given == 0 and gait.walking:
+        return (f"WARNING: profile=0 (car; {sources['profile']}), but {gait.describe()}: a "
+                "board carried by a person, whom the car's non-holonomic constraint and "
+                "standstill thresholds do not fit; --set profile=1 runs it as one")  # fmt: skip
+    what = "handheld" if given == 1 else "car"
+    return f"profile {given} ({what}; {sources['profile']}): {gait.describe()}"
 
 
 def _gnss_note(plan, m, baud, latency, user, sources):

@@ -8,6 +8,7 @@ from pathlib import Path
 from host_emulator import runtimes
 from host_emulator.proto import config as board_config
 from host_emulator.proto.session_file import SessionError, load
+from host_emulator.replay import carrier
 from host_emulator.session.compare import Comparison, compare
 from host_emulator.session.rebuild import to_stimulus
 from host_emulator.session.walk import TICK_US, Recording, board_cfg, parse
@@ -22,6 +23,7 @@ class ReplayResult:
     config_source: str
     file_problems: list  # what a cut or damaged session file lost (session_file.Session)
     runtime_note: str | None = None  # why the runtime was picked (pick_runtime)
+    profile_note: str | None = None  # a car profile on a walker's data (carrier.py)
 
     @property
     def identical(self):
@@ -41,6 +43,8 @@ class ReplayResult:
             lines.append("note: " + note)
         if self.runtime_note:
             lines.append("note: " + self.runtime_note)
+        if self.profile_note:
+            lines.append("warning: " + self.profile_note)
         lines.append(f"replayed on {self.run.runtime} in {self.run.wall_s:.1f} s")
         lines.append(self.comparison.summary())
         if self.identical:
@@ -89,7 +93,22 @@ def replay(session_path, workdir, runtime="auto", config=None, until_gap=False, 
     run = rt.run(stim, workdir, progress=progress, board=board)
     cfg = board_cfg(values)
     c = compare(rec.stream, run.out, cfg.output_every_ticks, cfg.ext_every_ticks, rt.bit_exact)
-    return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)), why)
+    return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)), why,
+                        _profile_note(stim, cfg))  # fmt: skip
+
+
+def _profile_note(stim, cfg):
+    """What to say when the board ran the car profile on a walker's data (the replay keeps
+    the board's settings: it must send what the board sent)."""
+    if cfg.profile != 0:
+        return None
+    gait = carrier.of_stimulus(stim)
+    if not gait.walking:
+        return None
+    return (
+        f"the board ran profile 0 (car), but its data show {gait.describe()}: "
+        "a board carried by a person navigates with profile=1 (config set profile=1)"
+    )
 
 
 def pick_runtime(header, runtime="auto"):

@@ -7,6 +7,7 @@ import struct
 from binascii import crc32
 
 import config
+import navcfg
 import numpy as np
 import pytest
 
@@ -15,7 +16,7 @@ from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 def custom():
     c = config.BoardConfig()
-    c.profile = 1
+    c.set("profile", 1)
     c.gyro_range_dps = 500
     c.accel_range_g = 4
     c.output_baud = 921600
@@ -48,12 +49,42 @@ def test_round_trip_keeps_every_value_as_float32(tmp_path):
 
 def test_navigator_configuration_follows(tmp_path):
     nav = custom().nav_config()
-    assert nav.profile == "handheld" and not nav.zupt and not nav.nhc
+    assert nav.profile == "handheld" and nav.zupt and not nav.nhc
+    hand = navcfg.NavConfig("handheld")
+    assert (nav.still_gyro, nav.still_accel) == (hand.still_gyro, hand.still_accel)
     assert list(nav.lever_b_m) == f32list([0.1, 0.5, 1.25])
     assert nav.gnss_hdop_max == np.float32(3.0)
     # +-500 deg/s: 65.6 LSB per deg/s; +-4 g: 512 LSB per g
     assert abs(float(nav.gyro_counts_per_rad_s) - 65.6 * 180 / np.pi) < 1e-3
     assert abs(float(nav.accel_counts_per_m_s2) - 512 / 9.80665) < 1e-4
+
+
+def test_the_profile_brings_its_own_defaults_and_keeps_what_the_user_chose():
+    """A hand is never as still as a parked car: the handheld profile's standstill thresholds
+    are its own. Switching the profile moves the settings still at the old profile's default
+    (a file written for the car keeps the car's thresholds explicitly) and keeps the others,
+    in any order of the changes; a file without those records takes its profile's."""
+    car, hand = navcfg.NavConfig("car"), navcfg.NavConfig("handheld")
+    assert hand.still_gyro > 5 * car.still_gyro and hand.still_accel > 5 * car.still_accel
+    c = config.BoardConfig()
+    assert (c.still_gyro, c.still_accel) == (car.still_gyro, car.still_accel)
+    c.apply([("still_accel", 0.25), ("profile", 1)])
+    assert c.profile == 1 and c.still_gyro == hand.still_gyro and c.still_accel == 0.25
+    c.apply([("profile", 0)])
+    assert c.still_gyro == car.still_gyro and c.still_accel == 0.25
+    assert config.BoardConfig(1).still_gyro == hand.still_gyro
+    # a file whose standstill records are missing (an older firmware's): the profile's
+    data = config.encode(custom())
+    body = bytearray(data[:-4])
+    rid = next(r[0] for r in config._SCHEMA if r[1] == "still_gyro")
+    at = 6
+    while body[at] != rid:
+        at += 3 + 4 * body[at + 2]
+    del body[at : at + 7]
+    body[5] -= 1
+    body = bytes(body)
+    cfg = config.decode(body + struct.pack("<I", crc32(body) & 0xFFFFFFFF))
+    assert cfg.profile == 1 and cfg.still_gyro == hand.still_gyro
 
 
 @pytest.mark.parametrize("damage", ["flip", "truncate", "magic", "empty"])

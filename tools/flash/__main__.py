@@ -69,8 +69,7 @@ def _merged_config(changes, config):
                 cfg = _decode_config(base, "the configuration to change", "")
             except FlashError as e:
                 print(f"{e}It is replaced by the defaults and the changes.")
-        for name, value in changes:
-            setattr(cfg, name, value)
+        cfg.apply(changes)
         problem = cfg.validate()
         if problem:
             raise FlashError(f"invalid setting: {problem}. Nothing was written.")
@@ -227,8 +226,7 @@ def _config(args):
                 print(
                     f"{e}The firmware ignored it; it is replaced by the defaults and the changes."
                 )
-    for name, value in changes:
-        setattr(cfg, name, value)
+    cfg.apply(changes)
     problem = cfg.validate()
     if problem:
         raise FlashError(f"invalid setting: {problem}. Nothing was written.")

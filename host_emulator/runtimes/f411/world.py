@@ -216,8 +216,15 @@ class World:
     def _counters(self):
         c = self.chip.cpu.counter
         cc = c.category_count
-        return (c.icount, c.handler_icount, cc[_CAT["uart"]], cc[_CAT["spi_dma"]],
-                cc[_CAT["gc"]], self.chip.bus.poll_wait_cycles, self.chip.cpu.exceptions_taken)
+        return (
+            c.icount,
+            c.handler_icount,
+            cc[_CAT["uart"]],
+            cc[_CAT["spi_dma"]],
+            cc[_CAT["gc"]],
+            self.chip.bus.poll_wait_cycles,
+            self.chip.cpu.exceptions_taken,
+        )
 
     def _sleeping(self, pc):
         # the loop's idle (machine.idle's WFI), not a driver's wait (spi_transfer's WFI)
@@ -279,8 +286,9 @@ class World:
             "resets": [r for r in self.resets],
             "instructions": int(chip.clock.instructions),
             "polls_skipped": chip.bus.polls_skipped,
-            "poll_wait_ms_by_peripheral": {k: v * 1000 / hz for k, v in
-                                           sorted(chip.bus.poll_wait_by.items())},  # fmt: skip
+            "poll_wait_ms_by_peripheral": {
+                k: v * 1000 / hz for k, v in sorted(chip.bus.poll_wait_by.items())
+            },  # fmt: skip
             "flash_erases": chip.flash_if.erases,
         }
 
