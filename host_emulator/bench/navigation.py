@@ -346,9 +346,11 @@ def report(results, vm, footprint, seeds, wall):
     lines += [
         "## Configurations on the car drive",
         "",
-        "urban_drive, white GNSS. The handheld profile has no zero-velocity update and no "
-        "non-holonomic constraint; the coning/sculling corrections and more filter slices per "
-        "tick cost time per tick (see below) for what accuracy difference this shows.",
+        "urban_drive, white GNSS. The handheld profile (a board in a hand held in the car) has "
+        "no non-holonomic constraint and a hand's standstill thresholds with no veto by its "
+        "own speed, which a smooth road passes in outages (docs/navigation.md); the "
+        "coning/sculling corrections and more filter slices per tick cost time per tick (see "
+        "below) for what accuracy difference this shows.",
         "",
         "| configuration | horiz RMS m | vel RMS m/s | yaw deg | end of outages m |",
         "|---|---|---|---|---|",

@@ -480,7 +480,7 @@ def test_a_hand_that_is_never_still_navigates():
     thresholds, no zero-velocity update) the same walk ran at 12.4 m RMS with 6.8 resets per run
     and up to 10.6 m/s reported while standing (5 seeds). Measured here (seed 0, 200 s):
     1.6 s to navigate after the first step, 0.68 m against the fixes' 2.93 m, 0.022 m/s at
-    most while standing; with the car's thresholds 0.97 m/s standing and 2.38 m."""
+    most while standing; with the car's thresholds 1.18 m/s standing and 2.38 m."""
     truth, imu, gnss = scenario(
         "walk", 200, seed=0, gnss_model=sim_gnss.GnssModel(white_fraction=1.0)
     )
