@@ -40,7 +40,8 @@ Field syntax and units (empty fields are legal everywhere and mark the value unk
 - numbers: optional sign, digits, optional '.' and digits; scaled to an integer unit with
   rounding half away from zero; more than 9 significant digits in the unit is a bad field.
 - time hhmmss[.sss...]: ms of the UTC day, 0 .. 86 400 999 (second 60 allowed for a leap
-  second); decimals beyond the third are truncated; out of range values (hour 24) -> -1.
+  second, at 23:59 only); decimals beyond the third are truncated; out of range values (hour
+  24, 12:34:60) -> -1.
 - lat ddmm.mmmm / lon dddmm.mmmm (1 to 3 degree digits, exactly 2 minute digits, any number
   of decimals, or none): 1e-7 deg, round half away from zero of deg + min / 60, exact. Only
   the first 7 minute decimals can matter: with A = floor(min * 1e7) and the rest r in [0, 1),
@@ -105,7 +106,7 @@ docs/gnss.md. On completion the epoch is copied, so later sentences cannot tear 
   epoch_speed_mm_s, epoch_course_cdeg (-1: unknown; taken from the latest RMC with status A
   or VTG with mode other than N of the epoch), epoch_pps_us (pps_us when the epoch's first
   sentence was parsed: the PPS edge of that second if one arrived in between), epoch_bad
-  (BAD_* bits: a fix with a physically impossible field, quality 6-8 or a time that did not
+  (BAD_* bits: a fix with a physically impossible field, quality 6 or above, a time that did not
   move forward, counted in n_epochs_bad; the app does not use it),
 and epoch_ready = 1, n_epochs += 1 (`epoch_take()` returns and clears epoch_ready). An
 epoch that had a GGA or RMC but never got what was expected is dropped when the next one
@@ -157,15 +158,20 @@ _JOIN_US_PER_MS = const(750)  # a VTG joins an epoch within 3/4 of the output pe
 
 # epoch_bad: the fields that make a completed epoch's fix physically impossible (the app does
 # not use such a fix); checked only for an epoch with a position and a fix quality above 0
-BAD_QUALITY = const(1)  # GGA quality 6 (estimated), 7 (manual input), 8 (simulation), above
+BAD_QUALITY = const(1)  # GGA quality 6 (estimated), 7 (manual input), 8 (simulation), or
+# above 8 (no NMEA quality is)
 BAD_HEIGHT = const(2)  # altitude outside -1 km .. 20 km above mean sea level
 BAD_SPEED = const(4)  # speed above 515 m/s (1,000 knots, the export-control limit)
 BAD_COURSE = const(8)  # course above 360 deg
 BAD_HDOP = const(16)  # HDOP 0: no satellite geometry gives it
 BAD_TIME = const(32)  # UTC not after the previous epoch's (a midnight rollover excepted)
+BAD_GEOID = const(64)  # geoid separation beyond +-200 m (the geoid lies within -107..+86 m)
+BAD_NSAT = const(128)  # more than 99 satellites in use (GGA's field has two digits)
 _ALT_MIN_MM = const(-1000000)
 _ALT_MAX_MM = const(20000000)
 _SPEED_MAX_MM_S = const(515000)
+_SEP_MAX_MM = const(200000)
+_NSAT_MAX = const(99)
 _HALF_DAY_MS = const(43200000)
 
 # self._s, the parser's int buffer (firmware/native/layout.h NS_* repeats it): the framing
@@ -360,8 +366,8 @@ def _utc_ms(line, a, b):
     h = v // 10000
     m = v // 100 % 100
     s = v % 100
-    if h > 23 or m > 59 or s > 60:
-        return -1
+    if h > 23 or m > 59 or s > 60 or (s == 60 and h * 100 + m != 2359):
+        return -1  # a leap second is 23:59:60, never another minute's 60th second
     return ((h * 60 + m) * 60 + s) * 1000 + ms
 
 
@@ -764,7 +770,7 @@ class Nmea:
         prev = self._prev_utc
         self._prev_utc = utc  # a receiver's clock that jumped back costs one epoch, not hours
         if self.epoch_pos_ok and self.epoch_quality > 0:
-            if self.epoch_quality >= 6 and self.epoch_quality <= 8:
+            if self.epoch_quality >= 6:
                 bad |= BAD_QUALITY
             a = self.epoch_alt_mm
             if self.epoch_alt_ok and (a < _ALT_MIN_MM or a > _ALT_MAX_MM):
@@ -777,6 +783,11 @@ class Nmea:
                 bad |= BAD_HDOP
             if prev >= 0 and utc >= 0 and -_HALF_DAY_MS < utc - prev <= 0:
                 bad |= BAD_TIME
+            sep = self.epoch_sep_mm
+            if self.epoch_sep_ok and (sep > _SEP_MAX_MM or sep < -_SEP_MAX_MM):
+                bad |= BAD_GEOID
+            if self.epoch_nsat > _NSAT_MAX:
+                bad |= BAD_NSAT
             if bad:
                 self.n_epochs_bad = (self.n_epochs_bad + 1) & _WRAP
         self.epoch_bad = bad

@@ -185,8 +185,8 @@ static int32_t utc_ms(const uint8_t *line, int32_t a, int32_t b) {
     int32_t h = v / 10000;
     int32_t m = v / 100 % 100;
     int32_t s = v % 100;
-    if (h > 23 || m > 59 || s > 60) {
-        return -1;
+    if (h > 23 || m > 59 || s > 60 || (s == 60 && h * 100 + m != 2359)) {
+        return -1; /* a leap second is 23:59:60 only */
     }
     return ((h * 60 + m) * 60 + s) * 1000 + ms;
 }

@@ -581,6 +581,30 @@ def test_a_typical_epoch():
     assert p.talker == 0x474E and p.last == gnss.GSA and p.seq == 4
 
 
+@pytest.mark.parametrize(
+    "gga, bit",
+    [
+        (GGA_BODY, 0),
+        (GGA_BODY.replace(",1,08,", ",9,08,"), gnss.BAD_QUALITY),  # no NMEA quality above 8
+        (GGA_BODY.replace(",1,08,", ",6,08,"), gnss.BAD_QUALITY),  # estimated
+        (GGA_BODY.replace(",46.9,M", ",250.0,M"), gnss.BAD_GEOID),  # the geoid: -107..+86 m
+        (GGA_BODY.replace(",46.9,M", ",-200.1,M"), gnss.BAD_GEOID),
+        (GGA_BODY.replace(",46.9,M", ",-106.5,M"), 0),
+        (GGA_BODY.replace(",1,08,", ",1,120,"), gnss.BAD_NSAT),  # GGA's field has two digits
+        (GGA_BODY.replace(",1,08,", ",1,99,"), 0),
+        (GGA_BODY.replace("123519.25", "235960.5"), 0),  # a leap second
+    ],
+)
+def test_fields_no_receiver_can_report_make_the_fix_unusable(gga, bit):
+    """Fuzzed NMEA once reached the app as fixes: a geoid separation of 200 m and more, a
+    quality above 8, more than 99 satellites. Each is now a BAD_* bit of the epoch, which the
+    app does not use. (A time that is no time of day is no time: such an epoch is never
+    released, test_a_second_60_is_a_leap_second_at_23_59_only.)"""
+    p = fed(sentence(gga) + sentence(RMC_BODY.replace("123519.25", gga.split(",")[1])))
+    assert p.n_epochs == 1 and p.epoch_pos_ok == 1
+    assert p.epoch_bad == bit and p.n_epochs_bad == (1 if bit else 0)
+
+
 def test_nul_bytes_garbage_and_binary_between_sentences():
     junk = bytes(20) + b"\xb5\x62\x01\x07\x5c\x00" + bytes(range(256)).replace(b"$", b"")
     p = fed(junk + sentence(GGA_BODY) + bytes(5) + b"\xff\xfe" + sentence(RMC_BODY) + junk)
@@ -706,6 +730,14 @@ def test_out_of_range_values_are_marked_invalid_not_rejected():
     assert p.gga_pos_ok == 0
     p = fed(sentence(RMC_BODY.replace("230394", "320394")))
     assert p.n_rmc == 1 and p.rmc_date == -1
+
+
+def test_a_second_60_is_a_leap_second_at_23_59_only():
+    """24:00:00.999 in a fuzzed log was 23:59:60.999 read naively; second 60 of any other minute
+    is no time at all (the Python reference and nmea.c alike, test_the_native_scan_...)."""
+    for t, ms in (("235960.999", 86400999), ("123460", -1), ("000060", -1), ("240000", -1)):
+        p = fed(sentence(GGA_BODY.replace("123519.25", t)))
+        assert p.n_gga == 1 and p.gga_utc_ms == ms, t
 
 
 def test_hemispheres_and_longitude_halves():
