@@ -469,12 +469,15 @@ class App:
         fi[_FI_TICK] = self._fix_tick(g.epoch_pps_us, g.epoch_utc_ms)
 
     def _fix_tick(self, pps_us, utc_ms):
-        """The fix's measurement tick: the PPS edge's when the edge came less than a second
-        before the epoch's first sentence and belongs to the epoch's second, _LATE when it
-        belongs to a later one (CAUSE_GNSS_LATE for a second), else -1 (the navigator applies
-        the configured latency); CAUSE_PPS for a second when there is no edge though edges
-        came before (a missing edge)."""
+        """The fix's measurement tick: the PPS edge's plus the epoch's offset into its second
+        (a 5 or 10 Hz receiver's epochs at .2, .4 ... s share their second's edge), when the
+        fix's moment came less than a second before its epoch's first sentence and the edge
+        belongs to the epoch's second; _LATE when it belongs to a later one (CAUSE_GNSS_LATE
+        for a second), else -1 (the navigator applies the configured latency); CAUSE_PPS for
+        a second when there is no edge though edges came before (a missing edge)."""
         age_us = time.ticks_diff(time.ticks_us(), pps_us)
+        if utc_ms > 0:
+            age_us -= utc_ms % 1000 * 1000  # from the fix's own moment, not its second's
         if pps_us and 0 <= age_us < 1000000:
             if self._late_s(pps_us, utc_ms // 1000) > 0:
                 self._chk[_K_LATE_BAD] = self.ticks + _SECOND_TICKS

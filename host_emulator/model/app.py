@@ -212,6 +212,8 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
             course = F32(g.epoch_course_cdeg) * fw_nav.RAD_PER_CDEG
     fix_tick = -1
     age_us = ticks_diff(now_us, g.epoch_pps_us)
+    if g.epoch_utc_ms > 0:  # app._fix_tick: from the fix's own moment in its second
+        age_us -= g.epoch_utc_ms % 1000 * 1000
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
         if _late_s(pps, g.epoch_pps_us, g.epoch_utc_ms) > 0:  # app._fix_tick: too old to use
             pps["late_bad"] = ticks + fw_app._SECOND_TICKS

@@ -38,6 +38,17 @@ import nav_align as fw_nav_align  # noqa: E402
 
 import geo as fw_geo  # noqa: E402
 
+
+def _rate_slices(interval, configured):
+    """nav._rate_slices: 4 slices per tick for fixes fewer than _SLICES_4_BELOW ticks apart,
+    2 below _SLICES_2_BELOW, else 1; never fewer than configured."""
+    if 0 < interval < fw_nav._SLICES_4_BELOW:
+        return max(4, configured)
+    if 0 < interval < fw_nav._SLICES_2_BELOW:
+        return max(2, configured)
+    return configured
+
+
 ALIGNING = fw_nav.ALIGNING
 NAVIGATING = fw_nav.NAVIGATING
 RING = fw_nav.RING
@@ -60,6 +71,7 @@ class NavModel(AlignmentModel, AidingModel):
 
     def __init__(self, cfg):
         self.cfg = cfg
+        self.slices = cfg.slices_per_tick  # filter slices per tick (_nav_fix: the fix rate's)
         dt = cfg.dt_s
         self.ins = InsModel(dt, cfg.earth_terms, cfg.coning)
         self.kf = EskfModel(cfg.earth_terms)
@@ -379,7 +391,7 @@ class NavModel(AlignmentModel, AidingModel):
         if kf.job == IDLE and not kf.ready:
             self._schedule()
         busy = kf.job != IDLE
-        kf.work(self.cfg.slices_per_tick)
+        kf.work(self.slices)
         if kf.ready:
             self._inject()
         if busy and kf.job == IDLE:  # P changed only if a job ended
@@ -398,7 +410,9 @@ class NavModel(AlignmentModel, AidingModel):
             self._fault_reset()
 
     def _nav_fix(self):
-        """Screen a new fix once, re-anchor if far, convert it and queue it for the filter."""
+        """Screen a new fix once, re-anchor if far, convert it and queue it for the filter;
+        the slices per tick follow the receiver's rate (nav._rate_slices)."""
+        self.slices = _rate_slices(self.tick - self.last_fix_tick, self.cfg.slices_per_tick)
         self.last_fix_tick = self.tick
         if not self._fix_usable():
             self.gated_until = self.tick + self.ticks_second
