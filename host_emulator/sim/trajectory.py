@@ -703,7 +703,7 @@ def walk_ideal(duration_s, seed, outages):
     # a hand-held board carries its own antenna: a car's 1 m lever would swing at the hand's
     # rates (0.4 m/s)
     script.antenna_b_m = (0.0, 0.05, 0.0)
-    script.board_profile = 1  # handheld: no non-holonomic constraint, no standstill updates
+    script.board_profile = 1  # handheld: no NHC, a hand's standstill detector (navcfg)
     _walk_route(script, rng, duration_s, outages)
     return script
 
