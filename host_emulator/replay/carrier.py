@@ -11,9 +11,13 @@ hundredths of a g and its vibration is broadband above 10 Hz; a bicycle's pedall
 hundredths of a g. `gait` cuts the magnitude of the specific force into 4 s windows (the mean
 taken out) and calls a window a step window when its strongest component between 0.5 and 5 Hz
 lies at 1.4-2.6 Hz with an amplitude of 0.15 g or more (0.25 Hz bins: a rate between two bins
-reads up to 15 % low). A recording walks when a fifth of its
-windows do (a walk with stops, turns and a still start still has most of its windows stepping;
-a drive has none).
+reads up to 15 % low). A recording walks when a fifth of its windows do (a walk with stops,
+turns and a still start still has most of its windows stepping; a drive has none).
+
+Measured: the simulated walks step in 70-80 % of their windows; the simulated drives, the
+bicycle and the real drive_0708 in none (drive_0708's strongest window 0.11 g, its 95th
+percentile 0.06 g). Only the cadence is tested: a board riding a vehicle in the hand of a
+passenger who does not walk is a vehicle's.
 """
 
 from dataclasses import dataclass
