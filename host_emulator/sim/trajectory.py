@@ -684,10 +684,8 @@ def _phases(rng):
 def walk_ideal(duration_s, seed, outages):
     rng, _ = _streams(seed)
     script = DriveScript(rng.uniform(-np.pi, np.pi))
-    script.PITCH_PER_ACCEL = 0.0  # a hand neither squats nor leans like a car body
-    script.ROLL_PER_ACCEL = 0.0
     deg = np.deg2rad
-    script.sway = Sway(
+    sway = Sway(
         step_hz=rng.uniform(1.7, 2.0),
         v_ref_m_s=1.3,
         amplitudes={
@@ -700,10 +698,7 @@ def walk_ideal(duration_s, seed, outages):
         },  # fmt: skip
         phases=_phases(rng),
     )
-    # a hand-held board carries its own antenna: a car's 1 m lever would swing at the hand's
-    # rates (0.4 m/s)
-    script.antenna_b_m = (0.0, 0.05, 0.0)
-    script.board_profile = 1  # handheld: no NHC, a hand's standstill detector (navcfg)
+    _in_hand(script, sway)
     _walk_route(script, rng, duration_s, outages)
     return script
 
@@ -723,14 +718,21 @@ def walk(duration_s, seed, outages):
     rng, _ = _streams(seed)
     hand_rng = np.random.default_rng([seed, 3])  # the walker apart from the route
     script = DriveScript(rng.uniform(-np.pi, np.pi))
-    script.PITCH_PER_ACCEL = 0.0
-    script.ROLL_PER_ACCEL = 0.0
-    script.sway = Hand.draw(hand_rng)
-    script.antenna_b_m = (0.0, 0.05, 0.0)
-    script.board_profile = 1
+    _in_hand(script, Hand.draw(hand_rng))
     script.sensor_grade = "uncalibrated"
     _walk_route(script, rng, duration_s, outages)
     return script
+
+
+def _in_hand(script, sway):
+    """A board in a person's hand, moved by `sway` (a Sway or a hand.Hand)."""
+    script.PITCH_PER_ACCEL = 0.0  # a hand neither squats nor leans like a car body
+    script.ROLL_PER_ACCEL = 0.0
+    script.sway = sway
+    # a hand-held board carries its own antenna: a car's 1 m lever would swing at the hand's
+    # rates (0.4 m/s)
+    script.antenna_b_m = (0.0, 0.05, 0.0)
+    script.board_profile = 1  # handheld: no NHC, a hand's standstill detector (navcfg)
 
 
 def _walk_route(script, rng, duration_s, outages):
