@@ -967,10 +967,10 @@ def _cal_si(w, f, w_in, f_in, cal, flags):
 
 # The filter's work a second at one slice per tick: propagation takes 31 of every 40 ticks
 # (eskf.py), so a second fix a second already waits. Ticks between fixes (200 Hz) below which
-# the slices double, and quadruple (the configured slices_per_tick is the least). Measured on
-# urban_drive (seed 0, white fixes, bench navigator), velocity RMS east/north/up, m/s:
-# 1 Hz 0.038/0.033/0.021 at 1 slice; 2 Hz 0.049/0.043/0.109 at 1, 0.030/0.026/0.023 at 2;
-# 5 Hz 0.032/0.037/0.016 and 10 Hz 0.023/0.022/0.046 at 4.
+# the slices double, and quadruple (the configured slices_per_tick is the least). At one slice
+# for every rate (before this rule; its commit has the figures) the 2 Hz vertical velocity on
+# urban_drive was 0.109 m/s RMS against 0.021 at 1 Hz; with it, bench-nav's table "Receivers by
+# their rate" (`bench-nav --trial urban_drive --rate 2` for one row).
 _SLICES_2_BELOW = const(150)  # ticks: faster than 1.33 fixes a second
 _SLICES_4_BELOW = const(75)  # faster than 2.67
 

@@ -59,8 +59,9 @@ class NavConfig:
         # m/s, speed/course velocity. In hand, the receiver's ~0.05 plus the antenna's lever
         # velocity C (w x l), taken at the tick the fix is processed rather than at its epoch
         # (up to 0.035 m/s with a 5 cm lever at the hand's 40 deg/s): 0.08. A car's 0.1 is
-        # the same receiver with margin (measured on the walk, 5 seeds: NEES 0.48 / 0.55 /
-        # 0.62 / 1.12 with 0.1 / 0.08 / 0.07 / 0.05, horizontal RMS 0.67 / 0.69 / 0.71 / 0.85 m)
+        # the same receiver with margin (`bench-nav --trial walk --nav gnss_vel_sigma=S`: NEES
+        # 0.48 / 0.55 / 0.62 / 1.12 with 0.1 / 0.08 / 0.07 / 0.05, horizontal RMS 0.67 / 0.69 /
+        # 0.71 / 0.85 m)
         self.gnss_vel_sigma = f32.ratio(1, 10) if profile == "car" else f32.ratio(8, 100)
         self.gnss_hdop_max = f32.f32(2)  # reject fixes with HDOP above (seed 000 NFR)
         self.gnss_min_quality = 1
@@ -76,8 +77,8 @@ class NavConfig:
         # Alignment: static averaging for roll, pitch and gyro bias. A hand is never still: its
         # sway turns the board by up to ~1.5 deg back and forth, so the mean rate over a window
         # of T s errs by up to 3 deg / T: 10 s (0.3 deg/s at worst) against a car's 2 s
-        # (measured on the simulated walk, 5 seeds, with 2 / 5 / 10 / 20 s windows: horizontal
-        # RMS 0.72 / 0.68 / 0.69 / 0.73 m, yaw 4.8 / 2.7 / 2.4 / 2.5 deg, standing 0.11 / 0.08 /
+        # (`bench-nav --trial walk --nav level_s=T` with 2 / 5 / 10 / 20 s: horizontal RMS
+        # 0.72 / 0.68 / 0.69 / 0.73 m, yaw 4.8 / 2.7 / 2.4 / 2.5 deg, standing 0.11 / 0.08 /
         # 0.07 / 0.08 m/s at most).
         self.level_s = f32.f32(2) if profile == "car" else f32.f32(10)
         # the course over ground becomes the heading from this speed on: a walk (0.8 m/s);
@@ -112,7 +113,7 @@ class NavConfig:
         else:
             # a person standing with the board in hand: tremor (up to 0.02 g at 6-11 Hz) and
             # sway (1-3 deg/s) stay under 3 deg/s and 0.5 m/s^2; a walking hand's steps are
-            # 15-25 deg/s and 3-5 m/s^2 rms (the simulated walk, docs/emulator.md)
+            # over 10 deg/s and 2 m/s^2 rms (the simulated walk: tests/sim/test_sim.py)
             self.still_gyro = _deg(3)
             self.still_accel = f32.ratio(1, 2)
         self.still_s = f32.ratio(1, 2)  # both must hold this long
@@ -120,10 +121,11 @@ class NavConfig:
         # m/s: and so does the navigator's own speed, for a car (a smooth road is as quiet as a
         # stop). A hand that moves is never quiet, and a veto by an INS drifting without a
         # receiver speed (an outage, a GGA-only receiver) locks the update out exactly when it
-        # is needed: none for a hand (bench-nav, 5 seeds: the GGA-only walk 4.87 m with none,
-        # 34.9 m with a 3 m/s veto). The price: a board held in a smoothly riding car stops on
-        # the map in outages (urban_drive on this profile 4.29 m, 37.4 m after the 30 s
-        # outage; 1.50 m and 10.1 m with the 3 m/s veto), the car profile's case.
+        # is needed: none for a hand (`bench-nav --trial walk --receiver "GGA only"`: 4.87 m
+        # with none, 34.9 m with `--nav still_max_speed=3`). The price: a board held in a
+        # smoothly riding car stops on the map in outages (`--trial urban_drive --profile
+        # handheld`: 4.29 m, 37.4 m after the 30 s outage; 1.50 m and 10.1 m with the 3 m/s
+        # veto), the car profile's case.
         self.still_max_speed = f32.ratio(1, 2) if profile == "car" else f32.f32(1000)
         # m/s: a hand's sway moves the board by 1-3 cm/s while its owner stands
         self.zupt_sigma = f32.ratio(2, 100) if profile == "car" else f32.ratio(5, 100)

@@ -7,6 +7,11 @@ in the MicroPython VM; prints a markdown report and writes it to
 FILE (default docs/benchmarks/navigation.md, with the raw numbers in a .json beside it).
 Takes a couple of minutes; it is a benchmark, not a test: targets are reported, not asserted.
 
+`bench-nav --trial SCENARIO [--nav NAME=VALUE ...] [--rate HZ] [--receiver R] [--profile P]`
+runs one scenario (white GNSS, 5 seeds) with navigator settings changed and prints its means,
+writing nothing: the measurements behind the tuning in firmware/lib/navcfg.py, e.g.
+`bench-nav --trial walk --nav level_s=5`.
+
 GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
   white      all white, as the filter assumes (the setting of the reference figures in
              DESIGN.md section 10)
@@ -110,14 +115,17 @@ VM_VARIANTS = (
 
 
 def _one(task):
-    """One run: (scenario, seed, white GNSS?, profile) -> metrics."""
-    name, seed, white, profile = task
+    """One run: (scenario, seed, white GNSS?, profile[, trial]) -> metrics; trial (--trial):
+    {"rate_hz": receiver rate, "nav": ((NavConfig attribute, value), ...)}."""
+    name, seed, white, profile = task[:4]
+    trial = task[4] if len(task) > 4 else {}
     from host_emulator import firmware_env
     from host_emulator.bench import navigator
 
     firmware_env.install()
     import navcfg
 
+    import f32
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -126,13 +134,14 @@ def _one(task):
     imu = sim_imu.simulate(truth, seed=seed)
     _, lag_s, learn = LATE_RECEIVERS.get(profile, (name, 0.0, True))
     sentences = sim_gnss.GnssModel.sentences
-    rate_hz = 1.0
+    rate_hz = float(trial.get("rate_hz", 1.0))
     if profile.startswith(_receiver_task("")):
         sentences = RECEIVERS[profile[len(_receiver_task("")) :]]
         profile = SCENARIO_PROFILES[name]
     elif profile.startswith("rate: "):
         rate_hz = float(profile.split()[1])
         profile = SCENARIO_PROFILES[name]
+    sentences = trial.get("sentences", sentences)
     model = sim_gnss.GnssModel(
         white_fraction=1.0 if white else 0.5, stamp_lag_s=lag_s, sentences=sentences,
         rate_hz=rate_hz,
@@ -142,6 +151,8 @@ def _one(task):
     for key, value in PROFILES.get(profile, {}).items():
         setattr(cfg, key, value)
     cfg.gnss_lag_learn = learn
+    for key, value in trial.get("nav", ()):
+        setattr(cfg, key, f32.f32(value) if isinstance(getattr(cfg, key), float) else value)
     run = navigator.run(truth, imu, gnss, cfg=cfg)
     m = navigator.metrics(run, truth, truth.outages)
     ok = gnss.quality > 0
@@ -493,6 +504,57 @@ def report(results, vm, footprint, seeds, wall):
     return "\n".join(lines)
 
 
+def _trial_setting(text):
+    """NAME=VALUE of --nav: a NavConfig attribute (firmware/lib/navcfg.py) and a number."""
+    name, sep, value = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    if name not in _nav_config_names():
+        raise argparse.ArgumentTypeError(f"{name!r} is not a setting of firmware/lib/navcfg.py")
+    try:
+        number = int(value) if value.lstrip("-").isdigit() else float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
+    return name, number
+
+
+def _nav_config_names():
+    from host_emulator import firmware_env
+
+    firmware_env.install()
+    import navcfg
+
+    return set(vars(navcfg.NavConfig("car")))
+
+
+def _trial(args):
+    """--trial SCENARIO: its profile, white GNSS at --rate, the --nav settings over the
+    navigator's; one line of means on stdout, nothing written. The tuning figures in
+    firmware/lib/navcfg.py are measured this way."""
+    trial = {"rate_hz": args.rate, "nav": tuple(args.nav), "sentences": RECEIVERS[args.receiver]}
+    profile = args.profile or SCENARIO_PROFILES.get(args.trial, "car")
+    tasks = [(args.trial, s, True, profile, trial) for s in range(args.seeds)]
+    with ProcessPoolExecutor(max_workers=args.jobs) as ex:
+        rows = list(ex.map(_one, tasks))
+    rows = [m for _task, m in rows]
+    after = [r["nav_after_move_s"] for r in rows]
+    stand = [r["standing_speed_max_m_s"] for r in rows if r["standing_speed_max_m_s"]]
+    print(
+        f"{args.trial} ({profile}), {args.receiver} at {args.rate:g} Hz white, seeds "
+        f"0-{args.seeds - 1}"
+        + "".join(f", {k}={v}" for k, v in args.nav)
+        + f": navigating after the first move {_mean(rows, 'nav_after_move_s'):.1f} s "
+        f"(worst {max(float('inf') if a is None else a for a in after):.1f}), horiz "
+        f"{_mean(rows, 'horiz_rms_m'):.2f} m (fixes {_mean(rows, 'gnss_horiz_rms_m'):.2f}), "
+        f"vel {_mean(rows, 'vel_rms_m_s'):.3f} m/s, yaw {_mean(rows, 'yaw_rms_deg'):.1f} deg, "
+        f"standing max {max(stand) if stand else float('nan'):.2f} m/s, ends of outages "
+        f"{' / '.join(f'{v:.2f}' for v in _outage_means(rows))} m, resets "
+        f"{_mean(rows, 'resets'):.1f}, inside 3 sigma "
+        f"{100 * _mean(rows, 'pos_3sigma_cover'):.0f} %, NEES {_mean(rows, 'pos_nees_h'):.2f}"
+    )
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator bench-nav",
@@ -506,9 +568,41 @@ def main(argv=None):
         help="markdown report to write (a .json with the raw numbers beside it)",
     )
     cli_args.add_jobs_option(ap, "parallel processes")
+    ap.add_argument(
+        "--trial",
+        metavar="SCENARIO",
+        help="run only SCENARIO (white GNSS, its profile, --rate, --nav) and print its means",
+    )
+    ap.add_argument("--rate", type=float, default=1.0, help="--trial: the receiver's rate, Hz")
+    ap.add_argument(
+        "--receiver", choices=list(RECEIVERS), default="GGA + RMC", help="--trial: its sentences"
+    )
+    ap.add_argument(
+        "--profile",
+        choices=("car", "handheld"),
+        help="--trial: the profile (default: the scenario's)",
+    )
+    ap.add_argument(
+        "--nav",
+        type=_trial_setting,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="--trial: a navigator setting (firmware/lib/navcfg.py), e.g. level_s=5",
+    )
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
+    if args.trial is not None:
+        from host_emulator.sim import trajectory
+
+        if args.trial not in trajectory.SCENARIOS:
+            ap.error(f"unknown scenario {args.trial!r}: {', '.join(sorted(trajectory.SCENARIOS))}")
+        if args.rate not in (1, 2, 4, 5, 10):
+            ap.error("--rate must be 1, 2, 4, 5 or 10 Hz")
+        return _trial(args)
+    if args.nav or args.rate != 1.0 or args.profile or args.receiver != "GGA + RMC":
+        ap.error("--nav, --rate, --receiver and --profile go with --trial")
     t0 = time.perf_counter()
     tasks = [
         (n, s, w, p)

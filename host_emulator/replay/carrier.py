@@ -14,10 +14,10 @@ lies at 1.4-2.6 Hz with an amplitude of 0.15 g or more (0.25 Hz bins: a rate bet
 reads up to 15 % low). A recording walks when a fifth of its windows do (a walk with stops,
 turns and a still start still has most of its windows stepping; a drive has none).
 
-Measured: the simulated walks step in 70-80 % of their windows; the simulated drives, the
-bicycle and the real drive_0708 in none (drive_0708's strongest window 0.11 g, its 95th
-percentile 0.06 g). Only the cadence is tested: a board riding a vehicle in the hand of a
-passenger who does not walk is a vehicle's.
+Measured (tests/replay/test_carrier.py): the simulated walks step in 70-80 % of their windows;
+the simulated drives, the bicycle and the real drive_0708 in none (drive_0708's strongest
+window at a step's rate: 0.11 g). Only the cadence is tested: a board riding a vehicle in the
+hand of a passenger who does not walk is a vehicle's.
 """
 
 from dataclasses import dataclass
@@ -38,6 +38,7 @@ class Gait:
     stepping: int  # of them, with a walker's steps
     cadence_hz: float  # median step rate over the stepping windows (nan if none)
     amplitude_g: float  # median amplitude of the step component (nan if none)
+    strongest_g: float = 0.0  # the largest amplitude at 1.4-2.6 Hz in any window
 
     @property
     def share(self):
@@ -49,7 +50,8 @@ class Gait:
 
     def describe(self):
         if not self.stepping:
-            return f"no walking steps in the accelerometer ({self.windows} windows of 4 s)"
+            return (f"no walking steps in the accelerometer ({self.windows} windows of 4 s, "
+                    f"the strongest at a step's rate {self.strongest_g:.2f} g)")  # fmt: skip
         return (
             f"a walker's steps in {100 * self.share:.0f} % of the accelerometer's 4 s windows "
             f"({self.cadence_hz:.1f} steps/s, {self.amplitude_g:.2f} g)"
@@ -73,10 +75,16 @@ def gait(f_b_m_s2, dt_s):
     peak_hz = freq[peak]
     peak_g = spec[np.arange(k), peak] / G_M_S2
     steps = (peak_hz >= STEP_BAND_HZ[0]) & (peak_hz <= STEP_BAND_HZ[1]) & (peak_g >= MIN_STEP_G)
+    step_band = (freq >= STEP_BAND_HZ[0]) & (freq <= STEP_BAND_HZ[1])
+    strongest = float(spec[:, step_band].max()) / G_M_S2
     if not steps.any():
-        return Gait(k, 0, float("nan"), float("nan"))
+        return Gait(k, 0, float("nan"), float("nan"), strongest)
     return Gait(
-        k, int(steps.sum()), float(np.median(peak_hz[steps])), float(np.median(peak_g[steps]))
+        k,
+        int(steps.sum()),
+        float(np.median(peak_hz[steps])),
+        float(np.median(peak_g[steps])),
+        strongest,
     )
 
 

@@ -308,9 +308,8 @@ def test_the_vectorised_frame_equals_the_firmware_packer():
 def test_a_5_hz_receiver_stamps_each_fix_at_its_own_moment(tmp_path):
     """5 fixes a second share their second's PPS edge: each is measured at the edge plus its
     epoch's offset into the second (app._fix_tick), on the firmware and the model alike. Before,
-    all five were taken as the edge's: urban_drive (300 s, 115200 baud, white fixes) ran at
-    10.36 m horizontal RMS at 5 Hz and 2.98 m at 10 Hz against 0.72 m at 1 Hz; now 0.71 m and
-    0.95 m. This test's 90 s: 0.79 m (2.71 m before)."""
+    all five were taken as the edge's: over this test's 90 s, 2.71 m horizontal RMS then,
+    0.79 m now."""
     from host_emulator.eval import scenario_run
 
     model = sim_gnss.GnssModel(rate_hz=5, baud=115200, white_fraction=1.0)

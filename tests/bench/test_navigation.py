@@ -1,0 +1,39 @@
+"""bench-nav --trial: one scenario with navigator settings changed, means on stdout, nothing
+written; the tuning figures in firmware/lib/navcfg.py come from it."""
+
+import re
+
+import pytest
+
+from host_emulator.bench import navigation
+
+
+def _trial(capsys, *argv):
+    assert navigation.main(["--trial", "walk", "--seeds", "1", "--jobs", "1", *argv]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    return line, float(re.search(r"horiz ([0-9.]+) m", line).group(1))
+
+
+def test_a_trial_runs_the_setting_it_is_given(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    line, horiz_10 = _trial(capsys)
+    assert line.startswith("walk (handheld), GGA + RMC at 1 Hz white, seeds 0-0:")
+    line, horiz_2 = _trial(capsys, "--nav", "level_s=2")
+    assert "level_s=2" in line and horiz_2 != horiz_10  # the setting reached the navigator
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["--trial", "walk", "--nav", "no_such=1"], "not a setting of firmware/lib/navcfg.py"),
+        (["--trial", "walk", "--nav", "level_s=x"], "is not a number"),
+        (["--trial", "jog"], "unknown scenario 'jog'"),
+        (["--trial", "walk", "--rate", "3"], "--rate must be 1, 2, 4, 5 or 10 Hz"),
+        (["--nav", "level_s=5"], "go with --trial"),
+    ],
+)
+def test_a_bad_trial_is_a_usage_error(argv, says, capsys):
+    with pytest.raises(SystemExit) as e:
+        navigation.main(argv)
+    assert e.value.code == 2 and says in capsys.readouterr().err
