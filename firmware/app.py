@@ -53,6 +53,10 @@ _K_EDGES_OK = const(7)  # regular PPS edges in a row that each had an epoch afte
 _K_OVERDUE = const(8)  # the tick from which the last edge's epoch is overdue (_pps_seen)
 _K_MSL_MM = const(9)  # the last height the receiver gave, above mean sea level, mm (0 before one)
 _K_H_MM = const(10)  # ... and above the ellipsoid (_fix_fields); _FI_NO_HEIGHT: none yet
+_K_STEP_S = const(11)  # the lateness (s) of the epochs in a row that had one (_late_s; 0: none)
+_K_STEP_N = const(12)  # how many had it, of a clock step; -1: it began at a missed edge (late)
+_K_STEP_BAD = const(13)  # CAUSE_GNSS_CLOCK until this tick
+_STEP_EPOCHS = const(3)  # a clock step's lateness seen this many epochs in a row: re-synchronised
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
@@ -136,6 +140,8 @@ CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt 
 # the navigator stepped through them on the last one read): a warning, 1. Run time on a board, so
 # proto/stream.without_run_time removes it and the 1 it alone raised
 CAUSE_OVERRUN = const(0x8000)
+CAUSE_GNSS_CLOCK = const(0x10000)  # the receiver's clock stepped (its epochs' seconds no longer
+# count the PPS edges): re-synchronised after _STEP_EPOCHS epochs (_late_s); for a second
 
 
 class App:
@@ -181,7 +187,7 @@ class App:
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
         # they made every navigating tick dearer (issue 16's notes)
-        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT))
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -472,15 +478,14 @@ class App:
         """The fix's measurement tick: the PPS edge's plus the epoch's offset into its second
         (a 5 or 10 Hz receiver's epochs at .2, .4 ... s share their second's edge), when the
         fix's moment came less than a second before its epoch's first sentence and the edge
-        belongs to the epoch's second; _LATE when it belongs to a later one (CAUSE_GNSS_LATE
-        for a second), else -1 (the navigator applies the configured latency); CAUSE_PPS for
-        a second when there is no edge though edges came before (a missing edge)."""
+        belongs to the epoch's second; _LATE when it belongs to a later one (_late_s), else
+        -1 (the navigator applies the configured latency); CAUSE_PPS for a second when there
+        is no edge though edges came before (a missing edge)."""
         age_us = time.ticks_diff(time.ticks_us(), pps_us)
         if utc_ms > 0:
             age_us -= utc_ms % 1000 * 1000  # from the fix's own moment, not its second's
         if pps_us and 0 <= age_us < 1000000:
             if self._late_s(pps_us, utc_ms // 1000) > 0:
-                self._chk[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
                 return _LATE
             return self.nav.ctl[_C_TICK] - age_us // _US_PER_TICK
         if self._chk[_K_PPS_LAST]:
@@ -491,10 +496,15 @@ class App:
         """Whole seconds by which edge p_us is later than the epoch's UTC second s (of the
         day; < 0: unknown): the edges are counted from the reference, the edge of the last
         on-time epoch (a receiver whose bytes come 1.4 s late would otherwise have its fixes
-        stamped a second late). 0 makes p_us the reference; so does a first epoch, an old
-        reference or a negative count (a receiver clock that jumped: the reference no longer
-        holds). An edge off the whole seconds (spurious) is not counted. Few locals: the frame
-        stays on the C stack (tests/runtimes/test_frames.py)."""
+        stamped a second late). 0 makes p_us the reference; so does a first epoch or an old
+        reference. An edge off the whole seconds (spurious) is not counted.
+        A lateness that begins while every edge has had its epoch (_K_EDGES_OK: the bytes
+        come on time) is the receiver's clock that stepped back (GPS time to UTC at a cold
+        start, a leap second, a reset), not late bytes: after _STEP_EPOCHS epochs in a row
+        with it, their edge becomes the reference; one that begins at a missed edge stays
+        late (CAUSE_GNSS_LATE). A clock that steps forward (the count comes out negative)
+        re-references at once. Both say CAUSE_GNSS_CLOCK. Few locals: the frame stays on the
+        C stack (tests/runtimes/test_frames.py)."""
         if s < 0:
             return 0
         k = self._chk
@@ -505,9 +515,21 @@ class App:
                     return 0  # a spurious edge, off the seconds (CAUSE_PPS): no count
                 d = (k[_K_EDGE_S] + d // 1000000 - s) % _DAY_S
                 if 0 < d < _DAY_S // 2:
-                    return d
+                    if d != k[_K_STEP_S]:  # a new lateness: a step if the edges had epochs
+                        k[_K_STEP_S] = d
+                        k[_K_STEP_N] = 0 if k[_K_EDGES_OK] >= _OVERDUE_EDGES else -1
+                    if k[_K_STEP_N] < 0:
+                        k[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
+                        return d
+                    k[_K_STEP_BAD] = self.ticks + _SECOND_TICKS
+                    k[_K_STEP_N] += 1
+                    if k[_K_STEP_N] < _STEP_EPOCHS:
+                        return d
+                elif d:
+                    k[_K_STEP_BAD] = self.ticks + _SECOND_TICKS
         k[_K_EDGE_US] = p_us
         k[_K_EDGE_S] = s
+        k[_K_STEP_S] = 0
         return 0
 
     def _send_frame(self, imu, state):
@@ -549,6 +571,8 @@ class App:
             causes |= CAUSE_PPS
         if self.ticks < k[_K_LATE_BAD]:
             causes |= CAUSE_GNSS_LATE
+        if self.ticks < k[_K_STEP_BAD]:
+            causes |= CAUSE_GNSS_CLOCK
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN

@@ -375,3 +375,33 @@ def test_an_epoch_is_late_when_its_pps_edge_belongs_to_a_later_second(tmp_path):
     assert second_ref() == 1
     assert a._late_s(edge(e1 + 401_000_000), -1) == 0  # no UTC time: nothing to count
     assert second_ref() == 1
+
+
+def test_a_receiver_clock_that_steps_is_resynchronised_and_late_bytes_stay_late(tmp_path):
+    """_late_s tells a receiver's clock that stepped back (its epochs' seconds jump while
+    every PPS edge still had its epoch: GPS time to UTC, 18 s) from bytes that come late (the
+    lateness begins at an edge without its epoch): the step's edge becomes the reference after
+    _STEP_EPOCHS epochs and says CAUSE_GNSS_CLOCK; late bytes stay late (CAUSE_GNSS_LATE) as
+    long as they are. A step forward re-references at once, with CAUSE_GNSS_CLOCK."""
+    a = Bench(tmp_path).app
+    import app
+
+    k = a._chk
+    e = 1_000_000
+    assert a._late_s(e, 1000) == 0
+    k[app._K_EDGES_OK] = app._OVERDUE_EDGES  # the edges so far each had their epoch
+    lateness = [a._late_s(e + i * 1_000_000, 1000 + i - 18) for i in range(1, 6)]
+    assert lateness == [18] * (app._STEP_EPOCHS - 1) + [0, 0, 0]  # then on time again
+    assert k[app._K_EDGE_S] == 1000 + 5 - 18
+    assert k[app._K_STEP_BAD] == a.ticks + app._SECOND_TICKS and k[app._K_LATE_BAD] == 0
+    k[app._K_STEP_BAD] = 0
+    assert a._late_s(e + 6_000_000, 1000 + 6) == 0  # back to GPS time: 18 s ahead, at once
+    assert k[app._K_STEP_BAD] > 0 and k[app._K_EDGE_S] == 1006
+    k[app._K_STEP_BAD] = 0
+    # bytes 1.4 s late: the edge before them had no epoch (_pps_seen reset the run)
+    k[app._K_EDGES_OK] = 0
+    lateness = [a._late_s(e + (6 + i) * 1_000_000, 1006 + i - 1) for i in range(1, 8)]
+    assert lateness == [1] * 7 and k[app._K_EDGE_S] == 1006
+    assert k[app._K_LATE_BAD] > 0 and k[app._K_STEP_BAD] == 0
+    k[app._K_EDGES_OK] = app._OVERDUE_EDGES  # regular again, still late: still late bytes
+    assert a._late_s(e + 14_000_000, 1013) == 1

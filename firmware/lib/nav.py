@@ -82,7 +82,11 @@ CAUSE_RESET = const(0x100)  # position and velocity, or the height, reset to a f
 # a later fix is accepted whole: the reset may have been onto a bad one)
 CAUSE_UNCERTAIN = const(0x200)  # the filter's position 1-sigma above fault_sigma_(v_)m
 CAUSE_DRIFT = const(0x400)  # GNSS innovations one-sided for several fixes: drift (5 s)
-CAUSE_FAULTS = const(0x74C)  # IMU_DEAD, NUMERIC, GNSS_REJECTS, RESET, UNCERTAIN, DRIFT: 2
+CAUSE_GNSS_IMPLAUSIBLE = const(0x20000)  # fixes that moved as the board cannot have: a repeated
+# (frozen) position while the navigator moves, or a reset refused for a step the IMU cannot
+# have drifted (a jump; a receiver far off) (1 s)
+CAUSE_FAULTS = const(0x2074C)  # IMU_DEAD, NUMERIC, GNSS_REJECTS, RESET, UNCERTAIN, DRIFT,
+# GNSS_IMPLAUSIBLE: health 2
 
 # Filter jobs (self.ctl[_C_JOB]). Private consts are inlined and cost no global on the board; the
 # NumPy model reads these names through CPython, where they are plain module attributes.
@@ -223,7 +227,10 @@ _C_DATA_UNTIL = const(63)  # CAUSE_GNSS_DATA until this tick
 _C_INFLATE = const(64)  # 1: the IMU came back after a dead spell; widen P at the next job
 _C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
 _C_LAG_TICK = const(66)  # the tick of the last fix the lag learned from (_consistency)
-_NC = const(67)
+_C_IMPLAUSIBLE_UNTIL = const(67)  # CAUSE_GNSS_IMPLAUSIBLE until this tick
+_C_PREV_FIX = const(68)  # the last usable fix: lat, lon degrees, lon fraction (3; _frozen)
+_C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._beyond_drift)
+_NC = const(72)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -692,12 +699,39 @@ class Navigator(Alignment, Aiding):
         if not usable:
             c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             return
+        if self._frozen():
+            return
         if usable & _FC_REANCHOR:
             self._reanchor()
         # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
         self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
                           self._fx)  # fmt: skip
         c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
+
+    def _frozen(self):
+        """True, and CAUSE_GNSS_IMPLAUSIBLE for a second, when the usable fix repeats the last
+        one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2: a receiver
+        that keeps sending its last solution (a real one's noise moves every fix; one that
+        holds its position at a standstill holds it where the navigator stands too). Such a
+        fix is not used. The fix becomes the last one either way."""
+        c = self.ctl
+        same = (
+            c[_C_FIX_LAT] == c[_C_PREV_FIX]
+            and c[_C_FIX_LON_DEG] == c[_C_PREV_FIX + 1]
+            and c[_C_FIX_LON_FRAC] == c[_C_PREV_FIX + 2]
+        )
+        c[_C_PREV_FIX] = c[_C_FIX_LAT]
+        c[_C_PREV_FIX + 1] = c[_C_FIX_LON_DEG]
+        c[_C_PREV_FIX + 2] = c[_C_FIX_LON_FRAC]
+        if not same:
+            return False
+        x = self.ins.x
+        ve = x[ins_mod.X_V]
+        vn = x[ins_mod.X_V + 1]
+        if ve * ve + vn * vn > _FROZEN_V2:
+            c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+            return True
+        return False
 
     def _room(self):
         """Before a step that allocates: the app's heap check, if it gave one."""
@@ -803,6 +837,8 @@ class Navigator(Alignment, Aiding):
                 c[_C_V_REJECTS] = 0
             if mask & 0x1B:
                 c[_C_REJECTS] += 1
+                if c[_C_REJECTS] == 1:
+                    c[_C_JUMPED] = 1 if self._beyond_drift() else 0
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
                     self._reset_to_gnss()
@@ -890,6 +926,8 @@ class Navigator(Alignment, Aiding):
             k |= CAUSE_RESET
         if t < c[_C_DRIFT_UNTIL]:
             k |= CAUSE_DRIFT
+        if t < c[_C_IMPLAUSIBLE_UNTIL]:
+            k |= CAUSE_GNSS_IMPLAUSIBLE
         if c[_C_STATE] == NAVIGATING:
             if t - c[_C_ACCEPT_TICK] > c[_C_T_TIMEOUT]:
                 k |= CAUSE_GNSS_LOST
@@ -1072,6 +1110,7 @@ def _uncertain(e, aid, mem):
     return 0
 
 
+_FROZEN_V2 = f32.f32(1)  # _frozen: a repeated fix while moving faster than 1 m/s (squared)
 _BW_ALPHA = f32.ratio(1, 4)  # weight of a fix in the drift watch's running means (~4 fixes)
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 _BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump

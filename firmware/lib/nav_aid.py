@@ -39,7 +39,11 @@ _C_FIX_TICK = const(19)
 _C_USED_TICK = const(20)
 _C_T_SECOND = const(32)
 _C_V_REJECTS = const(47)
+_C_ACCEPT_TICK = const(9)
 _C_RESET_UNTIL = const(62)
+_C_IMPLAUSIBLE_UNTIL = const(67)
+_C_JUMPED = const(71)
+_M_E = const(52)  # self.mem: Eskf.e
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
@@ -50,6 +54,14 @@ _US_COURSE = const(4)
 _US_SIG_H = const(5)
 _US_SIG_V = const(6)  # < 0: the fix had no height (its magnitude: the sigma it would have had)
 NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance without one, (10 km)^2
+# What the INS can have drifted from the receiver t s after its last accepted fix: _STEP_M +
+# _STEP_HALF_A t^2 (15 m: the receiver's own scatter; a constant error of 1 m/s^2, 0.1 g). A
+# run of rejected fixes whose first was beyond it began with a jump of the receiver (100 m,
+# 2000 km, the pole), not with the INS drifting away from it, which a faulty IMU does
+# smoothly (a 1 deg/s gyro bias tilts it, and the drift passes 0.1 g within seconds): the reset
+# to such fixes is refused while they stay beyond it (_reset_to_gnss).
+_STEP_M = f32.f32(15)
+_STEP_HALF_A = f32.ratio(1, 2)
 
 
 class Aiding:
@@ -196,7 +208,15 @@ class Aiding:
         the attitude is kept. The bias estimates go back to the calibration (0 on top of
         gyro_bias0/accel_bias0): what the filter learned while it drifted away from GNSS is
         what let it drift (after a bias step, a learned 1 deg/s outlives the step and
-        defeats standstill detection), and the fresh covariance lets it learn them again."""
+        defeats standstill detection), and the fresh covariance lets it learn them again.
+        Refused (CAUSE_GNSS_IMPLAUSIBLE for a second) when the rejected run began with a
+        jump of the receiver (_C_JUMPED) and the fix is still beyond what the INS can have
+        drifted since its last accepted fix (_beyond_drift): the rejects go on counting and
+        the next rejected fix asks again."""
+        c = self.ctl
+        if c[_C_JUMPED] and self._beyond_drift():
+            c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+            return
         self._room()
         ins = self.ins
         used = self._used
@@ -215,7 +235,6 @@ class Aiding:
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
             sigma_vel = self.cfg.track_vel_sigma
-        c = self.ctl
         self._restart(used, v, c[_C_TICK] - c[_C_USED_TICK], sh, sv, sigma_vel)
         for i in range(3):
             ins.bg[i] = 0.0
@@ -224,6 +243,18 @@ class Aiding:
         c[_C_V_REJECTS] = 0
         c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state
         self.resets += 1
+
+    def _beyond_drift(self):
+        """True when the east/north innovation of the GNSS update just done (eskf E_Z) is beyond
+        what the INS can have drifted since the last accepted fix (_STEP_M); the first
+        rejected fix of a run asks it too (nav._inject: _C_JUMPED)."""
+        c = self.ctl
+        m = self.mem
+        t = f32.f32(c[_C_TICK] - c[_C_ACCEPT_TICK]) * self.cfg.dt_s
+        lim = _STEP_M + _STEP_HALF_A * (t * t)
+        ye = m[_M_E + eskf.E_Z]
+        yn = m[_M_E + eskf.E_Z + 1]
+        return ye * ye + yn * yn > lim * lim
 
     def _reset_vertical(self):
         """Recovery when the filter keeps rejecting the height while it accepts east and north

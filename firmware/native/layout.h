@@ -263,7 +263,10 @@
 #define C_INFLATE 64
 #define C_DRIFT_UNTIL 65
 #define C_LAG_TICK 66
-#define NC 67
+#define C_IMPLAUSIBLE_UNTIL 67
+#define C_PREV_FIX 68
+#define C_JUMPED 71
+#define NC 72
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52
@@ -326,7 +329,8 @@
 #define CAUSE_RESET 0x100
 #define CAUSE_UNCERTAIN 0x200
 #define CAUSE_DRIFT 0x400
-#define CAUSE_FAULTS 0x74C
+#define CAUSE_GNSS_IMPLAUSIBLE 0x20000
+#define CAUSE_FAULTS 0x2074C
 #define ALIGNING 1
 #define NAVIGATING 2
 #define RING 128

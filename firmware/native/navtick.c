@@ -27,6 +27,8 @@
 #define LAG_MIN (1.0f / 50.0f) /* nav._LAG_MIN */
 #define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
 #define LAG_K0 16.0f /* nav._LAG_K0 */
+#define STEP_M 15.0f /* nav_aid._STEP_M */
+#define STEP_HALF_A 0.5f /* nav_aid._STEP_HALF_A */
 #define LAG_Q2 9.0f /* nav._LAG_Q2 */
 #define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
@@ -62,6 +64,9 @@ static void update_health(int32_t *c) {
     }
     if (t < c[C_DRIFT_UNTIL]) {
         k |= CAUSE_DRIFT;
+    }
+    if (t < c[C_IMPLAUSIBLE_UNTIL]) {
+        k |= CAUSE_GNSS_IMPLAUSIBLE;
     }
     if (c[C_STATE] == NAVIGATING) {
         if (t - c[C_ACCEPT_TICK] > c[C_T_TIMEOUT]) {
@@ -397,6 +402,16 @@ static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t
     }
 }
 
+/* nav_aid._beyond_drift: the east/north innovation of the GNSS update just done beyond what
+   the INS can have drifted since the last accepted fix */
+static int32_t beyond_drift(const int32_t *c, const float *e, const float *m) {
+    float t = (float)(c[C_TICK] - c[C_ACCEPT_TICK]) * m[M_X + X_DT];
+    float lim = STEP_M + STEP_HALF_A * (t * t);
+    float ye = e[E_Z];
+    float yn = e[E_Z + 1];
+    return ye * ye + yn * yn > lim * lim;
+}
+
 /* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
 static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
@@ -421,6 +436,9 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     }
     if (mask & 0x1B) { /* east, north: position or velocity */
         c[C_REJECTS] += 1;
+        if (c[C_REJECTS] == 1) {
+            c[C_JUMPED] = beyond_drift(c, e, m);
+        }
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
         return c[C_REJECTS] >= c[C_RESET_AFTER] ? EV_RESET : 0;
     }

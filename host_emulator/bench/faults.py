@@ -85,8 +85,16 @@ MATRIX = (
     Case("gnss-quality@+5:8", ("gnss_bad_data",), 1.0),
     Case("gnss-hdop@+5:0", ("gnss_bad_data",), 1.0),
     Case("gnss-late@+30:1.4", ("gnss_late", *_GNSS_FIX), 1.0),
+    Case("gnss-clock@+30:-18", ("gnss_clock",), 1.0),
+    Case("gnss-clock@+30:3600", ("gnss_clock",), 1.0),
+    Case("gnss-frozen@+20", ("gnss_implausible", *_GNSS_FIX), 1.0),
+    Case("gnss-pole@+5", ("gnss_implausible", *_GNSS_FIX), 1.0),
+    Case("gnss-jump@+60:2000000", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("stall@+0.2", ("overrun",), 1.0),
 )
+# receivers at other rates than the drive's 1 Hz, without a fault: scored like a fault run
+# against the 1 Hz run (frames above TRUST_M without health 2 count in the target)
+RATES_HZ = (5.0, 10.0)
 _BITS = {name: bit for bit, name in records.CAUSES}
 # run in the MicroPython VM as well (unix port, seed 0): the same firmware on MicroPython
 VM_SUBSET = ("imu-zeros@+1", "accel-vibe@+2", "gnss-height@+5:100", "gnss-quality@+5:6")
@@ -111,10 +119,15 @@ def _run(task):
     went wrong."""
     spec, seed, run_s, *rt = task
     runtime = rt[0] if rt else "cpython"
-    sim = board_input.simulate(SCENARIO, run_s, seed)
+    gnss_model = None
+    if spec is not None and spec.startswith(_RATE):
+        from host_emulator.sim import gnss as sim_gnss
+
+        gnss_model = sim_gnss.GnssModel(rate_hz=float(spec[len(_RATE) :]))
+    sim = board_input.simulate(SCENARIO, run_s, seed, gnss_model=gnss_model)
     stim = sim.stimulus
     met = None
-    if spec is not None:
+    if spec is not None and gnss_model is None:
         stim = faults_mod.apply(stim, [spec], seed)
         met = _first_change_s(sim.stimulus, stim)
     from host_emulator.eval import scenario_run
@@ -158,6 +171,33 @@ def _run(task):
         "health_all": tr.health,
         "causes_all": tr.causes,
     }
+
+
+_RATE = "receiver at "  # a _run task's spec: the drive with a receiver at this many Hz
+
+
+def _rate_rows(results, nominal, seeds):
+    """The receivers at RATES_HZ against the 1 Hz runs: RMS, frames above TRUST_M and how
+    many of them did not say health 2."""
+    rows = []
+    for hz in RATES_HZ:
+        for s in seeds:
+            r = results[(f"{_RATE}{hz:g}", s)]
+            if "error" in r:
+                rows.append({"rate_hz": hz, "seed": s, "error": r["error"]})
+                continue
+            over = (r["h"] > TRUST_M) | (r["v"] > TRUST_M)
+            n = nominal[s]
+            rows.append({
+                "rate_hz": hz, "seed": s, "finite": r["finite"],
+                "rms_h_m": float(np.sqrt(np.mean(r["h"] ** 2))),
+                "rms_v_m": float(np.sqrt(np.mean(r["v"] ** 2))),
+                "rms_h_1hz_m": float(np.sqrt(np.mean(n["h"] ** 2))),
+                "frames_over_10m": int(over.sum()),
+                "missed_over_10m": int((over & (r["health"] < 2)).sum()),
+                "health2": int((r["health_all"] == 2).sum()),
+            })  # fmt: skip
+    return rows
 
 
 def _first_change_s(clean, faulted):
@@ -249,7 +289,7 @@ def _fmt(x, d=1):
     return f"{x:.{d}f}"
 
 
-def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=()):
+def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()):
     lines = [
         "# Fault benchmark",
         "",
@@ -304,6 +344,8 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=()):
             f"| {_worst(rs, 'h_30s_m')} / {_worst(rs, 'v_30s_m')} "
             f"| {'yes' if all(r['finite'] for r in rs) else '**no**'} |"
         )
+    for r in rate_rows:
+        misses10 += r.get("missed_over_10m", 0)
     cov = 100.0 * detected / total if total else 0.0
     nom = ", ".join(
         f"seed {n['seed']}: {n['rms_h']:.2f} / {n['rms_v']:.2f} m, health 2 on "
@@ -320,6 +362,29 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=()):
         f"No-fault runs (horizontal / vertical RMS over the navigation phase): {nom}.",
         "",
     ]
+    if rate_rows:
+        lines += [
+            "## Receivers by their rate",
+            "",
+            "The same drive without a fault, its receiver at another rate (the same sentences, "
+            "baud and error model), against the 1 Hz run of the same seed; its frames above "
+            f"{TRUST_M:g} m without health 2 count in the target above.",
+            "",
+            "| receiver | seed | horizontal / vertical RMS m | 1 Hz horizontal m "
+            "| >10 m (not 2) | health 2 frames | finite |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in rate_rows:
+            if "error" in r:
+                lines.append(f"| {r['rate_hz']:g} Hz | {r['seed']} | raised: {r['error']} "
+                             "| | | | |")  # fmt: skip
+                continue
+            lines.append(
+                f"| {r['rate_hz']:g} Hz | {r['seed']} | {r['rms_h_m']:.2f} / {r['rms_v_m']:.2f} "
+                f"| {r['rms_h_1hz_m']:.2f} | {r['frames_over_10m']} ({r['missed_over_10m']}) "
+                f"| {r['health2']} | {'yes' if r['finite'] else '**no**'} |"
+            )
+        lines.append("")
     if vm_rows:
         lines += [
             "## In the MicroPython VM",
@@ -374,12 +439,14 @@ def main(argv=None):
         t0 = FAULT_T0_S
         tasks = [(None, s, run_s) for s in seeds]
         tasks += [(_spec(c, t0), s, run_s) for c in MATRIX for s in seeds]
+        tasks += [(f"{_RATE}{hz:g}", s, run_s) for hz in RATES_HZ for s in seeds]
         vm_cases = [] if args.quick else [c for c in MATRIX if c.spec in VM_SUBSET]
         tasks += [(None, 0, run_s, "mpy_unix")]
         tasks += [(_spec(c, t0), 0, run_s, "mpy_unix") for c in vm_cases]
         tasks = tasks if vm_cases else [t for t in tasks if len(t) == 3]
-        print(f"bench-faults: {len(MATRIX)} kinds x {len(seeds)} seeds on {SCENARIO} "
-              f"({run_s:g} s, fault at {t0:g} s), CPython runtime", flush=True)  # fmt: skip
+        print(f"bench-faults: {len(MATRIX)} kinds and {len(RATES_HZ)} receiver rates x "
+              f"{len(seeds)} seeds on {SCENARIO} ({run_s:g} s, fault at {t0:g} s), CPython "
+              "runtime", flush=True)  # fmt: skip
         results = {}
         with ProcessPoolExecutor(max_workers=args.jobs) as ex:
             for i, r in enumerate(ex.map(_run, tasks)):
@@ -402,12 +469,17 @@ def main(argv=None):
             for s, n in nominal.items()
         ]
         cmd = "python -m host_emulator bench-faults" + (" --quick" if args.quick else "")
-        text = markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows)
+        rate_rows = _rate_rows(results, nominal, seeds)
+        text = markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows, rate_rows)
         out = pathlib.Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(text)
         out.with_suffix(".json").write_text(
-            json.dumps({"rows": rows, "nominal": nominal_rows, "vm_rows": vm_rows}, indent=2) + "\n"
+            json.dumps(
+                {"rows": rows, "nominal": nominal_rows, "vm_rows": vm_rows, "rate_rows": rate_rows},
+                indent=2,
+            )
+            + "\n"  # fmt: skip
         )
         print(text)
         print(f"wrote {out}, {out.with_suffix('.json')}")

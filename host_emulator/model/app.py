@@ -215,8 +215,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     if g.epoch_utc_ms > 0:  # app._fix_tick: from the fix's own moment in its second
         age_us -= g.epoch_utc_ms % 1000 * 1000
     if g.epoch_pps_us and 0 <= age_us < _PPS_MAX_AGE_US:
-        if _late_s(pps, g.epoch_pps_us, g.epoch_utc_ms) > 0:  # app._fix_tick: too old to use
-            pps["late_bad"] = ticks + fw_app._SECOND_TICKS
+        if _late_s(pps, g.epoch_pps_us, g.epoch_utc_ms, ticks) > 0:  # app._fix_tick: too old
             model.gnss(0, 0, 0.0, 0, F32(99), -1.0, -1.0)
             return
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
@@ -229,11 +228,14 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     model.gnss(lat, lon, h, g.epoch_quality, hdop, speed, course, fix_tick)
 
 
-def _late_s(pps, p_us, utc_ms):
+def _late_s(pps, p_us, utc_ms, ticks):
     """app._late_s: whole seconds by which edge p_us is later than the epoch's UTC second,
     counted from the edge of the last on-time epoch (pps "edge_us", "edge_s"), which a 0
-    count, a first epoch, an old reference or a negative count replace; an edge off the
-    seconds is not counted."""
+    count, a first epoch or an old reference replace; an edge off the seconds is not counted.
+    A lateness that begins while the edges were regular ("edges_ok") is a clock step:
+    re-referenced after _STEP_EPOCHS epochs with it ("step_s", "step_n"); one that began at a
+    missed edge stays late; a negative count re-references at once; the causes' deadlines
+    ("late_bad", "step_bad") at `ticks`."""
     fw_app = _firmware()[0]
     if utc_ms < 0:
         return 0
@@ -246,9 +248,21 @@ def _late_s(pps, p_us, utc_ms):
                 return 0
             late = (pps["edge_s"] + (d + 500_000) // 1_000_000 - s) % fw_app._DAY_S
             if 0 < late < fw_app._DAY_S // 2:
-                return late
+                if late != pps["step_s"]:
+                    pps["step_s"] = late
+                    pps["step_n"] = 0 if pps["edges_ok"] >= fw_app._OVERDUE_EDGES else -1
+                if pps["step_n"] < 0:
+                    pps["late_bad"] = ticks + fw_app._SECOND_TICKS
+                    return late
+                pps["step_bad"] = ticks + fw_app._SECOND_TICKS
+                pps["step_n"] += 1
+                if pps["step_n"] < fw_app._STEP_EPOCHS:
+                    return late
+            elif late:
+                pps["step_bad"] = ticks + fw_app._SECOND_TICKS
     pps["edge_us"] = p_us
     pps["edge_s"] = s
+    pps["step_s"] = 0
     return 0
 
 
@@ -344,7 +358,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     counter = 0
     # the app's PPS, late-epoch and NMEA checks
     pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0,
-           "nmea_bad": 0, "edges_ok": 0, "overdue": 0x3FFFFFFF}  # fmt: skip
+           "nmea_bad": 0, "edges_ok": 0, "overdue": 0x3FFFFFFF, "step_s": 0, "step_n": 0,
+           "step_bad": 0}  # fmt: skip
     j = 0  # frames so far
     lost = 0  # ticks stalled since the last one run
     last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
@@ -415,6 +430,8 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
                 causes |= fw_app.CAUSE_PPS
             if ticks < pps["late_bad"]:
                 causes |= fw_app.CAUSE_GNSS_LATE
+            if ticks < pps["step_bad"]:
+                causes |= fw_app.CAUSE_GNSS_CLOCK
             if overruns != ext_overruns:
                 ext_overruns = overruns
                 causes |= fw_app.CAUSE_OVERRUN

@@ -187,6 +187,9 @@ class NavModel(AlignmentModel, AidingModel):
         self.n_same_a = 0
         self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
         self.drift_until = 0
+        self.implausible_until = 0  # nav._C_IMPLAUSIBLE_UNTIL
+        self.jumped = False  # nav._C_JUMPED
+        self.prev_fix = (0, 0)  # the last usable fix's lat, lon (1e-7 deg; nav._C_PREV_FIX)
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
@@ -417,12 +420,24 @@ class NavModel(AlignmentModel, AidingModel):
         if not self._fix_usable():
             self.gated_until = self.tick + self.ticks_second
             return
+        if self._frozen():
+            return
         p = self.ins.p_n
         lim = self.cfg.reanchor_m
         if p[0] > lim or p[0] < -lim or p[1] > lim or p[1] < -lim:
             self._reanchor()
         self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, self.fix[0])
         self.fix_queued = True
+
+    def _frozen(self):
+        """nav._frozen: the usable fix repeats the last one while moving above 1 m/s."""
+        same = (self.fix_lat_e7, self.fix_lon_e7) == self.prev_fix
+        self.prev_fix = (self.fix_lat_e7, self.fix_lon_e7)
+        v = self.ins.v_n
+        if same and v[0] * v[0] + v[1] * v[1] > fw_nav._FROZEN_V2:
+            self.implausible_until = self.tick + self.ticks_second
+            return True
+        return False
 
     def _reanchor(self):
         """New integer origin at the current position; the tangent plane there is tilted by
@@ -504,6 +519,8 @@ class NavModel(AlignmentModel, AidingModel):
             self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
                 self.rejects += 1
+                if self.rejects == 1:
+                    self.jumped = self._beyond_drift()
                 self.gated_until = self.tick + self.ticks_second
                 if self.rejects >= self.cfg.reset_after_rejects:
                     self._reset_to_gnss()
@@ -639,6 +656,7 @@ class NavModel(AlignmentModel, AidingModel):
             (self.data_until, fw_nav.CAUSE_GNSS_DATA),
             (self.reset_until, fw_nav.CAUSE_RESET),
             (self.drift_until, fw_nav.CAUSE_DRIFT),
+            (self.implausible_until, fw_nav.CAUSE_GNSS_IMPLAUSIBLE),
         )
         k = sum(bit for until, bit in held if t < until)
         if self.state == NAVIGATING:

@@ -111,7 +111,12 @@ class AidingModel:
 
     def _reset_to_gnss(self):
         """From the fix the last update rejected: p, horizontal v (from its course, else the
-        INS's), a fresh P; attitude kept, bias estimates back to 0 (the calibration)."""
+        INS's), a fresh P; attitude kept, bias estimates back to 0 (the calibration).
+        Refused while the rejected run began with a jump and the fix is still beyond what
+        the INS can have drifted (nav_aid._reset_to_gnss)."""
+        if self.jumped and self._beyond_drift():
+            self.implausible_until = self.tick + self.ticks_second
+            return
         ins = self.ins
         u = self.used
         course, sp = u[4], u[3]
@@ -127,6 +132,14 @@ class AidingModel:
         self.v_rejects = 0
         self.reset_until = fw_nav_aid.UNCONFIRMED
         self.resets += 1
+
+    def _beyond_drift(self):
+        """nav_aid._beyond_drift: the last update's east/north innovation beyond _STEP_M +
+        _STEP_HALF_A t^2, t the time since the last accepted fix."""
+        t = F32(self.tick - self.last_accept_tick) * self.cfg.dt_s
+        lim = fw_nav_aid._STEP_M + fw_nav_aid._STEP_HALF_A * (t * t)
+        ye, yn = self.kf.innov[0][0], self.kf.innov[1][0]
+        return bool(ye * ye + yn * yn > lim * lim)
 
     def _reset_vertical(self):
         """The height from the fix the last update rejected, vertical velocity 0, their rows

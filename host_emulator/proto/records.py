@@ -62,6 +62,8 @@ CAUSES = (
     (0x2000, "pps_irregular"),
     (0x4000, "config_defaults"),
     (0x8000, "overrun"),
+    (0x10000, "gnss_clock"),
+    (0x20000, "gnss_implausible"),
 )
 CAUSE_OVERRUN = 0x8000  # run time on a board (an injected stall on the emulator): a warning
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time

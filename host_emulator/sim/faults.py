@@ -28,7 +28,13 @@ GNSS:
   GGA heights PARAM m higher (default 100);
 - gnss-speed:PARAM, gnss-course:PARAM, gnss-quality:PARAM, gnss-hdop:PARAM: those fields set to
   PARAM (m/s, deg, GGA quality, HDOP; defaults 1000, 400, 6, 0), physically absurd or unusable;
-- gnss-late:PARAM: the bytes arrive PARAM s late (default 1.4), those after them in order.
+- gnss-late:PARAM: the bytes arrive PARAM s late (default 1.4), those after them in order;
+- gnss-clock:PARAM: the sentences' times of day PARAM s later (default -18: a receiver that
+  steps from GPS time to UTC; the date is left, the firmware does not use it, so a week
+  rollover changes nothing it reads);
+- gnss-frozen: every sentence repeats the position, height, speed and course of the first
+  sentence of its kind in the interval (a receiver that keeps sending its last solution);
+- gnss-pole: the sentences' latitudes exactly 90 deg N.
 A field fault edits every sentence that starts within the interval and has the field (a no-fix
 sentence's empty fields stay empty; a course is set wherever there is a speed), with its
 checksum made anew (a sentence whose checksum was already wrong is left as it is); the edited
@@ -77,6 +83,9 @@ KINDS = {
     "gnss-quality": (6.0, "GGA fix quality PARAM (6: dead reckoning, 8: simulation)"),
     "gnss-hdop": (0.0, "GGA HDOP PARAM"),
     "gnss-late": (1.4, "GNSS bytes arrive PARAM s late (later ones wait behind them)"),
+    "gnss-clock": (-18.0, "GGA/RMC times of day PARAM s later (-18: GPS time to UTC)"),
+    "gnss-frozen": (None, "GGA/RMC/VTG repeat the interval's first position and motion"),
+    "gnss-pole": (None, "GGA/RMC latitudes exactly 90 deg N"),
     "stall": (None, "the board busy: the loop does not run (the timer and interrupts do)"),
 }
 # a longer stall, with the catch-up after it, nears the board's watchdog timeout (1 s,
@@ -84,7 +93,9 @@ KINDS = {
 STALL_MAX_S = 0.5
 # the NMEA field faults: sentence edits (_edit)
 _FIELD_KINDS = ("gnss-jump", "gnss-height", "gnss-speed", "gnss-course", "gnss-quality",
-                "gnss-hdop")  # fmt: skip
+                "gnss-hdop", "gnss-clock", "gnss-frozen", "gnss-pole")  # fmt: skip
+# the fields gnss-frozen repeats, by sentence: (first, last) field index
+_FROZEN_FIELDS = {"GGA": (2, 11), "RMC": (3, 8), "VTG": (1, 8)}
 M_PER_DEG_LAT = 111194.93  # a degree of latitude on a 6,371 km sphere (a jump, not geodesy)
 
 
@@ -279,6 +290,7 @@ def _delay(chunks, k0, k1, d):
 def _edit_sentences(chunks, k0, k1, fault):
     data, ticks = _bytes_and_ticks(chunks)
     out, out_ticks = [], []
+    frozen = {}  # gnss-frozen: the first sentence of each kind in the interval, its fields
     i = 0
     while i < len(data):
         j = data.find(b"$", i)
@@ -293,7 +305,7 @@ def _edit_sentences(chunks, k0, k1, fault):
         old = data[j:end]
         new = old
         if k0 <= ticks[j] < k1:
-            new = _edit(old, fault)
+            new = _edit(old, fault, frozen)
         t = ticks[j:end]
         out.append(new)
         # aligned at the end: the edited sentence ends (and completes) when the original did
@@ -302,10 +314,11 @@ def _edit_sentences(chunks, k0, k1, fault):
     return _chunks_of(b"".join(out), np.concatenate(out_ticks), len(chunks))
 
 
-def _edit(raw, fault):
+def _edit(raw, fault, frozen):
     """One sentence with the fault's field edited and its checksum anew (unchanged if it is
     not a sentence this fault edits, has no such field, or arrived damaged: a new checksum
-    would repair what the receiver, or the simulation of one, sent broken)."""
+    would repair what the receiver, or the simulation of one, sent broken). `frozen` keeps
+    gnss-frozen's first fields of each kind of sentence."""
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError:
@@ -320,7 +333,17 @@ def _edit(raw, fault):
     f = text[1:star].split(",")
     kind, v = fault.kind, fault.param
     name = f[0][-3:]
-    if name == "GGA" and len(f) > 9:
+    if kind == "gnss-frozen" and name in _FROZEN_FIELDS:
+        a, b = _FROZEN_FIELDS[name]
+        if len(f) > b:
+            f[a : b + 1] = frozen.setdefault(name, f[a : b + 1])
+    elif kind == "gnss-clock" and name in ("GGA", "RMC") and len(f) > 1 and f[1]:
+        f[1] = _shifted_time(f[1], v)
+    elif kind == "gnss-pole" and name in ("GGA", "RMC"):
+        i = 2 if name == "GGA" else 3
+        if len(f) > i + 1 and f[i]:
+            f[i], f[i + 1] = "90" + _same_decimals(0.0, f[i][2:]).rjust(len(f[i][2:]), "0"), "N"
+    elif name == "GGA" and len(f) > 9:
         if kind == "gnss-jump" and f[2]:
             f[2], f[3] = _moved_lat(f[2], f[3], v)
         elif kind == "gnss-height" and f[9]:
@@ -343,6 +366,14 @@ def _edit(raw, fault):
         elif kind == "gnss-course" and f[5]:
             f[1] = f"{v:.2f}"
     return nmea.sentence(",".join(f))
+
+
+def _shifted_time(field, seconds):
+    """An NMEA time of day (hhmmss.ss) `seconds` later, around midnight, in the same format."""
+    t = int(field[0:2]) * 3600 + int(field[2:4]) * 60 + float(field[4:]) + seconds
+    t %= 86400.0
+    sec = _same_decimals(t % 60.0, field[4:])
+    return f"{int(t // 3600):02d}{int(t // 60) % 60:02d}{sec:0>{len(field[4:])}}"
 
 
 def _same_decimals(x, like):

@@ -50,7 +50,7 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     they are module attributes, so the copies can be checked against nav.py's."""
     copies = {
         nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_V", "_M_CN", "_CN_VV"],
-        nav_aid: ["_FX_HDOP", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_H", "_FX_SIG_V"],
+        nav_aid: ["_FX_HDOP", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_H", "_FX_SIG_V", "_M_E"],
     }
     for module, names in copies.items():
         for name in names:
@@ -237,9 +237,12 @@ def test_fixes_above_the_hdop_limit_are_not_used():
 
 
 def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
-    """Fixes 40 m away from where the navigator is, five in a row: it resets onto them, and
-    the biases it had learned (which let it drift, after a bias step) go back to 0 on top of
-    the calibration, their variances to the initial ones, so it learns them again."""
+    """Fixes 400 m north of where the navigator was, one a second: a step the INS cannot have
+    drifted since its last accepted fix (nav_aid._STEP_M: 15 m + 0.5 t^2), so no reset while
+    it cannot, health 2 with gnss_implausible from the fifth rejected fix; once it could (the
+    navigator moves on, the limit grows) it resets onto them, and the biases it had learned
+    (which let it drift, after a bias step) go back to 0 on top of the calibration, their
+    variances to the initial ones, so it learns them again."""
     nav, truth, _, _ = navigating()
     learned = np.concatenate([np.array(nav.ins.bg), np.array(nav.ins.ba)])
     assert np.all(learned != 0.0) and nav.resets == 0
@@ -248,15 +251,22 @@ def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
     h, hdop, unknown = f32.f32(truth.h_m[-1]), f32.f32(1.0), f32.f32(-1.0)
     p = f32.zeros(15)
     at_reset = None
-    for _ in range(8):
-        nav_runner.gnss_e7(nav, lat, lon, h, 1, hdop, unknown, unknown)
+    refused = []
+    for k in range(40):  # (1 cm apart: the same fix again while moving would be frozen)
+        nav_runner.gnss_e7(nav, lat + k, lon, h, 1, hdop, unknown, unknown)
         for _ in range(200):
             nav.imu(f32.zeros(3) + F32(0.0), _gravity_up())
             if nav.resets and at_reset is None:
                 nav.p_diag(p)
-                at_reset = (np.array(nav.ins.bg), np.array(nav.ins.ba), np.array(p))
+                at_reset = (k, np.array(nav.ins.bg), np.array(nav.ins.ba), np.array(p))
+            if nav.causes & fw_nav.CAUSE_GNSS_IMPLAUSIBLE:
+                assert nav.health == 2
+                refused.append(k)
+        if at_reset is not None:
+            break
     assert nav.resets == 1 and at_reset is not None
-    bg, ba, p_diag = at_reset
+    k_reset, bg, ba, p_diag = at_reset
+    assert refused[0] == 4 and k_reset > 8  # measured: refused from the 5th, reset at the 17th
     assert np.all(bg == 0.0) and np.all(ba == 0.0)
     cfg = nav.cfg
     assert np.allclose(p_diag[9:12], F32(cfg.init_gyro_bias_sigma) ** 2, rtol=1e-6)

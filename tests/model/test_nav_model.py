@@ -23,7 +23,7 @@ import nav_align
 import navcfg
 import numpy as np
 import pytest
-from nav import NAVIGATING, Navigator
+from nav import CAUSE_GNSS_IMPLAUSIBLE, NAVIGATING, Navigator
 
 import f32
 import geo
@@ -124,8 +124,9 @@ def fast_drive(duration_s):
 
 def simple_drive(duration_s):
     """For the board's simple model: no fix for the first 2.5 s, static start, away to 8 m/s,
-    five consecutive fixes 40 m off (rejected five times: the navigator resets to GNSS, then,
-    rejecting the good fixes, back), a 5 s stop, away again."""
+    twelve consecutive fixes 40 m off (a step the INS cannot have drifted in the 5 s since
+    its last accepted fix, nav_aid._STEP_M: the reset is refused, then, the limit growing,
+    the navigator resets to GNSS, and, rejecting the good fixes, back), a 5 s stop, away again."""
     s = trajectory.DriveScript(yaw0_rad=2.5)
     s.hold(6.0)
     s.speed_to(8.0, 1.5)
@@ -138,7 +139,7 @@ def simple_drive(duration_s):
     s.hold(max(0.0, duration_s - s.t_s))
     truth, imu, fixes = simulate(s, duration_s, seed=8, outages=[(0.0, 2.5)])
     i = fix_at(fixes, 11.0)
-    for k in range(i, i + 5):
+    for k in range(i, i + 12):
         fixes[k] = glitch(fixes[k], 40.0)
     return Drive(truth, imu, fixes, ())
 
@@ -549,6 +550,7 @@ def test_model_of_the_simple_board_model_and_the_recovery_paths(heights):
     assert seen.unusable_aligning >= 2
     assert seen.nav_tick is not None and len(seen.accepted_gnss) >= 5
     assert seen.rejected_gnss >= 5 and nav.resets >= 3  # reset to GNSS twice, fault reset
+    assert any(k & CAUSE_GNSS_IMPLAUSIBLE for k in seen.causes)  # the first resets refused
     assert seen.zupts >= 3 and seen.nhcs >= 10
     assert seen.health == {0, 1, 2}
     assert nav.state == NAVIGATING  # navigating again after the fault

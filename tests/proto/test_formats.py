@@ -127,7 +127,7 @@ def test_the_firmwares_extended_frame_is_the_record_layout():
         "imu_saturated", "imu_dead", "gnss_rejects", "gnss_bad_data", "reset_to_gnss",
         "uncertain", "gnss_late", "config_defaults", "overrun",
     ]  # fmt: skip
-    assert rec_schema.cause_names(0x10001) == ["imu_saturated", "0x10000"]  # a bit not known
+    assert rec_schema.cause_names(0x40001) == ["imu_saturated", "0x40000"]  # a bit not known
     fields = dict(d, p_diag=p, gyro_bias_rad_s=bg,
                   accel_bias_m_s2=ba, pos_enu_m=pos, origin_h_m=coef[geo.H0])  # fmt: skip
     assert rec_schema.encode_ext(9, fields) == data  # the NaN's bits included
@@ -150,7 +150,7 @@ def test_the_cause_bits_are_the_firmwares():
     assert sorted(fw) == [bit for bit, _ in rec_schema.CAUSES]
     assert rec_schema.CAUSE_OVERRUN == app.CAUSE_OVERRUN
     two = ("CAUSE_IMU_DEAD", "CAUSE_NUMERIC", "CAUSE_GNSS_REJECTS", "CAUSE_RESET",
-           "CAUSE_UNCERTAIN", "CAUSE_DRIFT")  # fmt: skip
+           "CAUSE_UNCERTAIN", "CAUSE_DRIFT", "CAUSE_GNSS_IMPLAUSIBLE")  # fmt: skip
     faults = sum(b for b, n in fw.items() if n in two)
     assert nav.CAUSE_FAULTS == faults
 

@@ -209,6 +209,7 @@ def _epochs(stim):
         ("gnss-hdop:0", 4, lambda old, new: new == 0),
         ("gnss-speed:1000", 5, lambda old, new: abs(new - 1_000_000) <= 1),
         ("gnss-course:400", 6, lambda old, new: new == 40_000),
+        ("gnss-pole:", 1, lambda old, new: new == 900_000_000),
     ],
 )
 def test_gnss_field_faults_edit_the_sentences_the_parser_reads(stim, spec, field, change):
@@ -230,6 +231,31 @@ def test_gnss_field_faults_edit_the_sentences_the_parser_reads(stim, spec, field
     assert inside >= 3
 
 
+def test_a_frozen_receiver_repeats_its_first_solution(stim):
+    """gnss-frozen: within the interval every epoch carries the position, height, speed and
+    course of its first one (a receiver that keeps sending its last solution), with nothing
+    more rejected; the epochs' times go on."""
+    before, rejected = _epochs(stim)
+    after, rejected_after = _epochs(faults.apply(stim, ["gnss-frozen@11+4"]))
+    assert rejected_after == rejected and len(after) == len(before)
+    inside = [a for a in after if 2200 < a[0] < 3000]
+    assert len(inside) >= 3 and all(a[1:] == inside[0][1:] for a in inside)
+    moved = [b for b in before if 2200 < b[0] < 3000]
+    assert len({b[1:] for b in moved}) == len(moved)  # the receiver was moving
+    assert [a for a in after if a[0] >= 3200] == [b for b in before if b[0] >= 3200]
+
+
+def test_a_clock_fault_shifts_the_times_of_day(stim):
+    """gnss-clock: GGA and RMC times PARAM s later within the interval (18 s back: GPS time to
+    UTC), across midnight, in the receiver's format; the rest of each sentence unchanged."""
+    f = faults.parse("gnss-clock@0+1:-18")
+    gga = "GNGGA,{},3036.123456,N,11421.654321,E,1,12,0.8,25.3,M,,M,,"
+    edited = faults._edit(nmea.sentence(gga.format("000010.20")), f, {})
+    assert edited == nmea.sentence(gga.format("235952.20"))
+    assert faults._shifted_time("235959.5", 1.0) == "000000.5"
+    assert faults._shifted_time("120000", 3600) == "130000"
+
+
 @pytest.mark.parametrize("kind", ["gnss-jump", "gnss-height", "gnss-quality", "gnss-hdop"])
 def test_a_field_fault_leaves_a_damaged_sentence_damaged(kind):
     """An edit comes with a new checksum only where the old one held: a sentence that arrived
@@ -238,8 +264,8 @@ def test_a_field_fault_leaves_a_damaged_sentence_damaged(kind):
     good = nmea.sentence("GNGGA,020410.00,3036.123456,N,11421.654321,E,1,12,0.8,25.3,M,,M,,")
     broken = good.replace(b"020410", b"02041?")
     fault = faults.parse(f"{kind}@0+1")
-    assert faults._edit(broken, fault) == broken
-    assert faults._edit(good, fault) != good
+    assert faults._edit(broken, fault, {}) == broken
+    assert faults._edit(good, fault, {}) != good
 
 
 def test_late_bytes_arrive_later_and_in_order(stim):
@@ -376,6 +402,59 @@ def test_late_epochs_are_reported_and_not_used(stim, tmp_path):
         return sum(b < 0.8 * a for a, b in zip(var_e[:-1], var_e[1:], strict=True))
 
     assert fix_drops(d.ext) == 0 and fix_drops(clean.ext) >= 1
+
+
+def test_a_receiver_clock_that_steps_is_resynchronised(stim, tmp_path):
+    """gnss-clock: the receiver's time of day steps 18 s back at 5 s (GPS time to UTC) while
+    its bytes and the PPS edges keep their moments. The app says `gnss_clock` from the first
+    stepped epoch (6 s, its extended frame at 6.3 s) until a second after the third, whose
+    edge it then counts from (never `gnss_late`), and the firmware aligns and navigates as
+    without the step; stepping forward again (at 10 s) re-synchronises at once. CPython and
+    the emulated Cortex-M4F send the model's bytes."""
+    from host_emulator.eval import parity
+
+    def said(d, name):
+        return [k for k, e in enumerate(d.ext) if name in rec_schema.cause_names(e["causes"])]
+
+    back = faults.apply(stim, ["gnss-clock@5+20:-18"])
+    d = stream.decode(cpython.run(back, tmp_path / "back").out)
+    assert said(d, "gnss_clock") == list(range(63, 93)) and said(d, "gnss_late") == []
+    assert d.ext[-1]["nav_state"] == 2 and d.ext[-1]["health"] == 0
+    both = faults.apply(stim, ["gnss-clock@5+5:-18"])
+    for runtime in ("cpython", "m4f"):
+        r = parity.compare(both, runtime=runtime, kernels="native")
+        assert r.identical, (runtime, r.summary())
+    d = stream.decode(cpython.run(both, tmp_path / "both").out)
+    assert said(d, "gnss_clock") == [*range(63, 93), *range(103, 113)]
+
+
+def test_a_receiver_that_lies_is_not_followed(tmp_path):
+    """quick_start, navigating at ~10 m/s from 13.4 s: a frozen receiver (14-17 s: its first
+    fix repeated), then one 2000 km north (18-25 s). The frozen fixes are not used, the jump
+    is not reset to (the INS cannot have drifted 2000 km in 5 s): `gnss_implausible` and
+    health 2 on both, the position stays within metres of the truth, and navigation goes on
+    with the receiver's honest fixes after; CPython and the emulated Cortex-M4F send the
+    model's bytes."""
+    from host_emulator.eval import evaluate, parity
+
+    sim = board_input.simulate("quick_start", 30.0, seed=0)
+    s = faults.apply(sim.stimulus, ["gnss-frozen@14+3", "gnss-jump@18+7:2000000"])
+    for runtime in ("cpython", "m4f"):
+        r = parity.compare(s, runtime=runtime, kernels="native")
+        assert r.identical, (runtime, r.summary())
+    d = stream.decode(cpython.run(s, tmp_path / "lies").out)
+    named = [(k / 10, rec_schema.cause_names(e["causes"]), e["health"])
+             for k, e in enumerate(d.ext)]  # fmt: skip
+    lies = [t for t, n, h in named if "gnss_implausible" in n]
+    assert all(h == 2 for t, n, h in named if "gnss_implausible" in n)
+    assert any(15 <= t < 18 for t in lies) and any(22 <= t < 26 for t in lies), lies
+    o = sim.truth.origin
+    tr = evaluate.track(d, s.tick_us * 1e-6, (o.lat_e7, o.lon_e7, o.h_m))
+    t = sim.truth
+    err = evaluate.errors(tr, t.t_s, t.p_n, t.v_n, t.ypr, [])
+    h = np.hypot(err.dp[:, 0], err.dp[:, 1])
+    assert h.max() < 10.0, h.max()  # measured
+    assert not any("gnss_implausible" in n for t, n, h in named if t > 27)
 
 
 def test_an_overdue_epoch_is_late_only_from_a_receiver_that_sends_every_second(stim, tmp_path):
