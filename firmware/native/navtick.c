@@ -257,6 +257,11 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
         c[C_INFLATE] = 0;
     }
     int32_t overdue = c[C_SINCE_PROP] >= 2 * c[C_T_PROP];
+    if ((c[C_OPTS] & OPT_ZUPT) && c[C_STILL] && c[C_SINCE_ZUPT] >= 2 * c[C_T_ZUPT]) {
+        overdue = 1;
+    } else if ((c[C_OPTS] & OPT_NHC) && !c[C_STILL] && c[C_SINCE_NHC] >= 2 * c[C_T_NHC]) {
+        overdue = 1;
+    }
     if (c[C_FIX_QUEUED] && !overdue) {
         start_queued_fix(c, ki, m);
     } else if (c[C_SINCE_PROP] >= c[C_T_PROP]) {

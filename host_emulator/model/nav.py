@@ -459,9 +459,9 @@ class NavModel(AlignmentModel, AidingModel):
         self.reanchors += 1
 
     def _schedule(self):
-        """The filter is idle: a pending fix (unless propagation is overdue), else propagation,
-        else a zero-velocity update at standstill, else the non-holonomic constraint (the
-        measurement rows: nav_aid.py)."""
+        """The filter is idle: a pending fix (unless propagation or the aiding that applies
+        is overdue), else propagation, else a zero-velocity update at standstill, else the
+        non-holonomic constraint (the measurement rows: nav_aid.py)."""
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
@@ -470,6 +470,10 @@ class NavModel(AlignmentModel, AidingModel):
             kf.P[d, d] = np.maximum(kf.P[d, d], self.init_diag[d])
             self.inflate = 0
         overdue = self.since_prop >= 2 * self.ticks_prop
+        if cfg.zupt and self.still and self.since_zupt >= 2 * self.ticks_zupt:
+            overdue = True  # nav._schedule: an overdue aiding job before the fix
+        elif cfg.nhc and not self.still and self.since_nhc >= 2 * self.ticks_nhc:
+            overdue = True
         if self.fix_queued and not overdue:
             self.fix_queued = False
             # the state at the fix's measurement time: the ring holds the last RING ticks

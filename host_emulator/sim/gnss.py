@@ -137,14 +137,19 @@ class GnssData:
         return GnssFix(*(getattr(self, name)[k].item() for name in _FIX_FIELDS))
 
 
-def _hdop(rng, model, t):
+def _hdop(rng, model, t, t_truth):
+    """HDOP at the epochs t. The sky's: its wander and excursions are drawn on the 1 Hz grid of
+    the truth's times whatever the receiver's rate and read at the epochs (the wander
+    interpolated), so that receivers at different rates meet the same excursions (a 5 Hz
+    receiver whose excursion followed the outage where the 1 Hz one's did not made rates look
+    better or worse than they are). At 1 Hz the epochs are the grid."""
+    grid = t_truth[:: int(RATE_HZ)]
     lim = model.hdop_wander
-    hdop = model.hdop_nominal + np.clip(
-        gauss_markov(rng, t.size, 1.0 / model.rate_hz, model.hdop_tau_s, 0.5 * lim), -lim, lim
-    )
-    duration = t[-1] - t[0]
+    wander = np.clip(gauss_markov(rng, grid.size, 1.0, model.hdop_tau_s, 0.5 * lim), -lim, lim)
+    hdop = model.hdop_nominal + np.interp(t, grid, wander)
+    duration = grid[-1] - grid[0]
     count = rng.poisson(duration / model.excursion_every_s)
-    starts = rng.uniform(t[0], t[0] + duration, count)
+    starts = rng.uniform(grid[0], grid[0] + duration, count)
     lengths = rng.uniform(*model.excursion_length_s, count)
     peaks = rng.uniform(*model.excursion_hdop, count)
     for start, length, peak in zip(starts, lengths, peaks, strict=True):
@@ -188,7 +193,7 @@ def simulate(truth, model=None, seed=0, outages=None):
 
     # Errors (drawn for every epoch, fix or not, so outages do not shift the random stream).
     dt = 1.0 / model.rate_hz
-    hdop = _hdop(rng, model, t)
+    hdop = _hdop(rng, model, t, truth.t_s)
     scale = hdop / model.hdop_nominal
     sigma = np.array([model.sigma_h_m, model.sigma_h_m, model.sigma_v_m])
     wf = model.white_fraction
