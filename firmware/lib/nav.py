@@ -229,8 +229,9 @@ _C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
 _C_LAG_TICK = const(66)  # the tick of the last fix the lag learned from (_consistency)
 _C_IMPLAUSIBLE_UNTIL = const(67)  # CAUSE_GNSS_IMPLAUSIBLE until this tick
 _C_PREV_FIX = const(68)  # the last usable fix: lat, lon degrees, lon fraction (3; _frozen)
-_C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._beyond_drift)
-_NC = const(72)
+_C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._jumped)
+_C_LAST_TICK = const(72)  # measurement tick of the last fix the filter took (0: none; _M_LAST)
+_NC = const(73)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -260,7 +261,8 @@ _M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._n
 _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
 _M_CN = const(1644)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
-_NM = const(1656)
+_M_LAST = const(1656)  # the last fix the filter took: its antenna east, north in the frame (2)
+_NM = const(1658)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -758,6 +760,9 @@ class Navigator(Alignment, Aiding):
         corr = self._corr
         for i in range(3):
             corr[i] = corr[i] - dp[i]
+        m = self.mem
+        m[_M_LAST] = m[_M_LAST] - dp[0]
+        m[_M_LAST + 1] = m[_M_LAST + 1] - dp[1]
         fr.set_origin(e7[0], e7[1], e7[2], hb[0])
         ins.set_frame(fr)
         self.reanchors += 1
@@ -846,11 +851,13 @@ class Navigator(Alignment, Aiding):
             if mask & 0x1B:
                 c[_C_REJECTS] += 1
                 if c[_C_REJECTS] == 1:
-                    c[_C_JUMPED] = 1 if self._beyond_drift() else 0
+                    c[_C_JUMPED] = 1 if self._jumped() else 0
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+                self._last_fix()
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
                     self._reset_to_gnss()
             else:
+                self._last_fix()
                 c[_C_REJECTS] = 0
                 c[_C_ACCEPT_TICK] = c[_C_TICK]
                 if mask:
@@ -910,6 +917,7 @@ class Navigator(Alignment, Aiding):
         c[_C_LEVELED] = 0
         c[_C_REJECTS] = 0
         c[_C_V_REJECTS] = 0
+        c[_C_LAST_TICK] = 0  # the frame may move with the re-alignment
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
 

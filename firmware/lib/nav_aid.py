@@ -33,6 +33,7 @@ _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
+_X_V = const(3)  # ins.X_V: the velocity in Ins.x
 _C_TICK = const(0)  # self.ctl: the control state
 _C_REJECTS = const(10)
 _C_FIX_TICK = const(19)
@@ -43,7 +44,11 @@ _C_ACCEPT_TICK = const(9)
 _C_RESET_UNTIL = const(62)
 _C_IMPLAUSIBLE_UNTIL = const(67)
 _C_JUMPED = const(71)
-_M_E = const(52)  # self.mem: Eskf.e
+_C_LAST_TICK = const(72)
+_M_X = const(0)  # self.mem: Ins.x
+_M_E = const(52)  # ... Eskf.e
+_M_US = const(1595)  # ... self._used
+_M_LAST = const(1656)  # ... the last fix the filter took (east, north)
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
@@ -54,12 +59,16 @@ _US_COURSE = const(4)
 _US_SIG_H = const(5)
 _US_SIG_V = const(6)  # < 0: the fix had no height (its magnitude: the sigma it would have had)
 NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance without one, (10 km)^2
-# What the INS can have drifted from the receiver t s after its last accepted fix: _STEP_M +
-# _STEP_HALF_A t^2 (15 m: the receiver's own scatter; a constant error of 1 m/s^2, 0.1 g). A
-# run of rejected fixes whose first was beyond it began with a jump of the receiver (100 m,
-# 2000 km, the pole), not with the INS drifting away from it, which a faulty IMU does
-# smoothly (a 1 deg/s gyro bias tilts it, and the drift passes 0.1 g within seconds): the reset
-# to such fixes is refused while they stay beyond it (_reset_to_gnss).
+# A receiver that jumps is told from an INS that drifts by the receiver's own track: a fix
+# farther from the receiver's previous fix than the board can have moved between them (the
+# INS's speed times the time, plus _JUMP_M: twice a fix's scatter at HDOP 2.5) jumped (100 m,
+# 2000 km, the pole). A faulty IMU drifts away from fixes that go on as the board moves (a
+# 1 deg/s gyro bias tilts the INS and its drift passes 0.1 g within seconds; a walker's INS
+# without a heading runs off at 6 m/s while the fixes walk on at 1.4), so its runs of rejected
+# fixes never begin with a jump. While a run that did lasts, the reset to GNSS is refused
+# unless the INS could have drifted that far since its last accepted fix t s ago: _STEP_M +
+# _STEP_HALF_A t^2 (a constant error of 1 m/s^2, 0.1 g, from the receiver's scatter).
+_JUMP_M = f32.f32(15)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
 
@@ -210,9 +219,9 @@ class Aiding:
         what let it drift (after a bias step, a learned 1 deg/s outlives the step and
         defeats standstill detection), and the fresh covariance lets it learn them again.
         Refused (CAUSE_GNSS_IMPLAUSIBLE for a second) when the rejected run began with a
-        jump of the receiver (_C_JUMPED) and the fix is still beyond what the INS can have
-        drifted since its last accepted fix (_beyond_drift): the rejects go on counting and
-        the next rejected fix asks again."""
+        jump of the receiver (_C_JUMPED: _jumped) and the fix is still beyond what the INS
+        can have drifted since its last accepted fix (_beyond_drift): the rejects go on
+        counting and the next rejected fix asks again."""
         c = self.ctl
         if c[_C_JUMPED] and self._beyond_drift():
             c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
@@ -244,10 +253,33 @@ class Aiding:
         c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state
         self.resets += 1
 
+    def _jumped(self):
+        """True when the fix of the GNSS update just done (self._used) is farther from the last
+        fix the filter took (_M_LAST) than the board can have moved between their moments at
+        the INS's horizontal speed, plus _JUMP_M (nav._inject asks it at the first rejected
+        fix of a run: _C_JUMPED)."""
+        c = self.ctl
+        if c[_C_LAST_TICK] == 0:
+            return False
+        m = self.mem
+        t = f32.f32(c[_C_USED_TICK] - c[_C_LAST_TICK]) * self.cfg.dt_s
+        de = m[_M_US] - m[_M_LAST]
+        dn = m[_M_US + 1] - m[_M_LAST + 1]
+        ve = m[_M_X + _X_V]
+        vn = m[_M_X + _X_V + 1]
+        reach = f32.sqrt(ve * ve + vn * vn) * t + _JUMP_M
+        return de * de + dn * dn > reach * reach
+
+    def _last_fix(self):
+        """The fix of the GNSS update just done becomes the last one the filter took."""
+        m = self.mem
+        m[_M_LAST] = m[_M_US]
+        m[_M_LAST + 1] = m[_M_US + 1]
+        self.ctl[_C_LAST_TICK] = self.ctl[_C_USED_TICK]
+
     def _beyond_drift(self):
         """True when the east/north innovation of the GNSS update just done (eskf E_Z) is beyond
-        what the INS can have drifted since the last accepted fix (_STEP_M); the first
-        rejected fix of a run asks it too (nav._inject: _C_JUMPED)."""
+        what the INS can have drifted since the last accepted fix (_STEP_M)."""
         c = self.ctl
         m = self.mem
         t = f32.f32(c[_C_TICK] - c[_C_ACCEPT_TICK]) * self.cfg.dt_s

@@ -266,7 +266,8 @@
 #define C_IMPLAUSIBLE_UNTIL 67
 #define C_PREV_FIX 68
 #define C_JUMPED 71
-#define NC 72
+#define C_LAST_TICK 72
+#define NC 73
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52
@@ -288,7 +289,8 @@
 #define M_LVL 1633
 #define M_BW 1639
 #define M_CN 1644
-#define NM 1656
+#define M_LAST 1656
+#define NM 1658
 /* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency) */
 #define CN_K 0
 #define CN_MH 1

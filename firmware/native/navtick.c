@@ -27,8 +27,7 @@
 #define LAG_MIN (1.0f / 50.0f) /* nav._LAG_MIN */
 #define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
 #define LAG_K0 16.0f /* nav._LAG_K0 */
-#define STEP_M 15.0f /* nav_aid._STEP_M */
-#define STEP_HALF_A 0.5f /* nav_aid._STEP_HALF_A */
+#define JUMP_M 15.0f /* nav_aid._JUMP_M */
 #define LAG_Q2 9.0f /* nav._LAG_Q2 */
 #define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
@@ -407,14 +406,26 @@ static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t
     }
 }
 
-/* nav_aid._beyond_drift: the east/north innovation of the GNSS update just done beyond what
-   the INS can have drifted since the last accepted fix */
-static int32_t beyond_drift(const int32_t *c, const float *e, const float *m) {
-    float t = (float)(c[C_TICK] - c[C_ACCEPT_TICK]) * m[M_X + X_DT];
-    float lim = STEP_M + STEP_HALF_A * (t * t);
-    float ye = e[E_Z];
-    float yn = e[E_Z + 1];
-    return ye * ye + yn * yn > lim * lim;
+/* nav_aid._jumped: the fix just used farther from the last fix the filter took than the
+   board can have moved between them at the INS's speed, plus JUMP_M */
+static int32_t jumped(const int32_t *c, const float *m) {
+    if (c[C_LAST_TICK] == 0) {
+        return 0;
+    }
+    float t = (float)(c[C_USED_TICK] - c[C_LAST_TICK]) * m[M_X + X_DT];
+    float de = m[M_US] - m[M_LAST];
+    float dn = m[M_US + 1] - m[M_LAST + 1];
+    float ve = m[M_X + X_V];
+    float vn = m[M_X + X_V + 1];
+    float reach = __builtin_sqrtf(ve * ve + vn * vn) * t + JUMP_M;
+    return de * de + dn * dn > reach * reach;
+}
+
+/* nav_aid._last_fix: the fix just used becomes the last one the filter took */
+static void last_fix(int32_t *c, float *m) {
+    m[M_LAST] = m[M_US];
+    m[M_LAST + 1] = m[M_US + 1];
+    c[C_LAST_TICK] = c[C_USED_TICK];
 }
 
 /* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
@@ -442,11 +453,13 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     if (mask & 0x1B) { /* east, north: position or velocity */
         c[C_REJECTS] += 1;
         if (c[C_REJECTS] == 1) {
-            c[C_JUMPED] = beyond_drift(c, e, m);
+            c[C_JUMPED] = jumped(c, m);
         }
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+        last_fix(c, m);
         return c[C_REJECTS] >= c[C_RESET_AFTER] ? EV_RESET : 0;
     }
+    last_fix(c, m);
     c[C_REJECTS] = 0;
     c[C_ACCEPT_TICK] = c[C_TICK];
     if (mask) {

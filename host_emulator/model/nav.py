@@ -189,6 +189,8 @@ class NavModel(AlignmentModel, AidingModel):
         self.drift_until = 0
         self.implausible_until = 0  # nav._C_IMPLAUSIBLE_UNTIL
         self.jumped = False  # nav._C_JUMPED
+        self.last_fix_en = np.zeros(2, F32)  # nav._M_LAST: the last fix the filter took
+        self.last_used_tick = 0  # ... its measurement tick (nav._C_LAST_TICK; 0: none)
         self.prev_fix = (0, 0)  # the last usable fix's lat, lon (1e-7 deg; nav._C_PREV_FIX)
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
@@ -454,6 +456,7 @@ class NavModel(AlignmentModel, AidingModel):
         )
         ins.shift_origin(dp, rho)
         self.corr[0:3] = self.corr[0:3] - dp
+        self.last_fix_en = self.last_fix_en - dp[0:2]
         self._set_origin(lat, lon, h)
         ins.set_frame(self.coef)
         self.reanchors += 1
@@ -524,11 +527,13 @@ class NavModel(AlignmentModel, AidingModel):
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
                 self.rejects += 1
                 if self.rejects == 1:
-                    self.jumped = self._beyond_drift()
+                    self.jumped = self._jumped()
                 self.gated_until = self.tick + self.ticks_second
+                self._last_fix()
                 if self.rejects >= self.cfg.reset_after_rejects:
                     self._reset_to_gnss()
             else:
+                self._last_fix()
                 self.rejects = 0
                 self.last_accept_tick = self.tick
                 if kf.gate_mask:
@@ -645,6 +650,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.leveled = False
         self.rejects = 0
         self.v_rejects = 0
+        self.last_used_tick = 0  # nav._fault_reset: the frame may move
         self.fault_until = self.tick + self.ticks_second
         self.resets += 1
 

@@ -133,6 +133,23 @@ class AidingModel:
         self.reset_until = fw_nav_aid.UNCONFIRMED
         self.resets += 1
 
+    def _jumped(self):
+        """nav_aid._jumped: the fix just used farther from the last one the filter took than
+        the INS's speed times the time between them, plus _JUMP_M."""
+        if self.last_used_tick == 0:
+            return False
+        t = F32(self.used_tick - self.last_used_tick) * self.cfg.dt_s
+        de = self.used[0] - self.last_fix_en[0]
+        dn = self.used[1] - self.last_fix_en[1]
+        v = self.ins.v_n
+        reach = np.sqrt(v[0] * v[0] + v[1] * v[1]) * t + fw_nav_aid._JUMP_M
+        return bool(de * de + dn * dn > reach * reach)
+
+    def _last_fix(self):
+        """nav_aid._last_fix."""
+        self.last_fix_en = self.used[0:2].copy()
+        self.last_used_tick = self.used_tick
+
     def _beyond_drift(self):
         """nav_aid._beyond_drift: the last update's east/north innovation beyond _STEP_M +
         _STEP_HALF_A t^2, t the time since the last accepted fix."""

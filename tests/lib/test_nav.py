@@ -50,11 +50,24 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     they are module attributes, so the copies can be checked against nav.py's."""
     copies = {
         nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_V", "_M_CN", "_CN_VV"],
-        nav_aid: ["_FX_HDOP", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_H", "_FX_SIG_V", "_M_E"],
+        nav_aid: [
+            "_FX_HDOP",
+            "_FX_SPEED",
+            "_FX_COURSE",
+            "_FX_SIG_H",
+            "_FX_SIG_V",
+            "_M_X",
+            "_M_E",
+            "_M_US",
+            "_M_LAST",
+        ],
     }
     for module, names in copies.items():
         for name in names:
             assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
+    import ins as ins_mod
+
+    assert nav_aid._X_V == ins_mod.X_V
     assert nav_align._NAVIGATING == fw_nav.NAVIGATING
     assert nav_align._IX_YAW == eskf.IX_ATT + 2
     ctl = {n for n in vars(fw_nav) if n.startswith("_C_")}
@@ -237,10 +250,11 @@ def test_fixes_above_the_hdop_limit_are_not_used():
 
 
 def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
-    """Fixes 400 m north of where the navigator was, one a second: a step the INS cannot have
-    drifted since its last accepted fix (nav_aid._STEP_M: 15 m + 0.5 t^2), so no reset while
-    it cannot, health 2 with gnss_implausible from the fifth rejected fix; once it could (the
-    navigator moves on, the limit grows) it resets onto them, and the biases it had learned
+    """Fixes 400 m north of where the navigator was, one a second: the receiver's track jumped
+    (nav_aid._jumped), so no reset while the INS cannot have drifted that far since its last
+    accepted fix (nav_aid._STEP_M: 15 m + 0.5 t^2), health 2 with gnss_implausible from the
+    fifth rejected fix; once it could (the navigator moves on, the limit grows) it resets
+    onto them, and the biases it had learned
     (which let it drift, after a bias step) go back to 0 on top of the calibration, their
     variances to the initial ones, so it learns them again."""
     nav, truth, _, _ = navigating()

@@ -124,9 +124,9 @@ def fast_drive(duration_s):
 
 def simple_drive(duration_s):
     """For the board's simple model: no fix for the first 2.5 s, static start, away to 8 m/s,
-    twelve consecutive fixes 40 m off (a step the INS cannot have drifted in the 5 s since
-    its last accepted fix, nav_aid._STEP_M: the reset is refused, then, the limit growing,
-    the navigator resets to GNSS, and, rejecting the good fixes, back), a 5 s stop, away again."""
+    twelve consecutive fixes 40 m off (a jump of the receiver's track, nav_aid._jumped: the
+    reset is refused while the INS cannot have drifted that far, nav_aid._STEP_M; then the
+    navigator resets to GNSS, and, rejecting the good fixes, back), a 5 s stop, away again."""
     s = trajectory.DriveScript(yaw0_rad=2.5)
     s.hold(6.0)
     s.speed_to(8.0, 1.5)
