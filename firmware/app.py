@@ -499,9 +499,10 @@ class App:
         stamped a second late). 0 makes p_us the reference; so does a first epoch or an old
         reference. An edge off the whole seconds (spurious) is not counted.
         A lateness that begins while every edge has had its epoch (_K_EDGES_OK: the bytes
-        come on time) is the receiver's clock that stepped back (GPS time to UTC at a cold
-        start, a leap second, a reset), not late bytes: after _STEP_EPOCHS epochs in a row
-        with it, their edge becomes the reference; one that begins at a missed edge stays
+        come on time), or of 2 s or more (bytes that late would be a backlog growing without
+        end), is the receiver's clock that stepped back (GPS time to UTC at a cold start, a
+        leap second, a reset), not late bytes: after _STEP_EPOCHS epochs in a row with it,
+        their edge becomes the reference; a 1 s lateness that begins at a missed edge stays
         late (CAUSE_GNSS_LATE). A clock that steps forward (the count comes out negative)
         re-references at once. Both say CAUSE_GNSS_CLOCK. Few locals: the frame stays on the
         C stack (tests/runtimes/test_frames.py)."""
@@ -517,7 +518,7 @@ class App:
                 if 0 < d < _DAY_S // 2:
                     if d != k[_K_STEP_S]:  # a new lateness: a step if the edges had epochs
                         k[_K_STEP_S] = d
-                        k[_K_STEP_N] = 0 if k[_K_EDGES_OK] >= _OVERDUE_EDGES else -1
+                        k[_K_STEP_N] = 0 if k[_K_EDGES_OK] >= _OVERDUE_EDGES or d > 1 else -1
                     if k[_K_STEP_N] < 0:
                         k[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
                         return d

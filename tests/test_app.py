@@ -405,3 +405,9 @@ def test_a_receiver_clock_that_steps_is_resynchronised_and_late_bytes_stay_late(
     assert k[app._K_LATE_BAD] > 0 and k[app._K_STEP_BAD] == 0
     k[app._K_EDGES_OK] = app._OVERDUE_EDGES  # regular again, still late: still late bytes
     assert a._late_s(e + 14_000_000, 1013) == 1
+    # a step of 2 s or more is a step even at a missed edge (a damaged epoch beside it):
+    # bytes that late would be a backlog growing without end
+    k[app._K_EDGES_OK] = 0
+    assert a._late_s(e + 15_000_000, 1015) == 0  # on time: the reference
+    lateness = [a._late_s(e + (15 + i) * 1_000_000, 1015 + i - 18) for i in range(1, 5)]
+    assert lateness == [18] * (app._STEP_EPOCHS - 1) + [0, 0]

@@ -85,7 +85,8 @@ MATRIX = (
     Case("gnss-quality@+5:8", ("gnss_bad_data",), 1.0),
     Case("gnss-hdop@+5:0", ("gnss_bad_data",), 1.0),
     Case("gnss-late@+30:1.4", ("gnss_late", *_GNSS_FIX), 1.0),
-    Case("gnss-clock@+30:-18", ("gnss_clock",), 1.0),
+    # the first epoch of a step back has a time going back: the parser refuses it (bad data)
+    Case("gnss-clock@+30:-18", ("gnss_clock", "gnss_bad_data"), 1.0),
     Case("gnss-clock@+30:3600", ("gnss_clock",), 1.0),
     Case("gnss-frozen@+20", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("gnss-pole@+5", ("gnss_implausible", *_GNSS_FIX), 1.0),
@@ -123,7 +124,8 @@ def _run(task):
     if spec is not None and spec.startswith(_RATE):
         from host_emulator.sim import gnss as sim_gnss
 
-        gnss_model = sim_gnss.GnssModel(rate_hz=float(spec[len(_RATE) :]))
+        # 9600 baud carries GGA+GSA+RMC at 1 Hz only: a faster receiver needs a faster link
+        gnss_model = sim_gnss.GnssModel(rate_hz=float(spec[len(_RATE) :]), baud=115200)
     sim = board_input.simulate(SCENARIO, run_s, seed, gnss_model=gnss_model)
     stim = sim.stimulus
     met = None
@@ -176,11 +178,11 @@ def _run(task):
 _RATE = "receiver at "  # a _run task's spec: the drive with a receiver at this many Hz
 
 
-def _rate_rows(results, nominal, seeds):
-    """The receivers at RATES_HZ against the 1 Hz runs: RMS, frames above TRUST_M and how
+def _rate_rows(results, nominal, seeds, rates=RATES_HZ):
+    """The receivers at `rates` against the 1 Hz runs: RMS, frames above TRUST_M and how
     many of them did not say health 2."""
     rows = []
-    for hz in RATES_HZ:
+    for hz in rates:
         for s in seeds:
             r = results[(f"{_RATE}{hz:g}", s)]
             if "error" in r:
@@ -366,8 +368,9 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()
         lines += [
             "## Receivers by their rate",
             "",
-            "The same drive without a fault, its receiver at another rate (the same sentences, "
-            "baud and error model), against the 1 Hz run of the same seed; its frames above "
+            "The same drive without a fault, its receiver at another rate (the same sentences "
+            "and error model, at 115200 baud), against the 1 Hz run of the same seed; its "
+            "frames above "
             f"{TRUST_M:g} m without health 2 count in the target above.",
             "",
             "| receiver | seed | horizontal / vertical RMS m | 1 Hz horizontal m "

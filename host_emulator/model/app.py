@@ -232,7 +232,8 @@ def _late_s(pps, p_us, utc_ms, ticks):
     """app._late_s: whole seconds by which edge p_us is later than the epoch's UTC second,
     counted from the edge of the last on-time epoch (pps "edge_us", "edge_s"), which a 0
     count, a first epoch or an old reference replace; an edge off the seconds is not counted.
-    A lateness that begins while the edges were regular ("edges_ok") is a clock step:
+    A lateness that begins while the edges were regular ("edges_ok"), or of 2 s or more, is
+    a clock step:
     re-referenced after _STEP_EPOCHS epochs with it ("step_s", "step_n"); one that began at a
     missed edge stays late; a negative count re-references at once; the causes' deadlines
     ("late_bad", "step_bad") at `ticks`."""
@@ -250,7 +251,8 @@ def _late_s(pps, p_us, utc_ms, ticks):
             if 0 < late < fw_app._DAY_S // 2:
                 if late != pps["step_s"]:
                     pps["step_s"] = late
-                    pps["step_n"] = 0 if pps["edges_ok"] >= fw_app._OVERDUE_EDGES else -1
+                    regular = pps["edges_ok"] >= fw_app._OVERDUE_EDGES
+                    pps["step_n"] = 0 if regular or late > 1 else -1
                 if pps["step_n"] < 0:
                     pps["late_bad"] = ticks + fw_app._SECOND_TICKS
                     return late

@@ -15,7 +15,8 @@ Errors, per epoch k, scaled by s_k = hdop_k / hdop_nominal:
 Speed is the horizontal speed over ground, course the track angle in degrees clockwise from
 north in [0, 360); like RMC/VTG, course is NaN below course_min_speed_m_s (0.5 m/s).
 HDOP wanders in nominal +- hdop_wander (Gauss-Markov, 120 s) and jumps to 2-4 during random
-excursions (one per 300 s on average, 5-20 s long), with fewer satellites.
+excursions (one per 300 s on average, 5-20 s long), with fewer satellites: both drawn on a
+1 Hz grid whatever the rate (the sky's, so receivers at 1-10 Hz of a seed meet the same).
 During an outage, or before ttff_s, the receiver still reports each epoch but with quality 0,
 lat/lon 0 and NaN floats (an empty GGA). The sentence becomes available latency_s +-
 latency_jitter_s after the epoch (default 100 +- 30 ms, DESIGN 8: 50-150 ms). PPS edges are at

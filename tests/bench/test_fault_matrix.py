@@ -42,6 +42,16 @@ def test_a_fault_is_detected_trusted_and_recovered_from(nominal, case):
     assert s["health2_before_fault"] == 0, s
 
 
+def test_a_faster_receiver_is_trusted_as_the_1_hz_one(nominal):
+    """The drive with its receiver at 10 Hz (bench.RATES_HZ, 115200 baud): navigating, no frame
+    above 10 m without health 2, and no less accurate than at 1 Hz (horizontal RMS)."""
+    hz = max(bench.RATES_HZ)
+    r = bench._run((f"{bench._RATE}{hz:g}", SEED, T0 + 45.0))
+    row = bench._rate_rows({(f"{bench._RATE}{hz:g}", SEED): r}, {SEED: nominal}, (SEED,), (hz,))[0]
+    assert row["finite"] and row["frames_over_10m"] == 0, row
+    assert row["rms_h_m"] <= row["rms_h_1hz_m"], row
+
+
 def test_the_named_misses_are_cases_of_the_matrix():
     specs = {c.spec for c in bench.MATRIX}
     assert set(LATE_DETECTION) <= specs and set(UNTRUSTED_OVER_10M) <= specs
