@@ -160,6 +160,7 @@ FI_NO_HEIGHT = const(0x3FFFFFFF)  # fix_in[FI_ALT_MM] of a receiver that never g
 _FC_USABLE = const(1)  # HDOP acceptable
 _FC_SPEED = const(2)  # ... and the fix has a speed (now in self._st)
 _FC_REANCHOR = const(4)  # the position is beyond reanchor_m from the origin
+_FC_MOVING = const(8)  # the navigator moves faster than _FROZEN_V2 allows a repeated fix
 RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 # self.ctl: the per-tick control state and the integer configuration it needs, one int buffer
@@ -231,7 +232,8 @@ _C_IMPLAUSIBLE_UNTIL = const(67)  # CAUSE_GNSS_IMPLAUSIBLE until this tick
 _C_PREV_FIX = const(68)  # the last usable fix: lat, lon degrees, lon fraction (3; _frozen)
 _C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._jumped)
 _C_LAST_TICK = const(72)  # measurement tick of the last fix the filter took (0: none; _M_LAST)
-_NC = const(73)
+_C_FROZEN = const(73)  # 1: the repeats of the last fix were judged frozen (_frozen)
+_NC = const(74)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -701,7 +703,7 @@ class Navigator(Alignment, Aiding):
         if not usable:
             c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             return
-        if self._frozen():
+        if self._frozen(usable):
             return
         if usable & _FC_REANCHOR:
             self._reanchor()
@@ -710,12 +712,14 @@ class Navigator(Alignment, Aiding):
                           self._fx)  # fmt: skip
         c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
 
-    def _frozen(self):
+    def _frozen(self, usable):
         """True, and CAUSE_GNSS_IMPLAUSIBLE for a second, when the usable fix repeats the last
-        one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2: a receiver
-        that keeps sending its last solution (a real one's noise moves every fix; one that
-        holds its position at a standstill holds it where the navigator stands too). Such a
-        fix is not used. The fix becomes the last one either way."""
+        one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2 allows
+        (fix_check's _FC_MOVING: the float work is the kernel's): a receiver that keeps
+        sending its last solution (a real one's noise moves every fix; one that holds its
+        position at a standstill holds it where the navigator stands too). Such a fix is not
+        used, nor are its repeats once the navigator stops (the position is stale by the way
+        driven since). The fix becomes the last one either way."""
         c = self.ctl
         same = (
             c[_C_FIX_LAT] == c[_C_PREV_FIX]
@@ -725,14 +729,11 @@ class Navigator(Alignment, Aiding):
         c[_C_PREV_FIX] = c[_C_FIX_LAT]
         c[_C_PREV_FIX + 1] = c[_C_FIX_LON_DEG]
         c[_C_PREV_FIX + 2] = c[_C_FIX_LON_FRAC]
-        if not same:
-            return False
-        x = self.ins.x
-        ve = x[ins_mod.X_V]
-        vn = x[ins_mod.X_V + 1]
-        if ve * ve + vn * vn > _FROZEN_V2:
+        if same and (usable & _FC_MOVING or c[_C_FROZEN]):
+            c[_C_FROZEN] = 1  # until the fix changes: a stop does not make it fresh
             c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
             return True
+        c[_C_FROZEN] = 0
         return False
 
     def _room(self):
@@ -855,7 +856,10 @@ class Navigator(Alignment, Aiding):
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                 self._last_fix()
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
-                    self._reset_to_gnss()
+                    if c[_C_JUMPED] and self._beyond_drift():  # the receiver jumped: no reset
+                        c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+                    else:
+                        self._reset_to_gnss()
             else:
                 self._last_fix()
                 c[_C_REJECTS] = 0
@@ -1343,8 +1347,8 @@ def _fix_in_py(fx, fi, aid):
 
 def _fix_check_py(st, fx, x, aid):
     """_FC_* bits of a fix whose quality is acceptable: HDOP acceptable (then its speed, if
-    known, into st), and the position (x[0:2], ins.X_P = 0) beyond the re-anchoring
-    distance."""
+    known, into st), the position (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and
+    the navigator moving (_FROZEN_V2)."""
     if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
         return 0
     r = _FC_USABLE
@@ -1355,6 +1359,8 @@ def _fix_check_py(st, fx, x, aid):
     lim = aid[_AID_REANCHOR]
     if x[0] > lim or x[0] < -lim or x[1] > lim or x[1] < -lim:
         r |= _FC_REANCHOR
+    if x[ins_mod.X_V] * x[ins_mod.X_V] + x[ins_mod.X_V + 1] * x[ins_mod.X_V + 1] > _FROZEN_V2:
+        r |= _FC_MOVING
     return r
 
 

@@ -42,8 +42,6 @@ _C_T_SECOND = const(32)
 _C_V_REJECTS = const(47)
 _C_ACCEPT_TICK = const(9)
 _C_RESET_UNTIL = const(62)
-_C_IMPLAUSIBLE_UNTIL = const(67)
-_C_JUMPED = const(71)
 _C_LAST_TICK = const(72)
 _M_X = const(0)  # self.mem: Ins.x
 _M_E = const(52)  # ... Eskf.e
@@ -67,7 +65,7 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 # without a heading runs off at 6 m/s while the fixes walk on at 1.4), so its runs of rejected
 # fixes never begin with a jump. While a run that did lasts, the reset to GNSS is refused
 # unless the INS could have drifted that far since its last accepted fix t s ago: _STEP_M +
-# _STEP_HALF_A t^2 (a constant error of 1 m/s^2, 0.1 g, from the receiver's scatter).
+# _STEP_HALF_A t^2 (15 m: the receiver's scatter; then a constant error of 1 m/s^2, 0.1 g).
 _JUMP_M = f32.f32(15)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
@@ -218,14 +216,11 @@ class Aiding:
         gyro_bias0/accel_bias0): what the filter learned while it drifted away from GNSS is
         what let it drift (after a bias step, a learned 1 deg/s outlives the step and
         defeats standstill detection), and the fresh covariance lets it learn them again.
-        Refused (CAUSE_GNSS_IMPLAUSIBLE for a second) when the rejected run began with a
+        Not asked for (nav._inject, navtick.c inject) when the rejected run began with a
         jump of the receiver (_C_JUMPED: _jumped) and the fix is still beyond what the INS
         can have drifted since its last accepted fix (_beyond_drift): the rejects go on
         counting and the next rejected fix asks again."""
         c = self.ctl
-        if c[_C_JUMPED] and self._beyond_drift():
-            c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
-            return
         self._room()
         ins = self.ins
         used = self._used

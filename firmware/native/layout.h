@@ -185,6 +185,7 @@
 #define FC_USABLE 1
 #define FC_SPEED 2
 #define FC_REANCHOR 4
+#define FC_MOVING 8
 /* nav.py: the pending fix self._fx and the used fix self._used */
 #define FX_H 0
 #define FX_HDOP 1
@@ -267,7 +268,8 @@
 #define C_PREV_FIX 68
 #define C_JUMPED 71
 #define C_LAST_TICK 72
-#define NC 73
+#define C_FROZEN 73
+#define NC 74
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52

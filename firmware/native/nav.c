@@ -6,6 +6,8 @@
 #include "navk.h"
 #include "rot32.h"
 
+#define FROZEN_V2 1.0f /* nav._FROZEN_V2: a repeated fix while moving above 1 m/s (squared) */
+
 /* nav._apply_cal: out = m (x - b0), or x - b0 without a matrix. */
 static void apply_cal(float *out, const float *x, const float *b0, const float *m) {
     float x0 = x[0] - b0[0];
@@ -187,6 +189,9 @@ int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *
     float lim = aid[AID_REANCHOR];
     if (x[X_P] > lim || x[X_P] < -lim || x[X_P + 1] > lim || x[X_P + 1] < -lim) {
         r |= FC_REANCHOR;
+    }
+    if (x[X_V] * x[X_V] + x[X_V + 1] * x[X_V + 1] > FROZEN_V2) {
+        r |= FC_MOVING;
     }
     return r;
 }

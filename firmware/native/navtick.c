@@ -28,6 +28,8 @@
 #define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
 #define LAG_K0 16.0f /* nav._LAG_K0 */
 #define JUMP_M 15.0f /* nav_aid._JUMP_M */
+#define STEP_M 15.0f /* nav_aid._STEP_M */
+#define STEP_HALF_A 0.5f /* nav_aid._STEP_HALF_A */
 #define LAG_Q2 9.0f /* nav._LAG_Q2 */
 #define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
@@ -421,6 +423,16 @@ static int32_t jumped(const int32_t *c, const float *m) {
     return de * de + dn * dn > reach * reach;
 }
 
+/* nav_aid._beyond_drift: the east/north innovation of the GNSS update just done beyond what
+   the INS can have drifted since the last accepted fix */
+static int32_t beyond_drift(const int32_t *c, const float *e, const float *m) {
+    float t = (float)(c[C_TICK] - c[C_ACCEPT_TICK]) * m[M_X + X_DT];
+    float lim = STEP_M + STEP_HALF_A * (t * t);
+    float ye = e[E_Z];
+    float yn = e[E_Z + 1];
+    return ye * ye + yn * yn > lim * lim;
+}
+
 /* nav_aid._last_fix: the fix just used becomes the last one the filter took */
 static void last_fix(int32_t *c, float *m) {
     m[M_LAST] = m[M_US];
@@ -457,7 +469,14 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
         }
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
         last_fix(c, m);
-        return c[C_REJECTS] >= c[C_RESET_AFTER] ? EV_RESET : 0;
+        if (c[C_REJECTS] < c[C_RESET_AFTER]) {
+            return 0;
+        }
+        if (c[C_JUMPED] && beyond_drift(c, e, m)) { /* the receiver jumped: no reset to it */
+            c[C_IMPLAUSIBLE_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+            return 0;
+        }
+        return EV_RESET;
     }
     last_fix(c, m);
     c[C_REJECTS] = 0;

@@ -90,7 +90,7 @@ MATRIX = (
     Case("gnss-clock@+30:3600", ("gnss_clock",), 1.0),
     Case("gnss-frozen@+20", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("gnss-pole@+5", ("gnss_implausible", *_GNSS_FIX), 1.0),
-    Case("gnss-jump@+60:2000000", ("gnss_implausible", *_GNSS_FIX), 1.0),
+    Case("gnss-jump@+30:2000000", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("stall@+0.2", ("overrun",), 1.0),
 )
 # receivers at other rates than the drive's 1 Hz, without a fault: scored like a fault run

@@ -192,6 +192,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.last_fix_en = np.zeros(2, F32)  # nav._M_LAST: the last fix the filter took
         self.last_used_tick = 0  # ... its measurement tick (nav._C_LAST_TICK; 0: none)
         self.prev_fix = (0, 0)  # the last usable fix's lat, lon (1e-7 deg; nav._C_PREV_FIX)
+        self.frozen = False  # nav._C_FROZEN
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
@@ -436,9 +437,11 @@ class NavModel(AlignmentModel, AidingModel):
         same = (self.fix_lat_e7, self.fix_lon_e7) == self.prev_fix
         self.prev_fix = (self.fix_lat_e7, self.fix_lon_e7)
         v = self.ins.v_n
-        if same and v[0] * v[0] + v[1] * v[1] > fw_nav._FROZEN_V2:
+        if same and (v[0] * v[0] + v[1] * v[1] > fw_nav._FROZEN_V2 or self.frozen):
+            self.frozen = True  # nav._C_FROZEN: until the fix changes
             self.implausible_until = self.tick + self.ticks_second
             return True
+        self.frozen = False
         return False
 
     def _reanchor(self):
@@ -531,7 +534,10 @@ class NavModel(AlignmentModel, AidingModel):
                 self.gated_until = self.tick + self.ticks_second
                 self._last_fix()
                 if self.rejects >= self.cfg.reset_after_rejects:
-                    self._reset_to_gnss()
+                    if self.jumped and self._beyond_drift():  # nav._inject: no reset
+                        self.implausible_until = self.tick + self.ticks_second
+                    else:
+                        self._reset_to_gnss()
             else:
                 self._last_fix()
                 self.rejects = 0

@@ -112,11 +112,7 @@ class AidingModel:
     def _reset_to_gnss(self):
         """From the fix the last update rejected: p, horizontal v (from its course, else the
         INS's), a fresh P; attitude kept, bias estimates back to 0 (the calibration).
-        Refused while the rejected run began with a jump and the fix is still beyond what
-        the INS can have drifted (nav_aid._reset_to_gnss)."""
-        if self.jumped and self._beyond_drift():
-            self.implausible_until = self.tick + self.ticks_second
-            return
+        (Not asked for after a jump: nav._inject.)"""
         ins = self.ins
         u = self.used
         course, sp = u[4], u[3]

@@ -44,12 +44,14 @@ def test_a_fault_is_detected_trusted_and_recovered_from(nominal, case):
 
 def test_a_faster_receiver_is_trusted_as_the_1_hz_one(nominal):
     """The drive with its receiver at 10 Hz (bench.RATES_HZ, 115200 baud): navigating, no frame
-    above 10 m without health 2, and no less accurate than at 1 Hz (horizontal RMS)."""
+    above 10 m without health 2, and no less accurate than at 1 Hz over this short run
+    (horizontal RMS; over bench-faults' 320 s with its half-correlated receiver errors 10 Hz
+    is 1-28 % worse than 1 Hz: docs/benchmarks/faults.md)."""
     hz = max(bench.RATES_HZ)
     r = bench._run((f"{bench._RATE}{hz:g}", SEED, T0 + 45.0))
     row = bench._rate_rows({(f"{bench._RATE}{hz:g}", SEED): r}, {SEED: nominal}, (SEED,), (hz,))[0]
     assert row["finite"] and row["frames_over_10m"] == 0, row
-    assert row["rms_h_m"] <= row["rms_h_1hz_m"], row
+    assert row["rms_h_m"] <= row["rms_h_1hz_m"], row  # measured: 1.47 m against 1.97 m
 
 
 def test_the_named_misses_are_cases_of_the_matrix():
