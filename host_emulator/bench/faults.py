@@ -96,6 +96,7 @@ MATRIX = (
 # receivers at other rates than the drive's 1 Hz, without a fault: scored like a fault run
 # against the 1 Hz run (frames above TRUST_M without health 2 count in the target)
 RATES_HZ = (5.0, 10.0)
+_RATE = "receiver at "  # a _run task's spec: the drive with a receiver at this many Hz
 _BITS = {name: bit for bit, name in records.CAUSES}
 # run in the MicroPython VM as well (unix port, seed 0): the same firmware on MicroPython
 VM_SUBSET = ("imu-zeros@+1", "accel-vibe@+2", "gnss-height@+5:100", "gnss-quality@+5:6")
@@ -173,9 +174,6 @@ def _run(task):
         "health_all": tr.health,
         "causes_all": tr.causes,
     }
-
-
-_RATE = "receiver at "  # a _run task's spec: the drive with a receiver at this many Hz
 
 
 def _rate_rows(results, nominal, seeds, rates=RATES_HZ):
