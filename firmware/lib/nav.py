@@ -47,12 +47,13 @@ import ins as ins_mod
 import kern
 from ins import Ins
 from micropython import const
-from nav_aid import NO_HEIGHT_VAR, Aiding
+from nav_aid import NO_HEIGHT_VAR, Aiding, lever_vel
 from nav_align import Alignment
 
 import f32
 import geo
 import rot
+from fmath import cos, sin
 
 ALIGNING = const(1)
 NAVIGATING = const(2)
@@ -227,7 +228,7 @@ _C_RESET_UNTIL = const(62)  # CAUSE_RESET until this tick (a reset: until a fix 
 _C_DATA_UNTIL = const(63)  # CAUSE_GNSS_DATA until this tick
 _C_INFLATE = const(64)  # 1: the IMU came back after a dead spell; widen P at the next job
 _C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
-_C_LAG_TICK = const(66)  # the tick of the last fix the lag learned from (_consistency)
+_C_LAG_TICK = const(66)  # measurement tick of the last fix the lag search took (0: none)
 _C_IMPLAUSIBLE_UNTIL = const(67)  # CAUSE_GNSS_IMPLAUSIBLE until this tick
 _C_PREV_FIX = const(68)  # the last usable fix: lat, lon degrees, lon fraction (3; _frozen)
 _C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._jumped)
@@ -239,7 +240,7 @@ _NC = const(74)
 _OPT_ZUPT = const(1)
 _OPT_NHC = const(2)
 _OPT_CONING = const(4)
-_OPT_LAG = const(8)  # learn the fixes' lag (cfg.gnss_lag_learn)
+_OPT_LAG = const(8)  # search the fixes' lag (cfg.gnss_lag_learn)
 # self.mem: every float buffer a tick touches, in one (layout.h M_*), so that the native
 # `nav_tick` takes few arguments: a call of many arguments makes its caller's frame too large
 # for the C stack, and MicroPython then allocates the frame on the heap at every call
@@ -263,22 +264,28 @@ _M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._n
 _M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
 _M_CN = const(1644)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
-_M_LAST = const(1656)  # the last fix the filter took: its antenna east, north in the frame (2)
-_NM = const(1658)
+_M_LAST = const(1652)  # the last fix the filter took: its antenna east, north in the frame (2)
+_M_LS = const(1654)  # the lag search (_lag_search): residuals east, north and their means
+_NM = const(1702)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
 _CN_MV = const(2)  # ... up
 _CN_VH = const(3)  # unseen variance per horizontal axis, m^2 (Navigator.cv[0])
 _CN_VV = const(4)  # ... vertical, m^2 (Navigator.cv[1])
-_CN_KL = const(5)  # fixes in the lag's running means so far (float, up to _CN_N)
-_CN_LN = const(6)  # running mean of y0 . a (m^2/s^3): y0 the velocity innovation, lag put back
-_CN_LD = const(7)  # running mean of a . a (m^2/s^4)
-_CN_LAG = const(8)  # the estimated lag of the fixes behind their stamps, s
-_CN_LAGT = const(9)  # the lag applied, ticks (float; 0 until it is clear of 0, see _consistency)
-_CN_PVE = const(10)  # the velocity east, north at the last fix the lag learned from, m/s
-_CN_PVN = const(11)
-_NCN = const(12)
+_CN_KL = const(5)  # pairs of fixes in the lag search's running means (float, up to _CN_N)
+_CN_LAG = const(6)  # the lag of the fixes behind their stamps that fits best, s (_lag_search)
+_CN_LAGT = const(7)  # the lag applied, ticks (float; shrunk towards 0 while uncertain)
+_NCN = const(8)
+# mem's _M_LS: per candidate lag j (j _LS_STEP ticks): the last fix's velocity residual east
+# (_LS_E + j), north (_LS_N + j), and the running mean of its change between fixes squared
+# (_LS_M + j)
+_LS_C = const(16)  # candidates: 0, 20 ms, ... 0.3 s
+_LS_STEP = const(4)  # ticks between candidates
+_LS_E = const(0)
+_LS_N = const(16)
+_LS_M = const(32)
+_NLS = const(48)
 # nav_tick's results: what Python must do before calling it again (0: the tick is done)
 _EV_ALIGN = const(1)  # a fix arrived while aligning: _align_fix
 _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
@@ -816,8 +823,10 @@ class Navigator(Alignment, Aiding):
         ring holds the last RING ticks)."""
         c = self.ctl
         c[_C_FIX_QUEUED] = 0
-        # a receiver whose fixes are older than their stamps: its learned lag (_consistency)
-        age = c[_C_TICK] - c[_C_FIX_TICK] + int(self.mem[_M_CN + _CN_LAGT])
+        # a receiver whose fixes are older than their stamps: the lag its search applies
+        age = c[_C_TICK] - c[_C_FIX_TICK]
+        _lag_search(c, self.mem, age)
+        age = age + int(self.mem[_M_CN + _CN_LAGT])
         if age < 0:
             age = 0
         elif age > RING - 1:
@@ -895,6 +904,7 @@ class Navigator(Alignment, Aiding):
         self.kf.reset_p(ini)
         for i in range(6):
             self._corr[i] = 0.0
+        self.ctl[_C_LAG_TICK] = 0  # the velocity track jumps: no pair for the lag search
 
     def _fault_reset(self):
         """Non-finite state or covariance: back to a safe state and re-align."""
@@ -922,6 +932,7 @@ class Navigator(Alignment, Aiding):
         c[_C_REJECTS] = 0
         c[_C_V_REJECTS] = 0
         c[_C_LAST_TICK] = 0  # the frame may move with the re-alignment
+        c[_C_LAG_TICK] = 0
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         self.resets += 1
 
@@ -1177,11 +1188,9 @@ def _drift_watch(e, mem, n):
 # unseen: (1 - m) R, per axis, reported on top of P (nothing changes in the filter itself).
 _CN_N = f32.f32(64)  # the running means' length in fixes (1/k weights up to it: a true mean)
 _CN_CLIP = f32.f32(25)  # one y^2/S counts at most this much (_BW_CLIP squared)
-_LAG_V2 = f32.f32(4)  # the lag learns from fixes above 2 m/s (speed squared, m^2/s^2)
-_LAG_MIN = f32.ratio(1, 50)  # applied from 20 ms (4 ticks)
-_LAG_MAX = f32.ratio(2, 5)  # at most 0.4 s (the delay ring holds 0.64 s with the latency)
-_LAG_K0 = f32.f32(16)  # applied once this many fixes are in the means
-_LAG_Q2 = f32.f32(9)  # 3 sigma, squared: the innovations used, the estimate applied
+_LAG_V2 = f32.f32(4)  # the lag search takes fixes above 2 m/s (speed squared, m^2/s^2)
+_LAG_K0 = f32.f32(4)  # the lag is applied from this many pairs of fixes on
+_LEV = f32.zeros(2)  # _lag_search's antenna velocity from the lever arm (east, north)
 
 
 def _consistency(c, e, mem, n, mask):
@@ -1189,8 +1198,7 @@ def _consistency(c, e, mem, n, mask):
     whose gate mask is `mask`: when its three position rows were accepted, the running means
     of y^2/S east/north and up in mem's _M_CN, and from them and the fix's sigmas (mem's _M_US)
     the unseen variances _CN_VH, _CN_VV: (1 - mean) sigma^2, or 0 when the fixes scatter as
-    much as S says or more. Then, when the fix had a velocity: the fixes' lag behind their
-    stamps (_CN_LAG, s) and the ticks applied to the next fixes (_CN_LAGT), see below."""
+    much as S says or more."""
     if n < 3 or mask & 7:
         return
     z = f32.view(e, eskf.E_Z, 5)
@@ -1225,57 +1233,79 @@ def _consistency(c, e, mem, n, mask):
         cn[_CN_VV] = 0.0
         if cn[_CN_MV] < 1.0:
             cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
-    # The lag. A fix measured dt_lag before its stamp reports the velocity of then, behind
-    # the state's by a dt_lag (a: the acceleration), so its velocity innovation (state - fix)
-    # is a dt_lag on average plus what the applied lag took away (y0 = y + a lag_applied):
-    # the lag is mean(y0 . a) / mean(a . a) over fixes in motion. (The position innovation
-    # says v dt_lag, but the filter takes a steady v dt_lag for a position error and follows
-    # it, so the positions show only a small part of the lag.)
-    # Its sigma is about sigma_vel / sqrt(k mean(a . a)); applied once 3 of them from 0 and
-    # at least _LAG_MIN.
-    ve = mem[_M_X + ins_mod.X_V]
-    vn = mem[_M_X + ins_mod.X_V + 1]
-    t = c[_C_TICK] - c[_C_LAG_TICK]
-    c[_C_LAG_TICK] = c[_C_TICK]
-    pe = cn[_CN_PVE]
-    pn = cn[_CN_PVN]
-    cn[_CN_PVE] = ve
-    cn[_CN_PVN] = vn
-    if n < 5 or mask & 0x18 or t < 1 or t > 2 * c[_C_T_SECOND] or not c[_C_OPTS] & _OPT_LAG:
-        return  # no velocity rows or one gated out, no fix of the last 2 s before, or off
-    if c[_C_TICK] < c[_C_DRIFT_UNTIL] or c[_C_TICK] < c[_C_GATED_UNTIL]:
-        return  # the INS drifting away (a sensor fault) or fixes gated: not the receiver's lag
-    if not (r[3] > 0.0 and r[4] > 0.0) or not ve * ve + vn * vn > _LAG_V2:
+
+
+def _lag_search(c, mem, age):
+    """The fixes' lag behind their stamps (docs/navigation.md, "Fixes late against their
+    stamps"), before the update of the queued fix measured `age` ticks ago. A fix measured
+    lag_s before its stamp reports the velocity of then. Against the state's velocity at
+    candidate lags L (ring slots age + L: the track without the corrections, plus the lever
+    arm's velocity), its residual differs from the last fix's by (lag_s - L) times the change
+    of acceleration between them, plus noise: the L whose residual changes least (its running
+    mean of squares _LS_M, _CN_LAG) is the lag. Applied (_CN_LAGT) shrunk by the evidence
+    against no lag, L q / (1 + q) with q = k (M(0) - M(L)) / M(L) (the means in units of
+    their own noise), so that a flat search (a straight road) applies nearly nothing. The
+    filter never sees the residuals: its corrections, which absorb part of a lag, do not bias
+    the search."""
+    x = f32.view(mem, _M_X, ins_mod.NX)
+    cn = f32.view(mem, _M_CN, _NCN)
+    ls = f32.view(mem, _M_LS, _NLS)
+    fx = f32.view(mem, _M_FX, 6)
+    t = c[_C_FIX_TICK] - c[_C_LAG_TICK]
+    c[_C_LAG_TICK] = c[_C_FIX_TICK]
+    course = fx[_FX_COURSE]
+    sp = fx[_FX_SPEED]
+    if (
+        not c[_C_OPTS] & _OPT_LAG
+        or course < 0.0
+        or not sp * sp > _LAG_V2
+        or age < 0
+        or age + _LS_STEP * (_LS_C - 1) > RING - 1
+        or c[_C_TICK] < c[_C_DRIFT_UNTIL]
+        or c[_C_TICK] < c[_C_GATED_UNTIL]
+    ):
+        c[_C_LAG_TICK] = 0  # no velocity, too slow, too old for the ring, or the INS drifting
         return
-    ye = z[3]
-    yn = z[4]
-    if ye * ye > _LAG_Q2 * r[3] or yn * yn > _LAG_Q2 * r[4]:
-        return  # beyond 3 sigma: teaches nothing
-    dt = mem[_M_X + ins_mod.X_DT]
-    ts = f32.f32(t) * dt
-    ae = (ve - pe) / ts
-    an = (vn - pn) / ts
-    k = cn[_CN_KL] + 1.0
-    if k > _CN_N:
-        k = _CN_N
-    cn[_CN_KL] = k
-    a = 1.0 / k
-    lag = cn[_CN_LAGT] * dt
-    u = (ye + ae * lag) * ae + (yn + an * lag) * an
-    cn[_CN_LN] = cn[_CN_LN] + a * (u - cn[_CN_LN])
-    cn[_CN_LD] = cn[_CN_LD] + a * ((ae * ae + an * an) - cn[_CN_LD])
-    if not cn[_CN_LD] > 0.0:
+    ve = sp * sin(course)
+    vn = sp * cos(course)
+    lev = _LEV
+    lever_vel(lev, x, f32.view(mem, _M_W, 3), f32.view(mem, _M_AID + _AID_LEVER, 3))
+    pair = 1 <= t <= 2 * c[_C_T_SECOND]
+    k = cn[_CN_KL]
+    if pair:
+        k = k + 1.0
+        if k > _CN_N:
+            k = _CN_N
+        cn[_CN_KL] = k
+    a = 1.0 / k if pair else 0.0
+    rv = f32.view(mem, _M_RING_V, 3 * RING)
+    best = 0
+    for j in range(_LS_C):
+        b = ((c[_C_TICK] - (age + j * _LS_STEP)) % RING) * 3
+        ye = (rv[b] + lev[0]) - ve
+        yn = (rv[b + 1] + lev[1]) - vn
+        if pair:
+            de = ye - ls[_LS_E + j]
+            dn = yn - ls[_LS_N + j]
+            ls[_LS_M + j] = ls[_LS_M + j] + a * ((de * de + dn * dn) - ls[_LS_M + j])
+            if ls[_LS_M + j] < ls[_LS_M + best]:
+                best = j
+        ls[_LS_E + j] = ye
+        ls[_LS_N + j] = yn
+    if not pair:
         return
-    lag = cn[_CN_LN] / cn[_CN_LD]
-    if lag < 0.0:
-        lag = 0.0
-    elif lag > _LAG_MAX:
-        lag = _LAG_MAX
+    dt = x[ins_mod.X_DT]
+    lag = f32.f32(best * _LS_STEP) * dt
     cn[_CN_LAG] = lag
     cn[_CN_LAGT] = 0.0
-    s = mem[_M_AID + _AID_VEL_SIGMA]
-    if lag >= _LAG_MIN and k >= _LAG_K0 and lag * lag * (k * cn[_CN_LD]) >= _LAG_Q2 * (s * s):
-        cn[_CN_LAGT] = f32.f32(int(lag / dt + 0.5))
+    if best == 0 or k < _LAG_K0:
+        return
+    m = ls[_LS_M + best]
+    if not m > 0.0:
+        return
+    q = k * (ls[_LS_M] - m) / m
+    lag = lag * q / (1.0 + q)
+    cn[_CN_LAGT] = f32.f32(int(lag / dt + 0.5))
 
 
 def _ring_put_py(ring_p, ring_v, x, corr, b):

@@ -21,6 +21,7 @@ started; the filter works them off over the next ticks.
 """
 
 import eskf
+import ins as ins_mod
 from micropython import const
 
 import f32
@@ -46,7 +47,7 @@ _C_LAST_TICK = const(72)
 _M_X = const(0)  # self.mem: Ins.x
 _M_E = const(52)  # ... Eskf.e
 _M_US = const(1595)  # ... self._used
-_M_LAST = const(1656)  # ... the last fix the filter took (east, north)
+_M_LAST = const(1652)  # ... the last fix the filter took (east, north)
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
@@ -71,6 +72,20 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 _JUMP_M = f32.f32(15)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
+
+
+def lever_vel(out, x, w, lv):
+    """out[0], out[1] = east, north of C_bn ((w - bg) x l): the antenna's velocity from the
+    lever arm (x the INS state, w the body rate, lv the lever arm in body axes)."""
+    wx = w[0] - x[ins_mod.X_BG]
+    wy = w[1] - x[ins_mod.X_BG + 1]
+    wz = w[2] - x[ins_mod.X_BG + 2]
+    ax = wy * lv[2] - wz * lv[1]
+    ay = wz * lv[0] - wx * lv[2]
+    az = wx * lv[1] - wy * lv[0]
+    c = ins_mod.X_C
+    out[0] = x[c] * ax + x[c + 1] * ay + x[c + 2] * az
+    out[1] = x[c + 3] * ax + x[c + 4] * ay + x[c + 5] * az
 
 
 class Aiding:
@@ -155,20 +170,11 @@ class Aiding:
             vn = sp * cos(course)
             # antenna velocity = v + C (w x l); its attitude and gyro-bias sensitivities are
             # neglected (tests/lib/test_error_dynamics.py sizes them: mm/s against 0.1 m/s)
-            w = self._w
-            bg = ins.bg
-            lv = cfg.lever_b_m
-            wx = w[0] - bg[0]
-            wy = w[1] - bg[1]
-            wz = w[2] - bg[2]
-            ax = wy * lv[2] - wz * lv[1]
-            ay = wz * lv[0] - wx * lv[2]
-            az = wx * lv[1] - wy * lv[0]
-            c = ins.c_bn
+            lever_vel(ln, ins.x, self._w, cfg.lever_b_m)
             rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
-            z = (rv[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve
+            z = (rv[b] + corr[3] + ln[0]) - ve
             kf.add_scalar(z, rvel, 1, eskf.IX_VEL, 1.0)
-            z = (rv[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn
+            z = (rv[b + 1] + corr[4] + ln[1]) - vn
             kf.add_scalar(z, rvel, 1, eskf.IX_VEL + 1, 1.0)
         kf.start_update()
 

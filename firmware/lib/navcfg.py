@@ -27,8 +27,9 @@ class NavConfig:
         # together with 2 filter slices per tick (0.70 vs 0.72 m horizontal RMS for 503 vs 397
         # float operations per tick, docs/benchmarks/navigation.md), so off by default.
         self.coning = False
-        # learn how late the fixes are against their stamps (their velocity innovations against
-        # the acceleration) and compare them with the state of that moment (nav._consistency)
+        # search how late the fixes are against their stamps (their velocity against the
+        # track at candidate lags) and compare them with the state of that moment
+        # (nav._lag_search)
         self.gnss_lag_learn = True
 
         # Sensor noise: BMI055 datasheet figures (DESIGN.md 7) with a margin of 2 for

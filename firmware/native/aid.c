@@ -5,6 +5,7 @@
 
 #include "fmath32.h"
 #include "layout.h"
+#include "lever32.h"
 #include "navk.h"
 #include "rot32.h"
 
@@ -198,16 +199,12 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     if (course >= 0.0f) {
         float ve = sp * f32_sin(course);
         float vn = sp * f32_cos(course);
-        float wx = w[0] - x[X_BG];
-        float wy = w[1] - x[X_BG + 1];
-        float wz = w[2] - x[X_BG + 2];
-        float ax = wy * lv[2] - wz * lv[1];
-        float ay = wz * lv[0] - wx * lv[2];
-        float az = wx * lv[1] - wy * lv[0];
+        float lev[2];
+        lever_vel_en(lev, x, w, lv);
         float rvel = aid[AID_VEL_SIGMA] * aid[AID_VEL_SIGMA];
-        z = (ring_v[b] + corr[3] + (c[0] * ax + c[1] * ay + c[2] * az)) - ve;
+        z = (ring_v[b] + corr[3] + lev[0]) - ve;
         add_scalar(e, ii, z, rvel, 1, IX_VEL, 1.0f, 0, 0.0f, 0, 0.0f);
-        z = (ring_v[b + 1] + corr[4] + (c[3] * ax + c[4] * ay + c[5] * az)) - vn;
+        z = (ring_v[b + 1] + corr[4] + lev[1]) - vn;
         add_scalar(e, ii, z, rvel, 1, IX_VEL + 1, 1.0f, 0, 0.0f, 0, 0.0f);
     }
     start_update(ii);
@@ -278,6 +275,7 @@ void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
     for (int i = 0; i < 6; i++) {
         m[M_CORR + i] = 0.0f;
     }
+    c[C_LAG_TICK] = 0; /* the velocity track jumps: no pair for the lag search */
     for (int i = 0; i < 3; i++) { /* ins.take_dvn */
         x[X_DVS + i] = 0.0f;
     }

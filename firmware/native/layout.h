@@ -291,22 +291,26 @@
 #define M_LVL 1633
 #define M_BW 1639
 #define M_CN 1644
-#define M_LAST 1656
-#define NM 1658
-/* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency) */
+#define M_LAST 1652
+#define M_LS 1654
+#define NM 1702
+/* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency, _lag_search) */
 #define CN_K 0
 #define CN_MH 1
 #define CN_MV 2
 #define CN_VH 3
 #define CN_VV 4
 #define CN_KL 5
-#define CN_LN 6
-#define CN_LD 7
-#define CN_LAG 8
-#define CN_LAGT 9
-#define CN_PVE 10
-#define CN_PVN 11
-#define NCN 12
+#define CN_LAG 6
+#define CN_LAGT 7
+#define NCN 8
+/* nav.py: the lag search, m + M_LS (_lag_search) */
+#define LS_C 16
+#define LS_STEP 4
+#define LS_E 0
+#define LS_N 16
+#define LS_M 32
+#define NLS 48
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4

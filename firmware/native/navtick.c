@@ -13,6 +13,7 @@
 
 #include "fmath32.h"
 #include "layout.h"
+#include "lever32.h"
 #include "navk.h"
 #include "rot32.h"
 
@@ -24,13 +25,10 @@
 #define CN_LEN 64.0f /* nav._CN_N */
 #define CN_CLIP 25.0f /* nav._CN_CLIP */
 #define LAG_V2 4.0f /* nav._LAG_V2 */
-#define LAG_MIN (1.0f / 50.0f) /* nav._LAG_MIN */
-#define LAG_MAX (2.0f / 5.0f) /* nav._LAG_MAX */
-#define LAG_K0 16.0f /* nav._LAG_K0 */
+#define LAG_K0 4.0f /* nav._LAG_K0 */
 #define JUMP_M 15.0f /* nav_aid._JUMP_M */
 #define STEP_M 15.0f /* nav_aid._STEP_M */
 #define STEP_HALF_A 0.5f /* nav_aid._STEP_HALF_A */
-#define LAG_Q2 9.0f /* nav._LAG_Q2 */
 #define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
 #define PH_START 0 /* a new tick */
@@ -221,11 +219,80 @@ static void still_update(int32_t *c, float *st, const float *f, const float *w, 
     c[C_STILL] = c[C_N_STILL] >= c[C_T_STILL] ? 1 : 0;
 }
 
+/* nav._lag_search: per candidate lag, the change of the velocity residual against the
+ * ring's track between consecutive fixes, its running mean of squares, and the lag applied
+ * (the least, shrunk by the evidence against no lag) */
+static void lag_search(int32_t *c, float *m, int32_t age) {
+    const float *x = m + M_X;
+    float *cn = m + M_CN;
+    float *ls = m + M_LS;
+    int32_t t = c[C_FIX_TICK] - c[C_LAG_TICK];
+    c[C_LAG_TICK] = c[C_FIX_TICK];
+    float course = m[M_FX + FX_COURSE];
+    float sp = m[M_FX + FX_SPEED];
+    if (!(c[C_OPTS] & OPT_LAG) || course < 0.0f || !(sp * sp > LAG_V2) || age < 0
+        || age + LS_STEP * (LS_C - 1) > RING - 1 || c[C_TICK] < c[C_DRIFT_UNTIL]
+        || c[C_TICK] < c[C_GATED_UNTIL]) {
+        c[C_LAG_TICK] = 0; /* no velocity, too slow, too old for the ring, or the INS drifting */
+        return;
+    }
+    float ve = sp * f32_sin(course);
+    float vn = sp * f32_cos(course);
+    float lev[2];
+    lever_vel_en(lev, x, m + M_W, m + M_AID + AID_LEVER);
+    int32_t pair = t >= 1 && t <= 2 * c[C_T_SECOND];
+    float k = cn[CN_KL];
+    if (pair) {
+        k = k + 1.0f;
+        if (k > CN_LEN) {
+            k = CN_LEN;
+        }
+        cn[CN_KL] = k;
+    }
+    float a = pair ? 1.0f / k : 0.0f;
+    const float *rv = m + M_RING_V;
+    int32_t best = 0;
+    for (int32_t j = 0; j < LS_C; j++) {
+        int32_t b = ((c[C_TICK] - (age + j * LS_STEP)) % RING) * 3;
+        float ye = (rv[b] + lev[0]) - ve;
+        float yn = (rv[b + 1] + lev[1]) - vn;
+        if (pair) {
+            float de = ye - ls[LS_E + j];
+            float dn = yn - ls[LS_N + j];
+            ls[LS_M + j] = ls[LS_M + j] + a * ((de * de + dn * dn) - ls[LS_M + j]);
+            if (ls[LS_M + j] < ls[LS_M + best]) {
+                best = j;
+            }
+        }
+        ls[LS_E + j] = ye;
+        ls[LS_N + j] = yn;
+    }
+    if (!pair) {
+        return;
+    }
+    float dt = x[X_DT];
+    float lag = (float)(best * LS_STEP) * dt;
+    cn[CN_LAG] = lag;
+    cn[CN_LAGT] = 0.0f;
+    if (best == 0 || k < LAG_K0) {
+        return;
+    }
+    float mb = ls[LS_M + best];
+    if (!(mb > 0.0f)) {
+        return;
+    }
+    float q = k * (ls[LS_M] - mb) / mb;
+    lag = lag * q / (1.0f + q);
+    cn[CN_LAGT] = (float)(int32_t)(lag / dt + 0.5f);
+}
+
 /* _start_queued_fix and nav_aid._start_gnss_update: the GNSS update of the queued fix,
  * against the state at its measurement time (the delay ring holds the last RING ticks) */
 static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
     c[C_FIX_QUEUED] = 0;
-    int32_t age = c[C_TICK] - c[C_FIX_TICK] + (int32_t)m[M_CN + CN_LAGT];
+    int32_t age = c[C_TICK] - c[C_FIX_TICK];
+    lag_search(c, m, age);
+    age = age + (int32_t)m[M_CN + CN_LAGT];
     if (age < 0) {
         age = 0;
     } else if (age > RING - 1) {
@@ -308,9 +375,8 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
 }
 
 /* nav._consistency: after a GNSS update whose position rows were all accepted, the running
- * means of y^2/S and from them the receiver's error variance the filter cannot see; then,
- * from its velocity rows, the fixes' lag behind their stamps */
-static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t mask) {
+ * means of y^2/S and from them the receiver's error variance the filter cannot see */
+static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     if (n < 3 || (mask & 7)) {
         return;
     }
@@ -353,58 +419,6 @@ static void consistency(int32_t *c, const float *e, float *m, int32_t n, int32_t
         if (cn[CN_MV] < 1.0f) {
             cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
         }
-    }
-    /* the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows) */
-    float ve = m[M_X + X_V];
-    float vn = m[M_X + X_V + 1];
-    int32_t t = c[C_TICK] - c[C_LAG_TICK];
-    c[C_LAG_TICK] = c[C_TICK];
-    float pe = cn[CN_PVE];
-    float pn = cn[CN_PVN];
-    cn[CN_PVE] = ve;
-    cn[CN_PVN] = vn;
-    if (n < 5 || (mask & 0x18) || t < 1 || t > 2 * c[C_T_SECOND] || !(c[C_OPTS] & OPT_LAG)) {
-        return;
-    }
-    if (c[C_TICK] < c[C_DRIFT_UNTIL] || c[C_TICK] < c[C_GATED_UNTIL]) {
-        return; /* a sensor fault's drift, or fixes gated: not the receiver's lag */
-    }
-    if (!(r[3] > 0.0f && r[4] > 0.0f) || !(ve * ve + vn * vn > LAG_V2)) {
-        return;
-    }
-    float ye = z[3];
-    float yn = z[4];
-    if (ye * ye > LAG_Q2 * r[3] || yn * yn > LAG_Q2 * r[4]) {
-        return;
-    }
-    float dt = m[M_X + X_DT];
-    float ts = (float)t * dt;
-    float ae = (ve - pe) / ts;
-    float an = (vn - pn) / ts;
-    k = cn[CN_KL] + 1.0f;
-    if (k > CN_LEN) {
-        k = CN_LEN;
-    }
-    cn[CN_KL] = k;
-    a = 1.0f / k;
-    float lag = cn[CN_LAGT] * dt;
-    float u = (ye + ae * lag) * ae + (yn + an * lag) * an;
-    cn[CN_LN] = cn[CN_LN] + a * (u - cn[CN_LN]);
-    cn[CN_LD] = cn[CN_LD] + a * ((ae * ae + an * an) - cn[CN_LD]);
-    if (!(cn[CN_LD] > 0.0f)) {
-        return;
-    }
-    lag = cn[CN_LN] / cn[CN_LD];
-    if (lag < 0.0f) {
-        lag = 0.0f;
-    } else if (lag > LAG_MAX) {
-        lag = LAG_MAX;
-    }
-    cn[CN_LAG] = lag;
-    cn[CN_LAGT] = 0.0f;
-    s = m[M_AID + AID_VEL_SIGMA];
-    if (lag >= LAG_MIN && k >= LAG_K0 && lag * lag * (k * cn[CN_LD]) >= LAG_Q2 * (s * s)) {
-        cn[CN_LAGT] = (float)(int32_t)(lag / dt + 0.5f);
     }
 }
 
@@ -456,7 +470,7 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     if (drift_watch(e, m, n)) {
         c[C_DRIFT_UNTIL] = c[C_TICK] + 5 * c[C_T_SECOND];
     }
-    consistency(c, e, m, n, mask);
+    consistency(e, m, n, mask);
     if (mask & 4) {
         c[C_V_REJECTS] += 1;
     } else {

@@ -80,11 +80,12 @@ def gnss_e7(nav, lat_e7, lon_e7, *args, **kwargs):
     nav.gnss(lat_e7, *geo.split_e7(lon_e7), *args, **kwargs)
 
 
-def deliver_fix(nav, fx, dt_s, sentences=("GGA", "RMC")):
+def deliver_fix(nav, fx, dt_s, sentences=("GGA", "RMC"), pps=True):
     """Hand one simulated fix to the navigator as the board's loop will (fix_args), with what
     a receiver printing `sentences` gives: no GGA, no height and no HDOP (the worst accepted
-    is assumed, as app.py does); neither RMC nor VTG, no speed and course."""
-    args, fix_tick = fix_args(fx, dt_s, velocity="RMC" in sentences or "VTG" in sentences)
+    is assumed, as app.py does); neither RMC nor VTG, no speed and course. pps=False: a board
+    without the PPS wire (the fix's time is its arrival less gnss_latency_s)."""
+    args, fix_tick = fix_args(fx, dt_s, velocity="RMC" in sentences or "VTG" in sentences, pps=pps)
     if "GGA" in sentences:
         gnss_e7(nav, *args, fix_tick=fix_tick)
         return
@@ -93,10 +94,10 @@ def deliver_fix(nav, fx, dt_s, sentences=("GGA", "RMC")):
     gnss_e7(nav, lat, lon, 0.0, quality, hdop, speed, course, fix_tick=fix_tick, sigma_v_m=-1.0)
 
 
-def feed(nav, imu, gnss, k0, k1, on_tick=None):
+def feed(nav, imu, gnss, k0, k1, on_tick=None, pps=True):
     """Ticks k0..k1-1: the fixes available by each tick, then the tick's IMU counts;
     on_tick(nav, k) after each tick. The fixes carry what the simulated receiver prints
-    (its model's `sentences`)."""
+    (its model's `sentences`), with their PPS tick unless pps=False."""
     dt = float(nav.cfg.dt_s)
     sentences = getattr(getattr(gnss, "model", None), "sentences", ("GGA", "RMC"))
     gyro = imu.gyro_counts[k0:k1].astype(int).tolist()
@@ -106,15 +107,16 @@ def feed(nav, imu, gnss, k0, k1, on_tick=None):
     fi = 0
     for j, k in enumerate(range(k0, k1)):
         while fi < len(fixes) and fixes[fi].t_avail_s <= k * dt + 1e-9:
-            deliver_fix(nav, fixes[fi], dt, sentences)
+            deliver_fix(nav, fixes[fi], dt, sentences, pps)
             fi += 1
         nav.imu_raw(gyro[j], accel[j], sat[j])
         if on_tick:
             on_tick(nav, k)
 
 
-def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None):
-    """Run the navigator over a simulated scenario; returns a NavRun."""
+def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None, pps=True):
+    """Run the navigator over a simulated scenario (pps=False: no PPS, see feed); returns a
+    NavRun."""
     cfg = cfg or navcfg.NavConfig("car")
     lever = getattr(getattr(gnss, "model", None), "lever_b_m", None)
     if lever is not None:
@@ -162,7 +164,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
             progress(k, n)
 
     t0 = time.perf_counter()
-    feed(nav, imu, gnss, 0, n, on_tick=record)
+    feed(nav, imu, gnss, 0, n, on_tick=record, pps=pps)
     wall = time.perf_counter() - t0
     a = np.array(rows, dtype=float) if rows else np.zeros((0, 34))
     o = truth.origin
@@ -192,7 +194,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None)
             "reanchors": nav.reanchors,
             "p_n_final": [float(x) for x in nav.ins.p_n],
             "cv_final": [float(x) for x in nav.cv],  # the receiver's unseen variances, m^2
-            # the fixes' lag behind their stamps: estimated (s) and applied (ticks), at the end
+            # the fixes' lag behind their stamps: found (s) and applied (ticks), at the end
             "lag_s": float(nav.mem[nav_mod._M_CN + nav_mod._CN_LAG]),
             "lag_ticks": int(nav.mem[nav_mod._M_CN + nav_mod._CN_LAGT]),
         },

@@ -24,10 +24,21 @@ The files mirror the firmware's, one model beside each firmware module:
 import numpy as np
 
 from host_emulator import firmware_env
+from host_emulator.model import fmath as ref_fmath
 from host_emulator.model import geo as ref_geo
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.eskf import IDLE, IX_ATT, IX_BA, IX_BG, IX_POS, IX_VEL, EskfModel, N
-from host_emulator.model.f32ops import F32, HALF, ONE, TWO, ZERO, mat_vec, ratio, sum_left, vec
+from host_emulator.model.f32ops import (
+    F32,
+    HALF,
+    ONE,
+    TWO,
+    ZERO,
+    mat_vec,
+    ratio,
+    sum_left,
+    vec,
+)  # fmt: skip
 from host_emulator.model.ins import InsModel
 from host_emulator.model.nav_aid import AidingModel
 from host_emulator.model.nav_align import AlignmentModel
@@ -196,7 +207,8 @@ class NavModel(AlignmentModel, AidingModel):
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
-        self.lag_tick = 0  # the tick of the last fix the lag learned from
+        self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav._lag_search's residuals and means
+        self.lag_tick = 0  # measurement tick of the last fix the lag search took (0: none)
         self.since_prop = 0
         self.since_zupt = 0
         self.since_nhc = 0
@@ -380,6 +392,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.init_diag[IX_VEL : IX_VEL + 2] = sigma_vel * sigma_vel
         self.kf.reset_p(self.init_diag)
         self.corr = np.zeros(6, F32)
+        self.lag_tick = 0  # nav._restart: no pair for the lag search
 
     def _navigate(self):
         ins = self.ins
@@ -483,7 +496,9 @@ class NavModel(AlignmentModel, AidingModel):
         if self.fix_queued and not overdue:
             self.fix_queued = False
             # the state at the fix's measurement time: the ring holds the last RING ticks
-            age = self.tick - self.fix_tick + int(self.consistency[fw_nav._CN_LAGT])
+            age = self.tick - self.fix_tick
+            self._lag_search(age)
+            age = age + int(self.consistency[fw_nav._CN_LAGT])
             age = min(max(age, 0), RING - 1)
             self._start_gnss_update((self.tick - age) % RING)
             self.job = JOB_GNSS
@@ -593,43 +608,59 @@ class NavModel(AlignmentModel, AidingModel):
             cn[fw_nav._CN_VV] = ZERO
             if cn[fw_nav._CN_MV] < ONE:
                 cn[fw_nav._CN_VV] = (ONE - cn[fw_nav._CN_MV]) * (sig * sig)
-        # the lag: mean(y0 . a) / mean(a . a), y0 = y + a lag_applied (the velocity rows)
-        ve, vn = self.ins.v_n[0], self.ins.v_n[1]
-        t = self.tick - self.lag_tick
-        self.lag_tick = self.tick
-        pe, pn = cn[fw_nav._CN_PVE], cn[fw_nav._CN_PVN]
-        cn[fw_nav._CN_PVE] = ve
-        cn[fw_nav._CN_PVN] = vn
-        if (len(innov) < 5 or mask & 0x18 or t < 1 or t > 2 * self.ticks_second
-                or not self.cfg.gnss_lag_learn):  # fmt: skip
+
+    def _lag_search(self, age):
+        """nav._lag_search: per candidate lag, the change of the velocity residual against the
+        ring's track between consecutive fixes, its running mean of squares, and the lag
+        applied (the least, shrunk by the evidence against no lag)."""
+        cn = self.consistency
+        ls = self.lag_search
+        nc, step = fw_nav._LS_C, fw_nav._LS_STEP
+        t = self.fix_tick - self.lag_tick
+        self.lag_tick = self.fix_tick
+        course, sp = self.fix[3], self.fix[2]
+        if (not self.cfg.gnss_lag_learn or course < 0.0 or not sp * sp > fw_nav._LAG_V2
+                or age < 0 or age + step * (nc - 1) > RING - 1
+                or self.tick < self.drift_until or self.tick < self.gated_until):  # fmt: skip
+            self.lag_tick = 0
             return
-        if self.tick < self.drift_until or self.tick < self.gated_until:
-            return
-        (yve, sve), (yvn, svn) = innov[3:5]
-        if not (sve > 0.0 and svn > 0.0) or not ve * ve + vn * vn > fw_nav._LAG_V2:
-            return
-        if yve * yve > fw_nav._LAG_Q2 * sve or yvn * yvn > fw_nav._LAG_Q2 * svn:
+        ve = sp * ref_fmath.sin(course)
+        vn = sp * ref_fmath.cos(course)
+        le, ln = self._lever_vel_n()[:2]
+        pair = 1 <= t <= 2 * self.ticks_second
+        k = cn[fw_nav._CN_KL]
+        if pair:
+            k = min(k + ONE, fw_nav._CN_N)
+            cn[fw_nav._CN_KL] = k
+        a = ONE / k if pair else ZERO
+        best = 0
+        for j in range(nc):
+            v = self.ring_v[(self.tick - (age + j * step)) % RING]
+            ye = (v[0] + le) - ve
+            yn = (v[1] + ln) - vn
+            if pair:
+                de = ye - ls[fw_nav._LS_E + j]
+                dn = yn - ls[fw_nav._LS_N + j]
+                m = fw_nav._LS_M + j
+                ls[m] = ls[m] + a * ((de * de + dn * dn) - ls[m])
+                if ls[m] < ls[fw_nav._LS_M + best]:
+                    best = j
+            ls[fw_nav._LS_E + j] = ye
+            ls[fw_nav._LS_N + j] = yn
+        if not pair:
             return
         dt = self.ins.dt
-        ts = F32(t) * dt
-        ae = (ve - pe) / ts
-        an = (vn - pn) / ts
-        k = min(cn[fw_nav._CN_KL] + ONE, fw_nav._CN_N)
-        cn[fw_nav._CN_KL] = k
-        a = ONE / k
-        lag = cn[fw_nav._CN_LAGT] * dt
-        u = (yve + ae * lag) * ae + (yvn + an * lag) * an
-        cn[fw_nav._CN_LN] = cn[fw_nav._CN_LN] + a * (u - cn[fw_nav._CN_LN])
-        cn[fw_nav._CN_LD] = cn[fw_nav._CN_LD] + a * ((ae * ae + an * an) - cn[fw_nav._CN_LD])
-        if not cn[fw_nav._CN_LD] > 0.0:
-            return
-        lag = min(max(cn[fw_nav._CN_LN] / cn[fw_nav._CN_LD], ZERO), fw_nav._LAG_MAX)
+        lag = F32(best * step) * dt
         cn[fw_nav._CN_LAG] = lag
         cn[fw_nav._CN_LAGT] = ZERO
-        sv = F32(self.cfg.gnss_vel_sigma)
-        if (lag >= fw_nav._LAG_MIN and k >= fw_nav._LAG_K0
-                and lag * lag * (k * cn[fw_nav._CN_LD]) >= fw_nav._LAG_Q2 * (sv * sv)):  # fmt: skip
-            cn[fw_nav._CN_LAGT] = F32(int(lag / dt + HALF))
+        if best == 0 or k < fw_nav._LAG_K0:
+            return
+        m = ls[fw_nav._LS_M + best]
+        if not m > 0.0:
+            return
+        q = k * (ls[fw_nav._LS_M] - m) / m
+        lag = lag * q / (ONE + q)
+        cn[fw_nav._CN_LAGT] = F32(int(lag / dt + HALF))
 
     def p_diag(self):
         """The covariance diagonal as the extended frame reports it (Navigator.p_diag)."""
@@ -657,6 +688,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.rejects = 0
         self.v_rejects = 0
         self.last_used_tick = 0  # nav._fault_reset: the frame may move
+        self.lag_tick = 0
         self.fault_until = self.tick + self.ticks_second
         self.resets += 1
 
@@ -736,6 +768,7 @@ class NavModel(AlignmentModel, AidingModel):
             "corr": self.corr,
             "drift_watch": self.drift_watch,
             "consistency": self.consistency,
+            "lag_search": self.lag_search,
             "gnss_p": self.gnss_p,
             "fix": self.fix,
             "used_fix": self.used,

@@ -22,6 +22,11 @@ class AidingModel:
         """C_bn lever_b: the antenna offset in the navigation frame."""
         return mat_vec(self.ins.c_bn, self.cfg.lever_b_m)
 
+    def _lever_vel_n(self):
+        """C_bn ((w - bg) x lever_b): the antenna's velocity from the lever arm
+        (nav_aid.lever_vel)."""
+        return mat_vec(self.ins.c_bn, cross(self.w_b - self.ins.bg, self.cfg.lever_b_m))
+
     def _sigma_h(self):
         cfg = self.cfg
         s = self.fix[4]
@@ -46,7 +51,6 @@ class AidingModel:
         course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course)."""
         cfg = self.cfg
         kf = self.kf
-        ins = self.ins
         p_then = self.ring_p[slot]
         v_then = self.ring_v[slot]
         corr = self.corr
@@ -77,7 +81,7 @@ class AidingModel:
         if course >= 0.0:
             ve = sp * ref_fmath.sin(course)
             vn = sp * ref_fmath.cos(course)
-            lever_vel_n = mat_vec(ins.c_bn, cross(self.w_b - ins.bg, cfg.lever_b_m))
+            lever_vel_n = self._lever_vel_n()
             rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
             z = (v_then[0] + corr[3] + lever_vel_n[0]) - ve
             kf.add_scalar(z, rvel, [(IX_VEL, ONE)])

@@ -225,6 +225,7 @@ def firmware_snapshot(nav):
         "corr": nav._corr,
         "drift_watch": f32.view(nav.mem, nav_mod._M_BW, nav_mod._BW_N),
         "consistency": f32.view(nav.mem, nav_mod._M_CN, nav_mod._NCN),
+        "lag_search": f32.view(nav.mem, nav_mod._M_LS, nav_mod._NLS),
         "gnss_p": nav._gp,
         "fix": nav._fx,
         "used_fix": nav._used,
@@ -596,9 +597,9 @@ def test_model_of_the_start_from_the_gnss_track():
 
 
 def test_model_of_a_receiver_whose_fixes_are_late():
-    """Fixes 0.15 s older than their stamps, stop-and-go: the lag's running means, its
-    estimate, and the fixes compared with the state of that moment once it is applied, bit
-    for bit."""
+    """Fixes 0.15 s older than their stamps, stop-and-go: the lag search's residuals and
+    running means, the lag found and applied, and the fixes compared with the state of that
+    moment, bit for bit."""
     s = trajectory.DriveScript(yaw0_rad=-0.4)
     s.add_road(np.random.default_rng(5), 1500.0, 0.02, 0.01, (60.0, 150.0), (20.0, 50.0))
     s.hold(4.0)

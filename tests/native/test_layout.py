@@ -31,6 +31,8 @@ RULES = (
     ("NC", "nav", "_NC"),
     ("CN_", "nav", "_CN_"),
     ("NCN", "nav", "_NCN"),
+    ("LS_", "nav", "_LS_"),
+    ("NLS", "nav", "_NLS"),
     ("M_", "nav", "_M_"),
     ("NM", "nav", "_NM"),
     ("OPT_", "nav", "_OPT_"),
