@@ -1252,6 +1252,8 @@ def _lag_search(c, mem, age):
     ls = f32.view(mem, _M_LS, _NLS)
     fx = f32.view(mem, _M_FX, 6)
     t = c[_C_FIX_TICK] - c[_C_LAG_TICK]
+    if c[_C_LAG_TICK] != 0 and 0 <= t < c[_C_T_SECOND] - c[_C_T_SECOND] // 4:
+        return  # pairs about a second apart at any rate
     c[_C_LAG_TICK] = c[_C_FIX_TICK]
     course = fx[_FX_COURSE]
     sp = fx[_FX_SPEED]
@@ -1304,6 +1306,8 @@ def _lag_search(c, mem, age):
     if not m > 0.0:
         return
     q = k * (ls[_LS_M] - m) / m
+    if q < 1.0:
+        return  # not a sigma from no lag
     lag = lag * q / (1.0 + q)
     cn[_CN_LAGT] = f32.f32(int(lag / dt + 0.5))
 

@@ -227,6 +227,9 @@ static void lag_search(int32_t *c, float *m, int32_t age) {
     float *cn = m + M_CN;
     float *ls = m + M_LS;
     int32_t t = c[C_FIX_TICK] - c[C_LAG_TICK];
+    if (c[C_LAG_TICK] != 0 && t >= 0 && t < c[C_T_SECOND] - c[C_T_SECOND] / 4) {
+        return; /* pairs about a second apart at any rate */
+    }
     c[C_LAG_TICK] = c[C_FIX_TICK];
     float course = m[M_FX + FX_COURSE];
     float sp = m[M_FX + FX_SPEED];
@@ -282,6 +285,9 @@ static void lag_search(int32_t *c, float *m, int32_t age) {
         return;
     }
     float q = k * (ls[LS_M] - mb) / mb;
+    if (q < 1.0f) {
+        return; /* not a sigma from no lag */
+    }
     lag = lag * q / (1.0f + q);
     cn[CN_LAGT] = (float)(int32_t)(lag / dt + 0.5f);
 }

@@ -617,6 +617,8 @@ class NavModel(AlignmentModel, AidingModel):
         ls = self.lag_search
         nc, step = fw_nav._LS_C, fw_nav._LS_STEP
         t = self.fix_tick - self.lag_tick
+        if self.lag_tick != 0 and 0 <= t < self.ticks_second - self.ticks_second // 4:
+            return  # pairs about a second apart at any rate
         self.lag_tick = self.fix_tick
         course, sp = self.fix[3], self.fix[2]
         if (not self.cfg.gnss_lag_learn or course < 0.0 or not sp * sp > fw_nav._LAG_V2
@@ -659,6 +661,8 @@ class NavModel(AlignmentModel, AidingModel):
         if not m > 0.0:
             return
         q = k * (ls[fw_nav._LS_M] - m) / m
+        if q < ONE:
+            return
         lag = lag * q / (ONE + q)
         cn[fw_nav._CN_LAGT] = F32(int(lag / dt + HALF))
 

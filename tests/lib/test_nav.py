@@ -221,7 +221,7 @@ def test_fixes_late_against_their_stamps_are_found_and_compared_in_time(lag_runs
     run_late, m_late = lag_runs[(0.15, True)]
     _, m_late_off = lag_runs[(0.15, False)]
     assert 0.13 < run_late.extra["lag_s"] < 0.17, run_late.extra  # measured 0.16 s
-    assert 26 <= run_late.extra["lag_ticks"] <= 34, run_late.extra  # measured 32
+    assert 26 <= run_late.extra["lag_ticks"] <= 34, run_late.extra  # measured 31
     # measured: 0.71 m correctly timed, 0.69 m late and found, 1.53 m late without
     assert m_late["horiz_rms_m"] < 1.1 * m_ok["horiz_rms_m"], (m_late, m_ok)
     assert m_late_off["horiz_rms_m"] > 1.8 * m_ok["horiz_rms_m"], (m_late_off, m_ok)

@@ -250,7 +250,7 @@ def test_epochs_between_the_seconds_go_without_pps_and_keep_their_accuracy(drive
     it varies by up to 20 deg with the fixes' noise and would hide the timing). The wrong
     latency is judged with the lag search off (gnss_lag_learn 0); with it on, the search
     finds most of the ~0.2 s the wrong latency leaves. Measured (horizontal RMS with GNSS,
-    whole / x.5 / x.5 at 0.1 s without / with the search): 0.81 / 0.87 / 2.89 / 1.39 m (56 s
+    whole / x.5 / x.5 at 0.1 s without / with the search): 0.81 / 0.85 / 2.89 / 1.39 m (56 s
     scored)."""
     t1 = _first_second(drive) + 1.0
     whole = _with_gnss(drive, np.arange(t1, drive.truth.t_s[-1] - 1.0, 1.0), velocity=True)
