@@ -853,7 +853,7 @@ class Navigator(Alignment, Aiding):
             n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
             if _drift_watch(kf.e, self.mem, n):
                 c[_C_DRIFT_UNTIL] = c[_C_TICK] + 5 * c[_C_T_SECOND]
-            _consistency(c, kf.e, self.mem, n, mask)
+            _consistency(kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
             else:
@@ -1193,7 +1193,7 @@ _LAG_K0 = f32.f32(4)  # the lag is applied from this many pairs of fixes on
 _LEV = f32.zeros(2)  # _lag_search's antenna velocity from the lever arm (east, north)
 
 
-def _consistency(c, e, mem, n, mask):
+def _consistency(e, mem, n, mask):
     """After a GNSS update of n scalars (E_Z/E_R: each one's innovation y and variance S)
     whose gate mask is `mask`: when its three position rows were accepted, the running means
     of y^2/S east/north and up in mem's _M_CN, and from them and the fix's sigmas (mem's _M_US)
@@ -1244,9 +1244,10 @@ def _lag_search(c, mem, age):
     of acceleration between them, plus noise: the L whose residual changes least (its running
     mean of squares _LS_M, _CN_LAG) is the lag. Applied (_CN_LAGT) shrunk by the evidence
     against no lag, L q / (1 + q) with q = k (M(0) - M(L)) / M(L) (the means in units of
-    their own noise), so that a flat search (a straight road) applies nearly nothing. The
-    filter never sees the residuals: its corrections, which absorb part of a lag, do not bias
-    the search."""
+    their own noise), nothing below q = 1, so that a flat search (a straight road) applies
+    nothing. The filter's corrections, which absorb part of a lag, are not in the ring's
+    track; the attitude and biases it estimates are, so a wrong lag applied early can hold
+    itself (docs/navigation.md): hence the gate, and pairs about a second apart."""
     x = f32.view(mem, _M_X, ins_mod.NX)
     cn = f32.view(mem, _M_CN, _NCN)
     ls = f32.view(mem, _M_LS, _NLS)

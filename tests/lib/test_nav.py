@@ -171,20 +171,19 @@ def test_consistency_estimates_the_innovations_deficit():
     e, mem = nav.kf.e, nav.mem
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
-    nav.ctl[fw_nav._C_OPTS] &= ~fw_nav._OPT_LAG  # the lag's part: the next test
     mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
     mem[fw_nav._M_US + 6] = 4.0
     for k in range(100):
         r[0], r[1], r[2] = 4.0, 4.0, 16.0
         z[0], z[1], z[2] = 1.0 if k % 2 else -1.0, 1.0, 4.0 * F32(1.5) ** 0.5
-        fw_nav._consistency(nav.ctl, e, mem, 5, 0)
+        fw_nav._consistency(e, mem, 5, 0)
     assert float(nav.cv[0]) == pytest.approx(0.75 * 4.0, rel=1e-5)
     assert float(nav.cv[1]) == 0.0
     assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(fw_nav._CN_N)
     before = np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN])
     z[0] = 100.0
-    fw_nav._consistency(nav.ctl, e, mem, 5, 1)  # east gated
-    fw_nav._consistency(nav.ctl, e, mem, 2, 0)  # no height row
+    fw_nav._consistency(e, mem, 5, 1)  # east gated
+    fw_nav._consistency(e, mem, 2, 0)  # no height row
     assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
 
 
