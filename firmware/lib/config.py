@@ -68,6 +68,7 @@ _SCHEMA = (
     (40, "heading_speed_m_s", _FLOAT, 1, None),  # the course is the heading from this speed
     (41, "track_min_m", _FLOAT, 1, None),  # without a course: the chord that gives the heading
     (42, "track_max_s", _FLOAT, 1, None),  # ... within this long
+    (43, "gnss_stamp_lag_s", _FLOAT, 1, None),  # the fixes' positions are older than their stamps
 )
 _GYRO_RANGES = (125, 250, 500, 1000, 2000)
 _ACCEL_RANGES = (2, 4, 8, 16)
@@ -95,6 +96,7 @@ _RANGES = (
     ("heading_speed_m_s", 1, 300, 10, "m/s", False),  # a slow walk .. a car on a highway
     ("track_min_m", 1, 200, 1, "m", False),
     ("track_max_s", 1, 120, 1, "s", False),
+    ("gnss_stamp_lag_s", 0, 3, 10, "s", False),  # the candidates the lag search tries
 )
 
 

@@ -234,7 +234,8 @@ _C_PREV_FIX = const(68)  # the last usable fix: lat, lon degrees, lon fraction (
 _C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid._jumped)
 _C_LAST_TICK = const(72)  # measurement tick of the last fix the filter took (0: none; _M_LAST)
 _C_FROZEN = const(73)  # 1: the repeats of the last fix were judged frozen (_frozen)
-_NC = const(74)
+_C_T_STAMP_LAG = const(74)  # the fixes' positions are this much older than their stamps
+_NC = const(75)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -355,6 +356,7 @@ class Navigator(Alignment, Aiding):
             | (_OPT_LAG if cfg.gnss_lag_learn else 0)
         )
         c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
+        c[_C_T_STAMP_LAG] = _ticks(cfg.gnss_stamp_lag_s, dt)
         c[_C_T_TRACK] = max(1, _ticks(cfg.track_max_s, dt))
         c[_C_T_STUCK] = max(1, _ticks(cfg.imu_stuck_s, dt))
         # called before a step that allocates while navigating (re-anchoring, a reset): the
@@ -631,7 +633,7 @@ class Navigator(Alignment, Aiding):
             c[_C_DATA_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
         if fix_tick < 0:
             fix_tick = c[_C_TICK] - c[_C_T_LATENCY]
-        c[_C_FIX_TICK] = fix_tick
+        c[_C_FIX_TICK] = fix_tick - c[_C_T_STAMP_LAG]
         c[_C_FIX_PENDING] = 1
 
     # ---- per tick ------------------------------------------------------------------------

@@ -67,6 +67,9 @@ class NavConfig:
         self.gnss_hdop_max = f32.f32(2)  # reject fixes with HDOP above (seed 000 NFR)
         self.gnss_min_quality = 1
         self.gnss_latency_s = f32.ratio(1, 10)  # fix time = arrival - latency when no PPS
+        # a receiver that stamps its fixes late (its solution is older than the time in the
+        # sentence, with or without a PPS): the fix time is the stamp's less this
+        self.gnss_stamp_lag_s = f32.f32(0)
         self.gnss_stable_fixes = 5  # consecutive good fixes before GNSS counts as stable
         self.gnss_timeout_s = f32.f32(2)  # no accepted fix for this long: health 1
         self.gate_sigma = f32.f32(5)  # innovation gate, sigmas

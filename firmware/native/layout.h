@@ -269,7 +269,8 @@
 #define C_JUMPED 71
 #define C_LAST_TICK 72
 #define C_FROZEN 73
-#define NC 74
+#define C_T_STAMP_LAG 74
+#define NC 75
 /* nav.py: the navigator's float buffers in one, Navigator.mem */
 #define M_X 0
 #define M_E 52

@@ -157,7 +157,8 @@ int32_t navk_fix_usable(int32_t *c, float *m) {
 }
 
 /* Navigator.gnss_fix: the fix in fi (FI_*) into the pending fix (m[M_FX], c[C_FIX_*]), its
- * measurement tick from fi or, when unknown (< 0), the arrival less the latency (_take_fix) */
+ * measurement tick from fi or, when unknown (< 0), the arrival less the latency, less the
+ * lag of the position behind its stamp (_take_fix) */
 void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
     navk_fix_in(m + M_FX, fi, m + M_AID);
     c[C_FIX_LAT] = fi[FI_LAT_E7];
@@ -171,7 +172,7 @@ void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
     if (fix_tick < 0) {
         fix_tick = c[C_TICK] - c[C_T_LATENCY];
     }
-    c[C_FIX_TICK] = fix_tick;
+    c[C_FIX_TICK] = fix_tick - c[C_T_STAMP_LAG];
     c[C_FIX_PENDING] = 1;
 }
 

@@ -122,6 +122,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.ticks_still = _ticks(cfg.still_s, dt)
         self.ticks_timeout = _ticks(cfg.gnss_timeout_s, dt)
         self.ticks_latency = _ticks(cfg.gnss_latency_s, dt)
+        self.ticks_stamp_lag = _ticks(cfg.gnss_stamp_lag_s, dt)
         self.ticks_second = _ticks(F32(1), dt)
         self.ticks_track = max(_ticks(cfg.track_max_s, dt), 1)
         self.ticks_track_min = _ticks(cfg.track_s, dt)
@@ -325,7 +326,7 @@ class NavModel(AlignmentModel, AidingModel):
             self.data_until = self.tick + self.ticks_second
         if fix_tick < 0:
             fix_tick = self.tick - self.ticks_latency
-        self.fix_tick = fix_tick
+        self.fix_tick = fix_tick - self.ticks_stamp_lag
         self.fix = np.array([h_m, hdop, speed_m_s, course_rad, sigma_h_m, sigma_v_m], F32)
         self.fix_pending = True
 

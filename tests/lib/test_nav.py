@@ -187,7 +187,7 @@ def test_consistency_estimates_the_innovations_deficit():
     assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
 
 
-def _lag_run(stamp_lag_s, learn):
+def _lag_run(stamp_lag_s, learn, set_s=0.0):
     truth, imu, gnss = scenario(
         "urban_drive",
         240,
@@ -196,6 +196,7 @@ def _lag_run(stamp_lag_s, learn):
     )
     cfg = navcfg.NavConfig("car")
     cfg.gnss_lag_learn = learn
+    cfg.gnss_stamp_lag_s = np.float32(set_s)
     run = nav_runner.run(truth, imu, gnss, cfg=cfg)
     # scored from 40 s after navigation starts: the lag is found from the first turns
     return run, nav_runner.metrics(run, truth, skip_s=40.0)
@@ -203,7 +204,7 @@ def _lag_run(stamp_lag_s, learn):
 
 @pytest.fixture(scope="module")
 def lag_runs():
-    keys = ((0.0, True), (0.0, False), (0.15, True), (0.15, False))
+    keys = ((0.0, True), (0.0, False), (0.15, True), (0.15, False), (0.15, False, 0.15))
     return {key: _lag_run(*key) for key in keys}
 
 
@@ -224,6 +225,38 @@ def test_fixes_late_against_their_stamps_are_found_and_compared_in_time(lag_runs
     # measured: 0.71 m correctly timed, 0.69 m late and found, 1.53 m late without
     assert m_late["horiz_rms_m"] < 1.1 * m_ok["horiz_rms_m"], (m_late, m_ok)
     assert m_late_off["horiz_rms_m"] > 1.8 * m_ok["horiz_rms_m"], (m_late_off, m_ok)
+
+
+def test_the_set_stamp_lag_moves_each_fix_back_with_or_without_a_pps():
+    """gnss_stamp_lag_s (0.05 s, 10 ticks) moves a fix's measurement tick back whether the fix
+    is timed by its PPS stamp or by its arrival less gnss_latency_s (0.1 s, 20 ticks), in
+    `gnss` (the Python path) and in `gnss_fix` (natively one kernel) alike."""
+    cfg = navcfg.NavConfig("car")
+    cfg.gnss_stamp_lag_s = np.float32(0.05)
+    nav = Navigator(cfg)
+    nav.tick = 1000
+    nav_runner.gnss_e7(nav, 480000000, 110000000, 10.0, 1, 1.0, -1.0, -1.0, fix_tick=990)
+    assert nav.ctl[fw_nav._C_FIX_TICK] == 980
+    nav_runner.gnss_e7(nav, 480000000, 110000000, 10.0, 1, 1.0, -1.0, -1.0)
+    assert nav.ctl[fw_nav._C_FIX_TICK] == 970
+    fi = nav.fix_in
+    fi[fw_nav.FI_LAT_E7], fi[fw_nav.FI_LON_DEG], fi[fw_nav.FI_LON_FRAC] = 480000000, 11, 0
+    fi[fw_nav.FI_ALT_MM], fi[fw_nav.FI_QUALITY], fi[fw_nav.FI_HDOP_X100] = 10000, 1, 100
+    fi[fw_nav.FI_SPEED_MM_S] = fi[fw_nav.FI_COURSE_CDEG] = -1
+    for stamp, expected in ((990, 980), (-1, 970)):
+        fi[fw_nav.FI_TICK] = stamp
+        nav.gnss_fix()
+        assert nav.ctl[fw_nav._C_FIX_TICK] == expected
+
+
+def test_a_known_lag_behind_the_stamps_is_set(lag_runs):
+    """The same late receiver with its lag set (gnss_stamp_lag_s 0.15) and the search off: its
+    fixes are compared with the state 0.15 s before their PPS-timed stamps, as accurate as a
+    receiver on time (without the setting: about twice it)."""
+    _, m_ok = lag_runs[(0.0, True)]
+    _, m_set = lag_runs[(0.15, False, 0.15)]
+    # measured: 0.716 m set, 0.710 m on time
+    assert m_set["horiz_rms_m"] < 1.1 * m_ok["horiz_rms_m"], (m_set, m_ok)
 
 
 def navigating(seconds=110, seed=3, **gnss_kw):

@@ -597,9 +597,9 @@ def test_model_of_the_start_from_the_gnss_track():
 
 
 def test_model_of_a_receiver_whose_fixes_are_late():
-    """Fixes 0.15 s older than their stamps, stop-and-go: the lag search's residuals and
-    running means, the lag found and applied, and the fixes compared with the state of that
-    moment, bit for bit."""
+    """Fixes 0.15 s older than their stamps, stop-and-go, 0.05 s of it set (gnss_stamp_lag_s):
+    the set lag, the lag search's residuals and running means, the rest found and applied, and
+    the fixes compared with the state of that moment, bit for bit."""
     s = trajectory.DriveScript(yaw0_rad=-0.4)
     s.add_road(np.random.default_rng(5), 1500.0, 0.02, 0.01, (60.0, 150.0), (20.0, 50.0))
     s.hold(4.0)
@@ -615,7 +615,7 @@ def test_model_of_a_receiver_whose_fixes_are_late():
                                  gnss_model=sim_gnss.GnssModel(stamp_lag_s=0.15))  # fmt: skip
     drive = Drive(truth, imu, fixes, ())
     cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1,
-                     gnss_lag_learn=True)  # fmt: skip
+                     gnss_lag_learn=True, gnss_stamp_lag_s=np.float32(0.05))  # fmt: skip
     applied = []
 
     def tick(nav, model, k):
@@ -627,3 +627,6 @@ def test_model_of_a_receiver_whose_fixes_are_late():
     nav, _, _ = side_by_side(drive, cfg, n, hooks=dict.fromkeys(range(n), tick))
     assert nav.state == NAVIGATING and max(applied) > 0, max(applied)
     assert sum(a > 0 for a in applied) > 2000  # applied over 10 s at least
+    # the set 0.05 s is 10 ticks; the search applies the 0.1 s left (measured: median 20)
+    assert nav.ctl[nav_mod._C_T_STAMP_LAG] == 10
+    assert 16 <= sorted(applied)[len(applied) // 2] <= 24, sorted(applied)[len(applied) // 2]
