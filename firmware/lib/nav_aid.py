@@ -47,7 +47,7 @@ _C_LAST_TICK = const(72)
 _M_X = const(0)  # self.mem: Ins.x
 _M_E = const(52)  # ... Eskf.e
 _M_US = const(1595)  # ... self._used
-_M_LAST = const(1652)  # ... the last fix the filter took (east, north)
+_M_LAST = const(1653)  # ... the last fix the filter took (east, north)
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
@@ -119,9 +119,10 @@ class Aiding:
             s = cfg.gnss_sigma_floor_m
         return s
 
-    def _start_gnss_update(self, b):
+    def _start_gnss_update(self, b, rk):
         """The fix in self._gp against the state at its measurement time, at offset b of the
-        delay ring (self._ring_p, self._ring_v) plus the corrections injected since."""
+        delay ring (self._ring_p, self._ring_v) plus the corrections injected since; its
+        position variances times rk (nav._rate_r)."""
         self.ctl[_C_USED_TICK] = self.ctl[_C_FIX_TICK]
         cfg = self.cfg
         kf = self.kf
@@ -133,8 +134,8 @@ class Aiding:
         self._lever_n(ln)
         sh = self._sigma_h()
         sv = self._sigma_v(sh)
-        rh = sh * sh
-        rv_ = sv * sv
+        rh = sh * sh * rk
+        rv_ = sv * sv * rk
         gp = self._gp
         fx = self._fx
         used = self._used

@@ -163,7 +163,7 @@ static float sigma_v(const float *fx, const float *aid, float sh) {
 
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     const float *ring_v, const float *corr, float *gp, const float *fx, float *used,
-    const float *w, const float *aid, int32_t b) {
+    const float *w, const float *aid, int32_t b, float rk) {
     const float *c = x + X_C;
     const float *lv = aid + AID_LEVER;
     float lx = c[0] * lv[0] + c[1] * lv[1] + c[2] * lv[2]; /* nav_aid._lever_n */
@@ -171,8 +171,8 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     float lz = c[6] * lv[0] + c[7] * lv[1] + c[8] * lv[2];
     float sh = sigma_h(fx, aid);
     float sv = sigma_v(fx, aid, sh);
-    float rh = sh * sh;
-    float rv = sv * sv;
+    float rh = sh * sh * rk;
+    float rv = sv * sv * rk;
     used[US_SIG_V] = sv;
     if (fx[FX_SIG_V] < 0.0f) { /* no height: the state's own, and v_U held at 0 instead */
         gp[2] = ring_p[b + 2] + corr[2] + lz;

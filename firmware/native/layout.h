@@ -292,9 +292,9 @@
 #define M_LVL 1633
 #define M_BW 1639
 #define M_CN 1644
-#define M_LAST 1652
-#define M_LS 1654
-#define NM 1702
+#define M_LAST 1653
+#define M_LS 1655
+#define NM 1703
 /* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency, _lag_search) */
 #define CN_K 0
 #define CN_MH 1
@@ -304,7 +304,8 @@
 #define CN_KL 5
 #define CN_LAG 6
 #define CN_LAGT 7
-#define NCN 8
+#define CN_RK 8
+#define NCN 9
 /* nav.py: the lag search, m + M_LS (_lag_search) */
 #define LS_C 16
 #define LS_STEP 4

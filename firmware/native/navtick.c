@@ -306,9 +306,19 @@ static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
     }
     c[C_JOB] = JOB_GNSS;
     c[C_UPDATES] += 1;
+    /* nav._rate_r: the factor on the position variances, the fixes a second taken (1 to 10) */
+    float rk = 1.0f;
+    int32_t d = c[C_FIX_TICK] - c[C_LAST_TICK];
+    if (!(c[C_LAST_TICK] == 0 || d <= 0 || d >= c[C_T_SECOND])) {
+        if (d < c[C_T_SECOND] / 10) {
+            d = c[C_T_SECOND] / 10;
+        }
+        rk = (float)c[C_T_SECOND] / (float)d;
+    }
+    m[M_CN + CN_RK] = rk;
     c[C_USED_TICK] = c[C_FIX_TICK];
     navk_gnss_rows(m + M_E, ki, m + M_X, m + M_RING_P, m + M_RING_V, m + M_CORR, m + M_GP,
-        m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3);
+        m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3, rk);
 }
 
 /* Eskf.widen: P's variances i0 + j at least var[j] */
@@ -392,7 +402,7 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
         return;
     }
     float *cn = m + M_CN;
-    float k = cn[CN_K] + 1.0f;
+    float k = cn[CN_K] + 1.0f / cn[CN_RK]; /* a window of CN_LEN seconds at any rate */
     if (k > CN_LEN) {
         k = CN_LEN;
     }

@@ -412,8 +412,9 @@ def report(results, vm, footprint, seeds, wall):
         "`gnss_latency_s` 0.1 s). The navigator searches the lag on the changes of the fixes' "
         "velocity residuals against its own track "
         '(docs/navigation.md, "Fixes late against their stamps"); `learning off` is '
-        "`gnss_lag_learn 0`; `set`: the lag is known and set (`gnss_stamp_lag_s`). Errors over the whole navigation phase (the search included), "
-        "and from 60 s after navigation starts; `lag found` is the best candidate at the end.",
+        "`gnss_lag_learn 0`; `set`: the lag is known and set (`gnss_stamp_lag_s`). Errors over "
+        "the whole navigation phase (the search included), and from 60 s after navigation "
+        "starts; `lag found` is the best candidate at the end.",
         "",
         "| receiver | horiz RMS m | ... from 60 s m | horiz RMS (GNSS) m | vel RMS m/s | yaw deg "
         "| end of outages m | lag found s |",
@@ -453,10 +454,13 @@ def report(results, vm, footprint, seeds, wall):
         "",
         "## Receivers by their rate",
         "",
-        "White GNSS (2/2/4 m and 0.05 m/s per fix, independent from fix to fix), each "
-        "scenario's profile, the fixes handed to the navigator at their epochs (the NMEA and "
-        "PPS timing of 5 and 10 Hz epochs is tested in tests/eval/test_parity.py). The filter "
-        "runs more slices per tick as the fixes come faster (nav._rate_slices).",
+        "White GNSS (2/2/4 m and 0.05 m/s per fix, independent from fix to fix) and realistic "
+        "errors (half the position variance a 60 s Gauss-Markov process, the same at every "
+        "rate), each scenario's profile, the fixes handed to the navigator at their epochs (the "
+        "NMEA and PPS timing of 5 and 10 Hz epochs is tested in tests/eval/test_parity.py). The "
+        "filter runs more slices per tick as the fixes come faster (nav._rate_slices), and "
+        "takes each fix's position variances times the fixes a second it takes (nav._rate_r; "
+        'docs/navigation.md, "Receivers faster than 1 Hz").',
         "",
         "| scenario (profile) | receiver | horiz RMS m | horiz RMS (GNSS) m | vel RMS m/s "
         "| yaw deg | end of outages m | inside 3 sigma | NEES |",
@@ -464,13 +468,15 @@ def report(results, vm, footprint, seeds, wall):
     ]
     for name in RATE_SCENARIOS:
         prof = SCENARIO_PROFILES[name]
-        for rate in (1, *RATES_HZ):
-            rows = _rows(results, name, True, prof if rate == 1 else _rate_task(rate))
-            if rows:
-                cells = _cells(rows, ("horiz_rms_m", 2), ("horiz_rms_gnss_m", 2),
-                               ("vel_rms_m_s", 3), ("yaw_rms_deg", 2), "outages", "coverage",
-                               ("pos_nees_h", 2))  # fmt: skip
-                lines.append(f"| {name} ({prof}) | {rate} Hz | {cells} |")
+        for white in (True, False):
+            for rate in (1, *RATES_HZ):
+                rows = _rows(results, name, white, prof if rate == 1 else _rate_task(rate))
+                if rows:
+                    cells = _cells(rows, ("horiz_rms_m", 2), ("horiz_rms_gnss_m", 2),
+                                   ("vel_rms_m_s", 3), ("yaw_rms_deg", 2), "outages",
+                                   "coverage", ("pos_nees_h", 2))  # fmt: skip
+                    errors = "" if white else ", realistic errors"
+                    lines.append(f"| {name} ({prof}) | {rate} Hz{errors} | {cells} |")
     lines += [
         "",
         "## Against the targets (urban_drive, white GNSS)",
@@ -643,7 +649,7 @@ def main(argv=None):
         for s in range(args.seeds)
     ]
     tasks += [
-        (n, s, True, _rate_task(r)) for n in RATE_SCENARIOS for r in RATES_HZ
+        (n, s, w, _rate_task(r)) for n in RATE_SCENARIOS for w in (True, False) for r in RATES_HZ
         for s in range(args.seeds)
     ]  # fmt: skip
     results = {}

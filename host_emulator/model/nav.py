@@ -501,7 +501,9 @@ class NavModel(AlignmentModel, AidingModel):
             self._lag_search(age)
             age = age + int(self.consistency[fw_nav._CN_LAGT])
             age = min(max(age, 0), RING - 1)
-            self._start_gnss_update((self.tick - age) % RING)
+            rk = self._rate_r()
+            self.consistency[fw_nav._CN_RK] = rk
+            self._start_gnss_update((self.tick - age) % RING, rk)
             self.job = JOB_GNSS
             self.updates += 1
         elif self.since_prop >= self.ticks_prop:
@@ -580,9 +582,19 @@ class NavModel(AlignmentModel, AidingModel):
             bw[:] = ZERO
         return hit
 
+    def _rate_r(self):
+        """nav._rate_r: the factor on the fix's position variances, the fixes a second the
+        filter takes (1 to 10), from this fix's measurement tick and the last one taken."""
+        d = self.fix_tick - self.last_used_tick
+        if self.last_used_tick == 0 or d <= 0 or d >= self.ticks_second:
+            return ONE
+        d = max(d, self.ticks_second // 10)
+        return F32(self.ticks_second) / F32(d)
+
     def _consistency(self, innov, mask):
         """nav._consistency: after a fix whose three position rows were accepted, the running
-        means of y^2/S (east/north, up) and the unseen variances (1 - mean) sigma^2; then, from
+        means of y^2/S (east/north, up) over _CN_N seconds of fixes and the unseen variances
+        (1 - mean) sigma^2; then, from
         the velocity rows, the fixes' lag behind their stamps and the ticks applied."""
         if len(innov) < 3 or mask & 7:
             return
@@ -590,7 +602,7 @@ class NavModel(AlignmentModel, AidingModel):
         if not (se > 0.0 and sn > 0.0 and su > 0.0):
             return
         cn = self.consistency
-        k = min(cn[fw_nav._CN_K] + ONE, fw_nav._CN_N)
+        k = min(cn[fw_nav._CN_K] + ONE / cn[fw_nav._CN_RK], fw_nav._CN_N)
         cn[fw_nav._CN_K] = k
         a = ONE / k
         qe = min(ye * ye / se, fw_nav._CN_CLIP)

@@ -45,10 +45,11 @@ class AidingModel:
             s = cfg.gnss_sigma_floor_m
         return s
 
-    def _start_gnss_update(self, slot):
+    def _start_gnss_update(self, slot, rk):
         """Antenna position p + C_bn l against the fix at its measurement time (ring slot
         `slot`, plus the corrections injected since): z = dp + [(C l) x] phi; and, with a
-        course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course)."""
+        course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course). The
+        position variances times rk (nav._rate_r)."""
         cfg = self.cfg
         kf = self.kf
         p_then = self.ring_p[slot]
@@ -57,8 +58,8 @@ class AidingModel:
         lx, ly, lz = self._lever_n()
         sh = self._sigma_h()
         sv = self._sigma_v(sh)
-        rh = sh * sh
-        rv = sv * sv
+        rh = sh * sh * rk
+        rv = sv * sv * rk
         gp = self.gnss_p
         sv_used = sv
         if self.fix[5] < 0.0:  # no height: the state's own, and v_U held at 0 instead

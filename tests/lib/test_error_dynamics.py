@@ -447,7 +447,7 @@ def test_gnss_rows_are_the_derivative_of_the_antenna_prediction():
     nav._fx[nav_mod._FX_COURSE] = np.arctan2(v_fix[0], v_fix[1]) % (2 * np.pi)  # from north
 
     # when (b: the ring slot of the fix's measurement tick, as nav._schedule picks it)
-    nav._start_gnss_update(b)
+    nav._start_gnss_update(b, 1.0)
     H_fw, z_fw = queued_rows(nav.kf)
 
     # then: position E, N, U (dp + [(C l) x] phi), then velocity E, N

@@ -163,6 +163,30 @@ def test_correlated_gnss_errors_are_found_and_reported():
     assert np.mean(err < 3 * p_only) < 0.9
 
 
+def test_the_rate_factor_is_the_fixes_a_second_the_filter_takes():
+    """nav._rate_r from the measurement ticks of the queued fix and of the last one the filter
+    took: 1 at 1 Hz and slower, after a reset (no last fix) or a stamp that did not advance;
+    5 for fixes 40 ticks apart; at most 10. And the running means of _consistency then span
+    _CN_N seconds of fixes: 100 fixes at 5 a second count 20."""
+    nav = Navigator(navcfg.NavConfig("car"))
+    c = nav.ctl
+    cases = ((0, 500, 1.0), (300, 500, 1.0), (460, 500, 5.0), (480, 500, 10.0), (490, 500, 10.0),
+             (500, 500, 1.0), (510, 500, 1.0), (301, 500, 200 / 199))  # fmt: skip
+    for last, fix, rk in cases:
+        c[fw_nav._C_LAST_TICK], c[fw_nav._C_FIX_TICK] = last, fix
+        assert float(fw_nav._rate_r(c)) == pytest.approx(rk, rel=1e-6), (last, fix)
+    e, mem = nav.kf.e, nav.mem
+    mem[fw_nav._M_CN + fw_nav._CN_RK] = 5.0
+    z = f32.view(e, eskf.E_Z, 3)
+    r = f32.view(e, eskf.E_R, 3)
+    mem[fw_nav._M_US + 5], mem[fw_nav._M_US + 6] = 2.0, 4.0
+    for _ in range(100):
+        r[0], r[1], r[2] = 4.0, 4.0, 16.0
+        z[0], z[1], z[2] = 1.0, 1.0, 2.0
+        fw_nav._consistency(e, mem, 5, 0)
+    assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == pytest.approx(20.0, rel=1e-5)
+
+
 def test_consistency_estimates_the_innovations_deficit():
     """nav._consistency on made-up innovations: y^2/S of 0.25 east and north (mean 0.25) and
     1.5 up give (1 - 0.25) sigma_h^2 unseen horizontally and nothing vertically; a fix with a
@@ -171,6 +195,7 @@ def test_consistency_estimates_the_innovations_deficit():
     e, mem = nav.kf.e, nav.mem
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
+    mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0  # a fix a second (nav._rate_r)
     mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
     mem[fw_nav._M_US + 6] = 4.0
     for k in range(100):
