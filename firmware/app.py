@@ -65,9 +65,11 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap: ~160,000 instructions on the board, 4 ms at 96 MHz (the image
 # on the emulated STM32F411), so a tick that checks runs past the next tick's moment. With the
 # native kernels an aligning tick allocates only when a fix is screened (nav_align._align_fix,
-# Python floats: 848 bytes the first fix, 32 each after; tests/runtimes/test_m4f.py holds each
-# to _FIX_BYTES), so a check that finds F bytes free leaves room for (F - low water) / cost
-# fixes, and the heap is checked again only after them, in the tick after a fix's (_heap_fixes);
+# Python floats: 848 bytes the origin's fix; nothing for a fix with a course, fix_check's bits
+# being ints; the track of a receiver without a course allocates; tests/runtimes/test_m4f.py
+# holds each to _FIX_BYTES), so a check that finds F bytes free leaves room for
+# (F - low water) / cost fixes, and the heap is checked again only after them, in the tick
+# after a fix's (_heap_fixes);
 # the cost of a fix is _FIX_BYTES until a check has measured what the fixes since the last one
 # took, then _FIX_MARGIN times that (at least _FIX_MIN). A check every second made 47 late ticks
 # in the 76 s urban_drive stands still. While navigating, the heap is checked only before a step

@@ -144,7 +144,8 @@ _AID_HDOP_MAX = const(9)  # worst HDOP accepted (and assumed when a fix gives no
 _AID_REANCHOR = const(10)  # re-anchor the origin beyond this east or north distance, m
 _AID_FAULT_SIGMA = const(11)  # health 2 beyond this east or north 1-sigma, m
 _AID_FAULT_SIGMA_V = const(12)  # ... or this vertical 1-sigma, m
-_NAID = const(13)
+_AID_HEADING_V = const(13)  # the course is the heading from this speed, m/s
+_NAID = const(14)
 # self.fix_in: a fix as the receiver gives it, in ints (the app fills it; `gnss_fix`)
 FI_LAT_E7 = const(0)
 FI_LON_DEG = const(1)  # longitude: whole degrees and 1e-7 deg fraction with their sign
@@ -162,6 +163,8 @@ _FC_USABLE = const(1)  # HDOP acceptable
 _FC_SPEED = const(2)  # ... and the fix has a speed (now in self._st)
 _FC_REANCHOR = const(4)  # the position is beyond reanchor_m from the origin
 _FC_MOVING = const(8)  # the navigator moves faster than _FROZEN_V2 allows a repeated fix
+_FC_COURSE = const(16)  # the fix has a course
+_FC_FAST = const(32)  # ... and a speed of heading_speed_m_s or more (nav_align._align_fix)
 RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 # self.ctl: the per-tick control state and the integer configuration it needs, one int buffer
@@ -260,14 +263,14 @@ _M_GP = const(1586)  # the fix's antenna position in the frame, m (3): self._gp
 _M_FX = const(1589)  # the pending fix's floats (_FX_*, 6): self._fx
 _M_US = const(1595)  # the fix of the running GNSS update (nav_aid.py, 7): self._used
 _M_AID = const(1602)  # the aiding parameters (_AID_*): self._aid
-_M_INIT = const(1615)  # the initial P diagonal (eskf.N): self._init
-_M_NS = const(1630)  # nav_start's course, speed and velocity sigma (3): self._ns
-_M_LVL = const(1633)  # sums of f and w while levelling (6): self._lvl
-_M_BW = const(1639)  # the drift watch: running means of normalised innovations (5)
-_M_CN = const(1644)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
-_M_LAST = const(1653)  # the last fix the filter took: its antenna east, north in the frame (2)
-_M_LS = const(1655)  # the lag search (_lag_search): residuals east, north and their means
-_NM = const(1703)
+_M_INIT = const(1616)  # the initial P diagonal (eskf.N): self._init
+_M_NS = const(1631)  # nav_start's course, speed and velocity sigma (3): self._ns
+_M_LVL = const(1634)  # sums of f and w while levelling (6): self._lvl
+_M_BW = const(1640)  # the drift watch: running means of normalised innovations (5)
+_M_CN = const(1645)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
+_M_LAST = const(1654)  # the last fix the filter took: its antenna east, north in the frame (2)
+_M_LS = const(1656)  # the lag search (_lag_search): residuals east, north and their means
+_NM = const(1704)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -445,6 +448,7 @@ class Navigator(Alignment, Aiding):
         aid[_AID_REANCHOR] = cfg.reanchor_m
         aid[_AID_FAULT_SIGMA] = cfg.fault_sigma_m
         aid[_AID_FAULT_SIGMA_V] = cfg.fault_sigma_v_m
+        aid[_AID_HEADING_V] = cfg.heading_speed_m_s
 
     def _reset_counters(self):
         c = self.ctl
@@ -1405,8 +1409,11 @@ def _fix_in_py(fx, fi, aid):
 
 def _fix_check_py(st, fx, x, aid):
     """_FC_* bits of a fix whose quality is acceptable: HDOP acceptable (then its speed, if
-    known, into st), the position (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and
-    the navigator moving (_FROZEN_V2)."""
+    known, into st), whether it has a course and a speed from heading_speed_m_s on (the
+    aligning tick reads these bits, not the floats: a float read from a buffer is boxed, and a
+    10 Hz receiver's boxes made the aligning heap checks ten times as often), the position
+    (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and the navigator moving
+    (_FROZEN_V2)."""
     if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
         return 0
     r = _FC_USABLE
@@ -1414,6 +1421,10 @@ def _fix_check_py(st, fx, x, aid):
     if sp >= 0.0:
         st[_ST_SPEED] = sp
         r |= _FC_SPEED
+        if sp >= aid[_AID_HEADING_V]:
+            r |= _FC_FAST
+    if fx[_FX_COURSE] >= 0.0:
+        r |= _FC_COURSE
     lim = aid[_AID_REANCHOR]
     if x[0] > lim or x[0] < -lim or x[1] > lim or x[1] < -lim:
         r |= _FC_REANCHOR

@@ -47,7 +47,7 @@ _C_LAST_TICK = const(72)
 _M_X = const(0)  # self.mem: Ins.x
 _M_E = const(52)  # ... Eskf.e
 _M_US = const(1595)  # ... self._used
-_M_LAST = const(1653)  # ... the last fix the filter took (east, north)
+_M_LAST = const(1654)  # ... the last fix the filter took (east, north)
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);

@@ -59,7 +59,10 @@ _FX_H = const(0)  # self._fx: the pending fix's floats
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 _FX_SIG_V = const(5)
-_M_CN = const(1644)  # self.mem: the consistency block, and in it
+_FC_SPEED = const(2)  # fix_check's bits (nav._fix_check_py): the fix has a speed
+_FC_COURSE = const(16)  # ... a course
+_FC_FAST = const(32)  # ... a speed of heading_speed_m_s or more
+_M_CN = const(1645)  # self.mem: the consistency block, and in it
 _CN_VV = const(4)  # the vertical variance the filter does not hold, m^2
 
 # self._trk: the track anchors (heading from GNSS positions, see _track), used only here: a
@@ -155,7 +158,8 @@ class Alignment:
         within the VM's on-stack limit (tests/runtimes/test_frames.py): few locals."""
         c = self.ctl
         c[_C_LAST_FIX_TICK] = c[_C_TICK]
-        if not (self._fix_usable() if _fix_usable is None else _fix_usable(c, self.mem)):
+        u = self._fix_usable() if _fix_usable is None else _fix_usable(c, self.mem)
+        if not u:
             c[_C_N_STABLE] = 0
             c[_C_TRK_SET] = 0
             return
@@ -170,13 +174,13 @@ class Alignment:
         if not c[_C_LEVELED]:
             c[_C_TRK_SET] = 0
             return
-        course = fx[_FX_COURSE]
-        if course >= 0.0 or 0.0 <= fx[_FX_SPEED] < self.cfg.heading_speed_m_s:
+        # fix_check's bits, not the floats: an aligning fix boxes no float (nav._fix_check_py)
+        if u & _FC_COURSE or (u & _FC_SPEED and not u & _FC_FAST):
             # the receiver's course, or its speed says it (nearly) stands: the track's chord
             # would be the fixes' noise (an RMC's course is empty at a standstill)
             c[_C_TRK_SET] = 0
-            if course >= 0.0 and fx[_FX_SPEED] >= self.cfg.heading_speed_m_s:
-                self._course_start(course)
+            if u & _FC_COURSE and u & _FC_FAST:
+                self._course_start(fx[_FX_COURSE])
         else:
             self._track()
 

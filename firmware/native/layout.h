@@ -169,7 +169,8 @@
 #define AID_REANCHOR 10 /* re-anchoring distance, m */
 #define AID_FAULT_SIGMA 11 /* health 2 beyond this east or north 1-sigma, m */
 #define AID_FAULT_SIGMA_V 12 /* ... or this vertical 1-sigma, m */
-#define NAID 13
+#define AID_HEADING_V 13 /* the course is the heading from this speed, m/s */
+#define NAID 14
 /* nav.py: a fix in ints, Navigator.fix_in, and fix_check's result bits */
 #define FI_LAT_E7 0
 #define FI_LON_DEG 1
@@ -186,6 +187,8 @@
 #define FC_SPEED 2
 #define FC_REANCHOR 4
 #define FC_MOVING 8
+#define FC_COURSE 16
+#define FC_FAST 32
 /* nav.py: the pending fix self._fx and the used fix self._used */
 #define FX_H 0
 #define FX_HDOP 1
@@ -287,14 +290,14 @@
 #define M_FX 1589
 #define M_US 1595
 #define M_AID 1602
-#define M_INIT 1615
-#define M_NS 1630
-#define M_LVL 1633
-#define M_BW 1639
-#define M_CN 1644
-#define M_LAST 1653
-#define M_LS 1655
-#define NM 1703
+#define M_INIT 1616
+#define M_NS 1631
+#define M_LVL 1634
+#define M_BW 1640
+#define M_CN 1645
+#define M_LAST 1654
+#define M_LS 1656
+#define NM 1704
 /* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency, _lag_search) */
 #define CN_K 0
 #define CN_MH 1

@@ -186,6 +186,12 @@ int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *
     if (sp >= 0.0f) {
         st[ST_SPEED] = sp;
         r |= FC_SPEED;
+        if (sp >= aid[AID_HEADING_V]) {
+            r |= FC_FAST;
+        }
+    }
+    if (fx[FX_COURSE] >= 0.0f) {
+        r |= FC_COURSE;
     }
     float lim = aid[AID_REANCHOR];
     if (x[X_P] > lim || x[X_P] < -lim || x[X_P + 1] > lim || x[X_P + 1] < -lim) {

@@ -49,7 +49,17 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     underscore const is inlined and exists only in its own module on the board); on CPython
     they are module attributes, so the copies can be checked against nav.py's."""
     copies = {
-        nav_align: ["_FX_H", "_FX_SPEED", "_FX_COURSE", "_FX_SIG_V", "_M_CN", "_CN_VV"],
+        nav_align: [
+            "_FX_H",
+            "_FX_SPEED",
+            "_FX_COURSE",
+            "_FX_SIG_V",
+            "_M_CN",
+            "_CN_VV",
+            "_FC_SPEED",
+            "_FC_COURSE",
+            "_FC_FAST",
+        ],  # fmt: skip
         nav_aid: [
             "_FX_HDOP",
             "_FX_SPEED",
@@ -79,7 +89,7 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
     # every layout index a mixin defines is one of these copies or a buffer it owns
     owned = {nav_align: "_TR_", nav_aid: "_US_"}
     for module, names in copies.items():
-        prefixes = ("_FX_", "_ST_", "_TR_", "_US_", "_M_", "_CN_")
+        prefixes = ("_FX_", "_FC_", "_ST_", "_TR_", "_US_", "_M_", "_CN_")
         consts = {n for n in vars(module) if n.startswith(prefixes)}
         assert consts == set(names) | {n for n in consts if n.startswith(owned[module])}
         assert not any(n.startswith(owned[module]) for n in vars(fw_nav))
