@@ -272,7 +272,7 @@ _M_LAST = const(1654)  # the last fix the filter took: its antenna east, north i
 _M_LS = const(1656)  # the lag search (_lag_search): residuals east, north and their means
 _NM = const(1704)
 # mem's _M_CN: the receiver's unseen error (_consistency)
-_CN_K = const(0)  # fixes in the running means so far (float, up to _CN_N)
+_CN_K = const(0)  # seconds of fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
 _CN_MV = const(2)  # ... up
 _CN_VH = const(3)  # unseen variance per horizontal axis, m^2 (Navigator.cv[0])
@@ -1195,7 +1195,9 @@ def _drift_watch(e, mem, n):
 # INS prediction less than S = HPH' + R says, the missing share of R is error the estimate
 # carries along. So the running mean m of y^2/S over the last fixes estimates what R leaves
 # unseen: (1 - m) R, per axis, reported on top of P (nothing changes in the filter itself).
-_CN_N = f32.f32(64)  # the running means' length in fixes (1/k weights up to it: a true mean)
+# the running means' length: in seconds of fixes for _consistency (a fix counts 1 / _rate_r),
+# in pairs for _lag_search (1/k weights up to it: a true mean)
+_CN_N = f32.f32(64)
 _CN_CLIP = f32.f32(25)  # one y^2/S counts at most this much (_BW_CLIP squared)
 _LAG_V2 = f32.f32(4)  # the lag search takes fixes above 2 m/s (speed squared, m^2/s^2)
 _LAG_K0 = f32.f32(4)  # the lag is applied from this many pairs of fixes on
