@@ -20,6 +20,7 @@ GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
 """
 
 import argparse
+import dataclasses
 import json
 import pathlib
 import subprocess
@@ -129,7 +130,8 @@ VM_VARIANTS = (
 
 def _one(task):
     """One run: (scenario, seed, white GNSS?, profile[, trial]) -> metrics; trial (--trial):
-    {"rate_hz": receiver rate, "nav": ((NavConfig attribute, value), ...)}."""
+    {"rate_hz": receiver rate, "nav": ((NavConfig attribute, value), ...), "imu" and "gnss":
+    ((ImuModel or GnssModel field, value), ...) over the scenario's simulated sensors}."""
     name, seed, white, profile = task[:4]
     trial = task[4] if len(task) > 4 else {}
     from host_emulator import firmware_env
@@ -144,7 +146,8 @@ def _one(task):
     from host_emulator.sim import trajectory
 
     truth = trajectory.SCENARIOS[name](seed=seed)
-    imu = sim_imu.simulate(truth, seed=seed)
+    imu_model = dataclasses.replace(sim_imu.model_for(truth), **dict(trial.get("imu", ())))
+    imu = sim_imu.simulate(truth, imu_model, seed=seed)
     _, lag_s, learn, pps, set_s = LATE_RECEIVERS.get(profile, (name, 0.0, True, True, 0.0))
     sentences = sim_gnss.GnssModel.sentences
     rate_hz = float(trial.get("rate_hz", 1.0))
@@ -157,7 +160,7 @@ def _one(task):
     sentences = trial.get("sentences", sentences)
     model = sim_gnss.GnssModel(
         white_fraction=1.0 if white else 0.5, stamp_lag_s=lag_s, sentences=sentences,
-        rate_hz=rate_hz,
+        rate_hz=rate_hz, **dict(trial.get("gnss", ())),
     )  # fmt: skip
     gnss = sim_gnss.simulate(truth, model, seed=seed)
     cfg = navcfg.NavConfig("handheld" if profile == "handheld" else "car")
@@ -540,6 +543,32 @@ def _trial_setting(text):
     return name, number
 
 
+def _sim_setting(kind):
+    """NAME=VALUE of --imu / --gnss: a number field of the simulated sensor's model
+    (sim/imu.py ImuModel, sim/gnss.py GnssModel)."""
+    from host_emulator.sim import gnss as sim_gnss
+    from host_emulator.sim import imu as sim_imu
+
+    cls = sim_imu.ImuModel if kind == "imu" else sim_gnss.GnssModel
+    fields = [f for f in dataclasses.fields(cls) if f.type in ("float", "int", float, int)]
+    numbers = {f.name: int if f.type in ("int", int) else float for f in fields}
+
+    def parse(text):
+        name, sep, value = text.partition("=")
+        if not sep:
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+        if name not in numbers:
+            raise argparse.ArgumentTypeError(
+                f"{name!r} is not a number field of {cls.__name__}: {', '.join(sorted(numbers))}"
+            )
+        try:
+            return name, numbers[name](value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
+
+    return parse
+
+
 def _nav_config_names():
     from host_emulator import firmware_env
 
@@ -550,21 +579,23 @@ def _nav_config_names():
 
 
 def _trial(args):
-    """--trial SCENARIO: its profile, white GNSS at --rate, the --nav settings over the
-    navigator's; one line of means on stdout, nothing written. The tuning figures in
-    firmware/lib/navcfg.py are measured this way."""
-    trial = {"rate_hz": args.rate, "nav": tuple(args.nav), "sentences": RECEIVERS[args.receiver]}
+    """--trial SCENARIO: its profile, white GNSS (or --realistic) at --rate, the --nav settings
+    over the navigator's, the --imu and --gnss fields over the simulated sensors'; one line of
+    means on stdout, nothing written. The tuning figures in firmware/lib/navcfg.py are
+    measured this way."""
+    trial = {"rate_hz": args.rate, "nav": tuple(args.nav), "sentences": RECEIVERS[args.receiver],
+             "imu": tuple(args.imu), "gnss": tuple(args.gnss)}  # fmt: skip
     profile = args.profile or SCENARIO_PROFILES.get(args.trial, "car")
-    tasks = [(args.trial, s, True, profile, trial) for s in range(args.seeds)]
+    tasks = [(args.trial, s, not args.realistic, profile, trial) for s in range(args.seeds)]
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:
         rows = list(ex.map(_one, tasks))
     rows = [m for _task, m in rows]
     after = [r["nav_after_move_s"] for r in rows]
     stand = [r["standing_speed_max_m_s"] for r in rows if r["standing_speed_max_m_s"]]
     print(
-        f"{args.trial} ({profile}), {args.receiver} at {args.rate:g} Hz white, seeds "
-        f"0-{args.seeds - 1}"
-        + "".join(f", {k}={v}" for k, v in args.nav)
+        f"{args.trial} ({profile}), {args.receiver} at {args.rate:g} Hz "
+        f"{'realistic' if args.realistic else 'white'}, seeds 0-{args.seeds - 1}"
+        + "".join(f", {k}={v:g}" for k, v in (*args.nav, *args.imu, *args.gnss))
         + f": navigating after the first move {_mean(rows, 'nav_after_move_s'):.1f} s "
         f"(worst {max(float('inf') if a is None else a for a in after):.1f}), horiz "
         f"{_mean(rows, 'horiz_rms_m'):.2f} m (fixes {_mean(rows, 'gnss_horiz_rms_m'):.2f}), "
@@ -595,6 +626,11 @@ def main(argv=None):
         metavar="SCENARIO",
         help="run only SCENARIO (white GNSS, its profile, --rate, --nav) and print its means",
     )
+    ap.add_argument(
+        "--realistic",
+        action="store_true",
+        help="--trial: realistic GNSS errors (half the variance a 60 s Gauss-Markov process)",
+    )
     ap.add_argument("--rate", type=float, default=1.0, help="--trial: the receiver's rate, Hz")
     ap.add_argument(
         "--receiver", choices=list(RECEIVERS), default="GGA + RMC", help="--trial: its sentences"
@@ -612,6 +648,16 @@ def main(argv=None):
         metavar="NAME=VALUE",
         help="--trial: a navigator setting (firmware/lib/navcfg.py), e.g. level_s=5",
     )
+    for kind, where, example in (("imu", "sim/imu.py ImuModel", "gyro_scale_error=0"),
+                                 ("gnss", "sim/gnss.py GnssModel", "sigma_vel_m_s=0")):  # fmt: skip
+        ap.add_argument(
+            f"--{kind}",
+            type=_sim_setting(kind),
+            action="append",
+            default=[],
+            metavar="NAME=VALUE",
+            help=f"--trial: a number field of the simulated {where}, e.g. {example}",
+        )
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
@@ -623,8 +669,10 @@ def main(argv=None):
         if args.rate not in (1, 2, 4, 5, 10):
             ap.error("--rate must be 1, 2, 4, 5 or 10 Hz")
         return _trial(args)
-    if args.nav or args.rate != 1.0 or args.profile or args.receiver != "GGA + RMC":
-        ap.error("--nav, --rate, --receiver and --profile go with --trial")
+    if (args.nav or args.imu or args.gnss or args.realistic or args.rate != 1.0 or args.profile
+            or args.receiver != "GGA + RMC"):  # fmt: skip
+        ap.error("--nav, --imu, --gnss, --realistic, --rate, --receiver and --profile go with "
+                 "--trial")  # fmt: skip
     t0 = time.perf_counter()
     tasks = [
         (n, s, w, p)

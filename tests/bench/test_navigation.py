@@ -20,6 +20,11 @@ def test_a_trial_runs_the_setting_it_is_given(capsys, tmp_path, monkeypatch):
     assert line.startswith("walk (handheld), GGA + RMC at 1 Hz white, seeds 0-0:")
     line, horiz_2 = _trial(capsys, "--nav", "level_s=2")
     assert "level_s=2" in line and horiz_2 != horiz_10  # the setting reached the navigator
+    # the simulated sensors' fields and the GNSS error model reach the simulation
+    line, horiz_imu = _trial(capsys, "--imu", "gyro_noise_dps_rt_hz=0.1")
+    assert "gyro_noise_dps_rt_hz=0.1" in line and horiz_imu != horiz_10
+    line, horiz_real = _trial(capsys, "--realistic", "--gnss", "sigma_h_m=3")
+    assert "1 Hz realistic" in line and "sigma_h_m=3" in line and horiz_real != horiz_10
     assert not any(tmp_path.iterdir())  # nothing written
 
 
@@ -31,6 +36,9 @@ def test_a_trial_runs_the_setting_it_is_given(capsys, tmp_path, monkeypatch):
         (["--trial", "jog"], "unknown scenario 'jog'"),
         (["--trial", "walk", "--rate", "3"], "--rate must be 1, 2, 4, 5 or 10 Hz"),
         (["--nav", "level_s=5"], "go with --trial"),
+        (["--realistic"], "go with --trial"),
+        (["--trial", "walk", "--imu", "no_such=1"], "not a number field of ImuModel"),
+        (["--trial", "walk", "--gnss", "baud=fast"], "is not a number"),
     ],
 )
 def test_a_bad_trial_is_a_usage_error(argv, says, capsys):
