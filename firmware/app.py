@@ -33,6 +33,7 @@ from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
 from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
+from status_page import StatusPage, font_for
 
 _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
@@ -77,6 +78,7 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 _FIX_BYTES = const(1024)
 _FIX_MARGIN = const(4)
 _FIX_MIN = const(64)
+_PAGE_SLOT = const(8)  # status_page._SLOT: a turn of the screen's page every 8 ticks
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -144,6 +146,8 @@ CAUSE_CONFIG = const(0x4000)  # running on default settings (a missing, corrupt 
 CAUSE_OVERRUN = const(0x8000)
 CAUSE_GNSS_CLOCK = const(0x10000)  # the receiver's clock stepped (its epochs' seconds no longer
 # count the PPS edges): re-synchronised after _STEP_EPOCHS epochs (_late_s); for a second
+CAUSE_DISPLAY = const(0x40000)  # the screen, which had answered before, left a batch
+# unanswered (status_page.py): 1, for a second
 
 
 class App:
@@ -203,6 +207,9 @@ class App:
         self.raw = records.RawRecord()
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self._led = False
+        self.page = None  # the screen's status page, when the display setting is on
+        if cfg.display:
+            self._start_page(cfg)
         self.imu = None
         self.imu_error = None
         self._start_imu()
@@ -228,6 +235,16 @@ class App:
             self.imu_error = str(e)
             self.console("IMU not ready: " + self.imu_error)
 
+    def _start_page(self, cfg):
+        if font_for(cfg.display_w, cfg.display_h) == 0:  # validate() keeps the sizes that fit
+            return
+        if not self.board.start_display(cfg.display_baud):
+            self.console("display: this board has no UART for the screen (docs/display.md)")
+            return
+        b = self.board
+        self.page = StatusPage(b.display, b.display_uart, cfg, self)
+        self.console("display: status page on the screen's UART at " + str(cfg.display_baud))
+
     def start(self):
         """Timer, PPS interrupt, watchdog; automatic garbage collection off with the native
         kernels (a navigating tick allocates nothing; the app collects between ticks when the
@@ -236,6 +253,8 @@ class App:
         is the collector's only retry): it stays on there. The console line starting
         "ins: running" is what deploy tools wait for."""
         b = self.board
+        if self.page is not None:
+            self.page.start()  # the cleared page: the screen's demo loop starts after ~10 s
         self.console(
             "ins: running, frames on the RS485 UART at " + str(self.cfg.output_baud) + " baud"
         )
@@ -296,6 +315,8 @@ class App:
         if imu is None:
             if self.ticks % 200 == 0:
                 self._start_imu()
+            if self.page is not None and self.ticks % _PAGE_SLOT == 0:
+                self.page.turn(self.ticks, -1)
             self.board.wdt_feed()
             return
         imu.read()
@@ -317,6 +338,8 @@ class App:
             self._send_ext(imu)
         if cfg.raw_record:
             self._send_raw(imu, t0)
+        if self.page is not None and self.ticks % _PAGE_SLOT == 0:
+            self.page.turn(self.ticks, state)  # one field of the screen's page
         if self._wdt is not None:
             self._wdt.feed()
         self._account(t0, state)
@@ -579,6 +602,8 @@ class App:
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN
+        if self.page is not None and self.ticks < self.page.bad_until:
+            causes |= CAUSE_DISPLAY
         health = c[_C_HEALTH]
         if causes and health == 0:
             health = 1

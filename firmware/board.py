@@ -12,6 +12,11 @@ STM32F411xE"). Change a table, nothing else, for another wiring.
     the second, a hard interrupt: its time is taken in the interrupt, not when the VM gets to it)
     RS485 output on USART1 (TX PA9, RX PA10) with the transceiver's driver enable on PA8: the
     board is the bus's only talker, so DE stays high
+    the UsartGPU screen on USART6 when the `display` setting is on (the WMH601's wiring): on
+    the Black Pill's STM32F411CE USART6 comes out only on PA11 (TX) and PA12 (RX), the USB
+    pins, so a Black Pill with the screen on has no USB console once the loop starts (hold KEY
+    at reset for MicroPython's safe mode to get it back: docs/display.md); the NUCLEO has no
+    USART left (USART2 is the ST-LINK console), so no screen
     the 5 ms tick from machine.Timer(-1) (a soft timer on SysTick; a hard callback)
 
 Only `machine` calls and keywords the stm32 port accepts are used (its ports/stm32/*.c and
@@ -34,6 +39,7 @@ _BLACKPILL = {
     "out_uart": 1,
     "rs485_de": "A8",
     "led": "C13",  # on when navigating (seed 001 5.2 lights an LED too); active low
+    "display_uart": 6,  # USART6: TX PA11, RX PA12 (the USB pins: see above)
 }
 _NUCLEO = {
     "spi_id": 1,  # SPI1: SCK PA5 (D13; also LED LD2, so no LED), MISO PA6 (D12), MOSI PA7 (D11)
@@ -44,6 +50,7 @@ _NUCLEO = {
     "out_uart": 1,  # USART1: TX PA9 (D8), RX PA10 (D2)
     "rs485_de": "A8",  # D7
     "led": None,  # LD2 is PA5, SPI1's clock; PC13 is the user button
+    "display_uart": None,  # USART1, 2 and 6 are taken
 }
 BOARDS = {"WEACT_F411_BLACKPILL": _BLACKPILL, "NUCLEO-F411RE": _NUCLEO}
 DEFAULT_BOARD = "WEACT_F411_BLACKPILL"  # an image that names no board of BOARDS
@@ -83,13 +90,33 @@ class _Direct:
         pass
 
 
-def _transmitter(uart_id, uart):
+class _Chars:
+    """The screen's transmitter without DMA: write_n(buf, n) byte by byte (writechar), so a
+    command of any length goes out without a slice (a heap object). The host emulator's
+    stand-in takes no time for it; an stm32 board has the DMA transmitter instead."""
+
+    def __init__(self, uart):
+        self._put = uart.writechar
+        self.write = uart.write
+        self.dropped = 0
+
+    def write_n(self, buf, n):
+        put = self._put
+        for i in range(n):
+            put(buf[i])
+        return n
+
+    def poll(self):
+        pass
+
+
+def _transmitter(uart_id, uart, direct=_Direct):
     try:
         from drivers import uart_dma
     except ImportError:  # no `stm` module: not the stm32 port
-        return _Direct(uart)
+        return direct(uart)
     if not uart_dma.supported(uart_id):
-        return _Direct(uart)
+        return direct(uart)
     return uart_dma.DmaTx(uart_id)
 
 
@@ -116,6 +143,19 @@ class Board:
             self.led = machine.Pin(p["led"], machine.Pin.OUT, value=1)  # off (active low)
         self.timer = None
         self.wdt = None
+        self.display_uart = None
+        self.display = None
+
+    def start_display(self, baud):
+        """The screen's UART and transmitter (display_uart, display), if this board has a
+        UART for it (True); else False. Its receive ring holds the screen's OKs (timeout=0:
+        read when they are there)."""
+        uart_id = PINS["display_uart"]
+        if uart_id is None:
+            return False
+        self.display_uart = machine.UART(uart_id, baudrate=baud, rxbuf=64, timeout=0)
+        self.display = _transmitter(uart_id, self.display_uart, _Chars)
+        return True
 
     def start_tick(self, callback):
         """callback(timer) every 5 ms, in the interrupt (hard): it must only count."""
@@ -136,6 +176,8 @@ class Board:
         so a tick that comes between them is not slept through. Queued output is started
         first (the DMA transmitter has no interrupt of its own)."""
         self.out.poll()
+        if self.display is not None:
+            self.display.poll()
         s = machine.disable_irq()
         if not app.due:
             machine.idle()

@@ -69,6 +69,16 @@ _SCHEMA = (
     (41, "track_min_m", _FLOAT, 1, None),  # without a course: the chord that gives the heading
     (42, "track_max_s", _FLOAT, 1, None),  # ... within this long
     (43, "gnss_stamp_lag_s", _FLOAT, 1, None),  # the fixes' positions are older than their stamps
+    # the UsartGPU screen (lib/status_page.py, docs/display.md): off by default, for on the
+    # Black Pill its UART takes the USB pins
+    (50, "display", _INT, 1, 0),  # 1: the status page on the screen's UART
+    (51, "display_baud", _INT, 1, 115200),
+    (52, "display_w", _INT, 1, 320),  # the screen's pixels
+    (53, "display_h", _INT, 1, 240),
+    (54, "display_fg", _INT, 1, 15),  # palette indices: text, background, warning, fault
+    (55, "display_bg", _INT, 1, 0),
+    (56, "display_warn", _INT, 1, 14),
+    (57, "display_fault", _INT, 1, 12),
 )
 _GYRO_RANGES = (125, 250, 500, 1000, 2000)
 _ACCEL_RANGES = (2, 4, 8, 16)
@@ -199,6 +209,9 @@ class BoardConfig:
             return "slices_per_tick must be 1..4"
         if self.gnss_lag_learn not in (0, 1):
             return "gnss_lag_learn must be 0 or 1"
+        problem = self._display_problem()
+        if problem:
+            return problem
         for _id, name, kind, _n, _default in _SCHEMA:
             value = getattr(self, name)
             if kind != _FLOAT or value is None:
@@ -216,6 +229,18 @@ class BoardConfig:
                     return text + (" " + unit if unit else "") + (", above 0" if open_low else "")
         if not 0.0 <= self.gnss_latency_s < 1.0:
             return "gnss_latency_s must be in [0, 1) s"
+        return None
+
+    def _display_problem(self):
+        if self.display not in (0, 1):
+            return "display must be 0 (off) or 1 (on)"
+        if self.display_baud not in _BAUDS or self.display_baud < 38400:
+            return f"display_baud must be one of {_BAUDS[2:]}"
+        if not (220 <= self.display_w <= 480 and 176 <= self.display_h <= 320):
+            return "display_w x display_h must be within 220..480 x 176..320 pixels"
+        for name in ("display_fg", "display_bg", "display_warn", "display_fault"):
+            if not 0 <= getattr(self, name) <= 255:
+                return f"{name} must be a palette index, 0..255"
         return None
 
 

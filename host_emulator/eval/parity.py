@@ -12,7 +12,8 @@ bad command line (unknown scenario, bad duration).
 Records are compared per kind in order (eval/compare.py): the 52-byte frames (fields as
 integers at the frame's scale), the extended frames 0x91 and the raw-input records 0x92
 (fields decoded; floats with their float32 bits). Tick k is stimulus record k, at
-t = k * tick_us after the first tick.
+t = k * tick_us after the first tick. With the display setting on, what the firmware sent to
+the screen's UART is compared too, byte for byte (model/display.py).
 """
 
 import sys
@@ -51,6 +52,10 @@ class ParityResult:
     clock_zeroed: bool = False  # raw-input records compared with their board times 0
     out_firmware: bytes = field(default=b"", repr=False)  # the two streams compared
     out_model: bytes = field(default=b"", repr=False)
+    # the screen's UART (the display setting on): both byte streams, None where they agree
+    display_firmware: bytes = field(default=b"", repr=False)
+    display_model: bytes = field(default=b"", repr=False)
+    display_first_byte: int | None = None
 
     def summary(self):
         lines = [
@@ -74,6 +79,8 @@ class ParityResult:
                 "(the raw-input records' times, t0_us and pps_us, are the board's clock since its "
                 "reset: 0 in both streams before comparing)"
             )
+        if self.display_firmware or self.display_model:
+            lines.append(self.display_line())
         if self.identical:
             lines.append(f"PARITY: identical, {self.bytes_firmware} bytes")
         else:
@@ -83,18 +90,32 @@ class ParityResult:
             )
         return "\n".join(lines)
 
+    def display_line(self):
+        a, b = self.display_firmware, self.display_model
+        if self.display_first_byte is None:
+            return f"display: identical, {len(a)} bytes to the screen"
+        i = self.display_first_byte
+        return (
+            f"display: DIFFERENT at byte {i} of {len(a)} (model {len(b)}): firmware "
+            f"{a[max(i - 20, 0) : i + 40]!r}, model {b[max(i - 20, 0) : i + 40]!r}"
+        )
+
+
+def first_difference(a, b):
+    """The first offset where byte strings a and b differ (the shorter's length if one is the
+    other's start), None if equal."""
+    if a == b:
+        return None
+    n = min(len(a), len(b))
+    d = np.flatnonzero(np.frombuffer(a, np.uint8, n) != np.frombuffer(b, np.uint8, n))
+    return int(d[0]) if len(d) else n
+
 
 def compare_streams(fw_out, model_out, output_every_ticks=1, ext_every_ticks=20, raw=False):
     """A ParityResult for two output streams of the same run (wall times left at 0)."""
     fw_f, fw_e, fw_r, fw_err = stream.split(fw_out)
     mo_f, mo_e, mo_r, mo_err = stream.split(model_out)
-    first_byte = None
-    if fw_out != model_out:
-        n = min(len(fw_out), len(model_out))
-        a = np.frombuffer(fw_out, np.uint8, n)
-        b = np.frombuffer(model_out, np.uint8, n)
-        d = np.flatnonzero(a != b)
-        first_byte = int(d[0]) if len(d) else n
+    first_byte = first_difference(fw_out, model_out)
     err = "; ".join(f"{s}: {e}" for s, e in zip(LABELS, (fw_err, mo_err), strict=True) if e)
     return ParityResult(
         identical=fw_out == model_out,
@@ -150,6 +171,9 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
     r.firmware_stats = dict(fw.stats)
     r.runtime = runtime
     r.firmware_run = fw
+    r.display_firmware, r.display_model = fw.display, model.display
+    r.display_first_byte = first_difference(fw.display, model.display)
+    r.identical = r.identical and r.display_first_byte is None
     return r
 
 

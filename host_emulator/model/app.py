@@ -45,6 +45,7 @@ import time  # CPython's, with the board's ticks_us and set_us once install_mach
 import numpy as np
 
 from host_emulator import firmware_env
+from host_emulator.model import display
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel
 from host_emulator.proto import config as board_config
@@ -294,8 +295,15 @@ def _nmea_seen(g, pps, ticks):
 
 
 def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
-    """The output byte stream (frames, extended frames, raw records as configured) that the
-    firmware produces for `stim` under the runtimes' board configuration plus the overrides.
+    """The output byte stream of `run_all`."""
+    return run_all(stim, config_overrides, progress, tick_hook=tick_hook)[0]
+
+
+def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
+    """(out, display): the output byte stream (frames, extended frames, raw records as
+    configured) that the firmware produces for `stim` under the runtimes' board configuration
+    plus the overrides, and what it sends to the screen's UART (model/display.py; b"" with the
+    display off).
 
     progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
     before the navigator's step (tests use it to perturb the model)."""
@@ -355,6 +363,9 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
         "p_n": np.zeros((nf, 3), F32),
     }
     extra = {}  # tick -> bytes sent after that tick's frame (extended frame, raw record)
+    page = _page(cfg, fw_board)  # the screen's status page (None: off, or no UART for it)
+    views = []  # (ticks, display.View without its frame, the last frame's index) per turn
+    last_ext = None
     ring = bytearray()
     fix = _Fix()
     counter = 0
@@ -442,9 +453,10 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
                 health = 1
             causes |= model.causes
             flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
-            parts.append(
-                ext_frame(counter, health, model.state, cfg_status, flags, model, causes, overruns)
+            last_ext = ext_frame(
+                counter, health, model.state, cfg_status, flags, model, causes, overruns
             )
+            parts.append(last_ext)
         if cfg.raw_record:
             parts.append(
                 records.encode_raw(
@@ -459,13 +471,25 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             )
         if parts:
             extra[k] = b"".join(parts)
+        if page is not None and ticks % display.SLOT == 0:
+            view = display.View(model.state, fix.valid, fix.lat_e7, fix.lon_e7, fix.height_dm,
+                                g.epoch_quality, g.epoch_nsat, g.epoch_hdop_x100, b"",
+                                last_ext, model.health, model.causes)  # fmt: skip
+            views.append((ticks, view, j - 1))
         if progress and k % 2000 == 1999:
             progress(k + 1, n)
     frames = frame_bytes(t, cfg)
     if progress:
         progress(n, n)
+    shown = b""
+    if page is not None:
+        page.start()
+        for ticks, view, fi in views:
+            view.frame = frames[fi].tobytes() if fi >= 0 else bytes(52)
+            page.turn(ticks, view)
+        shown = bytes(page.out)
     if not extra:
-        return frames.tobytes()
+        return frames.tobytes(), shown
     out = bytearray()
     is_frame = np.zeros(n, bool)
     is_frame[frame_ticks] = True
@@ -476,4 +500,13 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
             fi += 1
         if k in extra:
             out += extra[k]
-    return bytes(out)
+    return bytes(out), shown
+
+
+def _page(cfg, fw_board):
+    """The status page app.App makes: display on, a UART for it, a size that fits."""
+    if not cfg.display or fw_board.PINS["display_uart"] is None:
+        return None
+    if display.font_for(cfg.display_w, cfg.display_h) == 0:
+        return None
+    return display.Page(cfg)

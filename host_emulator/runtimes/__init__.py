@@ -53,6 +53,9 @@ class FirmwareRun:
     wall_s: float
     blocks_per_tick: np.ndarray | None = None  # GC blocks allocated by each tick (mpy_unix)
     stats: dict = field(default_factory=dict)  # runtime-specific counters
+    display: bytes = b""  # everything written to the screen's UART (the display setting on)
+    # (tick, end offset in `display`) after each tick that wrote to it: when the screen got what
+    display_marks: list = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -100,6 +100,8 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
             a.start()
         except Exception as e:
             raise _firmware_failed(e, "at start-up") from e
+        screen = _Screen(machine, a, pins)
+        screen.after(-1, time.now_us())  # the start page
         gnss_uart = machine.uart(pins["gnss_uart"])
         out_uart = machine.uart(pins["out_uart"])
         tx = out_uart.tx  # the transmit buffer, emptied after every tick
@@ -134,6 +136,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
                     time.set_us(edge)
                 pps.fire()
             time.set_us(t_k)
+            screen.answer(t_k)
             machine.fire_timers()
             if stalled[k]:  # an injected stall: the board busy, its loop does not run
                 continue
@@ -144,6 +147,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
             if out_uart.tx_n:
                 out += tx[: out_uart.tx_n]
                 out_uart.tx_clear()
+            screen.after(k, t_k)
             if k % 2000 == 1999 and progress:
                 progress(k + 1, n)
     finally:
@@ -164,4 +168,45 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         "config_status": a.config_status,
         "kernels": kind,
     }
-    return FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
+    if screen.gpu is not None:
+        stats["display_batches"] = a.page.batches
+        stats["display_oks"] = a.page.oks
+        stats["display_missed"] = a.page.missed
+    run = FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
+    run.display, run.display_marks = bytes(screen.out), screen.marks
+    return run
+
+
+class _Screen:
+    """The emulated UsartGPU on the display UART when the firmware drives one: what the loop
+    wrote reaches it at the line's pace after the tick, its OKs come back into the UART's
+    receive ring (display/device.py)."""
+
+    def __init__(self, machine, a, pins):
+        self.out = bytearray()
+        self.marks = []
+        self.gpu = None
+        if a.page is None:
+            return
+        from host_emulator.display.device import UsartGpu
+
+        cfg = a.cfg
+        self.uart = machine.uart(pins["display_uart"])
+        self.gpu = UsartGpu((cfg.display_w, cfg.display_h), cfg.display_baud)
+
+    def after(self, k, t_us):
+        """Tick k (-1: start-up) wrote what the UART holds; it has all left by t_us + line."""
+        if self.gpu is None or not self.uart.tx_n:
+            return
+        u = self.uart
+        data = bytes(u.tx[: u.tx_n])
+        u.tx_clear()
+        self.out += data
+        self.marks.append((k, len(self.out)))
+        self.gpu.receive(data, t_us + len(data) * 10e6 / u.baudrate)
+
+    def answer(self, t_us):
+        if self.gpu is not None:
+            ok = self.gpu.replies(t_us)
+            if ok:
+                self.uart.feed(ok)

@@ -227,15 +227,16 @@ def test_the_command_exit_status(capsys, monkeypatch):
     assert parity.main(["--scenario", "static", "--duration", "3", "--seed", "-2"]) == 2
     assert "--seed must be 0 or more" in capsys.readouterr().err
 
-    real_run = model_runner.run
+    real_run = model_runner.run_all
 
     def off_by_one_yaw(stim, overrides=None, progress=None):
-        out = bytearray(real_run(stim, overrides, progress))
+        out, shown = real_run(stim, overrides, progress)
+        out = bytearray(out)
         ext_len = len(stream.split(out)[1][0])
         out[100 * 52 + 5 * ext_len + 29] ^= 1  # frame 100's yaw (after 5 extended frames)
-        return bytes(out)
+        return bytes(out), shown
 
-    monkeypatch.setattr(model_runner, "run", off_by_one_yaw)
+    monkeypatch.setattr(model_runner, "run_all", off_by_one_yaw)
     assert parity.main(["--scenario", "static", "--duration", "3"]) == 1
     out = capsys.readouterr().out
     assert "first difference at frame 100 (tick 100" in out and "yaw_cdeg firmware" in out

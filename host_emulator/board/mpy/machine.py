@@ -39,8 +39,8 @@ The parts:
   read_buf_len)`: one port per id; UART(id) alone returns it unchanged, as the port. A receive
   ring of `rxbuf` bytes (default 64, as the port); bytes that arrive (`feed`) when it is full
   are dropped and counted in `overflow`; any()/readinto(buf, n) (None when nothing has
-  arrived); write() appends to a preallocated transmit buffer the emulator empties (`tx`,
-  `tx_n`, `tx_clear()`); what does not fit is counted in `tx_overflow`.
+  arrived); write() and writechar() append to a preallocated transmit buffer the emulator
+  empties (`tx`, `tx_n`, `tx_clear()`); what does not fit is counted in `tx_overflow`.
 - `Timer(-1, *, mode, callback, period, tick_hz, freq, hard)` (the port's soft timer, the only
   id it has): fired by `fire_timers()` (every tick, whatever its period).
 - `WDT(id=0, timeout=5000)`: counts feeds; `idle()`, `disable_irq()`, `enable_irq(state)`.
@@ -694,6 +694,17 @@ class UART:
         buf = bytearray(n)
         self.readinto(buf, n)
         return bytes(buf)
+
+    def writechar(self, char):
+        """One character (an int; 9 bits at most, as the port's) to the transmit buffer."""
+        _emu_in()
+        n = self.tx_n
+        if n < len(self.tx):
+            self.tx[n] = char & 0xFF
+            self.tx_n = n + 1
+        else:
+            self.tx_overflow += 1
+        _emu_out()
 
     def write(self, buf):
         """Append buf to the transmit buffer; returns the bytes accepted."""
