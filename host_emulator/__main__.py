@@ -91,6 +91,14 @@ def _add_fault_option(p):
     )  # fmt: skip
 
 
+def _add_display_option(p):
+    p.add_argument(
+        "--display", metavar="PATH",
+        help="run the board's UsartGPU screen (the display setting on) and draw it: PATH.png "
+        "the screen at the end, PATH_strip.png over the run (docs/display.md)",
+    )  # fmt: skip
+
+
 def _faults(args):
     """The parsed --fault options, or None after printing the kinds for `--fault help`;
     FaultError (one line, exit 1) for one written wrong."""
@@ -111,12 +119,12 @@ def _run(args):
     if args.stimulus:
         m = scenario_run.run_stimulus(
             args.stimulus, args.runtime, args.out, not args.quiet, kernels=_kernels(args),
-            faults=injected, board=args.board,
+            faults=injected, board=args.board, display=args.display,
         )  # fmt: skip
     else:
         m = scenario_run.run(
             args.scenario, args.duration, args.seed, args.runtime, args.out, not args.quiet,
-            kernels=_kernels(args), faults=injected, board=args.board,
+            kernels=_kernels(args), faults=injected, board=args.board, display=args.display,
         )  # fmt: skip
     from host_emulator.eval import demo
 
@@ -236,6 +244,7 @@ def _replay(args):
     m = replay_run.replay(
         ds, _replay_options(args, ds), args.runtime, args.out,
         show_progress=not args.quiet, kernels=_kernels(args), faults=injected, board=args.board,
+        display=args.display,
     )  # fmt: skip
     print(demo.summary(m, args.out))
     return 0
@@ -282,8 +291,9 @@ def main(argv=None):
     run.add_argument("--runtime", default="cpython", choices=runtime_names, help=runtime_help)
     cli_args.add_kernels_option(run)
     cli_args.add_board_option(run)
-    run.add_argument("--out", required=True, help="output directory")
+    run.add_argument("--out", default="out/run", help="output directory (out/run)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_display_option(run)
     _add_fault_option(run)
     rp = sub.add_parser("replay", help="a recorded drive through the firmware, evaluated")
     src = rp.add_mutually_exclusive_group(required=True)
@@ -299,6 +309,7 @@ def main(argv=None):
     cli_args.add_board_option(rp)
     rp.add_argument("--out", default="out/replay", help="output directory (out/replay)")
     rp.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_display_option(rp)
     _add_fault_option(rp)
     ex = sub.add_parser(
         "export", help="a scenario or a replay's input as KF-GINS text files and RTKLIB .pos"

@@ -18,11 +18,12 @@ VM's 11 words (tests/runtimes/test_frames.py), hence the module-level text buffe
 few arguments.
 
 The values are what the board's records say: attitude, velocity and position from the last
-52-byte frame sent (its bytes); health, causes and the horizontal 1-sigma from the last
-extended frame (its int fields, and the float32 bits of P's east and north variances decoded
-here in integers; with the extended frame off, the navigator's health and causes and no
-1-sigma); the fix's latitude, longitude and height (above mean sea level) from the frame's int
-fields; the fix's quality, satellites and HDOP from the NMEA parser; the state from the loop.
+52-byte frame sent (its bytes); health, causes and, while navigating, the horizontal 1-sigma
+from the last extended frame (its int fields, and the float32 bits of P's east and north
+variances decoded here in integers; with the extended frame off, the navigator's health and
+causes and no 1-sigma); the fix's latitude, longitude and height (above mean sea level) from
+the frame's int fields; the fix's quality, satellites and HDOP from the NMEA parser; the state
+from the loop.
 
 The `OK`s are read when they are there, never waited for: at each batch's end the bytes that
 came are counted. A screen that has never answered is taken as absent (a board may have
@@ -81,6 +82,7 @@ _EF_HEALTH = const(1)
 _EF_CAUSES = const(13)
 _C_HEALTH = const(2)
 _C_CAUSES = const(48)
+_NAVIGATING = const(2)  # nav.NAVIGATING: the 1-sigma is shown only then (P is 0 before)
 STATES = b"no IMU    starting  aligning  navigating"  # state -1 .. 2, 10 characters each
 QUALITY = b"none  GPS   DGPS  PPS   RTK   float DR    manualsim   "  # GGA quality, 6 each
 HEALTHS = b"0 ok     1 warning2 FAULT  "  # 9 each
@@ -426,7 +428,7 @@ class StatusPage:
         of the health for these two."""
         x = self._ext
         if f == _F_SIGMA:
-            if x is not None and x[0] == 0xEB:
+            if x is not None and x[0] == 0xEB and self.state == _NAVIGATING:
                 f = var_cm2(x, _X_PEE)
                 x = var_cm2(x, _X_PEE + 4)
                 if f >= 0 and x >= 0:

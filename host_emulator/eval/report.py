@@ -237,6 +237,21 @@ def fmt(x, digits=2, unit=""):
     return f"{text} {unit}" if unit else text
 
 
+def screen_section(m):
+    """report.md's lines on the board's screen (a run with --display), else none."""
+    if m.get("display_bytes") is None:
+        return []
+    return [
+        "## The board's screen",
+        "",
+        "![the status page at the end of the run](screen.png)",
+        "",
+        f"The status page at the end of the run (docs/display.md): {m['display_bytes']} "
+        f"bytes to the screen, {m['display_bytes_per_s']:.0f} bytes/s.",
+        "",
+    ]
+
+
 def markdown(m, description="", console=(), notes=()):
     """report.md text from the metrics dict."""
     lines = [
@@ -277,6 +292,7 @@ def markdown(m, description="", console=(), notes=()):
         f"| time to navigation | {fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]
+    lines += screen_section(m)
     if m["outages"]:
         lines += ["| GNSS outage | length | horizontal error at its end |", "|---|---|---|"]
         for o in m["outages"]:

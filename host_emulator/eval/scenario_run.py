@@ -23,14 +23,17 @@ import numpy as np
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.bench import board_cost, board_time
+from host_emulator.display import pictures
 from host_emulator.errors import EmulatorError, write_atomic
 from host_emulator.eval import evaluate, report
+from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.proto import stream
 from host_emulator.sim import board_input, trajectory
 from host_emulator.sim import faults as faults_mod
 
-OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
+SCREEN = "screen.png"  # the board's screen at the end of the run (with --display)
+OUTPUTS = ("frames.bin", "metrics.json", "report.md", SCREEN, *report.PLOTS)
 
 
 class Progress:
@@ -74,7 +77,7 @@ class Progress:
                 self.stream.flush()
 
 
-def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None):
+def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None, overrides=None):
     """FirmwareRun of the stimulus file (read back from disk: the file is the seam) on the
     runtime (a name of host_emulator.runtimes) with `kernels` ("native", "python"; None: the
     default, native) and, for the f411 runtime, the board's image (None: its default);
@@ -82,7 +85,8 @@ def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None):
     not start)."""
     rt = runtimes.get(runtime)
     with tempfile.TemporaryDirectory(prefix="ins-board-") as tmp:
-        fw = rt.run(stim_path, pathlib.Path(tmp), progress=progress, kernels=kernels, board=board)
+        fw = rt.run(stim_path, pathlib.Path(tmp), config_overrides=overrides, progress=progress,
+                    kernels=kernels, board=board)  # fmt: skip
     if not fw.out:
         said = "; ".join(fw.console) or "nothing"
         raise EmulatorError(f"the firmware sent no output in {fw.ticks} ticks; its console: {said}")
@@ -209,9 +213,13 @@ def _log_faults(stim, log):
 
 
 def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=print,
-        kernels=None, faults=(), board=None):  # fmt: skip
+        kernels=None, faults=(), board=None, display=None):  # fmt: skip
     """The whole `run` command; returns the metrics. EmulatorError on bad input or failure.
-    faults: sim/faults.py Faults (or specs) injected into the simulated input."""
+    faults: sim/faults.py Faults (or specs) injected into the simulated input. display: a .png
+    path: the board runs its screen (the display setting on) and the screen is drawn there
+    (display/pictures.py), and as screen.png in the report."""
+    if display is not None:
+        display = pictures.check_path(display)
     cli_args.check_scenario(scenario)
     cli_args.check_duration(duration_s)
     cli_args.check_seed(seed)
@@ -235,21 +243,44 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     log("  " + profile_note(sim.stimulus.config, scenario))
     _log_faults(sim.stimulus, log)
     prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, stim_path, prog, kernels, board)
+    fw = run_firmware(runtime, stim_path, prog, kernels, board, screen_overrides(display))
     write_atomic(out_dir / "frames.bin", fw.out)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
         raise EmulatorError("the firmware sent no extended frames: nothing to evaluate")
+    write_screen(fw, sim.stimulus, display, out_dir, metrics, log)
     write_outputs(out_dir, sim, metrics, tr, err, fw.console)
     return metrics
 
 
+def screen_overrides(display):
+    return {"display": 1} if display is not None else None
+
+
+def write_screen(fw, stim, display, out_dir, metrics, log):
+    """With --display: the screen's pictures (the end at `display` and in the run's
+    screen.png, the strip beside `display`) and what it cost in bytes."""
+    if display is None:
+        return
+    cfg = board_config.from_values(board_config.run_values(stim, screen_overrides(display)))
+    size = (cfg.display_w, cfg.display_h)
+    args = (fw, size, stim.tick_us * 1e-6, stim.duration_s)
+    written = pictures.write(*args, display)
+    pictures.write(*args, out_dir / SCREEN)
+    pictures.strip_path(out_dir / SCREEN).unlink(missing_ok=True)
+    metrics["display_bytes"] = len(fw.display)
+    metrics["display_bytes_per_s"] = len(fw.display) / stim.duration_s
+    log(f"screen: {written[0]} (the end), {written[1]} (over the run)")
+
+
 def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=None,
-                 faults=(), board=None):  # fmt: skip
+                 faults=(), board=None, display=None):  # fmt: skip
     """`run --stimulus FILE`: replay a stimulus file. If it came from a simulation, its truth
     is rebuilt (same scenario, seed, duration) and the run is evaluated like `run`; otherwise
     only the output is checked (frames, frame errors, time to navigation). faults: injected
-    into the file's input (the run's stimulus.bin then holds them)."""
+    into the file's input (the run's stimulus.bin then holds them). display: as `run`'s."""
+    if display is not None:
+        display = pictures.check_path(display)
     runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     stim = stim_mod.read(path)  # StimulusError (an EmulatorError) if unusable
     out_dir = pathlib.Path(out_dir)
@@ -266,7 +297,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
     elif src.resolve() != local.resolve():
         shutil.copyfile(src, local)
     prog = Progress(runtime, stim.duration_s, enabled=show_progress)
-    fw = run_firmware(runtime, local, prog, kernels, board)
+    fw = run_firmware(runtime, local, prog, kernels, board, screen_overrides(display))
     write_atomic(out_dir / "frames.bin", fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
@@ -275,6 +306,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
                 "against that simulation's truth anyway")  # fmt: skip
         sim.stimulus = stim
         metrics, tr, err = evaluate_run(sim, fw, stim, out_dir, runtime)
+        write_screen(fw, stim, display, out_dir, metrics, log)
         write_outputs(out_dir, sim, metrics, tr, err, fw.console)
         return metrics
     decoded = stream.decode(fw.out)
@@ -293,5 +325,6 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         "note": "no truth for this stimulus: accuracy not evaluated",
         "faults": list(h.get("faults", [])),
     }
+    write_screen(fw, stim, display, out_dir, metrics, log)
     write_atomic(out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     return metrics

@@ -300,10 +300,10 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
 
 
 def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
-    """(out, display): the output byte stream (frames, extended frames, raw records as
+    """(out, (display, marks)): the output byte stream (frames, extended frames, raw records as
     configured) that the firmware produces for `stim` under the runtimes' board configuration
     plus the overrides, and what it sends to the screen's UART (model/display.py; b"" with the
-    display off).
+    display off) with FirmwareRun.display_marks.
 
     progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
     before the navigator's step (tests use it to perturb the model)."""
@@ -481,13 +481,16 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
     frames = frame_bytes(t, cfg)
     if progress:
         progress(n, n)
-    shown = b""
+    shown = (b"", [])  # the display's bytes, and (tick, end offset) after each tick that wrote
     if page is not None:
         page.start()
+        marks = [(-1, len(page.out))]
         for ticks, view, fi in views:
             view.frame = frames[fi].tobytes() if fi >= 0 else bytes(52)
             page.turn(ticks, view)
-        shown = bytes(page.out)
+            if len(page.out) > marks[-1][1]:
+                marks.append((ticks - 1, len(page.out)))
+        shown = (bytes(page.out), marks)
     if not extra:
         return frames.tobytes(), shown
     out = bytearray()

@@ -190,7 +190,7 @@ class Page:
             p = _fixed(_i16(fr, 31), 2, 7, True)
             return f"R{r} P{p} deg", fg
         if k == 10:
-            if ext is not None:
+            if ext is not None and v.state == 2:
                 a, b = variance_cm2(ext[16:20]), variance_cm2(ext[20:24])
                 if a is not None and b is not None:
                     return _fixed(math.isqrt(a + b), 2, 7) + " m", fg

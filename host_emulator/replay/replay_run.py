@@ -24,6 +24,7 @@ import numpy as np
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
+from host_emulator.display import pictures
 from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
 from host_emulator.proto import stream
@@ -222,6 +223,7 @@ def markdown(m, rep, console=()):
     ]
     for p in report.PLOTS:
         lines += [f"![{p[:-4]}]({p})", ""]
+    lines += report.screen_section(m)
     if console:
         lines += ["## Firmware console", "", "```", *console, "```", ""]
     return "\n".join(lines)
@@ -248,10 +250,13 @@ def write_solution_pos(path, rep, tr):
 
 
 def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progress=True,
-           log=print, kernels=None, faults=(), board=None):  # fmt: skip
+           log=print, kernels=None, faults=(), board=None, display=None):  # fmt: skip
     """The whole `replay` command on a Dataset; returns the metrics. EmulatorError on bad
     input or when the firmware never navigates. faults: sim/faults.py Faults (or specs)
-    injected into the converted input."""
+    injected into the converted input. display: a .png path for the board's screen (as
+    `run --display`)."""
+    if display is not None:
+        display = pictures.check_path(display)
     runtime = runtimes.get(runtime).name  # an alias runs under its runtime's name
     options = options or to_stimulus.ReplayOptions()
     if options.duration_s is not None:
@@ -286,7 +291,8 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
     for f in rep.stimulus.header.get("faults", []):
         log(f"fault injected: {f}")
     prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
-    fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels, board)
+    overrides = scenario_run.screen_overrides(display)
+    fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels, board, overrides)
     (out_dir / "frames.bin").write_bytes(fw.out)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:
@@ -316,6 +322,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         (g.p_ant_n + g.err_n_m)[g.valid],
     )
     write_solution_pos(out_dir / "solution.pos", rep, tr)
+    scenario_run.write_screen(fw, rep.stimulus, display, out_dir, metrics, log)
     (out_dir / "report.md").write_text(markdown(metrics, rep, fw.console))
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     return metrics

@@ -17,5 +17,6 @@ def run(stim, workdir=None, config_overrides=None, progress=None):
     if isinstance(stim, (str, os.PathLike)):
         stim = stim_mod.read(stim)
     t = time.perf_counter()
-    out, shown = app.run_all(stim, config_overrides, progress)
-    return FirmwareRun("model", out, [], len(stim), time.perf_counter() - t, display=shown)
+    out, (shown, marks) = app.run_all(stim, config_overrides, progress)
+    return FirmwareRun("model", out, [], len(stim), time.perf_counter() - t, display=shown,
+                       display_marks=marks)  # fmt: skip

@@ -8,6 +8,8 @@ from pathlib import Path
 
 from host_emulator import args as cli_args
 from host_emulator import runtimes
+from host_emulator.display import pictures
+from host_emulator.proto import config as board_config
 from host_emulator.proto import session_file
 from host_emulator.session.record import record
 from host_emulator.session.replay import replay
@@ -49,6 +51,11 @@ def main(argv=None):
         help="replay from the board's last start in the recording (it restarted), not its first",
     )  # fmt: skip
     s.add_argument("--out", help="directory for stimulus.bin and replayed.bin (kept)")
+    s.add_argument(
+        "--display", metavar="PATH",
+        help="run the board's screen too and draw it: PATH.png at the end, PATH_strip.png "
+        "over the replay (docs/display.md)",
+    )  # fmt: skip
     f = sub.add_parser(
         "repair", help="keep what survived of a cut or damaged session file in a new one"
     )
@@ -105,17 +112,26 @@ def _main_record(args, seconds, baud):
 
 def _main_replay(args):
     progress = _progress_printer()
+    display = args.display is not None
+    if display:
+        pictures.check_path(args.display)
     if args.out:
         work = Path(args.out)
         res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress,
-                     args.from_last_start, args.board)  # fmt: skip
+                     args.from_last_start, args.board, display)  # fmt: skip
         res.stimulus.write(work / "stimulus.bin")
         (work / "replayed.bin").write_bytes(res.run.out)
     else:
         with tempfile.TemporaryDirectory(prefix="session-") as d:
             res = replay(args.session, d, args.runtime, args.config, args.until_gap, progress,
-                         args.from_last_start, args.board)  # fmt: skip
+                         args.from_last_start, args.board, display)  # fmt: skip
     if progress:
         print(file=sys.stderr)
     print(res.summary())
+    if display:
+        cfg = board_config.from_values(board_config.run_values(res.stimulus, {"display": 1}))
+        s = res.stimulus
+        written = pictures.write(res.run, (cfg.display_w, cfg.display_h), s.tick_us * 1e-6,
+                                 s.duration_s, args.display)  # fmt: skip
+        print(f"screen: {written[0]} (the end), {written[1]} (over the replay)")
     return 0 if res.identical else 1

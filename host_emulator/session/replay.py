@@ -72,7 +72,7 @@ def _session_config(header, config, path):
 
 
 def replay(session_path, workdir, runtime="auto", config=None, until_gap=False, progress=None,
-           from_last_start=False, board=None):  # fmt: skip
+           from_last_start=False, board=None, display=False):  # fmt: skip
     """Replay a session file through the emulator and compare; a ReplayResult.
 
     config: the board configuration (a path, see proto/config.load, or a dict of values) when
@@ -80,7 +80,9 @@ def replay(session_path, workdir, runtime="auto", config=None, until_gap=False, 
     first gap instead of failing. from_last_start: replay from the board's last start in the
     recording (after a restart), not its first. runtime: a name of host_emulator.runtimes;
     one that is not bit-exact (mpy_unix) is compared to its tolerance. FirmwareError if the
-    firmware raises. board: the image the f411 runtime runs (None: its default)."""
+    firmware raises. board: the image the f411 runtime runs (None: its default). display: run
+    the board's screen (the display setting on; it changes no output record: the emulated
+    screen answers every batch) for pictures of it (ReplayResult.run.display)."""
     sf = load(session_path)
     header, data = sf.header, sf.data
     runtime, why = pick_runtime(header, runtime)
@@ -90,7 +92,7 @@ def replay(session_path, workdir, runtime="auto", config=None, until_gap=False, 
     stim = to_stimulus(rec, values)
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    run = rt.run(stim, workdir, progress=progress, board=board)
+    run = rt.run(stim, workdir, {"display": 1} if display else None, progress, board=board)
     cfg = board_cfg(values)
     c = compare(rec.stream, run.out, cfg.output_every_ticks, cfg.ext_every_ticks, rt.bit_exact)
     return ReplayResult(rec, stim, run, c, source, sf.problems(str(session_path)), why,

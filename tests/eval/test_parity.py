@@ -324,3 +324,21 @@ def test_a_5_hz_receiver_stamps_each_fix_at_its_own_moment(tmp_path):
     m, _tr, _err = scenario_run.evaluate_run(sim, fw, sim.stimulus, tmp_path, "cpython")
     # navigating from 62 s: 28 s of a start, against the fixes' own 3.26 m
     assert m["align_time_s"] < 70.0 and m["horiz_rms_m"] < 1.5, m["horiz_rms_m"]
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [{"display": 1}, {"display": 1, "ext_every_ticks": 0, "output_every_ticks": 3,
+                      "display_w": 220, "display_h": 176, "display_fg": 7}],
+)  # fmt: skip
+def test_what_the_firmware_sends_to_the_screen_is_the_models(overrides):
+    """The display UART byte for byte, through alignment into navigation (quick_start drives
+    off at ~12 s), with the extended frame on (the 1-sigma, the health it carries) and off."""
+    stim = board_input.simulate("quick_start", duration_s=20, seed=1).stimulus
+    r = parity.compare(stim, overrides)
+    assert r.identical and r.display_first_byte is None, r.summary()
+    shown = r.display_firmware.decode()
+    assert shown.count("\r\n") > 20 and "'navigating'" in shown
+    assert ("'aligning  '" in shown) and ("DS12(" in shown) == ("display_w" in overrides)
+    assert "display: identical" in r.summary()
+    assert r.firmware_stats["display_missed"] == 0 and r.firmware_stats["display_oks"] > 20

@@ -481,6 +481,14 @@ def test_command_line(capture, values, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "REPLAY: identical, 2000 ticks" in out and "configuration from the session file" in out
     assert (tmp_path / "out" / "replayed.bin").read_bytes() == _head(capture, 2000)
+    # the board's screen run too (it changes no record), and drawn
+    png = tmp_path / "screen.png"
+    assert cli.main(["replay", ins, "--display", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "REPLAY: identical, 2000 ticks" in out and f"screen: {png}" in out
+    assert png.stat().st_size > 1000 and (tmp_path / "screen_strip.png").stat().st_size > 1000
+    assert cli.main(["replay", ins, "--display", str(tmp_path)]) == 2
+    assert "--display takes the path of a .png file" in capsys.readouterr().err
     # the MicroPython VM: double-precision floats, compared to its tolerance
     assert cli.main(["replay", ins, "--runtime", "micropython"]) == 0
     out = capsys.readouterr().out
