@@ -1,13 +1,34 @@
 """The report lines a MicroPython guest prints (host_emulator/board/mpy/feed.py: C console,
 P progress, E error + traceback + E-END, S statistics), read back on the host, for the runtimes
-that run the firmware in a MicroPython (mpy_unix, m4f)."""
+that run the firmware in a MicroPython (mpy_unix, m4f); and the display stream's marks from the
+bytes per tick those guests record."""
 
 import json
 import subprocess
 import threading
 import time
 
+import numpy as np
+
 from host_emulator.errors import EmulatorError, FirmwareError
+
+
+def display_marks(data, per_tick, start_bytes, where_run):
+    """FirmwareRun.display_marks, [(tick, end offset in data)] after each tick that wrote (tick
+    -1: start-up), from what a guest recorded: `data` all it wrote to the screen's UART,
+    per_tick the bytes of each tick, start_bytes those of start-up (what precedes the first
+    tick's). EmulatorError naming `where_run` if they do not add up to data."""
+    per_tick = np.asarray(per_tick, np.int64)
+    if start_bytes + int(per_tick.sum()) != len(data):
+        raise EmulatorError(
+            f"{where_run} recorded {len(data)} display bytes, but {start_bytes} at start-up and "
+            f"{int(per_tick.sum())} in its ticks: its display output is incomplete"
+        )
+    marks = [(-1, int(start_bytes))] if start_bytes else []
+    ticks = np.flatnonzero(per_tick)
+    ends = start_bytes + np.cumsum(per_tick)[ticks]
+    marks += [(int(k), int(e)) for k, e in zip(ticks, ends, strict=True)]
+    return marks
 
 
 class GuestOutput:

@@ -84,6 +84,7 @@ class VirtualBoard:
         boot_main=False,
         frozen_dir=None,
         loop=False,
+        display=None,
     ):
         self.fs_dir = pathlib.Path(fs_dir).resolve()
         # modules "frozen in the image": a directory both VMs import from as the stm32 port
@@ -100,6 +101,10 @@ class VirtualBoard:
         self.boot_main = bool(boot_main)  # run main.py at power-up (else: the friendly REPL)
         self.loop = bool(loop)  # the input used up: the firmware starts again, as after a reset
         self._fw_ended = False
+        # the UsartGPU screen: a PNG at `display` redrawn from what the status page sends
+        self.display = pathlib.Path(display) if display else None
+        self._gpu = None
+        self._gpu_drawn = 0.0
         self.port = None
         self.rs485_port = None
         self.firmware_runs = 0
@@ -220,6 +225,8 @@ class VirtualBoard:
             env=env,
         )
         self.firmware_runs += 1
+        self._gpu = None  # the screen starts again with the firmware's start page
+        self._fw_t0 = time.monotonic()
         self._fw_buf = b""
         self._fw_error = None  # traceback lines while inside an "E" block
         self._fw_stopping = None  # time.monotonic() of the Ctrl-C
@@ -506,6 +513,8 @@ class VirtualBoard:
             if rest.startswith(STOPPED):
                 self._fw_saw_stopped = True
             self._send(rest + b"\r\n")
+        elif kind == b"D":
+            self._screen(rest)
         elif kind == b"P":
             pass
         elif kind == b"E" and rest.strip().lstrip(b"-").isdigit():
@@ -521,7 +530,46 @@ class VirtualBoard:
         else:
             self._send(line + b"\r\n")
 
+    def _screen(self, hex_bytes):
+        """Bytes the status page sent: into the emulated screen; its picture to `display`,
+        at most twice a second (and when the firmware stops)."""
+        if self.display is None:
+            return
+        from host_emulator.display.device import UsartGpu
+        from host_emulator.display.usartgpu import DisplayError
+        from host_emulator.proto import config as board_config
+
+        try:
+            if self._gpu is None:
+                cfg = board_config.from_values(board_config.load(self.fs_dir / "ins.cfg"))
+                self._gpu = UsartGpu((cfg.display_w, cfg.display_h), cfg.display_baud)
+            t_us = (time.monotonic() - self._fw_t0) * 1e6
+            self._gpu.receive(bytes.fromhex(hex_bytes.decode()), t_us)
+        except (ValueError, DisplayError, board_config.ConfigError) as e:
+            self._send(b"virtual board: the screen stops: %s\r\n" % str(e).encode())
+            self.display = None
+            return
+        if time.monotonic() - self._gpu_drawn >= 0.5:
+            self._draw_screen()
+
+    def _draw_screen(self):
+        if self._gpu is None or self.display is None:
+            return
+        import io
+
+        from host_emulator.errors import write_atomic
+
+        buf = io.BytesIO()
+        self._gpu.screen.image(scale=2).save(buf, "PNG")
+        try:
+            write_atomic(self.display, buf.getvalue())
+        except OSError as e:
+            self._send(b"virtual board: cannot write the screen: %s\r\n" % str(e).encode())
+            self.display = None
+        self._gpu_drawn = time.monotonic()
+
     def _on_fw_exit(self):
+        self._draw_screen()
         if self._fw_buf:
             self._fw_line(self._fw_buf)
         if self._fw_error:
@@ -559,6 +607,11 @@ def main(argv=None):
     p.add_argument("--corrupt-writes", type=int, default=0, help="corrupt the first N writes")
     p.add_argument("--fast", action="store_true", help="run the firmware faster than real time")
     p.add_argument("--run", action="store_true", help="run main.py at power-up")
+    p.add_argument(
+        "--display", metavar="PATH",
+        help="the board's UsartGPU screen as a PNG, redrawn while the firmware runs with "
+        "display=1 in ins.cfg (docs/display.md)",
+    )  # fmt: skip
     p.add_argument(
         "--frozen",
         action="store_true",
@@ -600,6 +653,7 @@ def main(argv=None):
         realtime=not args.fast,
         boot_main=args.run,
         loop=args.duration == 0,
+        display=args.display,
     )
     try:
         board.start()
@@ -609,6 +663,9 @@ def main(argv=None):
     print(f"REPL console (USB): {board.port}")
     print(f"RS485 output:       {board.rs485_port}")
     print(f"filesystem /flash:  {board.fs_dir} ({board.flash_kb} KB)")
+    if board.display:
+        print(f"screen:             {board.display} (redrawn while the firmware runs, with "
+              "display=1 in ins.cfg)")  # fmt: skip
     if frozen_tmp:
         print(f"frozen firmware:    {frozen_tmp.name} (this checkout's firmware/, with fwid)")
     print("Ctrl-C to stop", flush=True)

@@ -89,6 +89,42 @@ def test_a_peripheral_call_costs_a_c_method_call():
     assert periph < python
 
 
+def test_the_screens_transmitter_writes_a_character_through_the_c_handle():
+    """The status page's transmitter without DMA (firmware/board.py _Chars) holds the display
+    UART's `writechar` bound, and calls it for every byte: through m4f.Periph (a method it
+    lists) the call costs what a built-in method costs, as on the board, and the byte lands in
+    the emulated UART's transmit buffer. Printed with -s."""
+    out = guest.run(
+        "import m4f, machine\n"
+        "u = machine.UART(6, baudrate=115200, rxbuf=64, timeout=0)\n"
+        "put = u.writechar\n"
+        "q = machine.uart(6)\n"
+        "d = {}\n"
+        "def cost(g):\n"
+        "    g()\n"
+        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
+        "    g()\n"
+        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
+        "def empty():\n"
+        "    pass\n"
+        "def periph():\n"
+        "    put(0x141)\n"  # 9 bits: the low 8 are sent
+        "def builtin():\n"
+        "    d.get(0)\n"
+        "def python():\n"
+        "    q.writechar(66)\n"
+        "c = [cost(g) for g in (empty, periph, builtin, python)]\n"
+        "print('R', type(u).__name__, bytes(q.tx[: q.tx_n]).decode(), *c)\n"
+    )
+    kind, sent, empty, periph, builtin, python = out.split("R ")[1].split()[:6]
+    periph, builtin, python = (int(x) - int(empty) for x in (periph, builtin, python))
+    print(
+        f"counted per writechar: Periph {periph}, built-in method {builtin}, Python part {python}"
+    )
+    assert kind == "Periph" and sent == "AABB"
+    assert abs(periph - builtin) <= 200 and periph < python
+
+
 def test_an_attribute_store_on_the_navigator_searches_its_class():
     """Navigator has properties, so MicroPython looks for a setter in the class and its bases
     before it stores any attribute of an instance (py/objtype.c); an instance of a class
@@ -220,6 +256,45 @@ def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
     assert navigating.sum() > 3000  # not vacuous: 16 s of navigation, 16 fixes, 160 ext frames
     assert np.count_nonzero(t["alloc_bytes"][navigating]) == 0
     assert t["collected"][navigating].sum() == 0
+
+
+def test_the_status_page_equals_the_model_byte_for_byte():
+    """16 s of quick_start (navigating from 12.3 s) with the display setting on: what the
+    firmware sent to the screen's UART, the start page and 155 ticks' turns, equals the model's
+    byte for byte (model/display.py; parity compares it with the frames), the marks say which
+    tick sent what, and the navigating ticks, the page's turns among them, allocate nothing on
+    the board either. No screen answers in the guest: the page counts no OK and no fault. The
+    cost of a turn is printed with -s."""
+    stim = board_input.simulate("quick_start", 16.0, seed=0).stimulus
+    r = parity.compare(stim, {"display": 1}, runtime="m4f")
+    assert r.identical, r.summary()
+    assert "display: identical" in r.summary()
+    fw = r.firmware_run
+    t = fw.per_tick
+    assert fw.display == r.display_model and len(fw.display) > 4000
+    start = fw.stats["display_start_bytes"]
+    assert fw.display[:start].startswith(b"SBC(0);CLS(0);") and fw.display[:start].endswith(b"\r\n")
+    wrote = np.flatnonzero(t["display_bytes"])
+    assert fw.display_marks[0] == (-1, start) and len(fw.display_marks) == len(wrote) + 1
+    assert [k for k, _ in fw.display_marks[1:]] == wrote.tolist()
+    assert fw.display_marks[-1][1] == len(fw.display)
+    assert ((wrote + 1) % 8 == 0).all()  # a turn every 8 ticks (App.ticks is k + 1)
+    s = fw.stats
+    assert s["display_batches"] == fw.display.count(b"\r\n") > 20
+    assert s["display_oks"] == s["display_missed"] == s["display_tx_overflow"] == 0
+    navigating = np.zeros(len(t), bool)
+    navigating[1:] = (t["state"][1:] == 2) & (t["state"][:-1] == 2)
+    turn = (np.arange(len(t)) + 1) % 8 == 0
+    assert (navigating & turn).sum() > 80 and np.isin(wrote, np.flatnonzero(navigating)).sum() > 40
+    assert np.count_nonzero(t["alloc_bytes"][navigating]) == 0
+    fwi = t["instr"].astype(np.int64) - t["emu_instr"]
+    plain = navigating & ~turn & (t["display_bytes"] == 0)
+    sent = navigating & (t["display_bytes"] > 2)
+    print(
+        f"navigating tick, median instructions: {np.median(fwi[plain]):.0f} without a turn, "
+        f"{np.median(fwi[navigating & turn]):.0f} with one, {np.median(fwi[sent]):.0f} with a "
+        f"field sent ({np.median(t['display_bytes'][sent]):.0f} bytes)"
+    )
 
 
 def test_the_firmware_gets_the_boards_heap(quick):

@@ -7,6 +7,7 @@ The VM is a double-precision build: integer-only output must match the CPython r
 float32 model of the board) exactly; float output only to a tolerance (see below)."""
 
 import json
+import re
 import shutil
 import struct
 
@@ -17,6 +18,7 @@ from host_emulator import firmware_env
 from host_emulator.board import MPY_DIR
 from host_emulator.errors import EmulatorError, FirmwareError
 from host_emulator.firmware_env import FIRMWARE_DIR
+from host_emulator.model import display as model_display
 from host_emulator.proto import stream
 from host_emulator.runtimes import cpython, mpy_unix
 from host_emulator.runtimes.mpy_unix import vm as mpvm
@@ -36,6 +38,17 @@ def urban():
 def runs(urban, tmp_path_factory):
     vm = mpy_unix.run(urban, tmp_path_factory.mktemp("vm"))
     cpy = cpython.run(urban, tmp_path_factory.mktemp("cpy"))
+    return vm, cpy
+
+
+@pytest.fixture(scope="module")
+def display_runs(tmp_path_factory):
+    """16 s of quick_start (navigating from 12.3 s) with the status page on (`display` 1), in
+    the VM and on CPython (whose emulated screen answers; none does in the VM)."""
+    stim = board_input.simulate("quick_start", 16.0, seed=0).stimulus
+    on = {"display": 1}
+    vm = mpy_unix.run(stim, tmp_path_factory.mktemp("vm_display"), on)
+    cpy = cpython.run(stim, tmp_path_factory.mktemp("cpy_display"), on)
     return vm, cpy
 
 
@@ -126,6 +139,145 @@ def test_a_navigating_tick_allocates_nothing_in_the_vm(runs):
     assert navigating.sum() > 500  # not vacuous: ~3.7 s of navigation with 3 fixes
     assert vm.blocks_per_tick[navigating].max() == 0
     assert vm.stats["app_gc_runs"] == 0
+
+
+def test_a_navigating_tick_with_a_page_turn_allocates_nothing_in_the_vm(display_runs):
+    """The allocation proof with the display setting on: every navigating tick, the ones that
+    take a turn of the status page (every 8th: a field formatted, compared and, if it changed,
+    sent byte by byte through board._Chars; or the batch's end) among them, allocates 0 GC
+    blocks. The OKs' reading is not exercised here (no screen answers in the VM): see
+    test_a_round_of_the_page_with_the_screens_answers_allocates_nothing_in_the_vm."""
+    vm, _ = display_runs
+    state = vm.nav_state
+    navigating = np.zeros(len(state), bool)
+    navigating[1:] = (state[1:] == 2) & (state[:-1] == 2)
+    turn = (np.arange(len(state)) + 1) % 8 == 0  # App.ticks is k + 1
+    wrote = np.array([k for k, _ in vm.display_marks if k >= 0])
+    assert ((wrote + 1) % 8 == 0).all()
+    assert (navigating & turn).sum() > 80  # not vacuous: 91 turns while navigating,
+    assert np.isin(wrote, np.flatnonzero(navigating)).sum() > 40  # 55 of them sent something
+    assert vm.blocks_per_tick[navigating].max() == 0
+    assert vm.blocks_per_tick[turn].max() == 0  # aligning turns too
+    assert vm.stats["app_gc_runs"] == 0 and vm.stats["display_tx_overflow"] == 0
+
+
+# the screen's commands: a field's `DSn(x,y,'` head, its text and its `',c);` tail; or
+# SBC, CLS and a batch's end
+_CMD = re.compile(rb"(DS\d+\(\d+,(\d+),')([ -&(-~]*)(',\d+\);)|SBC\(\d+\);|CLS\(\d+\);|\r\n")
+_NUM = re.compile(rb"\d+\.(\d+)")
+# the fields whose numbers come from float work (the frame's position, speed, heading and
+# attitude; the 1-sigma from the covariance's float32 bits): the VM's doubles may round them
+# to the next step
+_FLOAT_FIELDS = ("POS", "SPEED", "HEAD", "ATT", "SIGMA")
+
+
+def _commands(data):
+    """The display stream as [(head, row y, text, tail)], every byte accounted for."""
+    out, pos = [], 0
+    for m in _CMD.finditer(data):
+        assert m.start() == pos, data[pos : pos + 40]
+        head, y, text, tail = m.groups()
+        out.append((head, int(y), text, tail) if head else (m.group(0), None, b"", b""))
+        pos = m.end()
+    assert pos == len(data)
+    return out
+
+
+def test_the_status_page_equals_the_cpython_runs(display_runs):
+    """What the firmware sent to the screen in the VM against the CPython runtime (the board's
+    float32 arithmetic, equal to the model's bytes: tests/eval/test_parity.py), field by field.
+    Must agree: the start page, which ticks sent how many bytes (the marks), every command's
+    head and tail (field, place, colour) and the text of every field from integer work (run
+    time, state, fix, latitude, longitude, height, health, its cause). The fields from float
+    work (_FLOAT_FIELDS) may differ by a step of their last digit, as the frames' fields do.
+    Measured when the VM runtime got the screen: these 16 s are identical byte for byte, and so
+    are quick_start 60 s and urban_drive 120 s; 200 s of highway_outage differ in 4 of 2098
+    commands (two positions and a roll by 0.01, from ~150 s on)."""
+    vm, cpy = display_runs
+    assert vm.display_marks == cpy.display_marks
+    start = vm.display_marks[0][1]
+    assert vm.display_marks[0][0] == -1 and vm.display[:start] == cpy.display[:start]
+    a, b = _commands(vm.display), _commands(cpy.display)
+    assert len(a) == len(b) > 150
+    rows = [y for _, y, _, _ in a[: 2 + model_display.FIELDS]][2:]  # the labels' rows
+    assert len(rows) == len(model_display.LABELS)
+    label = dict(zip(rows, model_display.LABELS, strict=True))
+    sent = set()
+    for (ha, ya, ta, ea), (hb, _, tb, eb) in zip(a, b, strict=True):
+        assert (ha, ea) == (hb, eb)
+        name = label.get(ya)
+        sent.add(name)
+        if name not in _FLOAT_FIELDS:
+            assert ta == tb, (name, ta, tb)
+            continue
+        assert _NUM.sub(b"#", ta) == _NUM.sub(b"#", tb), (name, ta, tb)
+        for x, y in zip(_NUM.finditer(ta), _NUM.finditer(tb), strict=True):
+            step = 10.0 ** -len(x.group(1))
+            assert abs(float(x.group(0)) - float(y.group(0))) <= step * 1.001, (name, ta, tb)
+    assert set(model_display.LABELS) <= sent  # every field was drawn
+    s = vm.stats
+    assert s["display_batches"] == vm.display.count(b"\r\n") == cpy.stats["display_batches"]
+    assert s["display_oks"] == 0 and cpy.stats["display_oks"] > 0  # no screen in the VM
+
+
+_VM_PAGE = """
+sys.path.insert(0, {vm_board!r})
+import json, struct, machine, board, frame, records, status_page
+class Cfg:
+    display_w = 320
+    display_h = 240
+    display_fg = 15
+    display_bg = 0
+    display_warn = 14
+    display_fault = 12
+    ext_every_ticks = 20
+class O:
+    pass
+a = O()
+a.out = bytearray(frame.FRAME_LEN)
+a._fields = array.array("i", bytes(4 * frame.NF))
+a.ext = records.ExtFrame(array.array("f", bytes(4 * 15)))
+a.ext.data[0] = 0xEB
+struct.pack_into("<ff", a.ext.data, 16, 4.0, 9.0)
+a.ext.fields[1] = 1
+a.ext.fields[13] = 0x820
+a.nav = O()
+a.nav.ctl = array.array("i", bytes(4 * 64))
+a.gnss = O()
+a.gnss.epoch_quality = 1
+a.gnss.epoch_nsat = 9
+a.gnss.epoch_hdop_x100 = 87
+u = machine.UART(6, baudrate=115200, rxbuf=64, timeout=0)
+page = status_page.StatusPage(board._Chars(u), u, Cfg, a)
+page.start()
+at = [128]
+ok = b"OK\\r\\n"
+def round_():
+    t = at[0]
+    a.out[29] = t // 128  # the heading changes every round: a batch each time
+    for ticks in range(t, t + 128, 8):
+        page.turn(ticks, 2)
+    at[0] = t + 128
+def answered():  # the start page's OK and the first round's
+    u.feed(ok)
+    u.feed(ok)
+    round_()
+res = {{"first": _locked(round_), "answered": _locked(answered), "oks": page.oks}}
+res["unanswered"] = _locked(round_)
+res.update(batches=page.batches, missed=page.missed, bad_until=page.bad_until, tx=u.tx_n)
+print(json.dumps(res))
+"""
+
+
+def test_a_round_of_the_page_with_the_screens_answers_allocates_nothing_in_the_vm():
+    """The page's reading of the screen's OKs, which the runs do not exercise (no screen in the
+    VM): a round of 16 turns over the firmware's own transmitter (board._Chars on the emulated
+    display UART) under micropython.heap_lock(), first unanswered, then with an OK waiting, then
+    without one (a miss: the display cause's second), allocates nothing."""
+    r = mpvm.run_json("import json\n" + _VM_PAGE.format(vm_board=_VM_BOARD))
+    assert r["first"] and r["answered"] and r["unanswered"]
+    assert r["oks"] == 2 and r["batches"] == 4 and r["missed"] == 1  # start page, 3 rounds
+    assert r["bad_until"] == 128 * 3 + 8 * 13 + 200 and r["tx"] > 300
 
 
 def _faulty_firmware(tmp_path, old, new):

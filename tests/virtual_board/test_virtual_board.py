@@ -10,6 +10,7 @@ import sys
 import time
 import zlib
 
+import numpy as np
 import pytest
 
 serial = pytest.importorskip("serial")
@@ -327,3 +328,24 @@ def test_mpremote_sees_the_files_and_mount_is_refused_not_hung(tmp_path):
         read_until(s, b"raw REPL; CTRL-B to exit\r\n>")
         assert raw_exec(s, "print(6 * 7)")[0] == b"42\r\n"
         s.close()
+
+
+def test_the_screen_is_a_png_redrawn_while_the_firmware_runs(deployed, tmp_path):
+    """display=1 in ins.cfg: the status page reaches the emulated screen, drawn to --display."""
+    from PIL import Image
+
+    fs = tmp_path / "fs"
+    shutil.copytree(deployed, fs)
+    values = dict(board_config.load(fs / "ins.cfg"), display=1)
+    (fs / "ins.cfg").write_bytes(board_config.to_bytes(values))
+    png = tmp_path / "screen.png"
+    with VirtualBoard(fs, realtime=False, duration_s=2.0, display=png) as vb:
+        s = serial.Serial(vb.port, 115200, timeout=2)
+        s.write(b"\x03\x04")
+        out = b""
+        while b"input ended" not in out:
+            out += read_until(s, b">>> ", timeout=15)
+        s.close()
+    assert b"display: status page on the screen's UART at 115200" in out
+    img = np.asarray(Image.open(png))
+    assert img.shape == (480, 640, 3) and (img != 0).any(axis=2).mean() > 0.02  # the labels

@@ -18,7 +18,13 @@ heap gets below a margin of several worst ticks, so the app's own low-water coll
 (12 KB) never runs during a tick (its gc_runs counter is reported to prove it).
 
 Output (OUT_DIR): out.bin (the output UART's bytes), blocks.bin (int32 LE per tick: GC
-blocks of the tick), state.bin (u8 per tick: the navigation state after it). Stdout lines:
+blocks of the tick), state.bin (u8 per tick: the navigation state after it), display.bin and
+display_n.bin (the screen's UART, when the firmware made its status page, `app.page`: after
+start-up and after every tick the driver takes what the firmware wrote to the display UART,
+board.PINS["display_uart"], appends it to display.bin and empties the UART's transmit buffer;
+display_n.bin has u16 LE per tick, the bytes that tick wrote, and what start-up wrote is the
+rest of display.bin; both files are empty with the page off). No screen answers: the UART
+receives no `OK`, so the page takes the screen as absent (docs/display.md). Stdout lines:
     C <text>        a line the firmware printed on its console
     P <k> <n>       progress: k of n ticks done
     E <k>           the firmware raised at tick k (-1: at start-up); the VM's traceback
@@ -30,7 +36,9 @@ INS_VM_STREAM=realtime (paced at the tick rate by the VM's own clock) or INS_VM_
 (as fast as possible), OUT_DIR is ignored and nothing is counted: each tick's output UART bytes
 go to stdout as a line "O <hex>", console lines as "C <text>" as above, errors as "E"; the run
 ends with a line "X ended" (the stimulus is used up) or "X stopped" (SIGINT, i.e. Ctrl-C at the
-virtual board's console: the App is stopped as after a KeyboardInterrupt on the board).
+virtual board's console: the App is stopped as after a KeyboardInterrupt on the board). What
+the status page writes to the display UART goes out as a line "D <hex>" after each tick (the
+start page with the first tick's); no OK comes back.
 """
 
 import gc
@@ -48,6 +56,7 @@ from feed import (
     REC_LEN,
     app_stats,
     bytes_per_block,
+    display_uart,
     fire_inputs,
     firmware_error,
     first_tick_us,
@@ -103,8 +112,17 @@ def main():
     fo = open(OUT_DIR + "/out.bin", "wb")
     fb = open(OUT_DIR + "/blocks.bin", "wb")
     fs = open(OUT_DIR + "/state.bin", "wb")
+    fd = open(OUT_DIR + "/display.bin", "wb")
+    fdn = open(OUT_DIR + "/display_n.bin", "wb")
     blocks = array("i", bytes(4 * CHUNK))
     state = bytearray(CHUNK)
+    disp = display_uart(a, pins)  # None with the status page off
+    disp_n = array("H", bytes(2 * CHUNK))
+    disp_start = 0
+    if disp is not None and disp.tx_n:  # the start page
+        disp_start = disp.tx_n
+        fd.write(disp.tx, disp.tx_n)
+        disp.tx_clear()
     nav = a.nav
     t0 = first_tick_us(tick_us)
     gc.collect()
@@ -141,10 +159,17 @@ def main():
             negative += 1
         blocks[j] = d // bpb
         state[j] = nav.state
+        disp_n[j] = 0
+        if disp is not None and disp.tx_n:  # what the tick sent to the screen
+            disp_n[j] = disp.tx_n
+            fd.write(disp.tx, disp.tx_n)
+            disp.tx_clear()
         j += 1
         if j == CHUNK:
             fb.write(blocks, 4 * j)
             fs.write(state, j)
+            if disp is not None:
+                fdn.write(disp_n, 2 * j)
             j = 0
         if out_uart.tx_n >= OUT_FLUSH:
             fo.write(out_uart.tx, out_uart.tx_n)
@@ -154,17 +179,22 @@ def main():
     if j:
         fb.write(blocks, 4 * j)
         fs.write(state, j)
+        if disp is not None:
+            fdn.write(disp_n, 2 * j)
     fo.write(out_uart.tx, out_uart.tx_n)
     out_uart.tx_clear()
     fo.close()
     fb.close()
     fs.close()
+    fd.close()
+    fdn.close()
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
     stats = app_stats(a, n_ticks, t0, pins)
     stats.update(
         {
+            "display_start_bytes": disp_start,
             "gc_collects": collects,
             "negative_ticks": negative,
             "bytes_per_block": bpb,
@@ -196,6 +226,7 @@ def stream_main(realtime):
         gnss = machine.uart(pins["gnss_uart"])
         out_uart = machine.uart(pins["out_uart"])
         pps = machine.pin(pins["pps"])
+        disp = display_uart(a, pins)
         t0 = first_tick_us(tick_us)
         wall0 = utime.ticks_us()
         for k in range(n_ticks):
@@ -210,6 +241,9 @@ def stream_main(realtime):
             if out_uart.tx_n:
                 print("O", binascii.hexlify(memoryview(out_uart.tx)[: out_uart.tx_n]).decode())
                 out_uart.tx_clear()
+            if disp is not None and disp.tx_n:  # what the status page sent to the screen
+                print("D", binascii.hexlify(memoryview(disp.tx)[: disp.tx_n]).decode())
+                disp.tx_clear()
             # this driver's garbage (the lines above) is its own to collect, between ticks:
             # the app, with automatic collection off, collects only for what it allocates
             if gc.mem_free() < STREAM_LOW_BYTES:

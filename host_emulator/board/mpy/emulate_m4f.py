@@ -30,9 +30,17 @@ the tick allocated (gc.mem_alloc after - before; a tick that collected shows wha
 and whether the app collected (its gc_runs counter). Nothing the driver does between ticks
 allocates (checked: `driver_alloc_bytes` must be 0), so the heap the app sees is its own.
 
-Output (OUT_DIR): out.bin (the output UART's bytes) and ticks.bin, per tick 16 bytes:
-instructions i32, emulation instructions i32, allocated bytes i32, navigation state u8,
-collected u8, 2 pad. Stdout lines as feed.py says; S carries the run's statistics.
+Output (OUT_DIR): out.bin (the output UART's bytes), display.bin (the screen's UART's) and
+ticks.bin, per tick 16 bytes: instructions i32, emulation instructions i32, allocated bytes
+i32, navigation state u8, collected u8, display bytes u16. Stdout lines as feed.py says; S
+carries the run's statistics.
+
+The screen: when the firmware made its status page (`app.page`, the display setting on), the
+driver takes what it wrote to the display UART (board.PINS["display_uart"]) after start-up and
+after every tick, outside the counted window: appended to display.bin, its count in the tick's
+record (start-up's is S's display_start_bytes), and the UART's transmit buffer emptied (so it
+never fills). No screen answers: no `OK` comes back into the UART, and the page takes the
+screen as absent (no fault; the bytes it sends do not depend on the answers).
 """
 
 import gc
@@ -164,6 +172,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         REC_LEN,
         app_stats,
         bytes_per_block,
+        display_uart,
         fire_inputs,
         firmware_error,
         first_tick_us,
@@ -178,6 +187,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     f.seek(offset)
     fo = HostFile(out_dir + "/out.bin", 5)
     ft = HostFile(out_dir + "/ticks.bin", 5)
+    fd = m4f.open(out_dir + "/display.bin", 5)  # a semihosting handle (a small int)
+    write = m4f.write
     rec = bytearray(REC_LEN)
     ubuf = bytearray(256)
     recs = bytearray(16 * CHUNK)
@@ -195,6 +206,12 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     gnss = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
     pps = machine.pin(pins["pps"])
+    disp = display_uart(a, pins)  # None with the status page off
+    disp_start = 0
+    if disp is not None and disp.tx_n:  # the start page
+        disp_start = disp.tx_n
+        write(fd, disp.tx, disp_start)
+        disp.tx_clear()
     nav = a.nav
     t0 = first_tick_us(tick_us)
     live_after_start = gc.mem_alloc()
@@ -228,8 +245,13 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         c1 = icount()
         e1 = emu_total()
         ma = gc.mem_alloc()
-        struct.pack_into("<iiiBB", recs, 16 * j, (c1 - c0) & MASK, (e1 - e0) & MASK, ma - m0,
-                         nav.state, a.gc_runs - gc_runs)  # fmt: skip
+        dn = 0
+        if disp is not None and disp.tx_n:  # what the tick sent to the screen
+            dn = disp.tx_n
+            write(fd, disp.tx, dn)
+            disp.tx_clear()
+        struct.pack_into("<iiiBBH", recs, 16 * j, (c1 - c0) & MASK, (e1 - e0) & MASK, ma - m0,
+                         nav.state, a.gc_runs - gc_runs, dn)  # fmt: skip
         gc_runs = a.gc_runs
         j += 1
         if j == CHUNK:
@@ -248,6 +270,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     out_uart.tx_clear()
     fo.close()
     ft.close()
+    m4f.close(fd)
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
@@ -265,6 +288,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             "startup_instructions": startup_instr,
             "icount_cost": icount_pair_cost(),
             "driver_alloc_bytes": driver_alloc,
+            "display_start_bytes": disp_start,
             "float32": 1.0 + 2.0**-30 == 1.0,  # the VM's floats are single precision
             "platform": sys.platform,
         }

@@ -122,6 +122,15 @@ def fire_inputs(rec, t_k, pps):
     machine.fire_timers()
 
 
+def display_uart(a, pins):
+    """The screen's emulated UART (board.PINS["display_uart"]) when the firmware made its
+    status page (`app.page`, the display setting on), else None. The drivers take what it
+    transmitted after start-up and after every tick, and empty it."""
+    if getattr(a, "page", None) is None:
+        return None
+    return machine.uart(pins["display_uart"])
+
+
 def bytes_per_block():
     """Bytes of one GC block: what boxing one float allocates (as runtimes/mpy_unix/vm.py
     measures it)."""
@@ -138,10 +147,11 @@ def bytes_per_block():
 
 def app_stats(a, n_ticks, t0, pins):
     """The run's counters both drivers report in their "S" line (the firmware's own and the
-    emulated board's)."""
+    emulated board's; with the status page, its batches, OKs and misses, and the bytes its
+    UART's transmit buffer dropped)."""
     wdt = machine.watchdog
     out_uart = machine.uart(pins["out_uart"])
-    return {
+    stats = {
         "ticks": n_ticks,
         "t0_us": t0,
         "overruns": a.overruns,
@@ -153,3 +163,10 @@ def app_stats(a, n_ticks, t0, pins):
         "app_gc_runs": a.gc_runs,
         "tx_overflow": out_uart.tx_overflow,
     }
+    disp = display_uart(a, pins)
+    if disp is not None:  # the status page's counters (no screen answers: no OKs)
+        stats["display_batches"] = a.page.batches
+        stats["display_oks"] = a.page.oks
+        stats["display_missed"] = a.page.missed
+        stats["display_tx_overflow"] = disp.tx_overflow
+    return stats

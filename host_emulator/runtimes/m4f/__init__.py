@@ -21,7 +21,14 @@ What it gives besides the frames:
   allocated, the navigation state after it, and whether the app's own gc.collect() ran in it;
 - the heap is the board's (what a board with the image's BOARD_HEAP_BYTES heap would have free
   when the firmware starts; board/mpy/emulate_m4f.py says how) and the app collects garbage
-  itself, as on the board.
+  itself, as on the board;
+- with the display setting on, what the firmware's status page wrote to the screen's UART
+  (`FirmwareRun.display` and `display_marks`, as the cpython runtime gives them; each tick's
+  bytes also in per_tick["display_bytes"]): the guest takes them after start-up and after every
+  tick and empties the UART's transmit buffer. No screen answers in the guest: no `OK` is fed
+  back (the cpython runtime feeds the emulated UsartGPU's), so the page takes the screen as
+  absent, which is no fault; the bytes it sends do not depend on the answers, and they equal
+  the model's byte for byte (model/display.py; `parity --runtime m4f` compares them).
 
 What it cannot give: cycles. A Cortex-M4 at 0 wait states would run about one instruction per
 cycle; the F411's flash wait states and MicroPython's branchy interpreter make it ~2
@@ -43,7 +50,12 @@ from host_emulator.errors import EmulatorError
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
-from host_emulator.runtimes.guest_output import GuestOutput, firmware_error, run_guest
+from host_emulator.runtimes.guest_output import (
+    GuestOutput,
+    display_marks,
+    firmware_error,
+    run_guest,
+)
 from host_emulator.runtimes.m4f import build as m4f_build
 
 QEMU = "qemu-system-arm"
@@ -52,7 +64,7 @@ EXIT_FIRMWARE_ERROR = 3  # feed.EXIT_FIRMWARE_ERROR
 EXIT_DRIVER_ERROR = 4  # the guest driver itself raised (a bug of the emulator)
 PER_TICK = np.dtype(
     [("instr", "<i4"), ("emu_instr", "<i4"), ("alloc_bytes", "<i4"), ("state", "u1"),
-     ("collected", "u1"), ("pad", "u1", 2)]
+     ("collected", "u1"), ("display_bytes", "<u2")]
 )  # fmt: skip
 AFTER_ERROR = b"import m4f\r\nm4f.exit(4)\r\n\x04"  # runs if the driver's command raised
 
@@ -140,7 +152,7 @@ def run(
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "m4f"
     out_dir.mkdir(exist_ok=True)
-    for name in ("out.bin", "ticks.bin"):
+    for name in ("out.bin", "ticks.bin", "display.bin"):
         (out_dir / name).unlink(missing_ok=True)
     n = len(stim)
     source, setup = guest_setup or ("", "None")
@@ -175,6 +187,8 @@ def run(
         stats["report"] = out.reports
     for problem, what in (
         ("tx_overflow", "the emulated output UART dropped bytes (a tick wrote more than it holds)"),
+        ("display_tx_overflow", "the emulated display UART dropped bytes (it is emptied after "
+                                "every tick: a tick wrote more than it holds)"),
         ("driver_alloc_bytes", "the guest driver allocated between ticks (the app's heap is "
                                "not the board's)"),
     ):  # fmt: skip
@@ -185,6 +199,11 @@ def run(
     result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
                          stats)  # fmt: skip
     result.per_tick = per_tick
+    result.display = (out_dir / "display.bin").read_bytes()
+    result.display_marks = display_marks(
+        result.display, per_tick["display_bytes"], stats.get("display_start_bytes", 0),
+        "the emulated Cortex-M4F",
+    )  # fmt: skip
     return result
 
 

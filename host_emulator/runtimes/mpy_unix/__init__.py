@@ -17,6 +17,16 @@ tolerance. What it adds: `blocks_per_tick`, the GC blocks each `App.service()` a
 (gc.mem_alloc() difference with the collector off; one block = one boxed float on the board
 and in the VM, DESIGN.md 4), with the navigation state per tick to split them by phase.
 
+The screen: with the display setting on, what the firmware's status page writes to the display
+UART (board.PINS["display_uart"]) is taken by the VM's driver after start-up and after every
+tick and emptied there (so its transmit buffer never fills), and comes back as
+`FirmwareRun.display` and `display_marks`, as the cpython runtime gives them. No screen answers
+in the VM: no `OK` is fed back into the UART (the cpython runtime feeds the emulated UsartGPU's),
+so the page takes the screen as absent, which is no fault; the bytes it sends do not depend on
+the answers (its `oks` stay 0 in stats["display_oks"]). The VM's doubles can change a digit
+of a field computed in floating point (attitude, speed, position, the 1-sigma from the
+covariance) where the frames differ by a step (below); the page's own work is in integers.
+
 Heap: the VM heap also holds the firmware's compiled bytecode (~85 KB on this 64-bit VM) and
 the emulator's buffers (~200 KB live in all). gc.mem_alloc() scans the whole heap twice a
 tick, so the heap size sets the speed: 512 KB (default) runs 90 s of urban_drive in ~10 s,
@@ -35,7 +45,12 @@ from host_emulator.firmware_env import FIRMWARE_DIR
 from host_emulator.proto import config as board_config
 from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
-from host_emulator.runtimes.guest_output import GuestOutput, firmware_error, run_guest
+from host_emulator.runtimes.guest_output import (
+    GuestOutput,
+    display_marks,
+    firmware_error,
+    run_guest,
+)
 from host_emulator.runtimes.mpy_unix import navigator, vm
 
 HEAP_KB = 512
@@ -96,7 +111,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "vm"
     out_dir.mkdir(exist_ok=True)
-    for name in ("out.bin", "blocks.bin", "state.bin"):
+    for name in ("out.bin", "blocks.bin", "state.bin", "display.bin", "display_n.bin"):
         (out_dir / name).unlink(missing_ok=True)
     try:
         exe = vm.micropython_exe()
@@ -147,6 +162,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         "heap_bytes": reported["heap_bytes"],
         "live_bytes_at_start": reported["live_bytes_at_start"],
         "tx_overflow": reported["tx_overflow"],
+        **{k: v for k, v in reported.items() if k.startswith("display_")},
         "realtime_factor": stim.duration_s / wall if wall > 0 else None,
         "kernels": kind,
     }
@@ -155,6 +171,21 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
             f"the emulated output UART dropped {stats['tx_overflow']} bytes (its buffer is "
             "emptied between ticks): a tick wrote more than it holds"
         )
+    if stats.get("display_tx_overflow"):
+        raise EmulatorError(
+            f"the emulated display UART dropped {stats['display_tx_overflow']} bytes (its "
+            "buffer is emptied after every tick): a tick wrote more than it holds"
+        )
+    display = (out_dir / "display.bin").read_bytes()
+    per_tick = np.fromfile(out_dir / "display_n.bin", dtype="<u2")
+    if "display_batches" not in stats:
+        per_tick = np.zeros(n, np.uint16)  # the page off: nothing written
+    elif len(per_tick) != n:
+        raise EmulatorError(
+            f"the MicroPython VM reported the display bytes of {len(per_tick)} ticks of {n}"
+        )
+    start = stats.get("display_start_bytes", 0)
+    marks = display_marks(display, per_tick, start, "the MicroPython VM")
     result = FirmwareRun(
         "mpy_unix",
         (out_dir / "out.bin").read_bytes(),
@@ -165,4 +196,5 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         stats,
     )
     result.nav_state = state  # per tick, after it (1 aligning, 2 navigating)
+    result.display, result.display_marks = display, marks
     return result

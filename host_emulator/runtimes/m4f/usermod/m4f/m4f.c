@@ -169,7 +169,10 @@ static mp_obj_t periph_call(mp_obj_t self_in, size_t n_args, size_t n_kw, const 
     return periph_forward(self->obj, MP_QSTRnull, n_args, n_kw, args);
 }
 
-// The methods a board's machine classes have in C and the firmware calls per tick.
+// The methods a board's machine classes have in C and the firmware calls per tick (UART
+// writechar: the status page's transmitter without DMA, firmware/board.py _Chars, which holds
+// the bound method; without it here the firmware would call machine.py's Python method itself,
+// its call counted as firmware).
 static mp_obj_t periph_method(qstr name, size_t n_args, const mp_obj_t *args, mp_map_t *kw) {
     periph_obj_t *self = MP_OBJ_TO_PTR(args[0]);
     size_t n_kw = kw->used;
@@ -203,6 +206,7 @@ PERIPH_METHOD(on)
 PERIPH_METHOD(off)
 PERIPH_METHOD(irq)
 PERIPH_METHOD(write)
+PERIPH_METHOD(writechar)
 PERIPH_METHOD(read)
 PERIPH_METHOD(readinto)
 PERIPH_METHOD(write_readinto)
@@ -216,6 +220,7 @@ static const mp_rom_map_elem_t periph_locals_table[] = {
     { MP_ROM_QSTR(MP_QSTR_off), MP_ROM_PTR(&periph_off_obj) },
     { MP_ROM_QSTR(MP_QSTR_irq), MP_ROM_PTR(&periph_irq_obj) },
     { MP_ROM_QSTR(MP_QSTR_write), MP_ROM_PTR(&periph_write_obj) },
+    { MP_ROM_QSTR(MP_QSTR_writechar), MP_ROM_PTR(&periph_writechar_obj) },
     { MP_ROM_QSTR(MP_QSTR_read), MP_ROM_PTR(&periph_read_obj) },
     { MP_ROM_QSTR(MP_QSTR_readinto), MP_ROM_PTR(&periph_readinto_obj) },
     { MP_ROM_QSTR(MP_QSTR_write_readinto), MP_ROM_PTR(&periph_write_readinto_obj) },
