@@ -32,6 +32,8 @@ the screen answers within ~0.2 s) counts in `missed` and raises the app's displa
 second (`bad_until`).
 """
 
+from array import array
+
 from micropython import const
 
 _SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT == 0)
@@ -71,6 +73,7 @@ _X_PEE = const(16)  # the extended frame's P[0][0] + cv, f32 (records.py); P[1][
 _V_MAX = const(23170)  # |velocity| clamp, cm/s: the sum of two squares stays a small int
 _VAR_MAX = const(0x1FFFFFFF)  # a variance's clamp, cm^2: the sum of two stays a small int
 _POS_MAX = const(99999999)  # cm
+_NONE = const(-0x40000000)  # _same's inputs before the first
 # copies of frame.F_*, records.EF_* and nav._C_* (tests/lib/test_status_page.py checks them)
 _FF_VALID = const(5)
 _FF_HEIGHT_DM = const(6)
@@ -98,6 +101,7 @@ _FAULTS = const(0x2074C)  # nav.CAUSE_FAULTS: the causes of health 2, named firs
 
 _T = bytearray(_WMAX)  # the text being made (one page per board: module-level buffers)
 _C = bytearray(_CMD_MAX)  # the command being made
+_K = array("i", (0,))  # a field's third input (_same: a fourth argument would cost a word)
 
 
 def font_for(w, h):
@@ -238,6 +242,8 @@ def isqrt(v):
 
 def first_cause(c):
     """The lowest set bit among the NCAUSE causes, faults first; -1 if none."""
+    if not c:
+        return -1
     for k in range(NCAUSE):
         if (c & _FAULTS) >> k & 1:
             return k
@@ -248,9 +254,12 @@ def first_cause(c):
 
 
 def _bits(c):
+    """The causes set among the NCAUSE."""
+    c &= (1 << NCAUSE) - 1
     n = 0
-    for k in range(NCAUSE):
-        n += c >> k & 1
+    while c:
+        n += c & 1
+        c >>= 1
     return n
 
 
@@ -278,6 +287,7 @@ class StatusPage:
         self._gnss = app.gnss
         self._shown = bytearray(_NFIELD * _WMAX)  # what the screen shows, per field
         self._col = bytearray(_NFIELD)  # and in which colour
+        self._keys = array("i", (_NONE,) * (3 * _NFIELD))  # _same's: each field's inputs
         # each field's command head, made once
         self._heads = tuple(self._head(_COL, f).encode() for f in range(_NFIELD))
         self._rx = bytearray(8)
@@ -326,12 +336,51 @@ class StatusPage:
         self.state = state
         k = (ticks // _SLOT) % _TURNS
         if k < _NFIELD:
-            self._draw(k, self._make(k, ticks))
+            c = self._make(k, ticks)
+            if c >= 0:
+                self._draw(k, c)
         elif k == _END:
             self._end(ticks)
 
+    def _same(self, f, a, b):
+        """Whether field f's inputs a, b and _K are those of its last text; they become so."""
+        k = self._keys
+        f *= 3
+        if k[f] == a and k[f + 1] == b and k[f + 2] == _K[0]:
+            return True
+        k[f] = a
+        k[f + 1] = b
+        k[f + 2] = _K[0]
+        return False
+
+    def _unchanged(self, f):
+        """Whether the inputs of field f, one that changes seldom, are those its text was last
+        made from (the text is then the same: not made again)."""
+        _K[0] = 0
+        if f == _F_STATE:
+            return self._same(f, self.state, 0)
+        if f == _F_FIX:
+            g = self._gnss
+            _K[0] = g.epoch_hdop_x100
+            return self._same(f, g.epoch_quality if self._ff[_FF_VALID] else 0, g.epoch_nsat)
+        if f == _F_LAT or f == _F_LON:
+            g = _FF_LAT_DEG if f == _F_LAT else _FF_LON_DEG
+            return self._same(f, self._ff[g], self._ff[g + 1])
+        if f == _F_HEIGHT:
+            return self._same(f, self._ff[_FF_HEIGHT_DM], 0)
+        if f < _F_HEALTH:
+            return False
+        if self._ext is not None:
+            _K[0] = self._ef[_EF_CAUSES] if f == _F_CAUSE else 0
+            return self._same(f, self._ef[_EF_HEALTH], 0)
+        _K[0] = self._ctl[_C_CAUSES] if f == _F_CAUSE else 0
+        return self._same(f, self._ctl[_C_HEALTH], 0)
+
     def _make(self, f, ticks):
-        """Field f's text into _T (WIDTH[f] characters); its colour."""
+        """Field f's text into _T (WIDTH[f] characters) and its colour; -1 if the field's
+        inputs are those of its last text (_unchanged)."""
+        if self._unchanged(f):
+            return -1
         if f == _F_UP:
             ticks //= _TICKS_S
             p = _num(0, ticks // 3600, 4, 0)

@@ -241,3 +241,29 @@ def test_the_display_settings_are_checked():
         assert cfg.validate().startswith(text), name
     cfg = config.BoardConfig()
     assert cfg.display == 0 and cfg.validate() is None  # off by default
+
+
+def test_a_field_whose_inputs_did_not_change_is_not_made_again():
+    """The fields that change seldom keep their inputs: the same inputs, no text made (and
+    no command); any input changed, the text is made and compared again."""
+    page, a, tx, _, _ = _page()
+    made = []
+    real = page._angle
+    page._angle = lambda f: made.append(f) or real(f)
+
+    def round_(r):
+        for ticks in range(r, r + 8 * 16, 8):
+            page.turn(ticks, 2)
+
+    round_(0)
+    assert made == [sp._F_LAT, sp._F_LON]
+    round_(128)
+    assert made == [sp._F_LAT, sp._F_LON]  # nothing changed: neither made again
+    a._fields[frame.F_LON_FRAC] = 1
+    tx.out.clear()
+    round_(256)
+    assert made[2:] == [sp._F_LON] and b"'  +0.0000001 deg'" in bytes(tx.out)
+    a.gnss.epoch_hdop_x100 = 120  # the third input of the fix's field
+    tx.out.clear()
+    round_(384)
+    assert b"HDOP 1.2" in bytes(tx.out)

@@ -68,6 +68,8 @@ PER_TICK = (
     ("board.py", "_Chars.write_n"),
     ("lib/status_page.py", "StatusPage.turn"),
     ("lib/status_page.py", "StatusPage._make"),
+    ("lib/status_page.py", "StatusPage._unchanged"),
+    ("lib/status_page.py", "StatusPage._same"),
     ("lib/status_page.py", "StatusPage._fix"),
     ("lib/status_page.py", "StatusPage._angle"),
     ("lib/status_page.py", "StatusPage._speed"),
