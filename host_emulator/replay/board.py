@@ -111,5 +111,10 @@ def catalogue():
     ranges["accel_range_g"] = "one of " + ", ".join(map(str, config._ACCEL_RANGES))
     for name in ("output_baud", "gnss_baud"):
         ranges[name] = "one of " + ", ".join(map(str, config._BAUDS))
+    ranges["display"] = "0 off, 1 the status page on the UsartGPU screen"
+    ranges["display_baud"] = "one of " + ", ".join(str(b) for b in config._BAUDS if b >= 38400)
+    ranges["display_w"], ranges["display_h"] = "220..480 px", "176..320 px"
+    for name in ("display_fg", "display_bg", "display_warn", "display_fault"):
+        ranges[name] = "0..255, a palette index"
     base = defaults()
     return [(row[1], _text(base[row[1]]), ranges.get(row[1], "")) for row in config._SCHEMA]
