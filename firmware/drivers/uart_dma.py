@@ -19,7 +19,7 @@ start. Nothing here allocates: the addresses above 2**30 are module-level ints m
 everything else is a small int (stm.mem32 reads and writes, uctypes.addressof).
 """
 
-import kern
+import frame
 import stm
 import uctypes
 from micropython import const
@@ -38,16 +38,6 @@ _DMAT = const(1 << 7)
 _EN = const(1)
 _CR = const(0x400 | 0x40 | 0x10000)  # MINC, memory to peripheral, medium priority
 BUF_BYTES = 512  # each of the two buffers: a tick's frame, extended frame and raw record
-
-
-def _copy_py(dst, off, src, n):
-    """n bytes of src into dst from dst[off]: the reference of the native `bytes_copy` (a
-    memoryview slice of src would be a heap object every tick)."""
-    for i in range(n):
-        dst[off + i] = src[i]
-
-
-_copy = kern.pick("bytes_copy", _copy_py)
 
 
 def supported(uart_id):
@@ -91,7 +81,7 @@ class DmaTx:
         if n == len(buf):
             self._bufs[self._fill][k : k + n] = buf  # a stack slice: no heap object
         else:
-            _copy(self._bufs[self._fill], k, buf, n)
+            frame.bytes_copy(self._bufs[self._fill], k, buf, n)
         self._n = k + n
         self.poll()
         return n

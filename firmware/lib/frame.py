@@ -51,6 +51,16 @@ _GYRO_FRAME_X100 = const(13107)  # 131.07 per deg/s, x100
 _ACCEL_FRAME = const(16383)  # per g
 
 
+def _bytes_copy_py(dst, off, src, n):
+    """n bytes of src into dst from dst[off]: the reference of the native `bytes_copy` (a
+    memoryview slice of src would be a heap object every call)."""
+    for i in range(n):
+        dst[off + i] = src[i]
+
+
+bytes_copy = kern.pick("bytes_copy", _bytes_copy_py)
+
+
 def round_div(num, den):
     """num / den (den > 0) rounded half away from zero, in integers."""
     if num >= 0:

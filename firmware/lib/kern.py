@@ -11,7 +11,7 @@ present and built for this firmware (its `abi()` equals ABI), else the Python ke
 same signature. `NATIVE` and `describe()` say which was chosen (the app prints it at start-up).
 """
 
-ABI = 7  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
+ABI = 8  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
 
 navk = None
 _why = "navk not found"

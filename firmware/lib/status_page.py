@@ -34,6 +34,8 @@ second (`bad_until`).
 
 from array import array
 
+import kern
+from frame import bytes_copy
 from micropython import const
 
 _SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT == 0)
@@ -74,6 +76,10 @@ _V_MAX = const(23170)  # |velocity| clamp, cm/s: the sum of two squares stays a 
 _VAR_MAX = const(0x1FFFFFFF)  # a variance's clamp, cm^2: the sum of two stays a small int
 _POS_MAX = const(99999999)  # cm
 _NONE = const(-0x40000000)  # _same's inputs before the first
+TN_SIGNED = const(0x1000)  # text_num's form: the sign before the digits
+TN_ZEROS = const(0x2000)  # ... zeros before them, not spaces
+_D1 = const(1 << 8)  # text_num's form: 1 decimal, 2 decimals
+_D2 = const(2 << 8)
 # copies of frame.F_*, records.EF_* and nav._C_* (tests/lib/test_status_page.py checks them)
 _FF_VALID = const(5)
 _FF_HEIGHT_DM = const(6)
@@ -116,28 +122,53 @@ def font_for(w, h):
     return 0
 
 
-def _num(p, v, w, dec):
-    """The int v >= 0 over 10**dec into _T[p:p+w], right-aligned, spaces before; p + w."""
+def _text_num_py(t, p, v, form):
+    """The int v over 10**dec into t[p:p+w], right-aligned, spaces before (form: w | dec << 8,
+    | TN_ZEROS for zeros instead, | TN_SIGNED for its sign, + or -, just before the first digit,
+    |v| then: a space must be left for it); p + w. The reference of the native `text_num`."""
+    w = form & 0xFF
+    dec = form >> 8 & 0xF
+    u = -v if v < 0 else v
     i = p + w
     while dec:
         i -= 1
-        _T[i] = 48 + v % 10
-        v //= 10
+        t[i] = 48 + u % 10
+        u //= 10
         dec -= 1
         if not dec:
             i -= 1
-            _T[i] = 46  # the point
+            t[i] = 46  # the point
     i -= 1
-    _T[i] = 48 + v % 10
-    v //= 10
+    t[i] = 48 + u % 10
+    u //= 10
     while i > p:
         i -= 1
-        if v:
-            _T[i] = 48 + v % 10
-            v //= 10
+        if u:
+            t[i] = 48 + u % 10
+            u //= 10
         else:
-            _T[i] = 32
+            t[i] = 48 if form & TN_ZEROS else 32
+    if form & TN_SIGNED:
+        i = p
+        while t[i] == 32:
+            i += 1
+        t[i - 1] = 45 if v < 0 else 43
     return p + w
+
+
+def _text_diff_py(s, o, t, n):
+    """Whether t[0:n] differs from s[o:o+n] (1, else 0); s[o:o+n] becomes t[0:n]. The
+    reference of the native `text_diff`."""
+    d = 0
+    for i in range(n):
+        if s[o + i] != t[i]:
+            s[o + i] = t[i]
+            d = 1
+    return d
+
+
+_text_num = kern.pick("text_num", _text_num_py)
+_text_diff = kern.pick("text_diff", _text_diff_py)
 
 
 def _sign(p, neg):
@@ -147,35 +178,11 @@ def _sign(p, neg):
     _T[p - 1] = 45 if neg else 43
 
 
-def _snum(p, v, w, dec):
-    """_num of |v| with its sign."""
-    e = _num(p, abs(v), w, dec)
-    _sign(p, v < 0)
-    return e
-
-
 def _put(p, s, a, n):
     """s[a:a+n] into _T from p; p + n."""
     for i in range(n):
         _T[p + i] = s[a + i]
     return p + n
-
-
-def _text_to(p, n):
-    """_T[0:n] into _C from p; p + n."""
-    for i in range(n):
-        _C[p + i] = _T[i]
-    return p + n
-
-
-def _changed(s, o, n):
-    """Whether _T[0:n] differs from s[o:o+n]; s[o:o+n] becomes _T[0:n]."""
-    d = False
-    for i in range(n):
-        if s[o + i] != _T[i]:
-            s[o + i] = _T[i]
-            d = True
-    return d
 
 
 def _two(p, v):
@@ -319,7 +326,8 @@ class StatusPage:
         h = self._heads[f]
         p = len(h)
         _C[0:p] = h
-        p = _text_to(p, n)
+        bytes_copy(_C, p, _T, n)
+        p += n
         _C[p] = 39  # '
         _C[p + 1] = 44  # ,
         p = _dec(_C, p + 2, colour)
@@ -383,7 +391,7 @@ class StatusPage:
             return -1
         if f == _F_UP:
             ticks //= _TICKS_S
-            p = _num(0, ticks // 3600, 4, 0)
+            p = _text_num(_T, 0, ticks // 3600, 4)
             _T[p] = 58  # :
             p = _two(p + 1, ticks // 60 % 60)
             _T[p] = 58
@@ -409,13 +417,13 @@ class StatusPage:
         p = _put(0, QUALITY, 6 * (q if 0 <= q <= 8 else 0), 6)
         q = g.epoch_nsat
         if q >= 0:
-            p = _num(p, q if q < 99 else 99, 3, 0)
+            p = _text_num(_T, p, q if q < 99 else 99, 3)
         else:
             p = _put(p, b" --", 0, 3)
         p = _put(p, b" sat HDOP", 0, 9)
         q = g.epoch_hdop_x100
         if q >= 0:
-            _num(p, (q + 5) // 10 if q < 9995 else 999, 4, 1)
+            _text_num(_T, p, (q + 5) // 10 if q < 9995 else 999, 4 | _D1)
         else:
             _put(p, b"  --", 0, 4)
         return self._fg
@@ -424,12 +432,9 @@ class StatusPage:
         """The fix's latitude or longitude: sign, degrees, 7 decimals, " deg"."""
         d = self._ff[_FF_LAT_DEG if f == _F_LAT else _FF_LON_DEG]
         r = self._ff[_FF_LAT_FRAC if f == _F_LAT else _FF_LON_FRAC]
-        p = _num(0, abs(d), 4, 0)
+        p = _text_num(_T, 0, abs(d), 4)
         _T[p] = 46
-        _num(p + 1, abs(r), 7, 0)
-        for i in range(p + 1, p + 8):
-            if _T[i] == 32:
-                _T[i] = 48  # the fraction's leading zeros
+        _text_num(_T, p + 1, abs(r), 7 | TN_ZEROS)
         _sign(0, d < 0 or r < 0)
         _put(p + 8, b" deg", 0, 4)
         return self._fg
@@ -440,9 +445,9 @@ class StatusPage:
         e = _clamp(_i16(b, _FR_VE), _V_MAX)
         b = _clamp(_i16(b, _FR_VN), _V_MAX)
         e = isqrt(e * e + b * b)
-        p = _num(0, e, 6, 2)
+        p = _text_num(_T, 0, e, 6 | _D2)
         p = _put(p, b" m/s", 0, 4)
-        p = _num(p, (e * 36 + 50) // 100, 7, 1)
+        p = _text_num(_T, p, (e * 36 + 50) // 100, 7 | _D1)
         _put(p, b" km/h", 0, 5)
         return self._fg
 
@@ -450,25 +455,25 @@ class StatusPage:
         """Height (the fix's), position from the origin, heading, attitude (the frame's)."""
         b = self._out
         if f == _F_HEIGHT:
-            p = _snum(0, self._ff[_FF_HEIGHT_DM], 9, 1)
+            p = _text_num(_T, 0, self._ff[_FF_HEIGHT_DM], 9 | _D1 | TN_SIGNED)
             _put(p, b" m", 0, 2)
         elif f == _F_POS:
             _T[0] = 69  # E
-            p = _snum(1, _clamp(_i32(b, _FR_PE), _POS_MAX), 10, 2)
+            p = _text_num(_T, 1, _clamp(_i32(b, _FR_PE), _POS_MAX), 10 | _D2 | TN_SIGNED)
             _T[p] = 32
             _T[p + 1] = 78  # N
-            p = _snum(p + 2, _clamp(_i32(b, _FR_PN), _POS_MAX), 10, 2)
+            p = _text_num(_T, p + 2, _clamp(_i32(b, _FR_PN), _POS_MAX), 10 | _D2 | TN_SIGNED)
             _put(p, b" m", 0, 2)
         elif f == _F_HEAD:
             f = _i16(b, _FR_YAW)
-            p = _num(0, f + 36000 if f < 0 else f, 6, 2)
+            p = _text_num(_T, 0, f + 36000 if f < 0 else f, 6 | _D2)
             _put(p, b" deg", 0, 4)
         else:
             _T[0] = 82  # R
-            p = _snum(1, _i16(b, _FR_ROLL), 8, 2)
+            p = _text_num(_T, 1, _i16(b, _FR_ROLL), 8 | _D2 | TN_SIGNED)
             _T[p] = 32
             _T[p + 1] = 80  # P
-            p = _snum(p + 2, _i16(b, _FR_PITCH), 7, 2)
+            p = _text_num(_T, p + 2, _i16(b, _FR_PITCH), 7 | _D2 | TN_SIGNED)
             _put(p, b" deg", 0, 4)
         return self._fg
 
@@ -481,7 +486,7 @@ class StatusPage:
                 f = var_cm2(x, _X_PEE)
                 x = var_cm2(x, _X_PEE + 4)
                 if f >= 0 and x >= 0:
-                    _put(_num(0, isqrt(f + x), 7, 2), b" m", 0, 2)
+                    _put(_text_num(_T, 0, isqrt(f + x), 7 | _D2), b" m", 0, 2)
                     return self._fg
             _put(0, b"     --  ", 0, 9)
             return self._fg
@@ -500,25 +505,28 @@ class StatusPage:
             _put(0, CAUSES, 12 * k, 12)
         k = _bits(c) - 1
         if k > 0:
-            _num(12, k if k < 9 else 9, 3, 0)
+            _text_num(_T, 12, k if k < 9 else 9, 3)
             _T[13] = 43  # " +n"
         else:
             _put(12, b"   ", 0, 3)
 
     def _draw(self, f, colour):
         """Field f's command if its text or colour changed since it was drawn."""
-        if _changed(self._shown, f * _WMAX, WIDTH[f]) or self._col[f] != colour:
+        if _text_diff(self._shown, f * _WMAX, _T, WIDTH[f]) or self._col[f] != colour:
             self._col[f] = colour
             self._send(f, WIDTH[f], colour)
 
     def _end(self, ticks):
         """The batch's end (if it sent anything), after counting the OKs that came."""
         u = self._uart
-        while u.any():
-            n = u.readinto(self._rx) or 0
+        n = u.any()
+        while n:
+            # only what is there: readinto(buf) would wait timeout_char for the rest of buf
+            n = u.readinto(self._rx, n if n < 8 else 8) or 0
             for i in range(n):
                 if self._rx[i] == 75:  # the K of OK
                     self.oks += 1
+            n = u.any()
         if self.oks > self.batches:
             self.oks = self.batches
         if self.oks and self.batches > self.oks:  # it has answered before, not this time

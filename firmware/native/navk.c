@@ -14,7 +14,7 @@
 
 /* Bumped whenever a kernel's signature or a buffer layout changes: firmware/lib/kern.py
  * refuses a module built from another version. */
-#define NAVK_ABI 7
+#define NAVK_ABI 8
 
 int32_t navk_abi(void) { return NAVK_ABI; }
 

@@ -168,7 +168,10 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         "config_status": a.config_status,
         "kernels": kind,
     }
+    # reads that asked for more than had arrived: on the board each waits timeout_char
+    stats["uart_rx_waits"] = gnss_uart.rx_waits
     if screen.gpu is not None:
+        stats["uart_rx_waits"] += screen.uart.rx_waits
         stats["display_batches"] = a.page.batches
         stats["display_oks"] = a.page.oks
         stats["display_missed"] = a.page.missed

@@ -342,3 +342,4 @@ def test_what_the_firmware_sends_to_the_screen_is_the_models(overrides):
     assert ("'aligning  '" in shown) and ("DS12(" in shown) == ("display_w" in overrides)
     assert "display: identical" in r.summary()
     assert r.firmware_stats["display_missed"] == 0 and r.firmware_stats["display_oks"] > 20
+    assert r.firmware_stats["uart_rx_waits"] == 0  # no read ever waits for bytes not there

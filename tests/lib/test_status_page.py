@@ -18,6 +18,7 @@ firmware_env.install()
 import app  # noqa: E402
 import config  # noqa: E402
 import frame  # noqa: E402
+import kern  # noqa: E402
 import nav  # noqa: E402
 import records  # noqa: E402
 import status_page as sp  # noqa: E402
@@ -267,3 +268,38 @@ def test_a_field_whose_inputs_did_not_change_is_not_made_again():
     tx.out.clear()
     round_(384)
     assert b"HDOP 1.2" in bytes(tx.out)
+
+
+def test_the_text_kernels_are_their_python_references():
+    """navk's text_num and text_diff (firmware/native/text.c) against the page's Python
+    references, on the forms the page uses and random ones within their preconditions."""
+    assert kern.navk is not None
+    rng = np.random.default_rng(3)
+    for _ in range(3000):
+        w = int(rng.integers(1, 26))
+        dec = int(rng.integers(0, 4)) if w > 4 else 0
+        flags = int(rng.choice([0, sp.TN_SIGNED, sp.TN_ZEROS]))
+        room = w - (dec + 1 if dec else 0) - (1 if flags & sp.TN_SIGNED else 0)
+        if room < 1:  # no room for a digit (and the sign): not a form the page uses
+            continue
+        v = int(rng.integers(0, 10 ** min(room, 9)))
+        if flags & sp.TN_SIGNED and rng.random() < 0.5:
+            v = -v
+        p = int(rng.integers(0, 5))
+        form = w | dec << 8 | flags
+        a, b = bytearray(b"#" * 32), bytearray(b"#" * 32)
+        assert sp._text_num_py(a, p, v, form) == kern.navk.text_num(b, p, v, form) == p + w
+        assert a == b, (v, w, dec, flags)
+    for _ in range(500):
+        n = int(rng.integers(1, 26))
+        s1 = bytearray(rng.integers(65, 68, 40).astype(np.uint8).tobytes())
+        s2 = bytearray(s1)
+        t = bytes(rng.integers(65, 68, n).astype(np.uint8))
+        o = int(rng.integers(0, 40 - n))
+        assert sp._text_diff_py(s1, o, t, n) == kern.navk.text_diff(s2, o, t, n)
+        assert s1 == s2 and s1[o : o + n] == t
+    t = bytearray(16)
+    sp._text_num_py(t, 0, -1234, 9 | 2 << 8 | sp.TN_SIGNED)
+    assert bytes(t[:9]) == b"   -12.34"
+    sp._text_num_py(t, 0, 42, 7 | sp.TN_ZEROS)
+    assert bytes(t[:7]) == b"0000042"

@@ -589,6 +589,7 @@ class UART:
     def _setup(self, id):
         self.id = id
         self.overflow = 0  # received bytes dropped because the ring was full
+        self.rx_waits = 0  # reads that would have waited timeout_char (readinto)
         self.tx_overflow = 0  # written bytes that did not fit the transmit buffer
         self.tx = bytearray(TX_CAPACITY)
         self.tx_n = 0
@@ -663,12 +664,16 @@ class UART:
 
     def readinto(self, buf, nbytes=-1):
         """Up to nbytes (default len(buf)) received bytes into buf; the count, or None when
-        nothing has arrived (the stm32 port with timeout=0)."""
+        nothing has arrived (the stm32 port with timeout=0). Asking for more than has arrived
+        makes the port wait timeout_char ms after the last byte (mp_machine_uart_read): such a
+        read is counted in `rx_waits` (the emulated loop takes no time for it)."""
         _emu_in()
         n = len(buf)
         if 0 <= nbytes < n:
             n = nbytes
         if n > self._count:
+            if self._count:
+                self.rx_waits += 1
             n = self._count
         if n <= 0:
             _emu_out()
