@@ -10,11 +10,13 @@ range, overruns) together with the heap, the start-up and the firmware image's b
 FILE (default docs/benchmarks/board.md; the numbers in a .json and a plot beside it).
 
 Beside it, the image itself on the emulated STM32F411 (runtimes/f411) over the same drive,
-raw-input records off and on, and with the 10 Hz receiver: the time each tick takes at the
-image's 96 MHz, the port's drivers, interrupts and DMA included (bench/board_time.py).
+raw-input records off and on, with the 10 Hz receiver, and with the screen's status page (the
+display setting on, the UsartGPU on USART6): the time each tick takes at the image's 96 MHz,
+the port's drivers, interrupts and DMA included (bench/board_time.py), and what a turn of the
+page costs, tick by tick against the run without it.
 
 The emulated Cortex-M4F runs at about real time, the emulated STM32F411 at 0.4-1x, so the
-default (urban_drive, 600 s, six runs on two processes) takes about 50 minutes. It is a
+default (urban_drive, 600 s, seven runs on two processes) takes about an hour. It is a
 benchmark: the design budget (DESIGN.md 4: p99 <= 50,000 and max <= 100,000 instructions per
 tick, no gc.collect while navigating) and the image's targets (a navigating tick at most 2.5 ms
 at p99 and 4 ms at most, no tick late or missed) are reported against, not asserted.
@@ -44,12 +46,23 @@ VARIANTS = (
     ("default, a 10 Hz receiver", {}, _10_HZ),
 )
 # the image itself on the emulated STM32F411 (runtimes/f411): the default configuration with
-# the raw-input records off and on (the output's heaviest load), and with a 10 Hz receiver
+# the raw-input records off and on (the output's heaviest load), with a 10 Hz receiver, and
+# with the screen's status page (compared tick by tick with the first: page_lines)
 TWIN_VARIANTS = (
     ("image, raw_record off", {}, {}),
     ("image, raw_record on", {"raw_record": 1}, {}),
     ("image, a 10 Hz receiver", {}, _10_HZ),
+    ("image, the screen's status page", {"display": 1}, {}),
 )
+# the f411 runtime's figures of the screen (runtimes/f411/world.py Screen.stats)
+SCREEN_KEYS = ("display_bytes", "display_batches", "display_oks", "display_missed",
+               "display_cause_frames", "display_rx_lost")  # fmt: skip
+PAGE_SLOT, PAGE_ROUND, PAGE_END = 8, 128, 104  # status_page: a turn every 8 ticks, the batch's
+# end at the app's ticks = 104 mod 128 (tick k runs with the app's ticks k + 1)
+# a tick whose garbage collector ran (a collection, or a long search for a free block): more
+# instructions in gc_* than the hard interrupts' gc_lock/gc_unlock (10 a tick) and a small
+# allocation take; page_cost leaves these ticks out
+GC_TICK_INSTR = 5_000
 # each variant's configuration in `make bench-nav` (docs/benchmarks/navigation.json), whose
 # accuracy the report sets beside the cost
 NAV_PROFILES = {
@@ -133,7 +146,9 @@ def _one_twin(task):
         "wall_s": fw.wall_s,
         "time": board_time.summary(fw.per_tick, states, hz, fw.stats["cpi"], stim.tick_us),
         "run": {k: fw.stats.get(k) for k in board_time.RUN_KEYS},
+        "screen": {k: fw.stats[k] for k in SCREEN_KEYS if k in fw.stats},
         "per_tick_busy_ms": (fw.per_tick["busy_cycles"] * 1000.0 / hz).round(4).tolist(),
+        "per_tick_gc": (fw.per_tick["gc_instr"] > GC_TICK_INSTR).tolist(),
         "per_tick_state": states.tolist(),
     }
 
@@ -278,6 +293,7 @@ def twin_lines(twin, m4f_results):
             f"{run['watchdog_timeout_ms']:g} ms). "
             + ("Met." if all(met) else f"Not met ({len(met) - sum(met)} of {len(met)}).")
         )
+    lines += page_lines(ok)
     m4f_nav = [r["cost"]["phases"]["navigating"]["firmware_instr"]["mean"]
                for r in m4f_results if "error" not in r
                and "navigating" in r["cost"]["phases"]][:1]  # fmt: skip
@@ -294,6 +310,92 @@ def twin_lines(twin, m4f_results):
         ]
     lines += ["", "Wall time of the emulation: "
               + ", ".join(f"{r['label']} {r['wall_s']:.0f} s" for r in ok) + "."]  # fmt: skip
+    return lines
+
+
+def page_cost(base_ms, page_ms, gc=None, tick_ms=5.0):
+    """What the screen's status page costs, from the busy time per tick (ms) of two runs of
+    the same drive, without and with it (gc: ticks where either collected garbage, left
+    out). A turn is tick k with k + 1 a multiple of PAGE_SLOT (the batch's end: k + 1 =
+    PAGE_END mod PAGE_ROUND); its cost is its busy time with the page less without."""
+    base = np.asarray(base_ms, float)
+    page = np.asarray(page_ms, float)
+    k = np.arange(len(page))
+    keep = ~np.asarray(gc, bool) if gc is not None else np.ones(len(page), bool)
+    turn = ((k + 1) % PAGE_SLOT == 0) & keep
+    end = turn & ((k + 1) % PAGE_ROUND == PAGE_END)
+    other = ~((k + 1) % PAGE_SLOT == 0) & keep
+    d = (page - base) * 1000.0  # us
+    worst = int(k[turn][np.argmax(d[turn])]) if turn.any() else None
+
+    def figures(m):
+        if not m.any():
+            return None
+        x = d[m]
+        return {"mean": float(x.mean()), "p99": float(np.percentile(x, 99)),
+                "max": float(x.max())}  # fmt: skip
+
+    return {
+        "turns": int(turn.sum()),
+        "turn_us": figures(turn),
+        "end_us": figures(end),
+        "other_us_mean": figures(other)["mean"] if other.any() else None,
+        "worst_tick": worst,
+        "worst_is_end": worst is not None and (worst + 1) % PAGE_ROUND == PAGE_END,
+        "turn_busy_ms_max": float(page[turn].max()) if turn.any() else None,
+        "turns_over_period": int(np.sum(page[turn] >= tick_ms)),
+        "over_period": int(np.sum(page >= tick_ms)),
+        "base_over_period": int(np.sum(base >= tick_ms)),
+        "gc_ticks_left_out": int((~keep).sum()),
+    }
+
+
+def page_lines(twin):
+    """The screen's status page against the first configuration, tick by tick (page_cost),
+    for each twin run with the display setting on."""
+    base = next((r for r in twin if not r.get("overrides") and not r.get("receiver")), None)
+    lines = []
+    for r in twin:
+        if not (r.get("overrides") or {}).get("display") or base is None:
+            continue
+        if len(r.get("per_tick_busy_ms", ())) != len(base.get("per_tick_busy_ms", ())):
+            continue
+        gc = np.logical_or(r["per_tick_gc"], base["per_tick_gc"])
+        c = page_cost(base["per_tick_busy_ms"], r["per_tick_busy_ms"], gc)
+        if c["turn_us"] is None:
+            continue
+        sc = r.get("screen", {})
+        t, e = c["turn_us"], c["end_us"]
+        lines += [
+            "",
+            f"### {r['label']}",
+            "",
+            f"The display setting on: the status page (firmware/lib/status_page.py) on the "
+            f"emulated UsartGPU on USART6 (the Black Pill's PA11/PA12), its commands handed to "
+            f"the UART's DMA, its OKs read at each batch's end. Against {base['label']}, tick by "
+            f"tick over the same drive ({c['gc_ticks_left_out']} ticks with a garbage "
+            f"collection in either run left out): a turn of the page (every {PAGE_SLOT}th "
+            f"tick: one field made and, if it changed, its command queued) costs "
+            f"{t['mean']:.0f} us mean, {t['p99']:.0f} us p99, {t['max']:.0f} us at worst (tick "
+            f"{c['worst_tick']}"
+            + (", a batch's end" if c["worst_is_end"] else "")
+            + f"); a batch's end (every {PAGE_ROUND}th tick: the OKs counted, `\\r\\n`) "
+            f"{e['mean']:.0f} us mean, {e['max']:.0f} us at most; the other ticks "
+            f"{c['other_us_mean']:.0f} us mean (the transmitter's poll before each sleep). "
+            "Ticks with a turn: busy at most "
+            + (">= 5 ms (late)" if c["turns_over_period"] else f"{c['turn_busy_ms_max']:.2f} ms")
+            + f", {c['turns_over_period']} of {c['turns']} at 5 ms or more; in the whole run "
+            f"{c['over_period']} ticks at 5 ms or more ({c['base_over_period']} without the "
+            "page).",
+        ]
+        if sc:
+            lines += [
+                "",
+                f"The screen got {sc['display_bytes']:,} bytes in {sc['display_batches']} "
+                f"batches and answered {sc['display_oks']}: {sc['display_missed']} missed by "
+                f"status_page's rule, {sc['display_cause_frames']} extended frames with the "
+                "display cause.",
+            ]
     return lines
 
 

@@ -150,7 +150,11 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
     with tempfile.TemporaryDirectory(prefix="parity-") as d:
         fw = runtimes.get(runtime).run(stim, Path(d), config_overrides, progress, kernels,
                                        board)  # fmt: skip
-        model = runtimes.get("model").run(stim, Path(d), config_overrides, progress)
+        # the model told the image's board: whether it wires a screen (the runtimes' own check
+        # refuses --board for the model on the command line)
+        from host_emulator.runtimes import model as model_runtime
+
+        model = model_runtime.run(stim, Path(d), config_overrides, progress, board=board)
     cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
     zeroed = runtimes.get(runtime).own_run_time
     fw_out, model_out = fw.out, model.out

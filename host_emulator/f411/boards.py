@@ -9,7 +9,8 @@ these wirings and firmware/board.py's BOARDS agree.
                     PC13 by its external pull-up). Held low at reset, the port enters its
                     boot-mode selection, which no test wants.
     repl_uart       the USART of the image's REPL, or None (the Black Pill's is on USB)
-    spi, cs_accel, cs_gyro, gnss_uart, pps, out_uart, rs485_de, led: as firmware/board.py
+    spi, cs_accel, cs_gyro, gnss_uart, pps, out_uart, rs485_de, led, display_uart: as
+                    firmware/board.py (display_uart: the UsartGPU screen's USART, or None)
 """
 
 from dataclasses import dataclass
@@ -30,13 +31,14 @@ class Board:
     out_uart: int
     rs485_de: str
     led: str | None
+    display_uart: int | None
 
 
 BOARDS = {
     "WEACT_F411_BLACKPILL": Board("WEACT_F411_BLACKPILL", "WEACT_F411_BLACKPILL", 25_000_000,
-                                  ("A", 0), None, 1, "B6", "B7", 2, "B0", 1, "A8", "C13"),
+                                  ("A", 0), None, 1, "B6", "B7", 2, "B0", 1, "A8", "C13", 6),
     "NUCLEO_F411RE": Board("NUCLEO_F411RE", "NUCLEO-F411RE", 8_000_000, ("C", 13), 2, 1, "B6",
-                           "B7", 6, "B0", 1, "A8", None),
+                           "B7", 6, "B0", 1, "A8", None, None),
 }  # fmt: skip
 
 

@@ -299,11 +299,12 @@ def run(stim, config_overrides=None, progress=None, *, tick_hook=None):
     return run_all(stim, config_overrides, progress, tick_hook=tick_hook)[0]
 
 
-def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
+def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board=None):
     """(out, (display, marks)): the output byte stream (frames, extended frames, raw records as
     configured) that the firmware produces for `stim` under the runtimes' board configuration
     plus the overrides, and what it sends to the screen's UART (model/display.py; b"" with the
-    display off) with FirmwareRun.display_marks.
+    display off) with FirmwareRun.display_marks. board: the image's board (f411/boards.py) whose
+    wiring decides whether there is a screen (None: the firmware's default board).
 
     progress(k, n): every 2000 ticks and at the end. tick_hook(k, model): called at tick k
     before the navigator's step (tests use it to perturb the model)."""
@@ -363,7 +364,7 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
         "p_n": np.zeros((nf, 3), F32),
     }
     extra = {}  # tick -> bytes sent after that tick's frame (extended frame, raw record)
-    page = _page(cfg, fw_board)  # the screen's status page (None: off, or no UART for it)
+    page = _page(cfg, fw_board, board)  # the screen's status page (None: off, or no UART)
     views = []  # (ticks, display.View without its frame, the last frame's index) per turn
     last_ext = None
     ring = bytearray()
@@ -506,9 +507,15 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None):
     return bytes(out), shown
 
 
-def _page(cfg, fw_board):
+def _page(cfg, fw_board, board=None):
     """The status page app.App makes: display on, a UART for it, a size that fits."""
-    if not cfg.display or fw_board.PINS["display_uart"] is None:
+    if board is None:
+        uart = fw_board.PINS["display_uart"]
+    else:
+        from host_emulator.f411 import boards
+
+        uart = boards.BOARDS[board].display_uart
+    if not cfg.display or uart is None:
         return None
     if display.font_for(cfg.display_w, cfg.display_h) == 0:
         return None

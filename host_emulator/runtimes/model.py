@@ -9,14 +9,15 @@ from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
 
 
-def run(stim, workdir=None, config_overrides=None, progress=None):
+def run(stim, workdir=None, config_overrides=None, progress=None, board=None):
     """FirmwareRun of the model over `stim`, a Stimulus or a stimulus file (workdir is not
-    used: the model has no flash)."""
+    used: the model has no flash). board: the image's board whose wiring decides whether the
+    screen has a UART (parity against the f411 runtime; None: the firmware's default)."""
     from host_emulator.model import app
 
     if isinstance(stim, (str, os.PathLike)):
         stim = stim_mod.read(stim)
     t = time.perf_counter()
-    out, (shown, marks) = app.run_all(stim, config_overrides, progress)
+    out, (shown, marks) = app.run_all(stim, config_overrides, progress, board=board)
     return FirmwareRun("model", out, [], len(stim), time.perf_counter() - t, display=shown,
                        display_marks=marks)  # fmt: skip

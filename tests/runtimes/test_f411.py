@@ -62,6 +62,32 @@ def test_the_blackpill_images_frames_equal_the_models_over_30_s(tmp_path):
     assert r.firmware_stats["overruns"] == 0  # the firmware's own count: no tick missed
 
 
+def test_the_blackpills_screen_gets_the_models_bytes_and_answers():
+    """The display setting on: the image drives the UsartGPU screen on USART6 (PA11/PA12,
+    mpconfigboard.h) by DMA; what it sends equals the model's byte for byte, and the screen's
+    OKs come back into USART6 and are counted (the start page and three rounds' batches)."""
+    stim = board_input.simulate("quick_start", duration_s=2.0, seed=0).stimulus
+    r = parity.compare(stim, {"display": 1}, runtime="f411")
+    assert r.identical and r.display_first_byte is None, r.summary()
+    assert "display: status page on the screen's UART at 115200" in r.firmware_run.console
+    st = r.firmware_stats
+    assert st["display_batches"] == 4 and st["display_oks"] == 4, st
+    assert st["display_missed"] == st["display_cause_frames"] == st["display_rx_lost"] == 0
+    assert st["late_ticks"] == 0 and st["overruns"] == 0
+    marks = r.firmware_run.display_marks
+    assert marks[0][0] == -1 and marks[-1][1] == len(r.display_firmware) > 1000
+    assert all(a[0] < b[0] and a[1] < b[1] for a, b in zip(marks, marks[1:], strict=False))
+
+
+def test_the_nucleo_has_no_screen_and_says_so():
+    """The NUCLEO's three USARTs are taken: display=1 draws nothing, the console says why, and
+    the model (told the board) agrees."""
+    stim = board_input.simulate("quick_start", duration_s=1.0, seed=0).stimulus
+    r = parity.compare(stim, {"display": 1}, runtime="f411", board="NUCLEO_F411RE")
+    assert r.identical and r.display_firmware == r.display_model == b"", r.summary()
+    assert any("no UART for the screen" in line for line in r.firmware_run.console)
+
+
 def test_the_twins_wiring_is_the_firmwares_pin_table():
     board_py = firmware_env.import_module("board")
     for name, bd in boards.BOARDS.items():
@@ -69,7 +95,7 @@ def test_the_twins_wiring_is_the_firmwares_pin_table():
         assert pins == {
             "spi_id": bd.spi, "cs_accel": bd.cs_accel, "cs_gyro": bd.cs_gyro,
             "gnss_uart": bd.gnss_uart, "pps": bd.pps, "out_uart": bd.out_uart,
-            "rs485_de": bd.rs485_de, "led": bd.led,
+            "rs485_de": bd.rs485_de, "led": bd.led, "display_uart": bd.display_uart,
         }, name  # fmt: skip
     assert board_py.DEFAULT_BOARD == f411.DEFAULT_BOARD
 

@@ -12,10 +12,12 @@ starts its loop as on a board.
 
 The world around the chip (world.py): the BMI055's two dies on SPI1 behind their chip selects,
 the GNSS receiver's bytes on the GNSS UART at the baud rate, its PPS on the EXTI line of PB0,
-the RS485 transceiver on USART1. Stimulus record k belongs to the firmware's tick k, the k-th
-expiry of its 5 ms timer (found when the image inserts the soft timer); the runtime measures
-every tick on the twin's clock (CPI from docs/benchmarks/cpi.md, 2.4106 by default: the
-slowest measured MicroPython code).
+the RS485 transceiver on USART1, and with the display setting on the UsartGPU screen on the
+Black Pill's USART6 (FirmwareRun.display and display_marks, as the cpython runtime gives them;
+the screen's OKs come back, and its counters are in stats["display_*"]). Stimulus record k
+belongs to the firmware's tick k, the k-th expiry of its 5 ms timer (found when the image
+inserts the soft timer); the runtime measures every tick on the twin's clock (CPI from
+docs/benchmarks/cpi.md, 2.4106 by default: the slowest measured MicroPython code).
 
 FirmwareRun.stats carries the run's figures; FirmwareRun.per_tick (PER_TICK records) what each
 tick cost: busy time from the tick's timer to the loop's return to WFI, instructions, of which
@@ -104,7 +106,8 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None, board
     chip = F411(bd, image, cpi=cpi or DEFAULT_CPI)
     chip.flash_write_raw(flashfs.PART_BASE, part)
     values = board_config.run_values(stim, config_overrides)
-    world = World(chip, bd, stim, gnss_baud=int(values.get("gnss_baud", 9600)))
+    world = World(chip, bd, stim, gnss_baud=int(values.get("gnss_baud", 9600)),
+                  display=screen(values))  # fmt: skip
     if not world.wait_for_start(START_LIMIT_S):
         raise FirmwareError(
             f"the firmware on the {bd.name} image did not start its 5 ms tick within "
@@ -122,4 +125,18 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None, board
                   "realtime_factor": stim.duration_s / wall if wall > 0 else None})  # fmt: skip
     fw = FirmwareRun("f411", world.output(), world.console_lines(), n, wall, None, stats)
     fw.per_tick = world.per_tick
+    fw.display, fw.display_marks = world.display()
     return fw
+
+
+def screen(values):
+    """((width, height), baud) of the screen the firmware drives with these configuration
+    values (its display setting on), or None: off, or a configuration the firmware refuses
+    (it then runs on its defaults, the display off)."""
+    try:
+        cfg = board_config.from_values(values)
+    except board_config.ConfigError:
+        return None
+    if not cfg.display:
+        return None
+    return (cfg.display_w, cfg.display_h), cfg.display_baud

@@ -18,6 +18,13 @@
 - The RS485 transceiver: every character the output USART starts while the transceiver's
   driver enable (DE) is high is the output stream, in order (a character counts once its start
   bit is on the line); one started with DE low never reaches the bus (counted: `rs485_muted`).
+- The UsartGPU screen (display/device.py), with the firmware's display setting on and a board
+  that has a USART for it (the Black Pill's USART6): every character the display USART starts
+  reaches the screen at the end of its frame (strict: a stream that breaks the screen's rules
+  stops the run); the OKs it answers that are due by T_k come back into the USART's receive
+  side from T_k on, back to back at its baud (late by at most a tick, never early). The
+  display stream's marks give each byte the tick it started in (start-up: -1), and its
+  counters are counted from the stream (Screen.stats).
 - The console: what MicroPython prints (mp_hal_stdout_tx_strn), whichever port it goes to.
 
 Per tick, from T_k to T_(k+1): busy = from T_k to the loop's first WFI after it (the tick's
@@ -28,12 +35,17 @@ executed, of which in handler mode and in the port's UART and SPI/DMA code, the 
 on polled peripheral flags (blocking UART writes spin on TXE), exceptions taken.
 """
 
+import bisect
+
 import numpy as np
 
 from host_emulator import firmware_env
+from host_emulator.display.device import UsartGpu
+from host_emulator.display.usartgpu import REPLY, DisplayError
 from host_emulator.errors import EmulatorError
 from host_emulator.f411 import image as image_mod
-from host_emulator.proto import stream
+from host_emulator.model import display as page_model
+from host_emulator.proto import records, stream
 
 PPS_HIGH_US = 100_000
 _CAT = {name: i for i, name in enumerate(image_mod.CATEGORIES)}
@@ -42,7 +54,9 @@ _ENTRY_MODE, _ENTRY_DELTA = 18, 24  # soft_timer_entry_t offsets (shared/runtime
 
 
 class World:
-    def __init__(self, chip, board, stim, gnss_baud):
+    def __init__(self, chip, board, stim, gnss_baud, display=None):
+        """display: ((width, height), baud) of the screen when the firmware's display setting
+        is on (None: off); attached only if the board has a USART for it."""
         self.chip = chip
         self.board = board
         self.stim = stim
@@ -75,6 +89,9 @@ class World:
         self._busy_end = None
         self._snap = None
         self.per_tick = None
+        self.screen = None
+        if display is not None and board.display_uart is not None:
+            self.screen = Screen(self, chip.usart[board.display_uart], *display)
 
     # -- observing the image ------------------------------------------------------------
 
@@ -206,6 +223,8 @@ class World:
         imu.accel.responds = imu.gyro.responds = not silent
         imu.set_registers(self._regs, 12 * k, 12 * k + 6)
         imu.set_temperature_raw(self._temp[k])
+        if self.screen is not None:
+            self.screen.answer()
         n = len(self.stim)
         if k + 1 < n:
             self._inputs(k + 1)
@@ -290,7 +309,111 @@ class World:
                 k: v * 1000 / hz for k, v in sorted(chip.bus.poll_wait_by.items())
             },  # fmt: skip
             "flash_erases": chip.flash_if.erases,
+            **(self.screen.stats(ext) if self.screen is not None else {}),
         }
+
+    def display(self):
+        """(FirmwareRun.display, display_marks): every byte the display USART started, in
+        order, and (tick, end offset) after each tick whose bytes started in it (-1: before
+        T_0; a byte started after the run's end counts in its last tick)."""
+        if self.screen is None:
+            return b"", []
+        return self.screen.data(), self.screen.marks(self.t0, self._tick_cycles, len(self.stim))
+
+
+class Screen:
+    """The emulated UsartGPU on the display USART (display/device.py)."""
+
+    def __init__(self, world, usart, size, baud):
+        self.world = world
+        self.clock = world.clock
+        self.usart = usart
+        self.baud = baud
+        self.gpu = UsartGpu(size, baud)
+        self.sent = []  # (start cycle, byte)
+        self.ok_ends = []  # the cycle each answered character completes
+        usart.on_tx.append(self._tx)
+
+    def _tx(self, byte, at):
+        u = self.usart
+        if not self.sent and abs(u.baud() - self.baud) > 0.03 * self.baud:
+            raise EmulatorError(
+                f"the firmware set USART{u.number} to {u.baud():.0f} baud but the screen "
+                f"takes {self.baud} (display_baud): a screen would receive garbage"
+            )
+        self.sent.append((at, byte))
+        try:
+            self.gpu.receive(bytes((byte,)), self.clock.us(at + u.char_cycles()))
+        except DisplayError as e:
+            if self.world.error is None:
+                self.world.error = f"the screen refused what USART{u.number} sent: {e}"
+
+    def answer(self):
+        """At T_k: the OKs the screen has answered by now, into the USART from now on."""
+        now = self.clock.now()
+        ok = self.gpu.replies(self.clock.us(now))
+        char = self.usart.char_cycles()
+        for i, b in enumerate(ok):
+            end = now + (i + 1) * char
+            self.usart.receive(b, end)
+            self.ok_ends.append(end)
+
+    def data(self):
+        return bytes(b for _, b in self.sent)
+
+    def marks(self, t0, tick_cycles, n):
+        out = []
+        for i, (at, _) in enumerate(self.sent):
+            k = -1 if t0 is None or at < t0 else min((at - t0) // tick_cycles, n - 1)
+            if out and out[-1][0] == k:
+                out[-1] = (k, i + 1)
+            else:
+                out.append((k, i + 1))
+        return out
+
+    def stats(self, ext):
+        """The screen's figures: its batches (each `\\r\\n`), the OKs it answered that
+        reached the board, the batches the firmware counts as missed (its rule, status_page
+        _end, replayed on the stream: at each batch's end, from T_k, the OKs arrived against
+        the batches sent), the extended frames carrying the display cause, and the OK
+        characters the USART lost."""
+        w = self.world
+        crlf = [at for i, (at, b) in enumerate(self.sent)
+                if b == 10 and i and self.sent[i - 1][1] == 13]  # fmt: skip
+        k = REPLY.index(b"K")  # the character status_page counts
+        return {
+            "display_bytes": len(self.sent),
+            "display_batches": self.gpu.stream.batches,
+            "display_oks": len(self.ok_ends) // len(REPLY),
+            "display_missed": _missed(crlf, self.ok_ends[k :: len(REPLY)], w),
+            "display_cause_frames": sum(1 for e in ext if (e["causes"] or 0) & CAUSE_DISPLAY),
+            "display_rx_lost": self.usart.rx_lost,
+            "display_demo_at_us": self.gpu.demo_at_us,
+        }
+
+
+CAUSE_DISPLAY = {name: bit for bit, name in records.CAUSES}["display_unanswered"]
+_ROUND = page_model.SLOT * page_model.TURNS  # ticks of a round of the page
+_END_PHASE = page_model.SLOT * page_model.FIELDS  # the app's `ticks` of the batch's end
+
+
+def _missed(crlf, ok_ends, w):
+    """status_page._end's count of unanswered batches: at each batch end (tick k with app
+    ticks k + 1 = _END_PHASE mod _ROUND, read from T_k), the OKs arrived (ok_ends: each OK's
+    K) against the batches ended (crlf: each `\\r\\n`'s start)."""
+    oks = missed = 0
+    seen = 0
+    for k in range(_END_PHASE - 1, len(w.stim), _ROUND):
+        t = w.tick_cycle(k)
+        now_seen = bisect.bisect_left(ok_ends, t)
+        oks += now_seen - seen
+        seen = now_seen
+        batches = bisect.bisect_left(crlf, t)
+        oks = min(oks, batches)
+        if oks and batches > oks:
+            missed += batches - oks
+            oks = batches
+    return missed
 
 
 def _per_tick_dtype():

@@ -9,3 +9,10 @@
 
 #undef MICROPY_HW_UART_REPL
 #undef MICROPY_HW_UART_REPL_BAUD
+
+// USART6 for the UsartGPU screen (firmware/board.py's display_uart; docs/display.md). The
+// F411CE's 48-pin package brings USART6 out only on PA11 (TX) and PA12 (RX), the USB pins:
+// the firmware opens it only with its `display` setting on, and then the board has no USB
+// console once the loop starts. Without these the port has no UART(6) at all.
+#define MICROPY_HW_UART6_TX     (pin_A11)
+#define MICROPY_HW_UART6_RX     (pin_A12)
