@@ -78,7 +78,8 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 _FIX_BYTES = const(1024)
 _FIX_MARGIN = const(4)
 _FIX_MIN = const(64)
-_PAGE_SLOT = const(8)  # status_page._SLOT: a turn of the screen's page every 8 ticks
+_PAGE_SLOT = const(8)  # status_page._SLOT: a turn of the screen's page every 8 ticks,
+_PAGE_PHASE = const(3)  # at ticks 3 mod 8, odd: never the extended frame's (every 20)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
 # exists only in its own module; tests/test_app.py checks that the copies agree)
@@ -315,7 +316,7 @@ class App:
         if imu is None:
             if self.ticks % 200 == 0:
                 self._start_imu()
-            if self.page is not None and self.ticks % _PAGE_SLOT == 0:
+            if self.page is not None and self.ticks % _PAGE_SLOT == _PAGE_PHASE:
                 self.page.turn(self.ticks, -1)
             self.board.wdt_feed()
             return
@@ -338,7 +339,7 @@ class App:
             self._send_ext(imu)
         if cfg.raw_record:
             self._send_raw(imu, t0)
-        if self.page is not None and self.ticks % _PAGE_SLOT == 0:
+        if self.page is not None and self.ticks % _PAGE_SLOT == _PAGE_PHASE:
             self.page.turn(self.ticks, state)  # one field of the screen's page
         if self._wdt is not None:
             self._wdt.feed()

@@ -3,8 +3,8 @@
 The screen takes ASCII commands, each ending in `;`, and draws a batch when `\\r\\n` comes;
 it then answers `OK\\r\\n`. At start (`start`, before the loop's timer: the screen starts a
 demo loop if nothing comes within ~10 s of power-up) the page is cleared and its labels drawn.
-Then one field's turn comes every _SLOT ticks (`turn`, called by the loop when ticks is a
-multiple of _SLOT, with the navigator's state): the field's text is made and, only if it or
+Then one field's turn comes every _SLOT ticks (`turn`, called by the loop when ticks is 3
+mod _SLOT, with the navigator's state): the field's text is made and, only if it or
 its colour differs from what the screen shows, sent as one `DSn(x,y,'text',c);` command.
 After the last field, a batch that sent anything is ended with `\\r\\n`. A round of _TURNS
 turns is 0.64 s.
@@ -38,7 +38,8 @@ import kern
 from frame import bytes_copy
 from micropython import const
 
-_SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT == 0)
+_SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT is 3:
+# odd, so a turn never shares its tick with an extended frame, 0.6 ms of work every 20 ticks)
 _TURNS = const(16)  # turns in a round: the 13 fields, the batch's end, two idle
 _END = const(13)  # the turn that ends the batch
 _NFIELD = const(13)
@@ -339,7 +340,7 @@ class StatusPage:
     # ---- per turn ------------------------------------------------------------------------
 
     def turn(self, ticks, state):
-        """The turn of tick `ticks` (a multiple of _SLOT): one field, or the batch's end.
+        """The turn of tick `ticks` (3 mod _SLOT): one field, or the batch's end.
         state: the navigator's, or -1 without an IMU."""
         self.state = state
         k = (ticks // _SLOT) % _TURNS

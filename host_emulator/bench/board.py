@@ -57,8 +57,9 @@ TWIN_VARIANTS = (
 # the f411 runtime's figures of the screen (runtimes/f411/world.py Screen.stats)
 SCREEN_KEYS = ("display_bytes", "display_batches", "display_oks", "display_missed",
                "display_cause_frames", "display_rx_lost")  # fmt: skip
-PAGE_SLOT, PAGE_ROUND, PAGE_END = 8, 128, 104  # status_page: a turn every 8 ticks, the batch's
-# end at the app's ticks = 104 mod 128 (tick k runs with the app's ticks k + 1)
+# status_page: a turn every 8 ticks at the app's ticks 3 mod 8, the batch's end at 107 mod 128
+# (tick k runs with the app's ticks k + 1)
+PAGE_SLOT, PAGE_PHASE, PAGE_ROUND, PAGE_END = 8, 3, 128, 107
 # a tick whose garbage collector ran (a collection, or a long search for a free block): more
 # instructions in gc_* than the hard interrupts' gc_lock/gc_unlock (10 a tick) and a small
 # allocation take; page_cost leaves these ticks out
@@ -316,15 +317,15 @@ def twin_lines(twin, m4f_results):
 def page_cost(base_ms, page_ms, gc=None, tick_ms=5.0):
     """What the screen's status page costs, from the busy time per tick (ms) of two runs of
     the same drive, without and with it (gc: ticks where either collected garbage, left
-    out). A turn is tick k with k + 1 a multiple of PAGE_SLOT (the batch's end: k + 1 =
+    out). A turn is tick k with k + 1 = PAGE_PHASE mod PAGE_SLOT (the batch's end: k + 1 =
     PAGE_END mod PAGE_ROUND); its cost is its busy time with the page less without."""
     base = np.asarray(base_ms, float)
     page = np.asarray(page_ms, float)
     k = np.arange(len(page))
     keep = ~np.asarray(gc, bool) if gc is not None else np.ones(len(page), bool)
-    turn = ((k + 1) % PAGE_SLOT == 0) & keep
+    turn = ((k + 1) % PAGE_SLOT == PAGE_PHASE) & keep
     end = turn & ((k + 1) % PAGE_ROUND == PAGE_END)
-    other = ~((k + 1) % PAGE_SLOT == 0) & keep
+    other = ~((k + 1) % PAGE_SLOT == PAGE_PHASE) & keep
     d = (page - base) * 1000.0  # us
     worst = int(k[turn][np.argmax(d[turn])]) if turn.any() else None
 

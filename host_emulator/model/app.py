@@ -472,7 +472,7 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
             )
         if parts:
             extra[k] = b"".join(parts)
-        if page is not None and ticks % display.SLOT == 0:
+        if page is not None and ticks % display.SLOT == display.PHASE:
             view = display.View(model.state, fix.valid, fix.lat_e7, fix.lon_e7, fix.height_dm,
                                 g.epoch_quality, g.epoch_nsat, g.epoch_hdop_x100, b"",
                                 last_ext, model.health, model.causes)  # fmt: skip

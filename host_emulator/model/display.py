@@ -22,6 +22,7 @@ import numpy as np
 from host_emulator.proto import records
 
 SLOT = 8  # ticks between turns
+PHASE = 3  # the loop's tick count mod SLOT at a turn
 TURNS = 16  # turns in a round
 FIELDS = 13  # fields, one a row; turn 13 ends the batch
 COL = 7  # the values' text column

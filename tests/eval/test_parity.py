@@ -229,8 +229,8 @@ def test_the_command_exit_status(capsys, monkeypatch):
 
     real_run = model_runner.run_all
 
-    def off_by_one_yaw(stim, overrides=None, progress=None):
-        out, shown = real_run(stim, overrides, progress)
+    def off_by_one_yaw(stim, overrides=None, progress=None, **kw):
+        out, shown = real_run(stim, overrides, progress, **kw)
         out = bytearray(out)
         ext_len = len(stream.split(out)[1][0])
         out[100 * 52 + 5 * ext_len + 29] ^= 1  # frame 100's yaw (after 5 extended frames)

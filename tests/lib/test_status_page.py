@@ -31,6 +31,7 @@ def test_the_copies_of_the_frame_record_and_navigator_indices_agree():
     assert (sp._C_HEALTH, sp._C_CAUSES) == (nav._C_HEALTH, nav._C_CAUSES)
     assert sp._NAVIGATING == nav.NAVIGATING and sp._FAULTS == nav.CAUSE_FAULTS
     assert app._PAGE_SLOT == sp._SLOT == model_display.SLOT
+    assert app._PAGE_PHASE == model_display.PHASE and app._PAGE_PHASE % 2  # odd: no ext frame
     # the 52-byte frame's offsets (proto/frame.py's table: yaw, pitch, roll, velocity, position)
     offs = {"yaw": 29, "pitch": 31, "roll": 33, "ve": 35, "vn": 37, "pe": 41, "pn": 45}
     assert (sp._FR_YAW, sp._FR_PITCH, sp._FR_ROLL) == (offs["yaw"], offs["pitch"], offs["roll"])

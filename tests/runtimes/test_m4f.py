@@ -278,13 +278,13 @@ def test_the_status_page_equals_the_model_byte_for_byte():
     assert fw.display_marks[0] == (-1, start) and len(fw.display_marks) == len(wrote) + 1
     assert [k for k, _ in fw.display_marks[1:]] == wrote.tolist()
     assert fw.display_marks[-1][1] == len(fw.display)
-    assert ((wrote + 1) % 8 == 0).all()  # a turn every 8 ticks (App.ticks is k + 1)
+    assert ((wrote + 1) % 8 == 3).all()  # a turn every 8 ticks (App.ticks is k + 1)
     s = fw.stats
     assert s["display_batches"] == fw.display.count(b"\r\n") > 20
     assert s["display_oks"] == s["display_missed"] == s["display_tx_overflow"] == 0
     navigating = np.zeros(len(t), bool)
     navigating[1:] = (t["state"][1:] == 2) & (t["state"][:-1] == 2)
-    turn = (np.arange(len(t)) + 1) % 8 == 0
+    turn = (np.arange(len(t)) + 1) % 8 == 3
     assert (navigating & turn).sum() > 80 and np.isin(wrote, np.flatnonzero(navigating)).sum() > 40
     assert np.count_nonzero(t["alloc_bytes"][navigating]) == 0
     fwi = t["instr"].astype(np.int64) - t["emu_instr"]

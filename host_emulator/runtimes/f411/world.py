@@ -394,7 +394,8 @@ class Screen:
 
 CAUSE_DISPLAY = {name: bit for bit, name in records.CAUSES}["display_unanswered"]
 _ROUND = page_model.SLOT * page_model.TURNS  # ticks of a round of the page
-_END_PHASE = page_model.SLOT * page_model.FIELDS  # the app's `ticks` of the batch's end
+# the app's `ticks` of the batch's end
+_END_PHASE = page_model.SLOT * page_model.FIELDS + page_model.PHASE
 
 
 def _missed(crlf, ok_ends, w):
