@@ -54,6 +54,19 @@ def test_the_counter_counts_every_instruction():
     assert 200_000 < a < 201_000  # the call itself costs a few hundred instructions
 
 
+# The guest's instruction count of a call g() (its second: the first fills the look-up
+# caches), the emulation's own instructions taken out; empty() is the bare call's
+COST = (
+    "def cost(g):\n"
+    "    g()\n"
+    "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
+    "    g()\n"
+    "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
+    "def empty():\n"
+    "    pass\n"
+)
+
+
 def test_a_peripheral_call_costs_a_c_method_call():
     """The firmware holds the emulated parts through m4f.Periph (C): `pin.value(0)` is counted
     at about what a built-in method of one argument costs (`d.get(0)`), well below calling the
@@ -62,15 +75,7 @@ def test_a_peripheral_call_costs_a_c_method_call():
         "import m4f, machine\n"
         "p = machine.Pin('X1', machine.Pin.OUT)\n"
         "q = machine.pin('X1')\n"  # the emulated part behind p
-        "d = {}\n"
-        "def cost(g):\n"
-        "    g()\n"  # the first call fills the look-up caches
-        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
-        "    g()\n"
-        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
-        "def empty():\n"
-        "    pass\n"
-        "def periph():\n"
+        "d = {}\n" + COST + "def periph():\n"
         "    p.value(0)\n"
         "def builtin():\n"
         "    d.get(0)\n"
@@ -99,15 +104,7 @@ def test_the_screens_transmitter_writes_a_character_through_the_c_handle():
         "u = machine.UART(6, baudrate=115200, rxbuf=64, timeout=0)\n"
         "put = u.writechar\n"
         "q = machine.uart(6)\n"
-        "d = {}\n"
-        "def cost(g):\n"
-        "    g()\n"
-        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
-        "    g()\n"
-        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
-        "def empty():\n"
-        "    pass\n"
-        "def periph():\n"
+        "d = {}\n" + COST + "def periph():\n"
         "    put(0x141)\n"  # 9 bits: the low 8 are sent
         "def builtin():\n"
         "    d.get(0)\n"
@@ -138,15 +135,7 @@ def test_an_attribute_store_on_the_navigator_searches_its_class():
         "class Plain:\n"
         "    pass\n"
         "o = Plain()\n"
-        "o.x = 0\n"
-        "def cost(g):\n"
-        "    g()\n"
-        "    e0 = m4f.emu_total(); c0 = m4f.icount()\n"
-        "    g()\n"
-        "    return ((m4f.icount() - c0) & 0x3FFFFFFF) - ((m4f.emu_total() - e0) & 0x3FFFFFFF)\n"
-        "def empty():\n"
-        "    pass\n"
-        "def on_nav():\n"
+        "o.x = 0\n" + COST + "def on_nav():\n"
         "    n._probe = 1\n"
         "def on_plain():\n"
         "    o.x = 1\n"
