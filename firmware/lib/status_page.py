@@ -9,13 +9,15 @@ its colour differs from what the screen shows, sent as one `DSn(x,y,'text',c);` 
 After the last field, a batch that sent anything is ended with `\\r\\n`. A round of _TURNS
 turns is 0.64 s.
 
-What a turn costs the loop: one field's formatting and one write of at most _CMD_MAX bytes to
-the screen's transmitter: on the board the UART's DMA (drivers/uart_dma.py), so no tick waits
-for the line; at 38400 baud or more a turn's bytes have left before the next turn. Nothing
-here allocates: texts are made in preallocated bytearrays from small ints (the transmitter
-without DMA writes byte by byte: board._Chars), and every function keeps its frame within the
-VM's 11 words (tests/runtimes/test_frames.py), hence the module-level text buffer _T and the
-few arguments.
+What a turn costs the loop: one field's formatting, skipped when the inputs of a field that
+changes seldom are those of its last text (_unchanged), and one write of at most _CMD_MAX
+bytes to the screen's transmitter: on the board the UART's DMA (drivers/uart_dma.py), so no
+tick waits for the line; at 38400 baud or more a turn's bytes have left before the next turn.
+The digits and the comparison with the shown text are navk's integer kernels (text_num,
+text_diff; their Python references are here). Nothing allocates: texts are made in
+preallocated bytearrays from small ints (the transmitter without DMA writes byte by byte:
+board._Chars), and every function keeps its frame within the VM's 11 words
+(tests/runtimes/test_frames.py), hence the module-level buffers and the few arguments.
 
 The values are what the board's records say: attitude, velocity and position from the last
 52-byte frame sent (its bytes); health, causes and, while navigating, the horizontal 1-sigma
