@@ -32,8 +32,8 @@ from host_emulator.proto import stream
 from host_emulator.sim import board_input, trajectory
 from host_emulator.sim import faults as faults_mod
 
-SCREEN = "screen.png"  # the board's screen at the end of the run (with --display)
-OUTPUTS = ("frames.bin", "metrics.json", "report.md", SCREEN, *report.PLOTS)
+SCREEN = "screen.png"  # the board's screen at the end of the run (with --display only)
+OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
 
 
 class Progress:
@@ -95,7 +95,7 @@ def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None, ov
 
 def _clean(out_dir, keep_stimulus=False):
     """Remove an earlier run's outputs (so a failed run cannot leave them behind)."""
-    for name in OUTPUTS if keep_stimulus else (*OUTPUTS, "stimulus.bin"):
+    for name in (*OUTPUTS, SCREEN) if keep_stimulus else (*OUTPUTS, SCREEN, "stimulus.bin"):
         p = out_dir / name
         if p.exists():
             p.unlink()

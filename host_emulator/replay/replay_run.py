@@ -266,7 +266,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise EmulatorError(f"cannot create output directory {out_dir}: {e.strerror}") from None
-    for name in (*OUTPUTS, "stimulus.bin"):
+    for name in (*OUTPUTS, scenario_run.SCREEN, "stimulus.bin"):
         if (out_dir / name).exists():
             (out_dir / name).unlink()
     t0 = time.perf_counter()
