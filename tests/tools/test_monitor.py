@@ -6,7 +6,6 @@ message, no traceback."""
 
 import _thread
 import csv
-import ctypes
 import io
 import os
 import random
@@ -181,22 +180,9 @@ def port_opened(monkeypatch):
     return ev
 
 
-def _ctrl_c(thread_id):
-    """Ctrl-C for the monitor: KeyboardInterrupt in the thread that runs it. _thread's
-    interrupt_main() reaches only the process's main thread, and a pytest-xdist worker does
-    not always run its tests there (the monitor then ran to its --seconds)."""
-    if thread_id == threading.main_thread().ident:
-        _thread.interrupt_main()
-        return
-    ctypes.pythonapi.PyThreadState_SetAsyncExc(
-        ctypes.c_ulong(thread_id), ctypes.py_object(KeyboardInterrupt)
-    )
-
-
 def _stream(master, data, baud, done, opened, then_interrupt=True):
     """Once the port is open, write `data` into the pty master at the pace of the baud (10 bits
-    a byte), then press Ctrl-C for the monitor (_ctrl_c: then_interrupt is the id of the thread
-    that runs it)."""
+    a byte), then press Ctrl-C for the monitor (KeyboardInterrupt in the main thread)."""
     assert opened.wait(10)
     rate = baud / 10
     t0 = time.monotonic()
@@ -211,7 +197,7 @@ def _stream(master, data, baud, done, opened, then_interrupt=True):
     done["seconds"] = time.monotonic() - t0
     time.sleep(0.4)
     if then_interrupt:
-        _ctrl_c(then_interrupt)
+        _thread.interrupt_main()
 
 
 def test_a_cut_or_damaged_recording_is_shown_with_what_it_lost(board, tmp_path):
@@ -269,9 +255,7 @@ def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_
     data, _path, cfg = board
     master, slave, name = _pty(BAUD)
     done = {}
-    me = threading.get_ident()
-    t = threading.Thread(target=_stream, args=(master, data, BAUD, done, port_opened, me),
-                         daemon=True)  # fmt: skip
+    t = threading.Thread(target=_stream, args=(master, data, BAUD, done, port_opened), daemon=True)
     out = io.StringIO()
     try:
         t.start()
@@ -290,7 +274,7 @@ def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_
     assert rc == 0
     assert done["seconds"] >= len(data) / (BAUD / 10) * 0.95  # paced at 46 kB/s
     text = out.getvalue()
-    assert "interrupted (Ctrl-C)" in text, text
+    assert "interrupted (Ctrl-C)" in text
     assert "summary: 800 frames, 40 extended frames, 800 raw records" in text
     assert "checksum failures 0  CRC failures 0  skipped bytes 0  dropped frames " in text
     assert "(counter gaps) 0" in text
