@@ -274,7 +274,7 @@ def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_
     assert rc == 0
     assert done["seconds"] >= len(data) / (BAUD / 10) * 0.95  # paced at 46 kB/s
     text = out.getvalue()
-    assert "interrupted (Ctrl-C)" in text
+    assert "interrupted (Ctrl-C)" in text, text
     assert "summary: 800 frames, 40 extended frames, 800 raw records" in text
     assert "checksum failures 0  CRC failures 0  skipped bytes 0  dropped frames " in text
     assert "(counter gaps) 0" in text
