@@ -9,6 +9,7 @@ import csv
 import io
 import os
 import random
+import signal
 import termios
 import threading
 import time
@@ -252,6 +253,16 @@ def test_a_full_disk_stops_the_recording_not_the_monitor(board, tmp_path, monkey
 
 
 def test_a_board_on_a_serial_port_at_the_baud_then_ctrl_c(board, tmp_path, port_opened):
+    # Ctrl-C is Python's KeyboardInterrupt here, whatever the worker's SIGINT handler is
+    # (interrupt_main() does nothing under SIG_DFL or SIG_IGN)
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _board_then_ctrl_c(board, tmp_path, port_opened)
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _board_then_ctrl_c(board, tmp_path, port_opened):
     data, _path, cfg = board
     master, slave, name = _pty(BAUD)
     done = {}
