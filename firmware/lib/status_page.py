@@ -41,7 +41,7 @@ from frame import bytes_copy
 from micropython import const
 
 _SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT is 3:
-# odd, so a turn never shares its tick with an extended frame, 0.6 ms of work every 20 ticks)
+# odd, so a turn never shares its tick with an extended frame's, every 20 ticks)
 _TURNS = const(16)  # turns in a round: the 13 fields, the batch's end, two idle
 _END = const(13)  # the turn that ends the batch
 _NFIELD = const(13)
