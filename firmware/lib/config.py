@@ -219,15 +219,30 @@ class BoardConfig:
             for x in value if isinstance(value, list) else (value,):
                 if not x - x == 0.0:
                     return f"{name} is not finite"
+        # The ranges are checked on float32s alone: the value as the file holds it and the
+        # range's ends as float32 (x, lo, hi: elements of a float32 buffer), compared with each
+        # other and no arithmetic on the value. A comparison of two float32s is exact in any
+        # precision, so the verdict is the same on the board (float32 floats), on the desktop
+        # (the tool's Python doubles, rounded to float32 by the store as config.encode rounds
+        # them; the NumPy model) and in the double-precision MicroPython VM. The ends are
+        # f32.ratio(lo, den), the float32 nearest lo / den: a double quotient rounded to
+        # float32 (the VM) is that same float32. Not `x * den` against integers: that product
+        # rounds differently in float32 and in double (0.1 as a float32 times 10 is 1 on the
+        # board, 1.0000000149 on the desktop).
+        r = f32.zeros(3)
         for name, lo, hi, den, unit, open_low in _RANGES:
             value = getattr(self, name)
             if value is None:
                 continue
+            r[1] = f32.ratio(lo, den)
+            r[2] = f32.ratio(hi, den)
             for x in value if isinstance(value, list) else (value,):
-                if x * den < lo or x * den > hi or (open_low and x * den <= lo):
+                r[0] = x
+                if r[0] < r[1] or r[0] > r[2] or (open_low and r[0] <= r[1]):
                     text = f"{name} must be within {_dec(lo, den)}..{_dec(hi, den)}"
                     return text + (" " + unit if unit else "") + (", above 0" if open_low else "")
-        if not 0.0 <= self.gnss_latency_s < 1.0:
+        r[0] = self.gnss_latency_s  # the same rule: the float32 against 0 and 1
+        if not 0.0 <= r[0] < 1.0:
             return "gnss_latency_s must be in [0, 1) s"
         return None
 

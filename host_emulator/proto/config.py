@@ -11,6 +11,7 @@ Imported as `board_config` (the firmware's own module is `config`).
 """
 
 import json
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -76,19 +77,41 @@ def default_output_baud():
     return _firmware_config().BoardConfig().output_baud
 
 
+def written(cfg):
+    """(data, back, problem): the file the board would hold for a BoardConfig, the BoardConfig
+    the board reads back from it, and the firmware's verdict (BoardConfig.validate) on *that*
+    one, as config.load gives it on the board: None if it loads, else the message. Every host
+    check of a configuration goes through here, so that what passes on the host is what the
+    board loads: the file holds float32s, and a Python double typed on the host is not the
+    float32 the board reads. (data, back) are None when cfg cannot be written at all: the
+    verdict on cfg's own values comes first (it names the bad value; the file cannot hold an
+    int beyond int32, a float beyond float32's range)."""
+    config = _firmware_config()
+    problem = cfg.validate()
+    if problem:
+        return None, None, problem
+    try:
+        data = config.encode(cfg)
+    except (struct.error, OverflowError, TypeError) as e:
+        return None, None, f"a value the file cannot hold ({e})"
+    back = config.decode(data)
+    return data, back, back.validate()
+
+
 def from_values(values):
-    """A firmware BoardConfig with these values (the rest at their defaults); ConfigError for a
-    name or value the firmware does not accept."""
+    """The firmware BoardConfig the board loads from a file with these values (the rest at
+    their defaults): its floats are the file's float32s (`written`); ConfigError for a name or
+    value the firmware does not accept."""
     config = _firmware_config()
     cfg = config.BoardConfig()
     for name in values:
         if not hasattr(cfg, name):
             raise ConfigError(f"unknown board configuration setting {name!r}")
     cfg.apply([(k, list(v) if isinstance(v, (list, tuple)) else v) for k, v in values.items()])
-    problem = cfg.validate()
+    _data, back, problem = written(cfg)
     if problem:
         raise ConfigError(f"board configuration rejected by the firmware: {problem}")
-    return cfg
+    return back
 
 
 def _plain(v):

@@ -70,12 +70,21 @@ def _merged_config(changes, config):
             except FlashError as e:
                 print(f"{e}It is replaced by the defaults and the changes.")
         cfg.apply(changes)
-        problem = cfg.validate()
-        if problem:
-            raise FlashError(f"invalid setting: {problem}. Nothing was written.")
-        return config.encode(cfg)
+        return _written(cfg)[0]
 
     return merge
+
+
+def _written(cfg):
+    """(bytes, BoardConfig read back from them) of a changed configuration, checked as the board
+    checks it when it loads the file: its float32s, not the Python doubles typed (proto/config.py
+    `written`); FlashError if the board would refuse it."""
+    from host_emulator.proto import config as board_config
+
+    data, back, problem = board_config.written(cfg)
+    if problem:
+        raise FlashError(f"invalid setting: {problem}. Nothing was written.")
+    return data, back
 
 
 def _deploy(args):
@@ -227,10 +236,7 @@ def _config(args):
                     f"{e}The firmware ignored it; it is replaced by the defaults and the changes."
                 )
     cfg.apply(changes)
-    problem = cfg.validate()
-    if problem:
-        raise FlashError(f"invalid setting: {problem}. Nothing was written.")
-    data = config.encode(cfg)
+    data, cfg = _written(cfg)  # cfg: what the board reads from the file (its float32s)
     if args.file:
         write_atomic(args.file, data)
         print(f"wrote {args.file} ({len(data)} bytes); deploy it with deploy --config")
