@@ -86,6 +86,8 @@ CAUSE_DRIFT = const(0x400)  # GNSS innovations one-sided for several fixes: drif
 CAUSE_GNSS_IMPLAUSIBLE = const(0x20000)  # fixes that moved as the board cannot have: a repeated
 # (frozen) position while the navigator moves, or a reset refused for a step the IMU cannot
 # have drifted (a jump; a receiver far off) (1 s)
+CAUSE_NOT_NAVIGATING = const(0x80000)  # aligning (or re-aligning after a fault reset): no
+# navigation solution yet, whatever else holds
 CAUSE_FAULTS = const(0x2074C)  # IMU_DEAD, NUMERIC, GNSS_REJECTS, RESET, UNCERTAIN, DRIFT,
 # GNSS_IMPLAUSIBLE: health 2
 
@@ -975,6 +977,8 @@ class Navigator(Alignment, Aiding):
                 k |= CAUSE_GNSS_REJECTS
             if c[_C_UNCERTAIN]:
                 k |= CAUSE_UNCERTAIN
+        else:
+            k |= CAUSE_NOT_NAVIGATING
         c[_C_CAUSES] = k
         if k & CAUSE_FAULTS:
             c[_C_HEALTH] = 2

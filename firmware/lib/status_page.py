@@ -103,9 +103,9 @@ CAUSES = (
     b"IMU range   IMU held    IMU dead    numeric     GNSS lost   fix gated   "
     b"fix rejects GNSS data   reset       uncertain   drift       GNSS late   "
     b"NMEA error  PPS         config      overrun     GNSS clock  implausible "
-    b"display     "
+    b"display     aligning    "
 )
-NCAUSE = const(19)
+NCAUSE = const(20)
 _FAULTS = const(0x2074C)  # nav.CAUSE_FAULTS: the causes of health 2, named first
 
 _T = bytearray(_WMAX)  # the text being made (one page per board: module-level buffers)

@@ -77,6 +77,8 @@ static void update_health(int32_t *c) {
         if (c[C_UNCERTAIN]) {
             k |= CAUSE_UNCERTAIN;
         }
+    } else {
+        k |= CAUSE_NOT_NAVIGATING;
     }
     c[C_CAUSES] = k;
     c[C_HEALTH] = (k & CAUSE_FAULTS) ? 2 : (k ? 1 : 0);

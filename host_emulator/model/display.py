@@ -35,7 +35,7 @@ HEALTHS = ("0 ok", "1 warning", "2 FAULT")
 CAUSE_WORDS = ("IMU range", "IMU held", "IMU dead", "numeric", "GNSS lost", "fix gated",
                "fix rejects", "GNSS data", "reset", "uncertain", "drift", "GNSS late",
                "NMEA error", "PPS", "config", "overrun", "GNSS clock", "implausible",
-               "display")  # fmt: skip
+               "display", "aligning")  # fmt: skip
 FAULTS = 0x2074C  # the causes of health 2 (nav.CAUSE_FAULTS): named first
 VAR_MAX = 0x1FFFFFFF  # cm^2
 V_MAX = 23170  # cm/s

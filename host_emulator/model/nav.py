@@ -731,6 +731,8 @@ class NavModel(AlignmentModel, AidingModel):
                 k |= fw_nav.CAUSE_GNSS_REJECTS
             if self.uncertain:
                 k |= fw_nav.CAUSE_UNCERTAIN
+        else:
+            k |= fw_nav.CAUSE_NOT_NAVIGATING
         self.causes = k
         self.health = 2 if k & fw_nav.CAUSE_FAULTS else (1 if k else 0)
 

@@ -65,6 +65,7 @@ CAUSES = (
     (0x10000, "gnss_clock"),
     (0x20000, "gnss_implausible"),
     (0x40000, "display_unanswered"),
+    (0x80000, "not_navigating"),
 )
 CAUSE_OVERRUN = 0x8000  # run time on a board (an injected stall on the emulator): a warning
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time

@@ -40,7 +40,8 @@ def test_the_copies_of_the_frame_record_and_navigator_indices_agree():
 
 def test_every_cause_bit_has_its_word():
     bits = [code for code, _ in proto_records.CAUSES]
-    assert bits == [1 << k for k in range(sp.NCAUSE)] and bits[-1] == app.CAUSE_DISPLAY
+    assert bits == [1 << k for k in range(sp.NCAUSE)] and bits[-2] == app.CAUSE_DISPLAY
+    assert bits[-1] == nav.CAUSE_NOT_NAVIGATING
     words = [sp.CAUSES[12 * k : 12 * k + 12].decode().rstrip() for k in range(sp.NCAUSE)]
     assert len(sp.CAUSES) == 12 * sp.NCAUSE and words == list(model_display.CAUSE_WORDS)
     assert len(sp.LABELS) == 6 * 13 and len(sp.STATES) == 40 and len(sp.HEALTHS) == 27

@@ -127,7 +127,7 @@ def test_the_firmwares_extended_frame_is_the_record_layout():
         "imu_saturated", "imu_dead", "gnss_rejects", "gnss_bad_data", "reset_to_gnss",
         "uncertain", "gnss_late", "config_defaults", "overrun",
     ]  # fmt: skip
-    assert rec_schema.cause_names(0x80001) == ["imu_saturated", "0x80000"]  # a bit not known
+    assert rec_schema.cause_names(0x100001) == ["imu_saturated", "0x100000"]  # a bit not known
     fields = dict(d, p_diag=p, gyro_bias_rad_s=bg,
                   accel_bias_m_s2=ba, pos_enu_m=pos, origin_h_m=coef[geo.H0])  # fmt: skip
     assert rec_schema.encode_ext(9, fields) == data  # the NaN's bits included
