@@ -272,7 +272,8 @@ _M_BW = const(1640)  # the drift watch: running means of normalised innovations 
 _M_CN = const(1645)  # the receiver's unseen error and lag (_CN_*, _NCN): _consistency
 _M_LAST = const(1654)  # the last fix the filter took: its antenna east, north in the frame (2)
 _M_LS = const(1656)  # the lag search (_lag_search): residuals east, north and their means
-_NM = const(1704)
+_M_BS = const(1704)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
+_NM = const(1709)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # seconds of fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -862,8 +863,12 @@ class Navigator(Alignment, Aiding):
             mask = kf.i[eskf.I_GATE_MASK]
             ki = kf.i
             n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
-            if _drift_watch(kf.e, self.mem, n):
-                c[_C_DRIFT_UNTIL] = c[_C_TICK] + 5 * c[_C_T_SECOND]
+            w = _drift_watch(kf.e, self.mem, n)
+            if w:
+                # a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it
+                w = c[_C_TICK] + (5 * c[_C_T_SECOND] if w == 2 else 3 * c[_C_T_SECOND] // 2)
+                if w > c[_C_DRIFT_UNTIL]:
+                    c[_C_DRIFT_UNTIL] = w
             _consistency(kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
@@ -1157,6 +1162,12 @@ def _uncertain(e, aid, mem):
 _FROZEN_V2 = f32.f32(1)  # _frozen: a repeated fix while moving faster than 1 m/s (squared)
 _BW_ALPHA = f32.ratio(1, 4)  # weight of a fix in the drift watch's running means (~4 fixes)
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
+# A suspected drift, health 2 while it lasts: running means of the same ratios, each clipped
+# at 3 (one outlier adds at most 3/4, so that one bad fix alone raises nothing), beyond 3/2.
+# The no-fault runs' means stay below it (`make bench-faults`: no health 2 without a fault);
+# a bias step passes it fixes before the drift limit, while its errors pass 10 m
+_BS_CLIP = f32.f32(3)
+_BS_LIMIT = f32.ratio(3, 2)
 _BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump
 _BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
 
@@ -1165,7 +1176,10 @@ def _drift_watch(e, mem, n):
     """After a GNSS update of n scalars (eskf.E_Z/E_R hold each one's innovation y and its
     variance S): the running means of y / sqrt(S) of the position east, north, up (scalars
     0-2) and of the velocity east and north (3, 4, when the fix had a course) in mem's _M_BW.
-    True, and the means restarted, when one is beyond _BW_LIMIT: innovations that keep one
+    2, and the means restarted, when one is beyond _BW_LIMIT; else 1 when one of the
+    suspicion's means (_M_BS: the ratios clipped at _BS_CLIP) is beyond _BS_LIMIT (a drift
+    suspected: a bias step's errors pass 10 m before the drift means reach their limit);
+    else 0. Innovations that keep one
     sign for several fixes mean the INS drifts away from GNSS faster than the filter allows
     for (a sensor bias or scale that jumped; or fixes that are late). The positions count
     because a fix without a course (a stop, a slow receiver) has no velocity rows. Each ratio
@@ -1174,7 +1188,8 @@ def _drift_watch(e, mem, n):
     z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
     r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
     bw = f32.view(mem, _M_BW, _BW_N)
-    hit = False
+    bs = f32.view(mem, _M_BS, _BW_N)
+    hit = 0
     for m in range(_BW_N):
         if m < n and r[m] > 0.0:
             q = z[m] / f32.sqrt(r[m])
@@ -1184,10 +1199,18 @@ def _drift_watch(e, mem, n):
                 q = -_BW_CLIP
             bw[m] = bw[m] + _BW_ALPHA * (q - bw[m])
             if bw[m] > _BW_LIMIT or bw[m] < -_BW_LIMIT:
-                hit = True
-    if hit:
+                hit = 2
+            if q > _BS_CLIP:
+                q = _BS_CLIP
+            elif q < -_BS_CLIP:
+                q = -_BS_CLIP
+            bs[m] = bs[m] + _BW_ALPHA * (q - bs[m])
+            if hit == 0 and (bs[m] > _BS_LIMIT or bs[m] < -_BS_LIMIT):
+                hit = 1
+    if hit == 2:
         for m in range(_BW_N):
             bw[m] = 0.0
+            bs[m] = 0.0
     return hit
 
 

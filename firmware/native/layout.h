@@ -297,7 +297,8 @@
 #define M_CN 1645
 #define M_LAST 1654
 #define M_LS 1656
-#define NM 1704
+#define M_BS 1704
+#define NM 1709
 /* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency, _lag_search) */
 #define CN_K 0
 #define CN_MH 1

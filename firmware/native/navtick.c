@@ -20,6 +20,8 @@
 #define MIN_LEVEL_F (49.0f / 10.0f) /* nav_align.MIN_LEVEL_F, m/s^2 */
 #define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA */
 #define BW_LIMIT 3.0f /* nav._BW_LIMIT */
+#define BS_CLIP 3.0f /* nav._BS_CLIP */
+#define BS_LIMIT (3.0f / 2.0f) /* nav._BS_LIMIT */
 #define BW_CLIP 5.0f /* nav._BW_CLIP */
 #define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
 #define CN_LEN 64.0f /* nav._CN_N */
@@ -364,11 +366,13 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
     }
 }
 
-/* nav._drift_watch: 1 when a running mean of normalised innovations passes the limit */
+/* nav._drift_watch: 2 when a running mean of normalised innovations passes the limit, else 1
+   when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT, else 0 */
 static int32_t drift_watch(const float *e, float *m, int32_t n) {
     const float *z = e + E_Z;
     const float *r = e + E_R;
     float *bw = m + M_BW;
+    float *bs = m + M_BS;
     int32_t hit = 0;
     for (int k = 0; k < BW_N; k++) {
         if (k < n && r[k] > 0.0f) {
@@ -380,12 +384,22 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
             }
             bw[k] = bw[k] + BW_ALPHA * (q - bw[k]);
             if (bw[k] > BW_LIMIT || bw[k] < -BW_LIMIT) {
+                hit = 2;
+            }
+            if (q > BS_CLIP) {
+                q = BS_CLIP;
+            } else if (q < -BS_CLIP) {
+                q = -BS_CLIP;
+            }
+            bs[k] = bs[k] + BW_ALPHA * (q - bs[k]);
+            if (hit == 0 && (bs[k] > BS_LIMIT || bs[k] < -BS_LIMIT)) {
                 hit = 1;
             }
         }
     }
-    if (hit) {
+    if (hit == 2) {
         for (int j = 0; j < BW_N; j++) {
+            bs[j] = 0.0f;
             bw[j] = 0.0f;
         }
     }
@@ -485,8 +499,12 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     }
     int32_t mask = ki[I_GATE_MASK];
     int32_t n = ki[I_ACCEPTED] + ki[I_REJECTED];
-    if (drift_watch(e, m, n)) {
-        c[C_DRIFT_UNTIL] = c[C_TICK] + 5 * c[C_T_SECOND];
+    int32_t w = drift_watch(e, m, n);
+    if (w) { /* a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it */
+        w = c[C_TICK] + (w == 2 ? 5 * c[C_T_SECOND] : 3 * c[C_T_SECOND] / 2);
+        if (w > c[C_DRIFT_UNTIL]) {
+            c[C_DRIFT_UNTIL] = w;
+        }
     }
     consistency(e, m, n, mask);
     if (mask & 4) {

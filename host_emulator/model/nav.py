@@ -206,6 +206,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.prev_fix = (0, 0)  # the last usable fix's lat, lon (1e-7 deg; nav._C_PREV_FIX)
         self.frozen = False  # nav._C_FROZEN
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
+        self.suspect_watch = np.zeros(fw_nav._BW_N, F32)  # ... clipped at _BS_CLIP: suspicion
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
         self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav._lag_search's residuals and means
@@ -541,8 +542,10 @@ class NavModel(AlignmentModel, AidingModel):
         kf.dx = np.zeros(N, F32)
         kf.ready = False
         if self.job == JOB_GNSS:
-            if self._drift_watch(kf.innov):
-                self.drift_until = self.tick + 5 * self.ticks_second
+            w = self._drift_watch(kf.innov)
+            if w:  # nav._inject: a drift for 5 s, a suspected one for 1.5 s
+                hold = 5 * self.ticks_second if w == 2 else 3 * self.ticks_second // 2
+                self.drift_until = max(self.drift_until, self.tick + hold)
             self._consistency(kf.innov, kf.gate_mask)
             self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
@@ -570,16 +573,24 @@ class NavModel(AlignmentModel, AidingModel):
 
     def _drift_watch(self, innov):
         """nav._drift_watch: running means of y / sqrt(S) of the position east, north, up
-        and the velocity east and north; True (and restarted) when one passes the limit."""
-        bw = self.drift_watch
-        hit = False
+        and the velocity east and north; 2 (and both sets restarted) when one passes the
+        limit, else 1 when one of the suspicion's (each ratio clipped at _BS_CLIP) passes
+        _BS_LIMIT, else 0."""
+        bw, bs = self.drift_watch, self.suspect_watch
+        hit = 0
         for j, (y, s) in enumerate(innov[: fw_nav._BW_N]):
             if s > 0.0:
                 q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
                 bw[j] = bw[j] + fw_nav._BW_ALPHA * (q - bw[j])
-                hit = hit or bw[j] > fw_nav._BW_LIMIT or bw[j] < -fw_nav._BW_LIMIT
-        if hit:
+                if abs(bw[j]) > fw_nav._BW_LIMIT:
+                    hit = 2
+                q = min(max(q, -fw_nav._BS_CLIP), fw_nav._BS_CLIP)
+                bs[j] = bs[j] + fw_nav._BW_ALPHA * (q - bs[j])
+                if abs(bs[j]) > fw_nav._BS_LIMIT:
+                    hit = max(hit, 1)
+        if hit == 2:
             bw[:] = ZERO
+            bs[:] = ZERO
         return hit
 
     def _rate_r(self):
@@ -786,6 +797,7 @@ class NavModel(AlignmentModel, AidingModel):
             "ring_v": self.ring_v,
             "corr": self.corr,
             "drift_watch": self.drift_watch,
+            "suspect_watch": self.suspect_watch,
             "consistency": self.consistency,
             "lag_search": self.lag_search,
             "gnss_p": self.gnss_p,

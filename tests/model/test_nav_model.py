@@ -224,6 +224,7 @@ def firmware_snapshot(nav):
         "ring_v": nav._ring_v,
         "corr": nav._corr,
         "drift_watch": f32.view(nav.mem, nav_mod._M_BW, nav_mod._BW_N),
+        "suspect_watch": f32.view(nav.mem, nav_mod._M_BS, nav_mod._BW_N),
         "consistency": f32.view(nav.mem, nav_mod._M_CN, nav_mod._NCN),
         "lag_search": f32.view(nav.mem, nav_mod._M_LS, nav_mod._NLS),
         "gnss_p": nav._gp,
@@ -462,6 +463,7 @@ def test_model_tracks_the_firmware_bit_for_bit_for_a_minute_with_an_outage():
     assert seen.health == {0, 1}
     gnss = nav_mod.CAUSE_GNSS_GATED | nav_mod.CAUSE_GNSS_LOST
     assert {k for k in seen.causes if k} <= {
+        nav_mod.CAUSE_NOT_NAVIGATING,  # while it aligns
         nav_mod.CAUSE_GNSS_GATED,
         nav_mod.CAUSE_GNSS_LOST,
         gnss,
