@@ -1160,7 +1160,7 @@ def _uncertain(e, aid, mem):
 
 
 _FROZEN_V2 = f32.f32(1)  # _frozen: a repeated fix while moving faster than 1 m/s (squared)
-_BW_ALPHA = f32.ratio(1, 4)  # weight of a fix in the drift watch's running means (~4 fixes)
+_BW_ALPHA = f32.ratio(1, 4)  # weight of a second of fixes in the drift watch's running means
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 # A suspected drift, health 2 while it lasts: running means of the same ratios, each clipped
 # at 3 (one outlier adds at most 3/4, so that one bad fix alone raises nothing), beyond 3/2.
@@ -1189,6 +1189,10 @@ def _drift_watch(e, mem, n):
     r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
     bw = f32.view(mem, _M_BW, _BW_N)
     bs = f32.view(mem, _M_BS, _BW_N)
+    # a fix weighs 1 / rk of a second's (_rate_r): a faster receiver's fixes share their
+    # errors, and ten one-sided ones in a second are no more a drift than one (10 Hz: 40
+    # health 2 frames in a no-fault run with a weight per fix)
+    a = _BW_ALPHA / mem[_M_CN + _CN_RK]
     hit = 0
     for m in range(_BW_N):
         if m < n and r[m] > 0.0:
@@ -1197,14 +1201,14 @@ def _drift_watch(e, mem, n):
                 q = _BW_CLIP
             elif q < -_BW_CLIP:
                 q = -_BW_CLIP
-            bw[m] = bw[m] + _BW_ALPHA * (q - bw[m])
+            bw[m] = bw[m] + a * (q - bw[m])
             if bw[m] > _BW_LIMIT or bw[m] < -_BW_LIMIT:
                 hit = 2
             if q > _BS_CLIP:
                 q = _BS_CLIP
             elif q < -_BS_CLIP:
                 q = -_BS_CLIP
-            bs[m] = bs[m] + _BW_ALPHA * (q - bs[m])
+            bs[m] = bs[m] + a * (q - bs[m])
             if hit == 0 and (bs[m] > _BS_LIMIT or bs[m] < -_BS_LIMIT):
                 hit = 1
     if hit == 2:

@@ -18,7 +18,7 @@
 #include "rot32.h"
 
 #define MIN_LEVEL_F (49.0f / 10.0f) /* nav_align.MIN_LEVEL_F, m/s^2 */
-#define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA */
+#define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA: per second of fixes */
 #define BW_LIMIT 3.0f /* nav._BW_LIMIT */
 #define BS_CLIP 3.0f /* nav._BS_CLIP */
 #define BS_LIMIT (3.0f / 2.0f) /* nav._BS_LIMIT */
@@ -373,6 +373,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
     const float *r = e + E_R;
     float *bw = m + M_BW;
     float *bs = m + M_BS;
+    float a = BW_ALPHA / m[M_CN + CN_RK]; /* a fix weighs 1 / rk of a second's */
     int32_t hit = 0;
     for (int k = 0; k < BW_N; k++) {
         if (k < n && r[k] > 0.0f) {
@@ -382,7 +383,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
             } else if (q < -BW_CLIP) {
                 q = -BW_CLIP;
             }
-            bw[k] = bw[k] + BW_ALPHA * (q - bw[k]);
+            bw[k] = bw[k] + a * (q - bw[k]);
             if (bw[k] > BW_LIMIT || bw[k] < -BW_LIMIT) {
                 hit = 2;
             }
@@ -391,7 +392,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
             } else if (q < -BS_CLIP) {
                 q = -BS_CLIP;
             }
-            bs[k] = bs[k] + BW_ALPHA * (q - bs[k]);
+            bs[k] = bs[k] + a * (q - bs[k]);
             if (hit == 0 && (bs[k] > BS_LIMIT || bs[k] < -BS_LIMIT)) {
                 hit = 1;
             }

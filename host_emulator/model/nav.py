@@ -577,15 +577,16 @@ class NavModel(AlignmentModel, AidingModel):
         limit, else 1 when one of the suspicion's (each ratio clipped at _BS_CLIP) passes
         _BS_LIMIT, else 0."""
         bw, bs = self.drift_watch, self.suspect_watch
+        a = fw_nav._BW_ALPHA / self.consistency[fw_nav._CN_RK]  # a fix: 1 / rk of a second's
         hit = 0
         for j, (y, s) in enumerate(innov[: fw_nav._BW_N]):
             if s > 0.0:
                 q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
-                bw[j] = bw[j] + fw_nav._BW_ALPHA * (q - bw[j])
+                bw[j] = bw[j] + a * (q - bw[j])
                 if abs(bw[j]) > fw_nav._BW_LIMIT:
                     hit = 2
                 q = min(max(q, -fw_nav._BS_CLIP), fw_nav._BS_CLIP)
-                bs[j] = bs[j] + fw_nav._BW_ALPHA * (q - bs[j])
+                bs[j] = bs[j] + a * (q - bs[j])
                 if abs(bs[j]) > fw_nav._BS_LIMIT:
                     hit = max(hit, 1)
         if hit == 2:
