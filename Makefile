@@ -4,7 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain native lint accuracy bench-nav bench-board bench-faults cpi accuracy-report \
+.PHONY: demo test toolchain native lint accuracy bench-nav bench-board bench-faults bench-settings \
+	cpi accuracy-report \
 	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
 $(STAMP): requirements.txt
@@ -52,6 +53,12 @@ bench-board: $(STAMP) toolchain native
 # on CPython (~5 min; writes docs/benchmarks/faults.md).
 bench-faults: $(STAMP) native
 	$(BIN)/python -m host_emulator bench-faults
+
+# Every board setting swept one at a time over urban_drive and walk on CPython: the ranges that
+# still navigate within the board spec (~23 min on two busy cores, 16 CPU-min; writes
+# docs/benchmarks/settings.md, the source of firmware/lib/config.py's _RANGES).
+bench-settings: $(STAMP) native
+	$(BIN)/python -m host_emulator bench-settings
 
 # Navigation accuracy on the real drive_0708 and the simulated scenarios (~3 min; writes
 # docs/accuracy.md and docs/benchmarks/accuracy.json).

@@ -19,6 +19,7 @@
     float32                         accuracy of the float32 math and kernels (make accuracy)
     bench-board                     the app loop's cost per tick on the emulated Cortex-M4F
     bench-faults                    the fault matrix: detection, trust, recovery (make bench-faults)
+    bench-settings                  every board setting swept: what navigates (make bench-settings)
     profile                         where a tick goes on the emulated Cortex-M4F, per function
     digests [--update]              the change indicator: frame-stream digests per runtime
     cpi [--no-write]                CPI of MicroPython on an STM32F4 (make cpi; ~1 min)
@@ -56,6 +57,8 @@ DELEGATED = {
                     "instructions per tick of the app loop on the emulated Cortex-M4F"),
     "bench-faults": ("host_emulator.bench.faults:main",
                      "every fault kind injected into a drive: detection, health, recovery"),
+    "bench-settings": ("host_emulator.bench.settings:main",
+                       "every board setting swept: the ranges that still navigate within spec"),
     "profile": ("host_emulator.bench.profile:main",
                 "where a tick goes on the emulated Cortex-M4F, per function"),
     "digests": ("host_emulator.bench.digests:main",
@@ -216,7 +219,9 @@ def _settings_help():
     """`--set help`: every ins.cfg setting with its default (and range, for the floats)."""
     from host_emulator.replay import board
 
-    print("--set NAME=VALUE, the board settings (firmware/lib/config.py) and their defaults:")
+    print("--set NAME=VALUE, the board settings (firmware/lib/config.py) and their defaults; the "
+          "float ranges are what still navigates within the board spec "
+          "(docs/benchmarks/settings.md):")  # fmt: skip
     for name, value, limits in board.catalogue():
         print(f"  {name} = {value}" + (f"   ({limits})" if limits else ""))
 

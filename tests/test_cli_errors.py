@@ -53,7 +53,7 @@ def _check(capsys, rc, code):
 def _config_file(d):
     from tools.flash.__main__ import main
 
-    assert main(["config", "set", "--file", str(d / "ins.cfg"), "gnss_hdop_max=3"]) == 0
+    assert main(["config", "set", "--file", str(d / "ins.cfg"), "gnss_hdop_max=2.5"]) == 0
     return d / "ins.cfg"
 
 
@@ -75,7 +75,7 @@ def test_config_get_out_into_a_broken_directory(broken_dir, tmp_path, capsys):
     capsys.readouterr()
     rc = main(["config", "get", "--file", str(cfg), "--out", str(bad / "copy.cfg")])
     _check(capsys, rc, code)
-    rc = main(["config", "set", "--file", str(bad / "new.cfg"), "gnss_hdop_max=3"])
+    rc = main(["config", "set", "--file", str(bad / "new.cfg"), "gnss_hdop_max=2.5"])
     _check(capsys, rc, code)
 
 

@@ -6,6 +6,9 @@ accuracy_report.py  `accuracy-report`: drive_0708 and the scenarios -> docs/accu
 float32.py          `float32`: the float32 math functions over their domains, then the
                     rotation and lat/lon kernels (core_figures.py) -> docs/float32.md
 digests.py          `digests`: the change indicator (tests/change_indication/)
+settings.py         `bench-settings`: every board setting swept, what still navigates within
+                    the board spec -> docs/benchmarks/settings.md (firmware/lib/config.py's
+                    ranges)
 board_cost.py       the cost of a tick on the board's CPU from an m4f run's instruction counts
                     (run --runtime m4f, bench-board)
 """

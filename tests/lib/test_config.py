@@ -26,7 +26,7 @@ def custom():
     c.gyro_bias0 = [0.001, -0.002, 0.0005]
     c.gyro_matrix = [1.003, 0.001, 0.0, -0.001, 0.998, 0.0005, 0.0, 0.0, 1.0]
     c.gnss_latency_s = 0.08
-    c.gnss_hdop_max = 3.0
+    c.gnss_hdop_max = 2.5
     return c
 
 
@@ -53,7 +53,7 @@ def test_navigator_configuration_follows(tmp_path):
     hand = navcfg.NavConfig("handheld")
     assert (nav.still_gyro, nav.still_accel) == (hand.still_gyro, hand.still_accel)
     assert list(nav.lever_b_m) == f32list([0.1, 0.5, 1.25])
-    assert nav.gnss_hdop_max == np.float32(3.0)
+    assert nav.gnss_hdop_max == np.float32(2.5)
     # +-500 deg/s: 65.6 LSB per deg/s; +-4 g: 512 LSB per g
     assert abs(float(nav.gyro_counts_per_rad_s) - 65.6 * 180 / np.pi) < 1e-3
     assert abs(float(nav.accel_counts_per_m_s2) - 512 / 9.80665) < 1e-4
@@ -130,20 +130,20 @@ def test_out_of_range_values_are_refused(tmp_path):
 @pytest.mark.parametrize(
     "name, value, words",
     [
-        ("gyro_bias0", [3e38, 0.0, 0.0], "gyro_bias0 must be within -0.35..0.35 rad/s"),
-        ("accel_bias0", [0.0, 0.0, -2.5], "accel_bias0 must be within -2..2 m/s^2"),
-        ("lever_b_m", [0.0, 11.0, 0.0], "lever_b_m must be within -10..10 m"),
-        ("gyro_matrix", [3.0, 0, 0, 0, 1, 0, 0, 0, 1], "gyro_matrix must be within -2..2"),
+        ("gyro_bias0", [3e38, 0.0, 0.0], "gyro_bias0 must be within -0.0205..0.0205 rad/s"),
+        ("accel_bias0", [0.0, 0.0, -2.5], "accel_bias0 must be within -0.92..0.92 m/s^2"),
+        ("lever_b_m", [0.0, 11.0, 0.0], "lever_b_m must be within -3..3 m"),
+        ("gyro_matrix", [3.0, 0, 0, 0, 1, 0, 0, 0, 1], "gyro_matrix must be within -1.02..1.02"),
         ("mount_ypr_deg", [0.0, 0.0, 181.0], "mount_ypr_deg must be within -180..180 deg"),
-        ("gyro_arw", 0.2, "gyro_arw must be within 0..0.05 rad/s/sqrt(Hz), above 0"),
-        ("accel_vrw", 0.0, "accel_vrw must be within 0..0.5 m/s^2/sqrt(Hz), above 0"),
-        ("gyro_bias_sigma", 1.0, "gyro_bias_sigma must be within 0..0.1 rad/s, above 0"),
-        ("accel_bias_sigma", 2.0, "accel_bias_sigma must be within 0..1 m/s^2, above 0"),
-        ("gnss_hdop_max", 60.0, "gnss_hdop_max must be within 0..50, above 0"),
-        ("gate_sigma", 0.5, "gate_sigma must be within 1..100 sigmas"),
-        ("gnss_uere_m", 500.0, "gnss_uere_m must be within 0..100 m, above 0"),
-        ("still_gyro", 1.0, "still_gyro must be within 0..0.2 rad/s, above 0"),
-        ("still_accel", 6.0, "still_accel must be within 0..5 m/s^2, above 0"),
+        ("gyro_arw", 0.2, "gyro_arw must be within 0.00001..0.003 rad/s/sqrt(Hz)"),
+        ("accel_vrw", 0.0, "accel_vrw must be within 0.0001..0.07 m/s^2/sqrt(Hz)"),
+        ("gyro_bias_sigma", 1.0, "gyro_bias_sigma must be within 0.000001..0.005 rad/s"),
+        ("accel_bias_sigma", 2.0, "accel_bias_sigma must be within 0.0001..0.24 m/s^2"),
+        ("gnss_hdop_max", 60.0, "gnss_hdop_max must be within 1.2..2.7"),
+        ("gate_sigma", 0.5, "gate_sigma must be within 3.5..100 sigmas"),
+        ("gnss_uere_m", 500.0, "gnss_uere_m must be within 1..7 m"),
+        ("still_gyro", 1.0, "still_gyro must be within 0.0087..0.2 rad/s"),
+        ("still_accel", 6.0, "still_accel must be within 0.04..5 m/s^2"),
     ],
 )
 def test_physically_impossible_values_are_refused_with_the_range(name, value, words):
