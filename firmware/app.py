@@ -37,7 +37,9 @@ from status_page import StatusPage, font_for
 
 _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
-_CATCH_UP_MAX = const(200)  # missed ticks the navigator steps through (board.WDT_TIMEOUT_MS)
+# missed ticks the navigator steps through at most: board.WDT_TIMEOUT_MS (50) / 5 ms. The
+# loop feeds the watchdog once a tick, so a board that missed more has been reset by it
+_CATCH_UP_MAX = const(10)
 _PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
 _IMU_REPEAT = const(0x200)  # nav.IMU_REPEAT: a missed tick's repeat of the last sample
 _EDGE_REF_MAX_US = const(300000000)  # an older reference edge is dropped (ticks_us wraps 2^30)
@@ -275,7 +277,9 @@ class App:
     def stop(self):
         """After Ctrl-C at the console: no more ticks or PPS interrupts, garbage collection
         back on, and the watchdog (which cannot be stopped once started) fed by a timer so the
-        REPL stays usable, e.g. for a deploy. A soft reset (Ctrl-D) starts the firmware anew."""
+        REPL stays usable. Not for writing the filesystem: a flash erase stalls the CPU, the
+        timer with it, beyond the watchdog's 50 ms (the board tools reset the board into a
+        maintenance start first: main.py). A soft reset (Ctrl-D) starts the firmware anew."""
         self.board.stop()
         gc.enable()
         self.console("ins: stopped (Ctrl-D restarts it)")
@@ -348,7 +352,7 @@ class App:
     def _catch_up(self, lost):
         """Ticks the loop missed: counted, and stepped by the navigator on the last sample
         read (theirs are gone: the registers hold only the newest), at most _CATCH_UP_MAX
-        (the watchdog's timeout: a board busy longer has been reset)."""
+        (the watchdog's timeout in ticks: a board busy longer has been reset)."""
         self.overruns += lost
         self.ticks += lost
         imu = self.imu

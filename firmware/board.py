@@ -18,6 +18,7 @@ STM32F411xE"). Change a table, nothing else, for another wiring.
     at reset for MicroPython's safe mode to get it back: docs/display.md); the NUCLEO has no
     USART left (USART2 is the ST-LINK console), so no screen
     the 5 ms tick from machine.Timer(-1) (a soft timer on SysTick; a hard callback)
+    the maintenance start's marker in the RTC's backup register BKP18R (`maintenance_start`)
 
 Only `machine` calls and keywords the stm32 port accepts are used (its ports/stm32/*.c and
 extmod/machine_*.c are the spec; tests/firmware/test_machine_api.py checks this file against
@@ -28,6 +29,7 @@ on the emulated STM32F411.
 import sys
 
 import machine
+from micropython import const
 
 # Pins and peripherals per board (the keys of BOARDS are the images' MICROPY_HW_BOARD_NAME)
 _BLACKPILL = {
@@ -69,7 +71,11 @@ NAME = board_name()
 PINS = BOARDS[NAME]
 SPI_BAUD = 4_000_000
 TICK_HZ = 200
-WDT_TIMEOUT_MS = 1000
+# The independent watchdog (IWDG): the loop feeds it every tick (5 ms); started, it cannot be
+# stopped but by a reset. A flash write (a sector erase stalls the CPU 250-550 ms) outlasts it:
+# the board tools write the filesystem only after a maintenance start (below, docs/health.md).
+WDT_TIMEOUT_MS = 50
+_FEED_HZ = const(80)  # the stopped loop's feeding timer: 4 feeds per WDT_TIMEOUT_MS
 GNSS_RXBUF = 1024  # bytes of the GNSS UART's receive ring: what arrives beyond it is lost
 CONFIG_PATH = "/flash/ins.cfg"
 
@@ -108,6 +114,51 @@ class _Chars:
 
     def poll(self):
         pass
+
+
+# The maintenance start (docs/deploy.md): the board tools write _MAINT_ASKED into the RTC
+# backup register BKP18R and reset the board (machine.reset()). The backup domain survives a
+# system reset (RM0383: the battery backup domain), which stops the watchdog; writing it needs
+# PWR_CR.DBP (the PWR clock on). main.py, first thing, calls maintenance_start(): the marker
+# found, it answers _MAINT_ON and the start is a maintenance start (neither the loop nor the
+# watchdog); any other value is cleared, so that the next start, a reset or a soft reset
+# (Ctrl-D), is a normal one. BKP19R is the port's (MICROPY_HW_CLK_LAST_FREQ,
+# ports/stm32/powerctrl.c); nothing in the port touches BKP18R. Constants, not globals: the
+# board module's dictionary stays as it was (tools/flash/maintenance.py has the same values).
+_RTC_BKP18R = const(0x40002898)  # RTC 0x40002800 + BKP0R's 0x50 + 4 x 18
+_PWR_CR = const(0x40007000)
+_DBP = const(0x100)
+_RCC_APB1ENR = const(0x40023840)
+_PWREN = const(0x10000000)
+_MAINT_ASKED = const(0x2D4D4E54)  # the tools' request
+_MAINT_ON = const(0x2D4D4E4F)  # the answer: this start is a maintenance start
+
+
+def maintenance_start(mem32=None):
+    """Whether this start is a maintenance start: the marker _MAINT_ASKED in BKP18R (replaced
+    by _MAINT_ON, which the tools read back; the console told, in one line); otherwise the
+    register is cleared (a normal start). mem32: stm.mem32, or a stand-in with its registers
+    (the virtual board's); without the `stm` module (not the stm32 port) no start is one."""
+    if mem32 is None:
+        try:
+            import stm
+        except ImportError:
+            return False
+        mem32 = stm.mem32
+    v = mem32[_RTC_BKP18R]
+    if v == 0:
+        return False  # a normal start, nothing to clear
+    mem32[_RCC_APB1ENR] = mem32[_RCC_APB1ENR] | _PWREN
+    mem32[_PWR_CR] = mem32[_PWR_CR] | _DBP  # backup-domain write access
+    if v != _MAINT_ASKED:
+        mem32[_RTC_BKP18R] = 0
+        return False
+    mem32[_RTC_BKP18R] = _MAINT_ON
+    print(
+        "ins: maintenance start (asked by the board tools): loop and watchdog off; "
+        "Ctrl-D or a reset starts the firmware"
+    )
+    return True
 
 
 def _transmitter(uart_id, uart, direct=_Direct):
@@ -184,14 +235,22 @@ class Board:
         machine.enable_irq(s)
 
     def stop(self):
-        """Tick timer and PPS interrupt off; a slow timer keeps feeding a started watchdog."""
+        """Tick timer and PPS interrupt off; a timer keeps feeding a started watchdog, 4 times
+        per timeout (every 12 ms, the port's 1000 // 80: a hard callback on SysTick, which a
+        flash erase stalls).
+        Interrupts unmasked first: a Ctrl-C pending when `idle` masked them raises in its
+        masked section (the VM checks at the `if` after disable_irq), and with them masked
+        SysTick stops, the feeding timer too: the emulated STM32F411's watchdog reset the
+        board 40 ms after such a Ctrl-C. (The port's enable_irq takes a bool, True: enabled,
+        ports/stm32/irq.c; disable_irq returns whether they were.)"""
+        machine.enable_irq(True)
         if self.timer is not None:
             self.timer.deinit()
             self.timer = None
         self.pps.irq(handler=None)
         if self.wdt is not None:
             self.timer = machine.Timer(
-                -1, mode=machine.Timer.PERIODIC, freq=4, callback=self._feed_isr, hard=True
+                -1, mode=machine.Timer.PERIODIC, freq=_FEED_HZ, callback=self._feed_isr, hard=True
             )
 
     def _feed_isr(self, _timer):

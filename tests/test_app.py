@@ -322,7 +322,16 @@ def test_ctrl_c_stops_the_loop_and_keeps_the_repl_alive(tmp_path):
     machine = bench.machine
     pps = machine.pin(bench.board.PINS["pps"])
     assert pps.irq_handler is not None and len(machine._timers) == 1
-    bench.app.stop()  # what main.py does on KeyboardInterrupt
+    calls = []
+    enable_irq = machine.enable_irq
+    machine.enable_irq = lambda state: calls.append(state)
+    try:
+        bench.app.stop()  # what main.py does on KeyboardInterrupt
+    finally:
+        machine.enable_irq = enable_irq
+    # interrupts unmasked (a Ctrl-C may have raised in idle's masked section): the port's
+    # enable_irq takes a bool, True: enabled
+    assert calls == [True]
     assert bench.console[-1] == "ins: stopped (Ctrl-D restarts it)"
     assert pps.irq_handler is None
     # the tick timer is gone: nothing is due, no frame goes out
@@ -331,7 +340,9 @@ def test_ctrl_c_stops_the_loop_and_keeps_the_repl_alive(tmp_path):
     assert bench.app.due == 0
     bench.app.service()
     assert take_tx(bench.out_uart) == b""
-    # the timer left behind feeds the watchdog, which cannot be stopped once started
+    # the timer left behind feeds the watchdog, which cannot be stopped once started, four
+    # times per timeout (50 ms: every 12 ms, the port's 1000 // 80)
+    assert [t.period_ms for t in machine._timers] == [12]
     feeds = machine.watchdog.feeds
     for _ in range(3):
         machine.fire_timers()

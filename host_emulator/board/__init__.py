@@ -7,7 +7,9 @@ firmware's own board.py and drivers, backed by emulated peripherals on a virtual
           it) and time.py (the virtual clock and MicroPython's tick functions), plain Python
           that runs unchanged in a MicroPython VM and on CPython; emulate.py and
           emulate_m4f.py, the harnesses that replay a stimulus through the firmware inside the
-          unix VM (mpy_unix) and on the emulated Cortex-M4F (m4f), with feed.py
+          unix VM (mpy_unix) and on the emulated Cortex-M4F (m4f), with feed.py;
+          backup_domain.py, the virtual board's stand-in for `stm.mem32` over the RTC backup
+          registers (the firmware's maintenance marker), shared by its two VMs through a file
 
 One board for every runtime: the VM finds machine.py, bmi055_model.py and time.py on its
 sys.path, the emulated Cortex-M4F has them frozen (runtimes/m4f/manifest.py); the cpython

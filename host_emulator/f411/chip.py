@@ -7,8 +7,9 @@ Memory (RM0383 section 2.3): flash 512 KB at 0x08000000 and aliased at 0 (BOOT0 
 128 KB at 0x20000000, system memory with the 96-bit unique ID (0x1FFF7A10) and the flash size
 (0x1FFF7A22, 512 KB). Stores into flash go to the flash interface's programming model
 (flash_if.py). Peripherals: SCS (NVIC, SCB, SysTick), RCC, PWR, FLASH, GPIOA-E/H, SYSCFG,
-EXTI, DMA1/2, SPI1, USART1/2/6, IWDG, RTC, USB OTG FS; everything else of RM0383's map is left
-unmapped so that an access to it stops the run, naming it.
+EXTI, DMA1/2, SPI1, USART1/2/6, IWDG, RTC, USB OTG FS, and SPI2-5 and I2C1-3 only as the soft
+reset switches them off (inert.py); everything else of RM0383's map is left unmapped so that an
+access to it stops the run, naming it.
 
 Resets: the watchdog (IWDG) or software (SCB_AIRCR.SYSRESETREQ) reset the chip as the board
 does: peripherals to their reset values except the backup domain (RTC, RCC_BDCR), the flash and
@@ -32,6 +33,8 @@ from host_emulator.f411.dma import Dma
 from host_emulator.f411.exti import Exti
 from host_emulator.f411.flash_if import FLASH_BASE, FLASH_SIZE, FlashIf
 from host_emulator.f411.gpio import Gpio
+from host_emulator.f411.inert import BLOCKS as INERT_BLOCKS
+from host_emulator.f411.inert import Inert
 from host_emulator.f411.iwdg import Iwdg
 from host_emulator.f411.nvic import Scs
 from host_emulator.f411.pwr import Pwr
@@ -88,6 +91,8 @@ class F411:
         self.iwdg = add(Iwdg(self))
         self.rtc = add(Rtc(self))
         self.usb = add(UsbOtgFs(self))
+        for name, base, size in INERT_BLOCKS:
+            add(Inert(self, name, base, size))
         self.bus.map_bitband()
         self.rcc.resets.update({
             (0x10, 0): self.gpio["A"], (0x10, 1): self.gpio["B"], (0x10, 2): self.gpio["C"],
@@ -219,7 +224,7 @@ class F411:
             for e in getattr(p, "streams", ()):
                 e.abort()
             p.reset()
-        self.scs.systick.__init__(self.scs)
+        self.scs.systick.reset()
         self.rcc.reset_flags |= flags
         self.clock.set_hz(16_000_000)
         self._wire_board()

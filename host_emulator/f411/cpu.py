@@ -112,7 +112,16 @@ class Cpu:
         c.sync = ffi.from_buffer(self._sync_keep[1])
 
     def reset(self, vector_table):
+        """The core's reset (ARMv7-M B1.5.5): the masks and CONTROL cleared (a reset from code
+        that had interrupts masked, in the idle loop or a flash erase, must not start the
+        image with them masked: its millisecond tick would not run), Thread mode, the stack
+        and entry point from the vector table."""
         sp, pc = (int.from_bytes(self.uc.mem_read(vector_table + i, 4), "little") for i in (0, 4))
+        uc = self.uc
+        for reg in (A.UC_ARM_REG_PRIMASK, A.UC_ARM_REG_BASEPRI, A.UC_ARM_REG_FAULTMASK,
+                    A.UC_ARM_REG_CONTROL):  # fmt: skip
+            uc.reg_write(reg, 0)
+        uc.reg_write(A.UC_ARM_REG_XPSR, 0x01000000)  # T set, IPSR 0 (Thread mode)
         self.uc.reg_write(A.UC_ARM_REG_MSP, sp)
         self.uc.reg_write(A.UC_ARM_REG_SP, sp)
         self._pc = pc & ~1

@@ -26,7 +26,10 @@ class Iwdg(Peripheral):
     )
 
     def reset(self):
+        """A system reset stops the watchdog: its pending expiry goes too."""
         super().reset()
+        if getattr(self, "_expiry", None) is not None:
+            self._expiry.cancel()
         self.running = False
         self._unlocked = False
         self._busy_until = 0

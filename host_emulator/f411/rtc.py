@@ -7,7 +7,10 @@ shadow registers synchronised) and the write flags (ALRAWF, ALRBWF, WUTWF) read 
 set once a year other than 0 has been written. WPR's key sequence (0xCA, 0x53) is checked: a
 write to a protected register without it is ignored, as on the chip. Alarms, the wakeup
 timer, time-stamp and tamper are stored, not run (enabling one stops the run). The backup
-domain (these registers, RCC_BDCR) survives a system reset; RCC's BDRST clears it.
+domain (these registers, RCC_BDCR) survives a system reset; RCC's BDRST clears it. The backup
+registers BKPxR need no key (WPR does not protect them) but, like every register of the
+backup domain, PWR_CR.DBP: written while it is clear (its value after any reset) they keep
+what they hold, as on the chip.
 """
 
 import datetime
@@ -154,3 +157,15 @@ class Rtc(Peripheral):
         if value & 0x5:  # TAMP1E, TSE
             self.chip.unsupported("RTC tamper detection")
         self.v[0x40] = value
+
+
+def _backup_writer(off):
+    def write(self, value):
+        if self.chip.pwr.backup_writable():
+            self.v[off] = value
+
+    return write
+
+
+for _i in range(20):
+    setattr(Rtc, f"write_BKP{_i}R", _backup_writer(0x50 + 4 * _i))

@@ -59,6 +59,24 @@ class Spi(Peripheral):
         self._waiting = None  # a byte written while the shift register was busy
         self._dr_read = False  # DR read since OVR was set (the first half of clearing it)
 
+    # A soft reset de-initialises every SPI the board defines, used or not (ports/stm32/main.c,
+    # spi_deinit_all): HAL_SPI_DeInit reads CR1 and writes it back with SPE clear, with SPI1's
+    # clock off after a start that never used it (a maintenance start). On the chip such a
+    # register reads 0 and ignores writes: so here, for that access only; any other access
+    # with the clock off still stops the run.
+    def _clocked(self):
+        return self.chip.rcc.enabled(*self.CLOCK)
+
+    def bus_read(self, off, size):
+        if off & ~3 == CR1 and not self._clocked():
+            return 0
+        return super().bus_read(off, size)
+
+    def bus_write(self, off, size, value):
+        if off & ~3 == CR1 and not self._clocked() and not value & SPE:
+            return
+        super().bus_write(off, size, value)
+
     def attach(self, device, gpio, pin):
         self.devices.append((device, gpio, pin))
 

@@ -24,6 +24,14 @@ class SysTick:
         self._event = None
         self.interrupts = 0
 
+    def reset(self):
+        """A system reset: stopped, and its pending zero dropped (left on the clock, it would
+        make a SysTick interrupt of the old count after the reset and reschedule over the new
+        one: the port's millisecond tick running fast)."""
+        if self._event is not None:
+            self._event.cancel()
+        self.__init__(self.scs)
+
     def _ctrl(self):
         return self.scs.v[CTRL]
 

@@ -12,7 +12,11 @@ running repl_server.py (beside this file), with `fs_dir` mounted at /flash (capa
 A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
 VM (board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated when the
 board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
-stops it. Everything runs on one background thread around select().
+stops it. `machine.reset()` in the REPL resets the board (`resets` counts them): a new REPL
+VM, then main.py as at power-up, whose maintenance check (board.maintenance_start) reads the
+RTC backup registers the REPL's `stm` stand-in wrote (board/mpy/backup_domain.py: a file both
+VMs share, as the backup domain outlives a reset). Everything runs on one background thread
+around select().
 """
 
 import argparse
@@ -30,7 +34,7 @@ import threading
 import time
 import tty
 
-from host_emulator.board import EMULATE
+from host_emulator.board import EMULATE, MPY_DIR
 from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
 
@@ -108,6 +112,9 @@ class VirtualBoard:
         self.port = None
         self.rs485_port = None
         self.firmware_runs = 0
+        self.resets = 0  # machine.reset() from the REPL
+        self.maintenance_starts = 0  # starts main.py's check made maintenance starts
+        self._reset_cause = 1  # machine.reset_cause(): PWRON_RESET, HARD_RESET after a reset
         self._thread = None
         self._stop = False
         self._tmp = None
@@ -120,6 +127,8 @@ class VirtualBoard:
         self.fs_dir.mkdir(parents=True, exist_ok=True)
         self._tmp = tempfile.TemporaryDirectory(prefix="vboard-")
         self._stim_path = pathlib.Path(self._tmp.name) / "stimulus.bin"
+        self._backup = pathlib.Path(self._tmp.name) / "backup_domain.bin"
+        self._backup.write_bytes(bytes(80))  # backup_domain.power_on: 20 registers, 0
         sim = board_input.simulate(self.scenario, self.duration_s, self.seed)
         sim.stimulus.write(self._stim_path)
         self._exe = vm.micropython_exe()
@@ -184,6 +193,8 @@ class VirtualBoard:
         self._sentinel = b"\x00\x1bVB" + self._nonce.encode() + b":"
         left = max(0, self.corrupt_writes - self.corrupted)
         self._corrupt_base = self.corrupted
+        env = dict(os.environ, INS_VB_BACKUP=str(self._backup), INS_VB_MPY=str(MPY_DIR),
+                   INS_VB_RESET_CAUSE=str(self._reset_cause))  # fmt: skip
         self._repl = subprocess.Popen(
             [
                 self._exe,
@@ -200,12 +211,14 @@ class VirtualBoard:
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             bufsize=0,
+            env=env,
         )
         self._repl_buf = b""
         self._busy = None  # what is running in the REPL VM: "raw" or "friendly"
 
     def _start_fw_vm(self):
-        env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast")
+        env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast",
+                   INS_VM_BACKUP=str(self._backup))  # fmt: skip
         if self.frozen_dir:  # after emulate.py's own entries (the firmware in /flash first)
             env["MICROPYPATH"] = str(self.frozen_dir)
         self._fw = subprocess.Popen(
@@ -440,6 +453,10 @@ class VirtualBoard:
             if nl < 0:
                 buf = buf[i:]
                 break
+            if rest[:nl] == b"reset":  # machine.reset(): the VM has ended
+                self._repl_buf = b""
+                self._hard_reset()
+                return
             n_err, corrupted = (int(x) for x in rest[:nl].split())
             if len(rest) < nl + 1 + n_err:
                 buf = buf[i:]
@@ -476,6 +493,19 @@ class VirtualBoard:
 
     def _soft_reset(self):
         self._start_repl_vm()
+
+    def _hard_reset(self):
+        """machine.reset(): what was typed is lost, the board starts as at power-up (main.py
+        if there is one) with the backup domain kept; the port stays (a UART console: a USB
+        board's would leave and come back)."""
+        self.resets += 1
+        self._reset_cause = 2  # HARD_RESET
+        self._busy = None
+        self._line.clear()
+        self._pending.clear()
+        self._mode = "friendly"
+        self._start_repl_vm()
+        self._power_up()
 
     # ---- the firmware --------------------------------------------------------------------
 
@@ -520,7 +550,9 @@ class VirtualBoard:
         elif kind == b"E" and rest.strip().lstrip(b"-").isdigit():
             self._fw_error = []
         elif kind == b"X":
-            if rest == b"ended":
+            if rest == b"maintenance":
+                self.maintenance_starts += 1
+            elif rest == b"ended":
                 self._fw_ended = True
                 again = b"it starts again (a reset)" if self.loop else b"Ctrl-D runs it again"
                 self._send(

@@ -16,6 +16,14 @@ REPL compiles it; "s": one interactive line, as the friendly REPL, echoing expre
 code runs in one globals dict kept across requests; what it prints goes to stdout as it
 runs; then the server writes SENTINEL + b"<len> <corrupted>\\n" + the exception text (len
 bytes, empty if none), SENTINEL = b"\\x00\\x1bVB" + NONCE + b":".
+
+The board's hardware, for the maintenance start (firmware/board.py, tools/flash/
+maintenance.py), with the environment variables INS_VB_BACKUP (the backup domain's file) and
+INS_VB_MPY (host_emulator/board/mpy): `stm` is backup_domain.py's stand-in (mem32 over the RTC
+backup registers, PWR_CR and RCC_APB1ENR, nothing else), `machine` the unix port's plus
+reset() and reset_cause() as the stm32 port has them. machine.reset() ends the code there: the
+server writes SENTINEL + b"reset\\n" and exits (the host resets the board: a new VM, main.py
+as at power-up). INS_VB_RESET_CAUSE: what reset_cause() gives (the host's reset).
 """
 
 import io
@@ -177,6 +185,48 @@ class FlashVfs:
         os.rename(self._host(old), self._host(new))
 
 
+class _Reset(BaseException):
+    """machine.reset(): the code ends here, the board resets."""
+
+
+class _Machine:
+    """The REPL's `machine`: the unix port's, plus the stm32 port's reset() and reset_cause()
+    (its constants: ports/stm32/modmachine.c)."""
+
+    SOFT_RESET = 0
+    PWRON_RESET = 1
+    HARD_RESET = 2
+    WDT_RESET = 3
+    DEEPSLEEP_RESET = 4
+
+    def __init__(self, unix):
+        for name in dir(unix):
+            if not name.startswith("__"):
+                setattr(self, name, getattr(unix, name))
+
+    def reset(self):
+        raise _Reset()
+
+    def reset_cause(self):
+        return int(os.getenv("INS_VB_RESET_CAUSE") or 1)
+
+
+def _hardware():
+    """`stm` and `machine` as the board has them (module docstring), when the host gives the
+    backup domain's file."""
+    path = os.getenv("INS_VB_BACKUP")
+    if not path:
+        return
+    import machine
+
+    sys.path.insert(0, os.getenv("INS_VB_MPY"))
+    import backup_domain
+
+    sys.path.pop(0)
+    sys.modules["stm"] = backup_domain.Stm(path)
+    sys.modules["machine"] = _Machine(machine)
+
+
 def _report(err):
     b = err.encode()
     sys.stdout.write(SENTINEL + str(len(b)) + " " + str(CORRUPT[1]) + "\n")
@@ -187,6 +237,8 @@ def _run(src, mode, g):
     try:
         code = compile(src, "<stdin>", "single" if mode == "s" else "exec")
         exec(code, g)
+    except _Reset:
+        raise
     except BaseException as e:  # noqa: BLE001  (reported like the board's REPL)
         s = io.StringIO()
         sys.print_exception(e, s)
@@ -197,6 +249,7 @@ def _run(src, mode, g):
 
 
 def main():
+    _hardware()
     os.mount(FlashVfs(FS_DIR), "/flash")
     os.chdir("/flash")
     sys.path.clear()
@@ -218,7 +271,11 @@ def main():
                 src += more
         except KeyboardInterrupt:  # a Ctrl-C that came after the code finished
             continue
-        err = _run(src.decode(), mode.decode(), g)
+        try:
+            err = _run(src.decode(), mode.decode(), g)
+        except _Reset:
+            sys.stdout.write(SENTINEL + "reset\n")
+            return
         try:
             _report(err)
         except KeyboardInterrupt:

@@ -12,6 +12,7 @@ volatile uint32_t counter;
 volatile uint32_t done;
 __attribute__((section(".noinit"))) volatile uint32_t boots;  /* survive a reset */
 __attribute__((section(".noinit"))) volatile uint32_t csr_at_boot[4];
+__attribute__((section(".noinit"))) volatile uint32_t kept[8];
 
 int main(void);
 void Reset_Handler(void) {
@@ -258,6 +259,47 @@ int main(void) {
     }
     IWDG->KR = 0xAAAA;
     for (;;) {
+    }
+}
+#elif defined(PROGRAM_BACKUP)
+/* The RTC backup register BKP18R (the firmware's maintenance marker) across a system reset: a
+ * write without PWR_CR.DBP is ignored; one with it survives SYSRESETREQ, which clears DBP
+ * (PWR is reset, its clock too). The reset comes with interrupts masked and SysTick running:
+ * the core starts again with PRIMASK and BASEPRI clear, and no SysTick interrupt of the old
+ * count follows. kept[] (.noinit) carries the readings across the reset. */
+void SysTick_Handler(void) {
+    counter++;
+}
+void IRQ0_Handler(void) {}
+void IRQ1_Handler(void) {}
+void IRQ2_Handler(void) {}
+int main(void) {
+    boots++;
+    if (boots == 1) {
+        RTC->BKP18R = 0x1111; /* DBP clear: ignored */
+        kept[0] = RTC->BKP18R;
+        RCC->APB1ENR |= RCC_APB1ENR_PWREN;
+        PWR->CR |= PWR_CR_DBP;
+        RTC->BKP18R = 0x2222;
+        kept[1] = RTC->BKP18R;
+        systick_start(1599); /* every 100 us at 16 MHz */
+        __set_BASEPRI(0x40);
+        __disable_irq();
+        NVIC_SystemReset();
+    }
+    kept[5] = __get_PRIMASK();
+    kept[6] = __get_BASEPRI();
+    kept[2] = RTC->BKP18R;
+    RCC->APB1ENR |= RCC_APB1ENR_PWREN;
+    kept[3] = PWR->CR & PWR_CR_DBP;
+    RTC->BKP18R = 0x3333; /* DBP clear again: ignored */
+    kept[4] = RTC->BKP18R;
+    for (volatile uint32_t i = 0; i < 2000; i++) { /* ~1 ms: ten periods of the old SysTick */
+    }
+    kept[7] = counter;
+    done = 1;
+    for (;;) {
+        __WFI();
     }
 }
 #else

@@ -63,3 +63,20 @@ def test_the_watchdog_resets_the_chip_when_not_fed(chip_for):
     # 80 counts of LSI / 4 at 32 kHz: 10 ms after the start
     t_reset = chip.resets[0][0] / chip.clock.hz
     assert 0.010 < t_reset < 0.0115
+
+
+def test_the_backup_registers_survive_a_system_reset_and_need_dbp(chip_for):
+    """RTC_BKP18R, where the firmware keeps its maintenance marker (firmware/board.py): a write
+    without PWR_CR.DBP is ignored, as on the chip; with it, the value survives SYSRESETREQ
+    (machine.reset()), which clears DBP. The reset, from code with interrupts masked and
+    SysTick counting, restarts the core with PRIMASK and BASEPRI clear and leaves no SysTick
+    interrupt behind (both left the image's next start without its millisecond tick)."""
+    chip = chip_for("BACKUP")
+    reasons = []
+    chip.on_reset.append(reasons.append)
+    assert run_until_done(chip, 50)
+    assert reasons == ["SYSRESETREQ (NVIC_SystemReset)"]
+    assert word(chip, "boots") == 2
+    assert [word(chip, "kept", i) for i in range(5)] == [0, 0x2222, 0x2222, 0, 0x2222]
+    assert (word(chip, "kept", 5), word(chip, "kept", 6)) == (0, 0)  # PRIMASK, BASEPRI
+    assert word(chip, "kept", 7) == 0  # SysTick interrupts after the reset

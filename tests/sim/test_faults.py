@@ -313,33 +313,53 @@ def test_a_stall_loses_its_frames_and_the_navigator_steps_through_its_ticks(stim
     """stall: a per-tick flag (it survives the file); no loop runs over it, so its frames are
     missing; the next tick counts the missed ticks as overruns (health 1, `overrun`) and the
     navigator steps through them on that tick's sample, which is not taken for a stuck IMU:
-    its clock (the extended frames' tick) keeps the timer's. CPython and the emulated
-    Cortex-M4F give the model's bytes; the VM runs it too."""
+    its clock (the extended frames' tick) keeps the timer's. 35 ms: a stall the board's 50 ms
+    watchdog survives (the feeds before and after it 40 ms apart, plus the tick). CPython and
+    the emulated Cortex-M4F give the model's bytes; the VM runs it too."""
     from host_emulator.eval import parity
     from host_emulator.runtimes import mpy_unix
 
-    s = faults.apply(stim, [f"stall@{T0:g}+0.2"])
-    k0, k1 = K0, K0 + 40
-    assert s.stalled[k0:k1].all() and s.stalled.sum() == 40
+    s = faults.apply(stim, [f"stall@{T0:g}+0.035"])
+    k0, k1 = K0, K0 + 7
+    assert s.stalled[k0:k1].all() and s.stalled.sum() == 7
     assert np.array_equal(stim_mod.from_bytes(s.to_bytes()).stalled, s.stalled)
     for runtime in ("cpython", "m4f"):
         r = parity.compare(s, runtime=runtime, kernels="native")
         assert r.identical, (runtime, r.summary())
     clean = stream.decode(cpython.run(stim, tmp_path / "clean").out)
     d = stream.decode(cpython.run(s, tmp_path / "c").out)
-    assert len(d.frames) == len(clean.frames) - 40
-    assert [e["tick"] for e in d.ext] == [e["tick"] for e in clean.ext[: k0 // 20]] + [
-        e["tick"] for e in clean.ext[k1 // 20 :]
-    ]
+    assert len(d.frames) == len(clean.frames) - 7
+    assert [e["tick"] for e in d.ext] == [e["tick"] for e in clean.ext]  # none stalled
     after = d.ext[k0 // 20]  # the first extended frame after the stall
-    assert after["overruns"] == 40 and after["health"] >= 1
+    assert after["overruns"] == 7 and after["health"] >= 1
     assert "overrun" in rec_schema.cause_names(after["causes"])
     assert "overrun" not in rec_schema.cause_names(d.ext[k0 // 20 + 1]["causes"])
     # the steps repeat one read (IMU_REPEAT): not taken for a stuck IMU, health stays 1
     assert all(e["health"] <= 1 for e in d.ext[k0 // 20 : k0 // 20 + 15])
-    assert after["nav_state"] == clean.ext[k1 // 20]["nav_state"]
+    assert after["nav_state"] == clean.ext[k0 // 20]["nav_state"]
     vm = stream.decode(mpy_unix.run(s, tmp_path / "vm", kernels="native").out)
-    assert len(vm.frames) == len(d.frames) and vm.ext[k0 // 20]["overruns"] == 40
+    assert len(vm.frames) == len(d.frames) and vm.ext[k0 // 20]["overruns"] == 7
+
+
+def test_the_navigator_steps_through_at_most_the_watchdogs_ticks(stim, tmp_path):
+    """A 0.2 s stall, which the board's 50 ms watchdog would end in a reset: the 40 missed
+    ticks are counted, but the navigator steps through app._CATCH_UP_MAX (10, the watchdog's
+    timeout in ticks) of them, so its clock falls 30 ticks behind the timer's; CPython gives
+    the model's bytes."""
+    from host_emulator import firmware_env
+    from host_emulator.eval import parity
+
+    app = firmware_env.import_module("app")
+    assert app._CATCH_UP_MAX == 10
+    s = faults.apply(stim, [f"stall@{T0:g}+0.2"])
+    k0, k1 = K0, K0 + 40
+    r = parity.compare(s, runtime="cpython", kernels="native")
+    assert r.identical, r.summary()
+    clean = stream.decode(cpython.run(stim, tmp_path / "clean").out)
+    d = stream.decode(cpython.run(s, tmp_path / "c").out)
+    after = d.ext[k0 // 20]
+    assert after["overruns"] == 40
+    assert after["tick"] == clean.ext[k1 // 20]["tick"] - 30
 
 
 def test_the_firmware_under_faults_is_the_models_bit_for_bit(stim):

@@ -1,6 +1,9 @@
 """`python -m tools.flash deploy` and `config` end to end against the virtual board (a real
 MicroPython VM behind a pty, host_emulator.virtual_board), plus the port errors a user meets:
-no such port, a device that is not MicroPython, a silent one."""
+no such port, a device that is not MicroPython, a silent one. Every write (and every read that
+restarts the firmware) goes through the maintenance start: the virtual board's REPL has the
+stm32 port's `stm.mem32` over the RTC backup registers and machine.reset(), and its firmware
+starts with main.py's maintenance check (test_maintenance.py: the protocol's edge cases)."""
 
 import json
 import os
@@ -75,6 +78,62 @@ def test_deploy_copies_what_differs_only_and_deletes_stale_firmware(build_dir, t
         assert _crcs(vb.fs_dir)["lib/geo.mpy"] == build.crc32(
             (build_dir / "lib/geo.mpy").read_bytes()
         )
+
+
+def test_deploy_and_config_set_write_in_a_maintenance_start(build_dir, tmp_path, capsys):
+    """The board reset into maintenance (its main.py's check took the marker: neither loop
+    nor watchdog) before anything is written, then soft-reset into a normal start that clears
+    the marker. The first deploy finds no main.py: reset, but no maintenance start to take."""
+    with _board(tmp_path) as vb:
+        lines = []
+        deploy.deploy(build_dir, vb.port, log=lines.append)
+        assert (vb.resets, vb.maintenance_starts) == (1, 0)
+        assert "the board restarted without starting a firmware (no main.py): no watchdog runs" \
+            in lines  # fmt: skip
+        lines = []
+        second = deploy.deploy(build_dir, vb.port, log=lines.append)
+        assert (vb.resets, vb.maintenance_starts) == (2, 1)
+        assert lines[:2] == [
+            f"resetting the board on {vb.port} into maintenance (the firmware's loop and "
+            "watchdog off while its filesystem is written)",
+            "the board restarted in maintenance: loop and watchdog off",
+        ]
+        assert "ins: running" in second["console"]
+        marker = vb._backup.read_bytes()[4 * 18 : 4 * 19]  # RTC_BKP18R
+        assert marker == bytes(4)  # the normal start cleared it
+        capsys.readouterr()
+        # config set: a read (config get's session) and the write, each in maintenance; the
+        # read's soft reset may still be starting the firmware when the write's Ctrl-C comes,
+        # before main.py cleared the marker: that start is still a maintenance one (nothing
+        # runs, no watchdog), and the write goes on without another reset
+        assert main(["config", "set", "--port", vb.port, "output_every_ticks=2"]) == 0
+        out, err = capsys.readouterr()
+        assert "the board restarted in maintenance" in err  # the read's log goes to stderr
+        if vb.resets == 3:
+            assert "the board is in maintenance (loop and watchdog off) from an earlier " \
+                   "start" in out  # fmt: skip
+        else:
+            assert vb.resets == 4 and "the board restarted in maintenance" in out
+        assert vb.maintenance_starts == vb.resets - 1
+
+
+def test_the_virtual_boards_stm_refuses_what_it_does_not_have(tmp_path):
+    """The REPL's `stm.mem32` stand-in knows the RTC backup registers, PWR_CR and
+    RCC_APB1ENR: any other address is refused, never read as 0; a backup register written
+    without PWR_CR.DBP keeps its value, as on the chip."""
+    with _board(tmp_path) as vb:
+        ser, repl = deploy.connect(vb.port, 115200, maintenance=False)
+        try:
+            out = repl.exec(
+                "import stm\nm = stm.mem32\nm[0x40002898] = 7\nprint(m[0x40002898])\n"
+                "m[0x40007000] = m[0x40007000] | 0x100\nm[0x40002898] = 7\n"
+                "print(m[0x40002898], stm.RTC + stm.RTC_BKP18R == 0x40002898)\n"
+                "try:\n m[0x40011004]\nexcept ValueError as e:\n print('refused', e)\n"
+            ).decode()
+        finally:
+            ser.close()
+    assert out.splitlines()[:2] == ["0", "7 True"]
+    assert "refused the virtual board's stm.mem32 has no register at 40011004" in out
 
 
 def test_a_corrupted_write_is_retried(build_dir, tmp_path):

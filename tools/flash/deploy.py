@@ -1,6 +1,8 @@
-"""Deploy a build to a board over its raw REPL: compare CRC-32s, copy only what changed (each
-file verified by the board's own CRC-32), delete stale firmware files, upload the
-configuration, soft-reset and confirm the firmware started. A board whose MicroPython image
+"""Deploy a build to a board over its raw REPL: stop the firmware and reset the board into a
+maintenance start (tools/flash/maintenance.py: neither its loop nor its 50 ms watchdog, which
+a flash write would outlast), compare CRC-32s, copy only what changed (each file verified by
+the board's own CRC-32), delete stale firmware files, upload the configuration, soft-reset and
+confirm the firmware started. A board whose MicroPython image
 carries this firmware frozen (tools/image: its `fwid` module) gets main.py only, and the native
 kernels lib/navk.mpy (a native module cannot be frozen): built for the architecture the board
 reports (sys.implementation._mpy: armv7emsp on the board, x64 on the virtual board's VM)."""
@@ -11,7 +13,9 @@ import time
 from host_emulator.proto import serial_port, stream
 from host_emulator.proto.crc import crc32
 from tools.flash import build as build_mod
+from tools.flash import maintenance as maint
 from tools.flash.errors import (
+    BoardError,
     FirmwareNotRunning,
     FlashError,
     FlashFull,
@@ -161,17 +165,28 @@ class Board:
         return self.crc(rel)
 
     def write_verified(self, rel, data, log):
+        """Write and check the board's CRC-32, up to ATTEMPTS times. Code that reaches the
+        board as a SyntaxError (ours is valid: characters were lost on the way, as a UART REPL
+        loses those that come while a flash erase stalls the CPU) is a corrupted attempt too."""
         want = crc32(data)
         for attempt in range(1, ATTEMPTS + 1):
-            got = self.write(rel, data)
+            try:
+                got = self.write(rel, data)
+            except BoardError as e:
+                if "SyntaxError" not in str(e):
+                    raise
+                log(f"  {rel}: the code sent arrived corrupted (attempt {attempt})")
+                got = None
+                continue
             if got == want:
                 return attempt
             log(f"  {rel}: CRC-32 {got:08x} on the board, {want:08x} sent (attempt {attempt})")
+        seen = "its code arrived corrupted" if got is None else f"the board's CRC-32 of the file " \
+            f"({got:08x}) still differs from the host's ({want:08x})"  # fmt: skip
         raise TransferCorrupted(
-            f"the transfer of {rel} was corrupted: after {ATTEMPTS} attempts the board's CRC-32 "
-            f"of the file ({got:08x}) still differs from the host's ({want:08x}). Check the USB "
-            "cable and hub (connect the board directly), try a lower --baud, and run deploy "
-            "again: only the files that differ are sent."
+            f"the transfer of {rel} was corrupted: after {ATTEMPTS} attempts {seen}. Check the "
+            "USB cable and hub (connect the board directly), try a lower --baud, and run "
+            "deploy again: only the files that differ are sent."
         )
 
 
@@ -304,11 +319,26 @@ def frozen_plan(manifest, board_id, log, with_config):
             "total_bytes": sum(f["size"] for f in files)}  # fmt: skip
 
 
-def connect(port, baud, timeout=5.0):
+def _quiet(_line):
+    pass
+
+
+def _stderr(line):
+    import sys
+
+    print(line, file=sys.stderr)
+
+
+def connect(port, baud, timeout=5.0, log=_quiet, maintenance=True):
+    """(ser, repl): the board's raw REPL, its firmware stopped (Ctrl-C) and, with maintenance,
+    the board reset into a maintenance start (maintenance.start: repl.maintenance says how it
+    went, repl.console keeps what the board said when stopped)."""
     ser = open_port(port, baud)
     repl = BoardRepl(ser, timeout=timeout, port=port)
     try:
         repl.enter()
+        if maintenance:
+            return maint.start(repl, lambda: open_port(port, baud), log)
     except BaseException:
         ser.close()
         raise
@@ -332,7 +362,7 @@ def deploy(
     this firmware frozen, only main.py (and the configuration) are written and the firmware
     files on /flash are deleted; check_budget() is called only when all files are deployed."""
     manifest = build_mod.load_manifest(build_dir)
-    ser, repl = connect(port, baud)
+    ser, repl = connect(port, baud, log=log)
     try:
         board = Board(repl)
         said = [
@@ -405,6 +435,9 @@ def deploy(
             if running:
                 restart(repl, watch_s)
                 log("the firmware, stopped to read the board, runs again (a soft reset)")
+            elif repl.maintenance:
+                log("the board stays in maintenance (its firmware was not running): Ctrl-D or "
+                    "a reset starts it")  # fmt: skip
             return {
                 "written": [],
                 "stale": stale,
@@ -532,10 +565,10 @@ def valid_frames(data):
     return len(stream.decode(data).frames)
 
 
-def read_config(port, baud):
-    """The board's /flash/ins.cfg bytes (None if it has none); restarts the firmware after
-    (a soft reset: the firmware starts again, and aligns again)."""
-    ser, repl = connect(port, baud)
+def read_config(port, baud, log=_stderr):
+    """The board's /flash/ins.cfg bytes (None if it has none), read in a maintenance start;
+    restarts the firmware after (a soft reset: the firmware starts again, and aligns again)."""
+    ser, repl = connect(port, baud, log=log)
     try:
         data = Board(repl).read(CONFIG_NAME)
         soft_reset(repl)
@@ -553,12 +586,13 @@ FACTS_QUERY = (
 
 
 class BoardSession:
-    """The board, stopped, for what a recording keeps of it: `config` (its /flash/ins.cfg
-    bytes, None without one) and `facts` ({"machine", "floats": "float32" | "double"});
-    `restart()` soft-resets it, so that a recording begun before holds the firmware's start."""
+    """The board, stopped (in a maintenance start), for what a recording keeps of it: `config`
+    (its /flash/ins.cfg bytes, None without one) and `facts` ({"machine", "floats": "float32" |
+    "double"}); `restart()` soft-resets it, so that a recording begun before holds the
+    firmware's start."""
 
-    def __init__(self, port, baud):
-        self.ser, self.repl = connect(port, baud)
+    def __init__(self, port, baud, log=_quiet):
+        self.ser, self.repl = connect(port, baud, log=log)
         try:
             board = Board(self.repl)
             self.config = board.read(CONFIG_NAME)
@@ -582,8 +616,9 @@ class BoardSession:
 
 
 def write_config(port, baud, data, log=print):
-    """Write ins.cfg with CRC verification, then soft-reset so the firmware loads it."""
-    ser, repl = connect(port, baud)
+    """Write ins.cfg with CRC verification in a maintenance start, then soft-reset so the
+    firmware loads it."""
+    ser, repl = connect(port, baud, log=log)
     try:
         board = Board(repl)
         board.write_verified(CONFIG_NAME, data, log)

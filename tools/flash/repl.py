@@ -8,6 +8,8 @@ said when it stopped, and messages that say what went wrong and what to do.
     Ctrl-A                  the raw REPL: b"raw REPL; CTRL-B to exit\\r\\n>"
     (mpremote)              code and files, each run answered with stdout, stderr, ">"
     Ctrl-B                  back to the friendly REPL; Ctrl-D there soft-resets
+    (tools/flash/maintenance.py: between Ctrl-A and the work, the board reset into a
+    maintenance start, its watchdog off, and the port opened and Ctrl-C, Ctrl-A again)
 
 `ser` is anything with pyserial's write(bytes), read(n), in_waiting, inWaiting() (mpremote
 asks the older name) and timeout: a serial.Serial (deploy.open_port), or a scripted fake in the
@@ -70,6 +72,8 @@ class BoardRepl:
         self._limit = timeout  # the silence a read of the current operation tolerates
         _bounded(self.transport, lambda: self._limit)
         self.console = b""  # what the board printed before the raw REPL (e.g. "ins: stopped")
+        self.maintenance = None  # after maintenance.start: whether this is a maintenance start
+        self.maintenance_console = b""  # what the board printed as it started in maintenance
 
     # -- reading what the board prints outside the raw REPL ----------------------------------
 
@@ -147,6 +151,17 @@ class BoardRepl:
             with contextlib.redirect_stdout(said):
                 return self.transport.exec_raw(code, timeout=self._limit)
         except (TransportError, struct.error) as e:  # struct: a window header cut short
+            raise self._lost(what, e, said.getvalue()) from None
+
+    def exec_no_follow(self, code, what="running code on the board"):
+        """Send code to run without waiting for its end: for a reset, after which no answer
+        comes (mpremote's exec_raw_no_follow: the raw REPL's acknowledgement only)."""
+        said = io.StringIO()
+        self._limit = self.timeout
+        try:
+            with contextlib.redirect_stdout(said):
+                self.transport.exec_raw_no_follow(code)
+        except (TransportError, struct.error) as e:
             raise self._lost(what, e, said.getvalue()) from None
 
     def exec(self, code, timeout=None, what="running code on the board"):

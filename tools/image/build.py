@@ -293,13 +293,17 @@ def _build(board, out_dir, log, build_root, board_dir):
             f"No image was written (figures: {out_dir / REPORT}). Freeze less "
             "(firmware/manifest.py) or turn MicroPython features off in the board definition."
         )
-    shutil.copyfile(obj / "firmware.dfu", out_dir / "firmware.dfu")
-    shutil.copyfile(obj / "firmware.hex", out_dir / "firmware.hex")
+    # each written whole or not at all: another process (a parallel test worker, the twin)
+    # may be reading the image that a build of the same tree rewrites
+    from host_emulator.errors import write_atomic
+
+    write_atomic(out_dir / "firmware.dfu", (obj / "firmware.dfu").read_bytes())
+    write_atomic(out_dir / "firmware.hex", (obj / "firmware.hex").read_bytes())
     flat = combined_bin(
         (obj / "firmware0.bin").read_bytes(), 0x08000000, (obj / "firmware1.bin").read_bytes(),
         0x08020000,
     )  # fmt: skip
-    (out_dir / "firmware.bin").write_bytes(flat)
+    write_atomic(out_dir / "firmware.bin", flat)
     report["outputs"] = {name: str(out_dir / name) for name in IMAGE_FILES}
     report["seconds"] = round(time.monotonic() - t0, 1)
     (out_dir / REPORT).write_text(json.dumps(report, indent=1) + "\n")

@@ -38,7 +38,11 @@ go to stdout as a line "O <hex>", console lines as "C <text>" as above, errors a
 ends with a line "X ended" (the stimulus is used up) or "X stopped" (SIGINT, i.e. Ctrl-C at the
 virtual board's console: the App is stopped as after a KeyboardInterrupt on the board). What
 the status page writes to the display UART goes out as a line "D <hex>" after each tick (the
-start page with the first tick's); no OK comes back.
+start page with the first tick's); no OK comes back. With INS_VM_BACKUP (the virtual board's
+backup-domain file, backup_domain.py), the firmware's start is main.py's: first its
+maintenance check (backup_domain.maintenance_start: board.maintenance_start on that file's
+registers); a maintenance start prints its line and ends the run with "X maintenance", as
+main.py returns to the REPL.
 """
 
 import gc
@@ -222,6 +226,14 @@ def stream_main(realtime):
     a = None
     k = -1
     try:
+        backup = os.getenv("INS_VM_BACKUP")
+        if backup:
+            import backup_domain
+
+            if backup_domain.maintenance_start(backup):
+                print("X maintenance")
+                f.close()
+                return
         a, pins = start_firmware(imu, CONFIG_PATH)
         gnss = machine.uart(pins["gnss_uart"])
         out_uart = machine.uart(pins["out_uart"])

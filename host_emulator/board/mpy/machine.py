@@ -164,12 +164,14 @@ def idle():
 
 
 def disable_irq():
-    """Mask interrupts; the state to give enable_irq (PRIMASK before: 0, they were enabled)."""
-    return 0
+    """Mask interrupts; the state to give enable_irq: whether they were enabled, a bool as
+    the stm32 port's (ports/stm32/irq.c; interrupts are never held off here)."""
+    return True
 
 
 def enable_irq(state):
-    """Restore the interrupt mask disable_irq() returned."""
+    """Interrupts enabled if state is true, masked if false: the port's takes a bool, not a
+    PRIMASK value (`enable_irq(0)` masks them). Nothing to do here."""
 
 
 # ---- arguments as the port parses them ----------------------------------------------------
