@@ -1164,7 +1164,7 @@ _BW_ALPHA = f32.ratio(1, 4)  # weight of a second of fixes in the drift watch's 
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 # A suspected drift, health 2 while it lasts: running means of the same ratios, each clipped
 # at 3 (one outlier adds at most 3/4, so that one bad fix alone raises nothing), beyond 3/2.
-# The no-fault runs' means stay below it (`make bench-faults`: no health 2 without a fault);
+# The no-fault runs' means stay below it (`make bench-faults`: no health 2 in the 1 Hz runs);
 # a bias step passes it fixes before the drift limit, while its errors pass 10 m
 _BS_CLIP = f32.f32(3)
 _BS_LIMIT = f32.ratio(3, 2)
