@@ -47,7 +47,11 @@ def display_runs(tmp_path_factory):
     the VM and on CPython (whose emulated screen answers; none does in the VM)."""
     stim = board_input.simulate("quick_start", 16.0, seed=0).stimulus
     on = {"display": 1}
-    vm = mpy_unix.run(stim, tmp_path_factory.mktemp("vm_display"), on)
+    # twice the default heap: the screen UART's 16 KB receive ring is allocated at start-up
+    # after the firmware's own buffers, and at 512 KB it found no room in some checkouts
+    # (MemoryError at start-up, depending on the paths); what these tests assert, a tick's
+    # allocations and the page's bytes, does not depend on the heap's size
+    vm = mpy_unix.run(stim, tmp_path_factory.mktemp("vm_display"), on, heap_kb=2 * mpy_unix.HEAP_KB)
     cpy = cpython.run(stim, tmp_path_factory.mktemp("cpy_display"), on)
     return vm, cpy
 
