@@ -51,9 +51,31 @@ def ports_hint():
     return "serial ports found: " + ", ".join(ports) if ports else "no serial ports found"
 
 
+BUSY_RETRY_S = 1.0  # how long a busy port is tried again before it counts as held
+
+
 def open_port(port, baud, timeout, **kwargs):
     """pyserial's port (a device path, COM name or pyserial URL) opened exclusively, 8N1;
-    PortError otherwise."""
+    PortError otherwise.
+
+    A port found busy is tried again for BUSY_RETRY_S: the exclusive lock (flock) belongs to the
+    open file, and a process forked by this one in the instant before it closed the port (the
+    virtual board starting a MicroPython VM on a soft reset) holds a copy of it until that child
+    runs its program, so a tool that closes the port and opens it again at once can find its
+    own lock. A port another program holds stays busy, and is reported so after the wait."""
+    import time
+
+    deadline = time.monotonic() + BUSY_RETRY_S
+    while True:
+        try:
+            return _open(port, baud, timeout, **kwargs)
+        except PortError as e:
+            if e.kind != BUSY or time.monotonic() > deadline:
+                raise
+        time.sleep(0.05)
+
+
+def _open(port, baud, timeout, **kwargs):
     import serial
 
     if ("/" in port or port.startswith(".")) and "://" not in port and not os.path.exists(port):
