@@ -50,7 +50,7 @@ bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
 
 # The fault matrix: every fault kind of `run --fault` injected into urban_drive, three seeds,
-# on CPython (~5 min; writes docs/benchmarks/faults.md).
+# on CPython (~11 min on two cores; writes docs/benchmarks/faults.md).
 bench-faults: $(STAMP) native
 	$(BIN)/python -m host_emulator bench-faults
 

@@ -82,7 +82,7 @@ CAUSE_GNSS_DATA = const(0x80)  # the receiver's epoch had an impossible field: u
 CAUSE_RESET = const(0x100)  # position and velocity, or the height, reset to a fix (until
 # a later fix is accepted whole: the reset may have been onto a bad one)
 CAUSE_UNCERTAIN = const(0x200)  # the filter's position 1-sigma above fault_sigma_(v_)m
-CAUSE_DRIFT = const(0x400)  # GNSS innovations one-sided for several fixes: drift (5 s)
+CAUSE_DRIFT = const(0x400)  # innovations one-sided for several fixes or updates: drift
 CAUSE_GNSS_IMPLAUSIBLE = const(0x20000)  # fixes that moved as the board cannot have: a repeated
 # (frozen) position while the navigator moves, or a reset refused for a step the IMU cannot
 # have drifted (a jump; a receiver far off) (1 s)
@@ -231,7 +231,7 @@ _C_HELD_UNTIL = const(60)  # CAUSE_IMU_HELD until this tick
 _C_DEAD_UNTIL = const(61)  # CAUSE_IMU_DEAD until this tick
 _C_RESET_UNTIL = const(62)  # CAUSE_RESET until this tick (a reset: until a fix agrees)
 _C_DATA_UNTIL = const(63)  # CAUSE_GNSS_DATA until this tick
-_C_INFLATE = const(64)  # 1: the IMU came back after a dead spell; widen P at the next job
+_C_INFLATE = const(64)  # _INFLATE_* bits: P to widen at the next job
 _C_DRIFT_UNTIL = const(65)  # CAUSE_DRIFT until this tick
 _C_LAG_TICK = const(66)  # measurement tick of the last fix the lag search took (0: none)
 _C_IMPLAUSIBLE_UNTIL = const(67)  # CAUSE_GNSS_IMPLAUSIBLE until this tick
@@ -273,7 +273,16 @@ _M_CN = const(1645)  # the receiver's unseen error and lag (_CN_*, _NCN): _consi
 _M_LAST = const(1654)  # the last fix the filter took: its antenna east, north in the frame (2)
 _M_LS = const(1656)  # the lag search (_lag_search): residuals east, north and their means
 _M_BS = const(1704)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
-_NM = const(1709)
+_M_AW = const(1709)  # the aiding watch: running means of normalised innovations (_AW_*, 2)
+_NM = const(1711)
+# mem's _M_AW: the aiding watch (_aid_watch), and its result's bits
+_AW_LAT = const(0)  # lateral (the non-holonomic constraint's row 0)
+_AW_UP = const(1)  # vertical (the constraint's row 1, the zero-velocity update's row 2)
+_AW_HIT_LAT = const(1)
+_AW_HIT_UP = const(2)
+# ctl's _C_INFLATE: the variances to widen at the next filter job
+_INFLATE_MOTION = const(1)  # velocity and attitude (the IMU back after a dead spell)
+_INFLATE_VERTICAL = const(2)  # vertical velocity and accelerometer bias (_aid_watch)
 # mem's _M_CN: the receiver's unseen error (_consistency)
 _CN_K = const(0)  # seconds of fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -341,6 +350,8 @@ class Navigator(Alignment, Aiding):
         self._init = f32.view(m, _M_INIT, eskf.N)  # initial P diagonal
         self._ns = f32.view(m, _M_NS, 3)
         self._init_motion = f32.view(m, _M_INIT + eskf.IX_VEL, 6)  # for widen
+        self._init_vz = f32.view(m, _M_INIT + eskf.IX_VEL + 2, 1)
+        self._init_baz = f32.view(m, _M_INIT + eskf.IX_BA + 2, 1)
         # the receiver's error variance the filter cannot see (east/north per axis, up; m^2):
         # what the extended frame adds to P's position diagonal (_consistency)
         self.cv = f32.view(m, _M_CN + _CN_VH, 2)
@@ -586,7 +597,7 @@ class Navigator(Alignment, Aiding):
                 c[_C_DEAD_UNTIL] = t + c[_C_T_SECOND]
         else:
             if c[_C_N_HELD] >= c[_C_T_STUCK]:
-                c[_C_INFLATE] = 1  # the IMU is back after a dead spell
+                c[_C_INFLATE] |= _INFLATE_MOTION  # the IMU is back after a dead spell
             c[_C_N_HELD] = 0
         if not finite:
             c[_C_FAULT_UNTIL] = t + c[_C_T_SECOND]
@@ -797,11 +808,17 @@ class Navigator(Alignment, Aiding):
         highway_outage at 10 Hz: 3.08 m, 0.45 deg yaw; with the rule 1.74 m, 0.15 deg)."""
         c = self.ctl
         kf = self.kf
-        if c[_C_INFLATE]:
+        if c[_C_INFLATE] & _INFLATE_MOTION:
             # what the held samples missed: velocity and attitude variances at least their
             # initial ones again, so that GNSS corrects them instead of being gated out
             kf.widen(self._init_motion, eskf.IX_VEL, 6)
-            c[_C_INFLATE] = 0
+        if c[_C_INFLATE] & _INFLATE_VERTICAL:
+            # a vertical accelerometer step (_aid_watch): vertical velocity and accelerometer
+            # bias variances at least their initial ones, so that the constraints that gated
+            # it out take it and the filter learns the new bias
+            kf.widen(self._init_vz, eskf.IX_VEL + 2, 1)
+            kf.widen(self._init_baz, eskf.IX_BA + 2, 1)
+        c[_C_INFLATE] = 0
         overdue = c[_C_SINCE_PROP] >= 2 * c[_C_T_PROP]
         if c[_C_OPTS] & _OPT_ZUPT and c[_C_STILL] and c[_C_SINCE_ZUPT] >= 2 * c[_C_T_ZUPT]:
             overdue = True
@@ -855,6 +872,14 @@ class Navigator(Alignment, Aiding):
         kf.i[eskf.I_READY] = 0
         job = c[_C_JOB]
         c[_C_JOB] = _JOB_NONE
+        if job == _JOB_AID:
+            hit = _aid_watch(kf.e, self.mem, kf.i[eskf.I_ACCEPTED] + kf.i[eskf.I_REJECTED])
+            if hit:  # a constraint the INS keeps breaking: a sensor step, for 1.5 s
+                w = c[_C_TICK] + 3 * c[_C_T_SECOND] // 2
+                if w > c[_C_DRIFT_UNTIL]:
+                    c[_C_DRIFT_UNTIL] = w
+                if hit & _AW_HIT_UP:
+                    c[_C_INFLATE] |= _INFLATE_VERTICAL
         if job == _JOB_GNSS:
             # a fix whose east or north position or velocity was gated out counts as rejected:
             # one axis drifting away (or a wrong heading turning the velocity) while the others
@@ -1170,6 +1195,51 @@ _BS_CLIP = f32.f32(3)
 _BS_LIMIT = f32.ratio(3, 2)
 _BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump
 _BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
+# The aiding watch (_aid_watch): the same running means of y / sqrt(S) for the constraints a
+# drifting INS breaks within seconds, long before GNSS shows it: the non-holonomic
+# constraint's lateral and vertical rows, and the zero-velocity update's vertical one. A
+# vertical accelerometer step of 0.1 m/s^2 passes the limit in 6-7 s (the height then ~1 m
+# off), a yaw-rate step of 0.3 deg/s the lateral one in 5-6 s. The limits come from the real
+# drive (`make replay`: its means reach 0.89 lateral and 2.51 vertical, road bumps) and stay
+# above them; the simulated no-fault runs stay below 0.7 (docs/health.md has the figures).
+_AW_CLIP = f32.f32(5)
+_AW_LIMIT_LAT = f32.f32(2)
+_AW_LIMIT_UP = f32.f32(3)
+
+
+def _aid_watch(e, mem, n):
+    """After an aiding update of n scalars (E_Z/E_R: innovation y and variance S): the non-
+    holonomic constraint (n = 2: body lateral, vertical velocity) or the zero-velocity update
+    (n = 3: east, north, up velocity). Running means of y / sqrt(S) in mem's _M_AW, each ratio
+    clipped at _AW_CLIP, weight _BW_ALPHA per update: lateral from the constraint's row 0,
+    vertical from its row 1 and the update's row 2 (body z and up agree while nearly level).
+    The update's horizontal rows are left out: at the real drive's stops they reach 10 sigma
+    in one update. Returns _AW_HIT_LAT and _AW_HIT_UP for the means beyond
+    their limits. A detector (health 2, docs/health.md), and for the vertical channel the
+    trigger of its containment (_INFLATE_VERTICAL)."""
+    z = f32.view(e, eskf.E_Z, 3)
+    r = f32.view(e, eskf.E_R, 3)
+    aw = f32.view(mem, _M_AW, 2)
+    hit = 0
+    for k in range(2):
+        j = k
+        if n == 3:
+            if k == _AW_LAT:
+                continue
+            j = 2
+        elif n != 2:
+            return 0
+        if r[j] > 0.0:
+            q = z[j] / f32.sqrt(r[j])
+            if q > _AW_CLIP:
+                q = _AW_CLIP
+            elif q < -_AW_CLIP:
+                q = -_AW_CLIP
+            aw[k] = aw[k] + _BW_ALPHA * (q - aw[k])
+            lim = _AW_LIMIT_LAT if k == _AW_LAT else _AW_LIMIT_UP
+            if aw[k] > lim or aw[k] < -lim:
+                hit |= 1 << k
+    return hit
 
 
 def _drift_watch(e, mem, n):

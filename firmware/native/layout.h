@@ -298,7 +298,15 @@
 #define M_LAST 1654
 #define M_LS 1656
 #define M_BS 1704
-#define NM 1709
+#define M_AW 1709
+#define NM 1711
+/* nav.py: the aiding watch, m + M_AW, its result bits, and C_INFLATE's bits */
+#define AW_LAT 0
+#define AW_UP 1
+#define AW_HIT_LAT 1
+#define AW_HIT_UP 2
+#define INFLATE_MOTION 1
+#define INFLATE_VERTICAL 2
 /* nav.py: the receiver's unseen error and the fixes' lag, m + M_CN (_consistency, _lag_search) */
 #define CN_K 0
 #define CN_MH 1

@@ -24,6 +24,9 @@
 #define BS_LIMIT (3.0f / 2.0f) /* nav._BS_LIMIT */
 #define BW_CLIP 5.0f /* nav._BW_CLIP */
 #define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
+#define AW_CLIP 5.0f /* nav._AW_CLIP */
+#define AW_LIMIT_LAT 2.0f /* nav._AW_LIMIT_LAT */
+#define AW_LIMIT_UP 3.0f /* nav._AW_LIMIT_UP */
 #define CN_LEN 64.0f /* nav._CN_N */
 #define CN_CLIP 25.0f /* nav._CN_CLIP */
 #define LAG_V2 4.0f /* nav._LAG_V2 */
@@ -340,10 +343,14 @@ static void widen(float *e, const float *var, int32_t i0, int32_t n) {
 static void schedule(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
     float *e = m + M_E;
-    if (c[C_INFLATE]) { /* the IMU is back after a dead spell */
+    if (c[C_INFLATE] & INFLATE_MOTION) { /* the IMU is back after a dead spell */
         widen(e, m + M_INIT + IX_VEL, IX_VEL, 6);
-        c[C_INFLATE] = 0;
     }
+    if (c[C_INFLATE] & INFLATE_VERTICAL) { /* a vertical accelerometer step (aid_watch) */
+        widen(e, m + M_INIT + IX_VEL + 2, IX_VEL + 2, 1);
+        widen(e, m + M_INIT + IX_BA + 2, IX_BA + 2, 1);
+    }
+    c[C_INFLATE] = 0;
     int32_t overdue = c[C_SINCE_PROP] >= 2 * c[C_T_PROP];
     if ((c[C_OPTS] & OPT_ZUPT) && c[C_STILL] && c[C_SINCE_ZUPT] >= 2 * c[C_T_ZUPT]) {
         overdue = 1;
@@ -402,6 +409,41 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
         for (int j = 0; j < BW_N; j++) {
             bs[j] = 0.0f;
             bw[j] = 0.0f;
+        }
+    }
+    return hit;
+}
+
+/* nav._aid_watch: after the non-holonomic constraint (n = 2: rows lateral, vertical) or the
+   zero-velocity update (n = 3: its row 2, up, into the vertical mean), the running means of
+   y / sqrt(S) clipped at AW_CLIP; AW_HIT_LAT, AW_HIT_UP for those beyond their limits */
+static int32_t aid_watch(const float *e, float *m, int32_t n) {
+    const float *z = e + E_Z;
+    const float *r = e + E_R;
+    float *aw = m + M_AW;
+    int32_t hit = 0;
+    for (int32_t k = 0; k < 2; k++) {
+        int32_t j = k;
+        if (n == 3) {
+            if (k == AW_LAT) {
+                continue;
+            }
+            j = 2;
+        } else if (n != 2) {
+            return 0;
+        }
+        if (r[j] > 0.0f) {
+            float q = z[j] / __builtin_sqrtf(r[j]);
+            if (q > AW_CLIP) {
+                q = AW_CLIP;
+            } else if (q < -AW_CLIP) {
+                q = -AW_CLIP;
+            }
+            aw[k] = aw[k] + BW_ALPHA * (q - aw[k]);
+            float lim = k == AW_LAT ? AW_LIMIT_LAT : AW_LIMIT_UP;
+            if (aw[k] > lim || aw[k] < -lim) {
+                hit |= 1 << k;
+            }
         }
     }
     return hit;
@@ -495,6 +537,18 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     ki[I_READY] = 0;
     int32_t job = c[C_JOB];
     c[C_JOB] = JOB_NONE;
+    if (job == JOB_AID) {
+        int32_t hit = aid_watch(e, m, ki[I_ACCEPTED] + ki[I_REJECTED]);
+        if (hit) { /* a constraint the INS keeps breaking: a sensor step, for 1.5 s */
+            int32_t w = c[C_TICK] + 3 * c[C_T_SECOND] / 2;
+            if (w > c[C_DRIFT_UNTIL]) {
+                c[C_DRIFT_UNTIL] = w;
+            }
+            if (hit & AW_HIT_UP) {
+                c[C_INFLATE] |= INFLATE_VERTICAL;
+            }
+        }
+    }
     if (job != JOB_GNSS) {
         return 0;
     }
@@ -574,7 +628,7 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
                 }
             } else {
                 if (c[C_N_HELD] >= c[C_T_STUCK]) {
-                    c[C_INFLATE] = 1; /* the IMU is back after a dead spell */
+                    c[C_INFLATE] |= INFLATE_MOTION; /* the IMU is back after a dead spell */
                 }
                 c[C_N_HELD] = 0;
             }

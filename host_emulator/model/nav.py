@@ -197,7 +197,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.n_held = 0  # IMU samples held in a row
         self.n_same_g = 0  # unchanged gyro / accel samples in a row
         self.n_same_a = 0
-        self.inflate = 0  # 1: the IMU came back after a dead spell; widen P at the next job
+        self.inflate = 0  # nav._INFLATE_* bits: P to widen at the next job
         self.drift_until = 0
         self.implausible_until = 0  # nav._C_IMPLAUSIBLE_UNTIL
         self.jumped = False  # nav._C_JUMPED
@@ -207,6 +207,7 @@ class NavModel(AlignmentModel, AidingModel):
         self.frozen = False  # nav._C_FROZEN
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         self.suspect_watch = np.zeros(fw_nav._BW_N, F32)  # ... clipped at _BS_CLIP: suspicion
+        self.aid_watch = np.zeros(2, F32)  # nav._M_AW: the aiding watch's running means
         # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
         self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav._lag_search's residuals and means
@@ -293,7 +294,7 @@ class NavModel(AlignmentModel, AidingModel):
                 self.dead_until = t + self.ticks_second
         else:
             if self.n_held >= self.ticks_stuck:
-                self.inflate = 1
+                self.inflate |= fw_nav._INFLATE_MOTION
             self.n_held = 0
         if not finite:
             self.fault_until = t + self.ticks_second
@@ -486,10 +487,13 @@ class NavModel(AlignmentModel, AidingModel):
         cfg = self.cfg
         kf = self.kf
         ins = self.ins
-        if self.inflate:  # velocity and attitude variances at least their initial ones
+        if self.inflate & fw_nav._INFLATE_MOTION:  # velocity and attitude: initial ones at least
             d = np.arange(IX_VEL, IX_VEL + 6)
             kf.P[d, d] = np.maximum(kf.P[d, d], self.init_diag[d])
-            self.inflate = 0
+        if self.inflate & fw_nav._INFLATE_VERTICAL:  # vertical velocity, accelerometer bias
+            d = np.array([IX_VEL + 2, IX_BA + 2])
+            kf.P[d, d] = np.maximum(kf.P[d, d], self.init_diag[d])
+        self.inflate = 0
         overdue = self.since_prop >= 2 * self.ticks_prop
         if cfg.zupt and self.still and self.since_zupt >= 2 * self.ticks_zupt:
             overdue = True  # nav._schedule: an overdue aiding job before the fix
@@ -541,6 +545,12 @@ class NavModel(AlignmentModel, AidingModel):
         ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
         kf.dx = np.zeros(N, F32)
         kf.ready = False
+        if self.job == JOB_AID:
+            hit = self._aid_watch(kf.innov)
+            if hit:  # nav._inject: a sensor step, for 1.5 s
+                self.drift_until = max(self.drift_until, self.tick + 3 * self.ticks_second // 2)
+                if hit & fw_nav._AW_HIT_UP:
+                    self.inflate |= fw_nav._INFLATE_VERTICAL
         if self.job == JOB_GNSS:
             w = self._drift_watch(kf.innov)
             if w:  # nav._inject: a drift for 5 s, a suspected one for 1.5 s
@@ -592,6 +602,28 @@ class NavModel(AlignmentModel, AidingModel):
         if hit == 2:
             bw[:] = ZERO
             bs[:] = ZERO
+        return hit
+
+    def _aid_watch(self, innov):
+        """nav._aid_watch: running means of y / sqrt(S) (clipped at _AW_CLIP) of the
+        non-holonomic constraint's lateral and vertical rows, and of the zero-velocity
+        update's up row into the vertical one; the _AW_HIT_* bits of those beyond their
+        limits."""
+        if len(innov) == 2:
+            rows = ((fw_nav._AW_LAT, innov[0]), (fw_nav._AW_UP, innov[1]))
+        elif len(innov) == 3:
+            rows = ((fw_nav._AW_UP, innov[2]),)
+        else:
+            return 0
+        aw = self.aid_watch
+        hit = 0
+        for k, (y, s) in rows:
+            if s > 0.0:
+                q = min(max(y / np.sqrt(s), -fw_nav._AW_CLIP), fw_nav._AW_CLIP)
+                aw[k] = aw[k] + fw_nav._BW_ALPHA * (q - aw[k])
+                lim = fw_nav._AW_LIMIT_LAT if k == fw_nav._AW_LAT else fw_nav._AW_LIMIT_UP
+                if abs(aw[k]) > lim:
+                    hit |= 1 << k
         return hit
 
     def _rate_r(self):
@@ -799,6 +831,7 @@ class NavModel(AlignmentModel, AidingModel):
             "corr": self.corr,
             "drift_watch": self.drift_watch,
             "suspect_watch": self.suspect_watch,
+            "aid_watch": self.aid_watch,
             "consistency": self.consistency,
             "lag_search": self.lag_search,
             "gnss_p": self.gnss_p,

@@ -5,8 +5,9 @@ detected with its cause in time, say health 2 whenever an error exceeds 10 m, an
 within 2x the no-fault RMS within 30 s of its end. `make bench-faults` runs every kind on three
 seeds at 250 s.
 
-The targets a kind misses are named below with the figure it reaches instead, so that the test
-still fails if it gets worse; docs/health.md ("How well: the fault benchmark") says why."""
+Every kind meets every target here (the sensor steps since the aiding watch: detected in
+1.9-8.9 s, no frame above 10 m without health 2); `make bench-faults` has the seeds and kinds
+where they are missed, and docs/health.md ("How well: the fault benchmark") says why."""
 
 import pytest
 
@@ -14,15 +15,6 @@ from host_emulator.bench import faults as bench
 
 T0 = 120.0
 SEED = 0
-# kind: the deadline it meets instead of the benchmark's, in s (small accelerometer steps drift
-# the height slowly against the GNSS height noise: 21.8, 20.7 and 11.7 s at this start)
-LATE_DETECTION = {"accel-bias@+30:0.1": 23.0, "accel-scale@+30:1.01": 22.0,
-                  "accel-scale@+30:1.03": 12.5}  # fmt: skip
-# kind: frames above 10 m without health 2 at most (the drift watch suspects a bias or scale
-# step only once its innovations are one-sided, and the filter does not re-estimate it faster:
-# 14, 26, 23, 41 and 26 frames at this start)
-UNTRUSTED_OVER_10M = {"gyro-bias@+30:1": 17, "accel-bias@+30:0.1": 31, "accel-scale@+30:1.01": 28,
-                      "accel-scale@+30:1.03": 49, "accel-scale@+30:1.05": 31}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -36,13 +28,12 @@ def test_a_fault_is_detected_trusted_and_recovered_from(nominal, case):
     r = bench._run((bench._spec(case, T0), SEED, run_s))
     s = bench.score(case, r, nominal, T0)
     assert "error" not in s and s["finite"], s
-    deadline = LATE_DETECTION.get(case.spec, case.deadline_s)
     if s["counts"]:
         # health >= 1 with an expected cause, counted from when the board first meets the fault
-        assert s["detect_s"] is not None and s["detect_s"] <= deadline, s
+        assert s["detect_s"] is not None and s["detect_s"] <= case.deadline_s, s
     else:  # a sensor step too small to move the solution beyond 3x the no-fault RMS
         assert case.by_effect and s["frames_over_3x"] == 0, s
-    assert s["missed_over_10m"] <= UNTRUSTED_OVER_10M.get(case.spec, 0), s
+    assert s["missed_over_10m"] == 0, s
     assert s["recover_s"] is not None and s["recover_s"] <= 30.0, s
     assert s["h_30s_m"] <= 2 * s["rms_h_nominal_m"] and s["v_30s_m"] <= 2 * s["rms_v_nominal_m"]
     assert s["health2_before_fault"] == 0, s
@@ -60,9 +51,20 @@ def test_a_faster_receiver_is_trusted_as_the_1_hz_one(nominal):
     assert row["rms_h_m"] <= row["rms_h_1hz_m"], row  # measured: 1.47 m against 1.97 m
 
 
-def test_the_named_misses_are_cases_of_the_matrix():
-    specs = {c.spec for c in bench.MATRIX}
-    assert set(LATE_DETECTION) <= specs and set(UNTRUSTED_OVER_10M) <= specs
+def test_the_totals_count_harmless_steps_apart():
+    """A harmless step is left out of the coverage, counted or detected; the figure over every
+    injected fault has it, detected or not; a run that raised counts as undetected."""
+    rows = [
+        {"counts": True, "detected": True, "missed_over_10m": 0},
+        {"counts": True, "detected": False, "missed_over_10m": 3},
+        {"counts": False, "detected": True, "missed_over_10m": 0},
+        {"counts": False, "detected": False, "missed_over_10m": 0},
+        {"error": "ValueError: x"},
+    ]
+    assert bench.totals(rows, [{"missed_over_10m": 2}]) == (1, 3, 2, 5, 2)
+    lines = bench.verdict(rows)
+    assert lines[0].startswith("detection coverage: 1 of 3 (33 %") and "NOT met" in lines[0]
+    assert "2 of 5, 40 %" in lines[0] and lines[1].endswith("3 (target 0): NOT met")
 
 
 def test_the_matrix_covers_every_kind():

@@ -225,6 +225,7 @@ def firmware_snapshot(nav):
         "corr": nav._corr,
         "drift_watch": f32.view(nav.mem, nav_mod._M_BW, nav_mod._BW_N),
         "suspect_watch": f32.view(nav.mem, nav_mod._M_BS, nav_mod._BW_N),
+        "aid_watch": f32.view(nav.mem, nav_mod._M_AW, 2),
         "consistency": f32.view(nav.mem, nav_mod._M_CN, nav_mod._NCN),
         "lag_search": f32.view(nav.mem, nav_mod._M_LS, nav_mod._NLS),
         "gnss_p": nav._gp,
@@ -468,6 +469,33 @@ def test_model_tracks_the_firmware_bit_for_bit_for_a_minute_with_an_outage():
         nav_mod.CAUSE_GNSS_LOST,
         gnss,
     }
+
+
+def test_model_of_an_accelerometer_step_the_aiding_watch_contains():
+    """Every accelerometer count 5 % larger from 16 s on (a scale step: 0.5 m/s^2 on the
+    vertical axis): the aiding watch sees the non-holonomic constraint and the zero-velocity
+    update broken, says drift (health 2) and widens the vertical velocity and accelerometer-bias
+    variances (P grows between jobs without a reset), bit for bit in model and firmware."""
+    drive = city_drive(40.0)
+    n = len(drive.truth.t_s) - 1
+    cfg = car_config(earth_terms=True, coning=True, zupt=True, nhc=True, slices_per_tick=1)
+    step = round(16.0 / DT)
+    widened = []
+
+    def scaled(nav, model, k):
+        i = (eskf.IX_BA + 2) * (eskf.N + 1)
+        p_before = float(nav.kf.P[i])
+        a = [round(v * 21 / 20) for v in drive.accel[k]]
+        nav.imu_raw(drive.gyro[k], a, drive.imu.saturated[k])
+        model.imu_raw(drive.gyro[k], a, drive.imu.saturated[k])
+        if float(nav.kf.P[i]) > 100 * p_before:
+            widened.append(k)
+
+    hooks = {k: scaled for k in range(step, n)}
+    nav, _, seen = side_by_side(drive, cfg, n, hooks)
+    assert seen.zupts >= 3 and seen.nhcs >= 10
+    assert any(k & nav_mod.CAUSE_DRIFT for k in seen.causes) and 2 in seen.health
+    assert widened and (widened[0] - step) * DT < 10.0, widened  # measured: after 3.9 s
 
 
 def test_model_follows_re_anchoring_across_the_180th_meridian():

@@ -46,6 +46,8 @@ RULES = (
     ("STILL_", "nav", "_STILL_"),
     ("ST_", "nav", "_ST_"),
     ("AID_", "nav", "_AID_"),
+    ("AW_", "nav", "_AW_"),
+    ("INFLATE_", "nav", "_INFLATE_"),
     ("NAID", "nav", "_NAID"),
     ("FX_", "nav", "_FX_"),
     ("FI_", "nav", "FI_"),
