@@ -35,8 +35,9 @@ def test_deploy_record_and_replay_gives_equal(tmp_path, capsys):
     assert header["config"]["raw_record"] == 1
     assert header["board"]["floats"] == "double"  # the virtual board's VM
     rc = session_cli.main(["replay", str(tmp_path / "run.ins")])
-    text = capsys.readouterr().out
-    assert rc == 0, text
+    cap = capsys.readouterr()
+    text = cap.out
+    assert rc == 0, text + cap.err
     assert "replayed on mpy_unix, the same VM" in text
     assert "REPLAY: identical" in text or "REPLAY: equal within the VM's tolerance" in text
     n = int(text.split("session: ")[1].split(" ticks")[0])

@@ -108,7 +108,7 @@ def main():
     rec = bytearray(REC_LEN)
     ubuf = bytearray(2048)
     imu = machine.Bmi055()
-    a, pins = start_firmware(imu, CONFIG_PATH)
+    a, pins = start_firmware(imu, CONFIG_PATH, compiles=True)
     gc.disable()
     gnss = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
@@ -234,7 +234,7 @@ def stream_main(realtime):
                 print("X maintenance")
                 f.close()
                 return
-        a, pins = start_firmware(imu, CONFIG_PATH)
+        a, pins = start_firmware(imu, CONFIG_PATH, compiles=True)
         gnss = machine.uart(pins["gnss_uart"])
         out_uart = machine.uart(pins["out_uart"])
         pps = machine.pin(pins["pps"])

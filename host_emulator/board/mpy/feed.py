@@ -58,14 +58,25 @@ def read_exact(f, buf, n, what):
         raise EOFError("stimulus file cut short in " + what)
 
 
-def start_firmware(imu, config_path, exit=sys.exit):
+def start_firmware(imu, config_path, exit=sys.exit, compiles=False):
     """The firmware's start-up: its modules, the App (configuration, BMI055 init), start().
-    Returns (app, board pins); an exception is reported (firmware_error) and ends the run."""
+    Returns (app, board pins); an exception is reported (firmware_error) and ends the run.
+    compiles: the VM compiles the firmware's modules into its heap (the unix port; the M4F's
+    are frozen, as the board's): room is made for that first (below)."""
     try:
         import board
 
         board.CONFIG_PATH = config_path
         pins = board.PINS
+        if compiles:
+            # the UARTs' transmit buffers (machine.TX_CAPACITY each) before the modules, and
+            # the garbage collected where nothing else holds on to it: compiling app's modules
+            # (nav.py's 1,400 lines) with only the collector's automatic run, in the middle of
+            # the compiler, raised MemoryError in a 512 KB heap with 400 KB free
+            for key in ("gnss_uart", "out_uart", "display_uart"):
+                if pins.get(key) is not None:
+                    machine.uart(pins[key])
+            gc.collect()
         imu.attach(
             machine.spi_bus(pins["spi_id"]),
             machine.pin(pins["cs_accel"]),
