@@ -539,8 +539,8 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     c[C_JOB] = JOB_NONE;
     if (job == JOB_AID) {
         int32_t hit = aid_watch(e, m, ki[I_ACCEPTED] + ki[I_REJECTED]);
-        if (hit) { /* a constraint the INS keeps breaking: a sensor step, for 1.5 s */
-            int32_t w = c[C_TICK] + 3 * c[C_T_SECOND] / 2;
+        if (hit) { /* a constraint the INS keeps breaking: a sensor step, for 5 s */
+            int32_t w = c[C_TICK] + 5 * c[C_T_SECOND];
             if (w > c[C_DRIFT_UNTIL]) {
                 c[C_DRIFT_UNTIL] = w;
             }

@@ -547,8 +547,8 @@ class NavModel(AlignmentModel, AidingModel):
         kf.ready = False
         if self.job == JOB_AID:
             hit = self._aid_watch(kf.innov)
-            if hit:  # nav._inject: a sensor step, for 1.5 s
-                self.drift_until = max(self.drift_until, self.tick + 3 * self.ticks_second // 2)
+            if hit:  # nav._inject: a sensor step, for 5 s
+                self.drift_until = max(self.drift_until, self.tick + 5 * self.ticks_second)
                 if hit & fw_nav._AW_HIT_UP:
                     self.inflate |= fw_nav._INFLATE_VERTICAL
         if self.job == JOB_GNSS:
