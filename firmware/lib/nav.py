@@ -1203,9 +1203,9 @@ _BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
 # drifting INS breaks within seconds, long before GNSS shows it: the non-holonomic
 # constraint's lateral and vertical rows, and the zero-velocity update's vertical one. A
 # vertical accelerometer step of 0.1 m/s^2 passes the limit in 6-7 s (the height then ~1 m
-# off), a yaw-rate step of 0.3 deg/s the lateral one in 5-6 s. The limits come from the real
-# drive (`make replay`: its means reach 0.89 lateral and 2.51 vertical, road bumps) and stay
-# above them; the simulated no-fault runs stay below 0.7 (docs/health.md has the figures).
+# off), a yaw-rate step of 0.3 deg/s the lateral one in 5-6 s (`make bench-faults`). The limits
+# stay above the real drive's means (drive_0708, logged once while choosing them: 0.89
+# lateral, 2.51 vertical, road bumps) and the simulated no-fault runs' (below 0.7).
 _AW_CLIP = f32.f32(5)
 _AW_LIMIT_LAT = f32.f32(2)
 _AW_LIMIT_UP = f32.f32(3)
