@@ -108,10 +108,15 @@ docs/gnss.md. On completion the epoch is copied, so later sentences cannot tear 
   sentence was parsed: the PPS edge of that second if one arrived in between), epoch_bad
   (BAD_* bits: a fix with a physically impossible field, quality 6 or above, a time that did not
   move forward, counted in n_epochs_bad; the app does not use it),
-and epoch_ready = 1, n_epochs += 1 (`epoch_take()` returns and clears epoch_ready). An
-epoch that had a GGA or RMC but never got what was expected is dropped when the next one
-starts (n_epochs_dropped += 1), never released late: a one-second-old position handed over as
-new would hurt the filter (the navigator's delay ring reaches back 0.64 s).
+and epoch_ready = 1, n_epochs += 1 (`epoch_take()` returns and clears epoch_ready). A speed
+sentence that arrives damaged (rejected for its checksum, its address still RMC or VTG, within
+the VTG window of the epoch's first sentence, an RMC's time the epoch's where it still reads)
+counts as sent: the epoch completes at it without speed (epoch_speed_mm_s -1) rather than
+waiting for one that will not come; a receiver that prints RMC before GGA and no VTG still
+loses such an epoch. An epoch that had a GGA or RMC but
+never got what was expected is dropped when the next one starts (n_epochs_dropped += 1), never
+released late: a one-second-old position handed over as new would hurt the filter (the
+navigator's delay ring reaches back 0.64 s).
 
 PPS: `pps_isr(pin)` only stores time.ticks_us() in pps_us and sets pps_flag = 1 (hard IRQ
 safe: no allocation, no float). The app reads and clears the flags with `pps_flag_take()`,
@@ -576,6 +581,7 @@ class Nmea:
             self.n_malformed = (self.n_malformed + 1) & _WRAP
         elif r == _NR_BAD_CSUM:
             self.n_bad_csum = (self.n_bad_csum + 1) & _WRAP
+            self._speed_damaged()
         elif r == _NR_OVERLONG:
             self.n_overlong = (self.n_overlong + 1) & _WRAP
         else:
@@ -710,6 +716,30 @@ class Nmea:
             return  # VTG before any timed sentence, or after one without time
         self._ep_speed = spd
         self._ep_course = crs
+        self._ep_spd = 1
+        self._check()
+
+    def _speed_damaged(self):
+        """A line rejected for its checksum whose address still reads RMC or VTG (a talker of
+        two capitals, not P, as the scan's rule): the epoch's speed sentence, damaged on the
+        line. It counts as sent, so an epoch that has its position and waits only for the
+        speed completes now, without one, instead of being dropped at the next epoch; only
+        within the VTG window of the epoch's first sentence and, for an RMC whose time still
+        reads as one, at the epoch's time (else it is the next group's)."""
+        if self._ep_utc < 0 or self._ep_done or self._s[_NS_NF] < 2 or self._s[_NS_LEN] < 6:
+            return
+        lb = self._line
+        if lb[_FS + 1] != 6 or lb[0] == 80 or not (65 <= lb[0] <= 90 and 65 <= lb[1] <= 90):
+            return
+        f = (lb[2] << 16) | (lb[3] << 8) | lb[4]
+        if f != _F_RMC and f != _F_VTG:
+            return
+        if f == _F_RMC and self._s[_NS_NF] > 2:  # its time, where still readable, decides
+            utc = _utc_ms(lb, 6, lb[_FS + 2] - 1)
+            if utc >= 0 and utc != self._ep_utc:
+                return
+        if _ticks_diff(_ticks_us(), self._ep_us) > self._join_us:
+            return
         self._ep_spd = 1
         self._check()
 

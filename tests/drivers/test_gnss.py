@@ -62,12 +62,16 @@ def check_small_ints(p):
             assert -SMALL <= v < SMALL, (name, v)
 
 
+DAMAGED_SPEED = -1  # Recorder.rec_sequence: an RMC or VTG rejected for its checksum
+
+
 class Recorder(gnss.Nmea):
     """The driver, plus a record of every line it finished (test only)."""
 
     def __init__(self, **kw):
         super().__init__(**kw)
         self.rec_accepted = []  # (kind, line, {attr: value})
+        self.rec_sequence = []  # rec_accepted plus (DAMAGED_SPEED, line, {}), in order
         self.rec_good = []  # every line with a good checksum (accepted or ignored)
         self.rec_epochs = []  # ({epoch attr: value}, line that completed it)
         self.rec_events = []  # [kind, values...] of sentences and [0, values...] of epochs
@@ -80,7 +84,10 @@ class Recorder(gnss.Nmea):
         if self.seq != seq:
             snap = {a: getattr(self, a) for a in ATTRS[self.last]}
             self.rec_accepted.append((self.last, line, snap))
+            self.rec_sequence.append((self.last, line, snap))
             self.rec_events.append([self.last] + [snap[a] for a in ATTRS[self.last]])
+        elif r == 9 and re.match(rb"[A-OQ-Z][A-Z](RMC|VTG),", line):  # gnss._NR_BAD_CSUM
+            self.rec_sequence.append((DAMAGED_SPEED, line, {}))
         if self.seq != seq or self.n_ignored != ign:
             self.rec_good.append(line)
         if self.n_epochs != ep:
@@ -155,7 +162,8 @@ EXPECTED = {
     # 3 truncated fragments); 5 malformed (a run of NUL bytes inside an RMC, and 4 lines where
     # '*1E' is followed by the rest of another sentence); 2 overlong (two GSV fragments glued
     # to other sentences, > 100 characters); 5 collided (3 x "$GPGSA...*1E$GPRMC" without
-    # CR/LF, 2 GSV fragments cut by '$'). The epoch of 00:03:43 is dropped: its RMC is damaged.
+    # CR/LF, 2 GSV fragments cut by '$'). The epoch of 00:03:43 is dropped: this receiver
+    # prints RMC first, and the damaged RMC after its GGA reads 00:03:44, the next one's.
     # At the cold boot RMCs come without GGA: learned RMC-only (2 dropped), 7 no-fix epochs
     # from RMC status V more than GGA+RMC would complete.
     "gp-320fw-2019-04-07-coldboot": (10, 16, 10, 13, 42, 30, 4, 5, 2, 5, 0, 16, 3),
@@ -474,7 +482,9 @@ def reference_epochs(accepted, need_speed=gnss.AUTO):
     lacked it (need_speed 1: both always; 0: a GGA always, the speed never). Complete at the
     first moment the key has its GGA, or an RMC and GGA is not expected, and a speed sentence
     or speed is not expected: the GGA's fix, else the RMC's (no height, nsat, HDOP); speed
-    from RMC with status A or VTG with mode != N, else -1."""
+    from RMC with status A or VTG with mode != N, else -1. A speed sentence damaged on the line
+    (DAMAGED_SPEED, rejected for its checksum; an RMC whose time still reads as another
+    epoch's excepted) counts as one without a speed."""
     out = []
     hist = collections.deque(maxlen=4)  # (had a GGA, had a speed sentence) of past epochs
     key, gga, rmc, spd, done = None, None, None, None, False
@@ -496,6 +506,18 @@ def reference_epochs(accepted, need_speed=gnss.AUTO):
         elif kind == gnss.VTG and key is not None and key >= 0:
             ok = s["vtg_mode"] != ord("N")
             spd = (s["vtg_speed_mm_s"], s["vtg_course_cdeg"]) if ok else (-1, -1)
+        elif kind == DAMAGED_SPEED and key is not None and key >= 0 and not done:
+            t = re.match(rb"..RMC,(\d\d)(\d\d)(\d\d)(\.\d*)?,", line)
+            h, m, sec = (int(x) for x in t.groups()[:3]) if t else (99, 0, 0)
+            if (
+                h > 23
+                or m > 59
+                or sec > 59
+                or key
+                == (h * 3600 + m * 60 + sec) * 1000
+                + round(float(b"0" + (t.group(4) or b"")) * 1000)
+            ):  # an RMC's time, where it still reads as one, is the epoch's
+                spd = (-1, -1)
         want_gga = sum(not g for g, _ in hist) < 2
         want_spd = need_speed == 1 or need_speed == gnss.AUTO and sum(not v for _, v in hist) < 2
         if not done and (gga or rmc and not want_gga) and (spd or not want_spd):
@@ -518,7 +540,7 @@ def reference_epochs(accepted, need_speed=gnss.AUTO):
 @pytest.mark.parametrize("name", LOGS)
 def test_epochs_follow_the_rule(name):
     p = run_log(name)
-    assert p.rec_epochs == reference_epochs(p.rec_accepted)
+    assert p.rec_epochs == reference_epochs(p.rec_sequence)
     for ep, _ in p.rec_epochs:  # every completed epoch carries a time
         assert ep["epoch_utc_ms"] >= 0
 
@@ -531,7 +553,7 @@ def test_epoch_order_variants():
     assert last == {"neo-m8n": b"GGA", "holux-gm-210": b"RMC", "quectel": b"VTG"}
     data = log_bytes("quectel")
     p = feed_chunks(Recorder(need_speed=False), data, seed=2)
-    assert p.rec_epochs == reference_epochs(p.rec_accepted, need_speed=False)
+    assert p.rec_epochs == reference_epochs(p.rec_sequence, need_speed=False)
     assert p.n_epochs == 34 and all(line[2:5] == b"GGA" for _, line in p.rec_epochs)
     ep = run_log("neo-m8n").rec_epochs[0][0]
     assert ep["epoch_utc_ms"] == (17 * 3600 + 19 * 60 + 26) * 1000
@@ -830,6 +852,62 @@ def test_epochs():
     assert p.n_epochs == 0 and p.gga_seen == 1  # no time: no epoch
 
 
+def damaged(body, i):
+    """The sentence of body with character i (0: the first after '$') replaced, its checksum
+    that of the original: line noise."""
+    good = sentence(body)
+    b = bytearray(good)
+    b[1 + i] = ord("#") if b[1 + i] != ord("#") else ord("%")
+    return bytes(b)
+
+
+def test_a_damaged_speed_sentence_completes_its_epoch_without_a_speed():
+    """GGA first, then the RMC damaged on the line (a byte of its course): the epoch is
+    released at it, position without speed, not dropped at the next GGA (it once was: a fix
+    lost for every damaged RMC)."""
+    gga, rmc, vtg = sentence(GGA_BODY), damaged(RMC_BODY, 48), damaged(VTG_BODY, 20)
+    p = fed(gga + rmc)
+    assert p.n_bad_csum == 1 and p.epoch_ready == 1 and p.n_epochs_dropped == 0
+    assert p.epoch_utc_ms == 45319250 and p.epoch_lat_e7 == 481173000
+    assert (p.epoch_speed_mm_s, p.epoch_course_cdeg) == (-1, -1)
+    assert fed(gga + vtg).epoch_ready == 1  # a damaged VTG likewise
+    # what the parser learned: this receiver sends a speed sentence, so the next epoch waits
+    p.feed(sentence(GGA_BODY.replace("123519.25", "123520.25")), len(gga))
+    assert p.n_epochs == 1 and p.gga_utc_ms == 45320250
+
+
+@pytest.mark.parametrize(
+    "line, why",
+    [
+        (damaged(RMC_BODY, 3), "its address no longer reads RMC"),
+        (damaged(RMC_BODY, 0), "its talker is not two capitals"),
+        (damaged(RMC_BODY.replace("123519.25", "123520.25"), 48), "the next second's RMC"),
+        (sentence("GPZDA,123519.25,23,03,1994,00,00"), "a good sentence of another type"),
+        (damaged(GSA_BODY, 20), "a damaged GSA"),
+    ],
+)
+def test_a_damaged_line_that_is_not_the_epochs_speed_does_not_complete_it(line, why):
+    p = fed(sentence(GGA_BODY) + line)
+    assert p.epoch_ready == 0 and p.n_epochs == 0, why
+
+
+def test_a_damaged_speed_sentence_after_the_window_belongs_to_the_next_group(monkeypatch):
+    """A receiver printing VTG first: its damaged VTG 900 ms after the GGA is the next
+    second's, and releasing the open epoch then would hand over a 1 s old position."""
+    clock = [0]
+    monkeypatch.setattr(gnss, "_ticks_us", lambda: clock[0])
+    monkeypatch.setattr(gnss, "_ticks_diff", lambda a, b: a - b)
+    p = fed(sentence(GGA_BODY))
+    vtg = damaged(VTG_BODY, 20)
+    clock[0] = 900000
+    p.feed(vtg, len(vtg))
+    assert p.epoch_ready == 0 and p.n_bad_csum == 1
+    p = fed(sentence(GGA_BODY))
+    clock[0] = 700000  # within 3/4 of the 1 s period: the epoch's own
+    p.feed(vtg, len(vtg))
+    assert p.epoch_ready == 1
+
+
 def test_epoch_copy_is_not_torn_by_later_sentences():
     rmc, gga = sentence(RMC_BODY), sentence(GGA_BODY)
     nxt = sentence(GGA_BODY.replace("123519.25", "123520.25").replace("4807.038", "4808.000"))
@@ -1045,6 +1123,11 @@ _LOCKED_CASES = {
     "overlong": b"$" + b"7" * 300 + b"\r\n",
     "garbage_nul_binary": bytes(16) + b"\xb5\x62\x01\x07" + bytes(range(1, 128)) + b"\r\n",
     "nul_inside": sentence(GGA_BODY)[:20] + bytes(4) + b"\r\n",
+    # an epoch completed by its damaged RMC, the RMC's time readable, then damaged itself
+    "damaged_rmc": sentence(GGA_BODY.replace("123519", "123530"))
+    + damaged(RMC_BODY.replace("123519", "123530"), 48),
+    "damaged_rmc_time": sentence(GGA_BODY.replace("123519", "123531"))
+    + damaged(RMC_BODY.replace("123519", "123531"), 8),
 }
 
 
@@ -1106,10 +1189,10 @@ def test_vm_feed_allocates_nothing(kernels):
     assert rmc_only[0] and vtg_first[0] and vtg_first[2] == 2833  # the VTG's 10.2 km/h
     assert vtg_first[1] == rmc_only[1] + 1  # the GGA's with the VTG (the RMC waited: dropped)
     assert res == {name: [True, 0] for name in [*_LOCKED_CASES, "split", "pps"]}
-    # each case ran 3 times; GGA in gga, south_west, empty_fields, split; RMC in
-    # rmc_completes_epoch, far_east, empty_fields; VTG in vtg, collision; and one GGA, RMC
-    # and VTG in each of rmc_only and vtg_first
-    assert counts[:4] == [4 * 3 + 2, 3 * 3 + 2, 2 * 3 + 2, 3]
+    # each case ran 3 times; GGA in gga, south_west, empty_fields, split, damaged_rmc,
+    # damaged_rmc_time; RMC in rmc_completes_epoch, far_east, empty_fields; VTG in vtg,
+    # collision; and one GGA, RMC and VTG in each of rmc_only and vtg_first
+    assert counts[:4] == [6 * 3 + 2, 3 * 3 + 2, 2 * 3 + 2, 3]
     assert counts[4] > 0 and counts[5] > 20
 
 
