@@ -33,7 +33,7 @@ import kern
 from micropython import const
 
 FRAME_LEN = const(52)
-# The int fields of `pack_fields` (firmware/native/layout.h repeats them)
+# The int fields of `pack_fields` (firmware/native/layout.h is generated from them)
 F_COUNTER = const(0)
 F_GYRO_LSB_X10 = const(1)
 F_ACCEL_LSB = const(2)

@@ -116,14 +116,16 @@ _ST_SPEED = const(5)  # speed of the last usable fix, m/s
 
 STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
 
-# self._cal: the calibration of raw counts (firmware/native/layout.h repeats the layout)
+# self._cal: the calibration of raw counts, and its flags (self.ctl[_C_CAL_FLAGS])
 _CAL_G = const(0)  # gyro counts per rad/s
 _CAL_A = const(1)  # accel counts per m/s^2
 _CAL_GB = const(2)  # gyro bias (3), rad/s
 _CAL_AB = const(5)  # accel bias (3), m/s^2
-_CAL_GM = const(8)  # gyro matrix (9), when flag 1
-_CAL_AM = const(17)  # accel matrix (9), when flag 2
+_CAL_GM = const(8)  # gyro matrix (9), when _CAL_HAS_GM
+_CAL_AM = const(17)  # accel matrix (9), when _CAL_HAS_AM
 _NCAL = const(26)
+_CAL_HAS_GM = const(1)
+_CAL_HAS_AM = const(2)
 # self._stp: the standstill detector's parameters; flags of its kernel
 _STP_ALPHA = const(0)
 _STP_ACCEL = const(1)
@@ -170,7 +172,7 @@ _FC_FAST = const(32)  # ... and a speed of heading_speed_m_s or more (nav_align.
 RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 # self.ctl: the per-tick control state and the integer configuration it needs, one int buffer
-# so that the native `nav_tick` runs a whole navigating tick (layout.h C_* repeats it)
+# so that the native `nav_tick` runs a whole navigating tick (layout.h C_*, generated from it)
 _C_TICK = const(0)  # ticks since start
 _C_STATE = const(1)  # ALIGNING, NAVIGATING
 _C_HEALTH = const(2)
@@ -431,11 +433,11 @@ class Navigator(Alignment, Aiding):
             cal[_CAL_GB + i] = cfg.gyro_bias0[i]
             cal[_CAL_AB + i] = cfg.accel_bias0[i]
         if cfg.gyro_matrix is not None:
-            flags |= 1
+            flags |= _CAL_HAS_GM
             for i in range(9):
                 cal[_CAL_GM + i] = cfg.gyro_matrix[i]
         if cfg.accel_matrix is not None:
-            flags |= 2
+            flags |= _CAL_HAS_AM
             for i in range(9):
                 cal[_CAL_AM + i] = cfg.accel_matrix[i]
         self.ctl[_C_CAL_FLAGS] = flags
@@ -1076,8 +1078,10 @@ def _imu_cal_py(w, f, gyro, accel, cal, flags):
 
 def _cal_si(w, f, w_in, f_in, cal, flags):
     """w, f = M (x - b0) from SI rate and specific force; False if not finite."""
-    _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
-    _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
+    gm = f32.view(cal, _CAL_GM, 9) if flags & _CAL_HAS_GM else None
+    _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), gm)
+    am = f32.view(cal, _CAL_AM, 9) if flags & _CAL_HAS_AM else None
+    _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), am)
     return _finite6(w, f)
 
 

@@ -48,7 +48,7 @@ EXT_PAYLOAD = const(128)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
 RAW_MAX_GNSS = const(232)  # the length byte counts 23 + n <= 255
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
-# The int fields of the extended frame (`ExtFrame.fields`; firmware/native/layout.h repeats them)
+# The int fields of the extended frame (`ExtFrame.fields`; layout.h is generated from them)
 EF_COUNTER = const(0)
 EF_HEALTH = const(1)
 EF_STATE = const(2)
@@ -64,7 +64,7 @@ EF_LON0_FRAC = const(11)
 EF_TICK = const(12)
 EF_CAUSES = const(13)
 NEF = const(14)
-# The int fields of the raw-input record (`RawRecord.fields`; firmware/native/layout.h repeats them)
+# The int fields of the raw-input record (`RawRecord.fields`; layout.h is generated from them)
 RF_COUNTER = const(0)
 RF_T0_US = const(1)  # the tick's start, time.ticks_us
 RF_PPS_US = const(2)  # the parser's PPS edge time

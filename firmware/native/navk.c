@@ -3,6 +3,7 @@
  * -ffp-contract=off and without fast-math: every + - * / is one rounded float32 operation. */
 #include <stdint.h>
 
+#include "layout.h"
 #include "navk.h"
 
 /* Every build keeps each float operation as written (DESIGN.md 3 rule 7): -ffast-math or
@@ -12,10 +13,8 @@
 #error "navk must not be compiled with -ffast-math or -Ofast"
 #endif
 
-/* Bumped whenever a kernel's signature or a buffer layout changes: firmware/lib/kern.py
- * refuses a module built from another version. */
-#define NAVK_ABI 8
-
+/* kern.ABI (layout.h NAVK_ABI), bumped whenever a kernel's signature or a buffer layout
+ * changes: firmware/lib/kern.py refuses a module built from another version. */
 int32_t navk_abi(void) { return NAVK_ABI; }
 
 void navk_add(float *out, const float *a, const float *b, int32_t n) {
