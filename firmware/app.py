@@ -25,13 +25,14 @@ import gc
 import time
 from array import array
 
+from micropython import const
+
 import config
 import frame
 import kern
 import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
-from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
 from status_page import StatusPage, font_for
 

@@ -28,8 +28,9 @@ on the emulated STM32F411.
 
 import sys
 
-import machine
 from micropython import const
+
+import machine
 
 # Pins and peripherals per board (the keys of BOARDS are the images' MICROPY_HW_BOARD_NAME)
 _BLACKPILL = {

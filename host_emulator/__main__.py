@@ -33,9 +33,9 @@ import dataclasses
 import importlib
 import sys
 
+from common.errors import EmulatorError
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError
 
 # commands with a parser of their own: name -> ("module:function" taking argv, help)
 DELEGATED = {

@@ -9,7 +9,7 @@ import ast
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, LIB_DIR
+from common.firmware_env import FIRMWARE_DIR, LIB_DIR
 
 ALLOWED_FLOATS = {0.0, 1.0, 2.0, 0.5}
 BANNED_MATH = {"sin", "cos", "tan", "atan", "atan2", "asin", "acos", "exp", "log", "pow"}

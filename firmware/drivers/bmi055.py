@@ -43,8 +43,9 @@ the tests prove it on the MicroPython VM under `micropython.heap_lock()`.
 
 from array import array
 
-import kern
 from micropython import const
+
+import kern
 
 try:
     from time import sleep_ms as _sleep_ms

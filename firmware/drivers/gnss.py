@@ -132,8 +132,9 @@ docs/benchmarks/board.md).
 import time
 from array import array
 
-import kern
 from micropython import const
+
+import kern
 
 try:
     from time import ticks_diff as _ticks_diff

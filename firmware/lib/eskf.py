@@ -41,10 +41,10 @@ where the slices fall. Measurement rows are sparse: each names its non-zero colu
 
 from array import array
 
-import kern
 from micropython import const
 
 import f32
+import kern
 
 N = const(15)
 IX_POS = const(0)
@@ -72,7 +72,7 @@ _NS = const(8)
 
 # The float buffer `Eskf.e` (its parts are the views P, dx, ...) and the int buffer `Eskf.i`
 # (the job's state), so that a native kernel takes the filter as two arguments.
-# firmware/native/layout.h is generated from these offsets (tools/native/layout.py).
+# firmware/native/layout.h is generated from these offsets (common/native/layout.py).
 E_P = const(0)  # P (N x N)
 E_A = const(225)  # A = Phi P during propagation (N x N)
 E_U = const(450)  # Phi x (N)

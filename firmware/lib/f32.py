@@ -6,7 +6,7 @@ Every float that outlives a function call lives in a buffer made by `zeros(n)`.
   float32, every `+ - * /` is one correctly rounded float32 operation, and `sqrt` is the
   FPU's `vsqrt.f32` (correctly rounded). Buffers are `array('f')`.
 - On CPython the same names come from the host's NumPy backend (module `f32_host`, put in
-  place by `host_emulator.firmware_env.install()`): buffers are `numpy.float32` arrays, an
+  place by `common.firmware_env.install()`): buffers are `numpy.float32` arrays, an
   element read is a `numpy.float32` scalar, and every operation on it rounds to float32
   exactly as the board does. This is the desktop's bit-exact model of the board.
 - On the desktop MicroPython VM (double-precision build) buffers still store float32 but
@@ -49,7 +49,7 @@ else:
     except ImportError:
         raise ImportError(
             "f32: on CPython the firmware needs the NumPy float32 backend; "
-            "call host_emulator.firmware_env.install() before importing firmware modules"
+            "call common.firmware_env.install() before importing firmware modules"
         ) from None
 
 

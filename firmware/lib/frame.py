@@ -29,8 +29,9 @@ angles are passed as (whole degrees, fraction in 1e-7 deg, same sign) and packed
 16-bit halves: 1e7 = 152 * 65536 + 38528.
 """
 
-import kern
 from micropython import const
+
+import kern
 
 FRAME_LEN = const(52)
 # The int fields of `pack_fields` (firmware/native/layout.h is generated from them)

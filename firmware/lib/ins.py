@@ -24,11 +24,11 @@ every few hundred milliseconds: they change slowly and cost too much per tick.
 Units: rad, rad/s, m, m/s, m/s^2. Buffers are public and owned here.
 """
 
-import kern
 from micropython import const
 
 import f32
 import geo
+import kern
 import rot
 from fmath import sqrt
 

@@ -41,19 +41,19 @@ failing are reset, and the filter's own uncertainty and drift say when not to tr
 
 from array import array
 
+from micropython import const
+
 import eskf
+import f32
 import frame
+import geo
 import ins as ins_mod
 import kern
-from ins import Ins
-from micropython import const
-from nav_aid import NO_HEIGHT_VAR, Aiding, lever_vel
-from nav_align import Alignment
-
-import f32
-import geo
 import rot
 from fmath import cos, sin
+from ins import Ins
+from nav_aid import NO_HEIGHT_VAR, Aiding, lever_vel
+from nav_align import Alignment
 
 ALIGNING = const(1)
 NAVIGATING = const(2)

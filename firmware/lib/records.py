@@ -35,12 +35,12 @@ import struct
 from array import array
 from binascii import crc32
 
-import frame
-import ins
-import kern
 from micropython import const
 
+import frame
 import geo
+import ins
+import kern
 
 EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)

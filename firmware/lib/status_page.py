@@ -36,9 +36,10 @@ second (`bad_until`).
 
 from array import array
 
+from micropython import const
+
 import kern
 from frame import bytes_copy
-from micropython import const
 
 _SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT is 3:
 # odd, so a turn never shares its tick with an extended frame's, every 20 ticks)

@@ -29,7 +29,7 @@ static inline float f32_from_bits(uint32_t u) {
 #define F32_BITS(u) f32_from_bits(UINT32_C(u))
 
 /* fmath.py's constants, same names with the prefix FM_, and the kernels' other float32
- * constants: generated from the Python (tools/native/layout.py) */
+ * constants: generated from the Python (common/native/layout.py) */
 #include "tuning.h"
 
 /* Comparisons are written as in fmath.py: a NaN fails every one of them, so it takes the

@@ -6,7 +6,7 @@ independent float64 references: seed 001 eq. 5-6 and 5-11 written out, and pymap
 import numpy as np
 import pymap3d
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()

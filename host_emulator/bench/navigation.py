@@ -134,13 +134,12 @@ def _one(task):
     ((ImuModel or GnssModel field, value), ...) over the scenario's simulated sensors}."""
     name, seed, white, profile = task[:4]
     trial = task[4] if len(task) > 4 else {}
-    from host_emulator import firmware_env
+    from common import firmware_env
     from host_emulator.bench import navigator
 
     firmware_env.install()
-    import navcfg
-
     import f32
+    import navcfg
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -216,7 +215,8 @@ def _standing_speed(run, truth, settle_s=2.0):
 
 
 def _vm_cost():
-    from host_emulator.runtimes.mpy_unix import navigator as vm_navigator
+    from host_emulator.bench import navigator_vm as vm_navigator
+    from host_emulator.runtimes import mpy_unix
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -227,13 +227,13 @@ def _vm_cost():
     res = {}
     for label, kw in VM_VARIANTS:
         out = vm_navigator.run(imu, gnss, 180, **kw)
-        res[label] = vm_navigator.block_stats(out["blocks"], out["state"])
+        res[label] = mpy_unix.block_stats(out["blocks"], out["state"])
     return res
 
 
 def _footprint():
     """Bytes of a Navigator on the (64-bit) VM, and of the core's .mpy for the board."""
-    from host_emulator.firmware_env import LIB_DIR
+    from common.firmware_env import LIB_DIR
     from host_emulator.runtimes.mpy_unix import vm
 
     nav_bytes = vm.run_json(
@@ -570,7 +570,7 @@ def _sim_setting(kind):
 
 
 def _nav_config_names():
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     import navcfg

@@ -44,22 +44,22 @@ import time  # CPython's, with the board's ticks_us and set_us once install_mach
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
+from common.proto import config as board_config
+from common.proto import frame as frame_schema
+from common.proto import records
+from common.proto import stimulus as stim_mod
+from common.proto.ticks import TICKS_PERIOD, ticks_diff
+from host_emulator.board import install_machine
 from host_emulator.model import display
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel
-from host_emulator.proto import config as board_config
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import records
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
 
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
+import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
 import nav as fw_nav  # noqa: E402  (radians per centidegree of course)
 from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
-
-import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
 
 F32 = np.float32
 _FRAME = frame_schema.numpy_dtype()
@@ -313,7 +313,7 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
     g = Nmea(need_speed=cfg.gnss_need_speed)  # as app.App builds its parser
-    firmware_env.install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
+    install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
     fw_app, fw_board, _, bmi055 = _firmware()
 
     n = len(stim)

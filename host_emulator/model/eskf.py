@@ -9,7 +9,7 @@ gate) the model branches too.
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model.f32ops import F32, ONE, TWO, ZERO, cross, mat_vec, vec
 
 firmware_env.install()

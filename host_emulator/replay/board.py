@@ -17,8 +17,8 @@ Every other setting keeps the firmware's default. A NAME=VALUE is parsed by the 
 validation (BoardConfig.validate), so a replay accepts exactly what a board would load.
 """
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import config as board_config
+from common.errors import EmulatorError
+from common.proto import config as board_config
 
 REPLAY, DATASET, COMMAND_LINE = "replay", "dataset", "--set"
 DETECTED = "detected"  # chosen from the data (replay/carrier.py: the profile)
@@ -96,7 +96,7 @@ def describe(values, sources):
 def catalogue():
     """(name, default, allowed) texts of every ins.cfg setting in the file's order: what
     `--set help` prints (allowed: the firmware's own ranges, where it has a table of them)."""
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     import config  # the firmware's (firmware/lib/config.py)

@@ -35,7 +35,7 @@ import struct
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.replay import dataset as ds
 from host_emulator.replay import rtklib_pos
 

@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.sim.trajectory import euler_to_dcm
 
 from .dataset import SWAP_FRD_RFU, WEEK_S, Dataset, Imu, Positions, mount_matrix

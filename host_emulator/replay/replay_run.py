@@ -22,12 +22,12 @@ import time
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import stream
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
-from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
-from host_emulator.proto import stream
 from host_emulator.replay import board as board_settings
 from host_emulator.replay import diagnose, to_stimulus
 from host_emulator.sim import faults as faults_mod

@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymap3d
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus as stim_mod
+from common.errors import EmulatorError
+from common.proto import stimulus as stim_mod
 from host_emulator.replay import board, carrier
 from host_emulator.replay import dataset as ds
 from host_emulator.sim import board_input, nmea, trajectory

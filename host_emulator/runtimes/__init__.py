@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 
 @dataclass(eq=False)
@@ -129,10 +129,10 @@ _built = {}
 
 
 def native_module(arch):
-    """The path of navk.mpy built for `arch` (tools.native.ARCHS), brought up to date when a
+    """The path of navk.mpy built for `arch` (common.native.ARCHS), brought up to date when a
     file of firmware/native changed since this process last built it; EmulatorError saying
     what to install when it cannot be built."""
-    from tools import native
+    from common import native
 
     key = tuple((p.name, p.stat().st_mtime_ns) for p in native.inputs())
     if _built.get(arch, (None,))[0] != key:

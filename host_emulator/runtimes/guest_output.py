@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError, FirmwareError
+from common.errors import EmulatorError, FirmwareError
 
 
 def display_marks(data, per_tick, start_bytes, where_run):

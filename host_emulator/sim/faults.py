@@ -53,8 +53,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus as stim_mod
+from common.errors import EmulatorError
+from common.proto import stimulus as stim_mod
 from host_emulator.sim import imu as imu_mod
 from host_emulator.sim import nmea
 

@@ -567,9 +567,9 @@ class VirtualBoard:
         at most twice a second (and when the firmware stops)."""
         if self.display is None:
             return
+        from common.proto import config as board_config
         from host_emulator.display.device import UsartGpu
         from host_emulator.display.usartgpu import DisplayError
-        from host_emulator.proto import config as board_config
 
         try:
             if self._gpu is None:
@@ -589,7 +589,7 @@ class VirtualBoard:
             return
         import io
 
-        from host_emulator.errors import write_atomic
+        from common.errors import write_atomic
 
         buf = io.BytesIO()
         self._gpu.screen.image(scale=2).save(buf, "PNG")
@@ -650,8 +650,8 @@ def main(argv=None):
         help="an image with the firmware frozen (this checkout's firmware/ and its fwid)",
     )
     args = p.parse_args(argv)
+    from common.errors import EmulatorError
     from host_emulator import args as cli_args
-    from host_emulator.errors import EmulatorError
 
     try:
         cli_args.check_scenario(args.scenario)
@@ -665,8 +665,8 @@ def main(argv=None):
         return 2
     frozen_tmp = None
     if args.frozen:
+        from common.toolchain import ToolchainError
         from tools.image import fwid
-        from tools.toolchain import ToolchainError
 
         frozen_tmp = tempfile.TemporaryDirectory(prefix="vboard-frozen-")
         try:

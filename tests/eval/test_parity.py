@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
+from common import firmware_env
+from common.proto import records as rec_schema
+from common.proto import stimulus, stream
 from host_emulator.eval import parity
 from host_emulator.model import app as model_runner
 from host_emulator.model import rot as ref_rot
-from host_emulator.proto import records as rec_schema
-from host_emulator.proto import stimulus, stream
 from host_emulator.sim import board_input
 from host_emulator.sim import gnss as sim_gnss
 
@@ -250,7 +250,6 @@ def test_the_vectorised_frame_equals_the_firmware_packer():
     at +-90 deg, longitudes beyond 107.37 deg, all sensor ranges."""
     import frame
     import nav
-
     import rot
 
     rng = np.random.default_rng(5)

@@ -23,13 +23,13 @@ same definition to first order, and exactly what `_inject` applies).
 
 from dataclasses import dataclass
 
-import eskf
-import nav as nav_mod
-import navcfg
 import numpy as np
 import pytest
 
+import eskf
 import f32
+import nav as nav_mod
+import navcfg
 import rot
 
 POS = slice(0, 3)

@@ -2,22 +2,22 @@
 GNSS data: alignment, accuracy after alignment, robustness (gating, R floor, faults, outages)
 and re-anchoring. Bit-exactness against the NumPy model is in tests/model/test_nav_model.py."""
 
+import numpy as np
+import pytest
+
 import eskf
+import f32
 import nav as fw_nav
 import nav_aid
 import nav_align
 import navcfg
-import numpy as np
-import pytest
-from nav import ALIGNING, NAVIGATING, Navigator
-
-import f32
 from host_emulator.bench import navigation as bench_nav
 from host_emulator.bench import navigator as nav_runner
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
 from host_emulator.sim.trajectory import wrap_pi
+from nav import ALIGNING, NAVIGATING, Navigator
 
 DT = 0.005
 

@@ -7,12 +7,12 @@
     changes, every float32 in [9/16, 1] for asin, random bit patterns over the whole float32
     range, and specials;
 (b) they equal fmath.py itself, run on numpy.float32 scalars, on a few thousand inputs;
-(c) the FM_ constants (tuning.h, which tools/native/layout.py generates) are fmath.py's;
+(c) the FM_ constants (tuning.h, which common/native/layout.py generates) are fmath.py's;
 (d) fmath32.h compiles without a warning about double or float conversions, and the code GCC
     makes of it holds no fused multiply-add, no x87 and no double arithmetic (x86-64, also with
     FMA available, and the Cortex-M4F when arm-none-eabi-gcc is installed).
 
-The C under test is the CPython build of the kernels (tools.native.cffi_module: cffi over every
+The C under test is the CPython build of the kernels (common.native.cffi_module: cffi over every
 firmware/native/*.c with the float flags of all the native builds).
 """
 
@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 import fmath
+from common import native
 from host_emulator.model import fmath as model
-from tools import native
 
 NATIVE = native.NATIVE_DIR
 HEADER = NATIVE / "fmath32.h"
@@ -46,7 +46,7 @@ RNG_SEED = 20240611
 @pytest.fixture(scope="module")
 def navk():
     """The CPython build of the kernels (firmware_env.navk_host: built unless cached)."""
-    from host_emulator.firmware_env import navk_host
+    from common.firmware_env import navk_host
 
     return navk_host.load()
 
@@ -54,7 +54,7 @@ def navk():
 def run_c(navk, name, *args):
     args = [np.ascontiguousarray(a, dtype=F32) for a in args]
     out = np.empty(args[0].shape, dtype=F32)
-    from host_emulator.firmware_env import navk_host
+    from common.firmware_env import navk_host
 
     getattr(navk, f"{name}_n")(out, *args, out.size)
     navk_host.clear_cache()  # the wrapper's pointer cache would keep these big arrays alive

@@ -1,5 +1,5 @@
 """The numbers the native kernels share with the firmware's Python are written once: layout.h
-and tuning.h are what tools/native/layout.py generates from the Python modules, and no C file
+and tuning.h are what common/native/layout.py generates from the Python modules, and no C file
 defines a number of its own under a name the Python side also has."""
 
 import re
@@ -7,8 +7,8 @@ import re
 import numpy as np
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, import_module
-from tools.native import layout
+from common.firmware_env import FIRMWARE_DIR, import_module
+from common.native import layout
 
 NATIVE = FIRMWARE_DIR / "native"
 
@@ -20,7 +20,7 @@ def defines(text):
 
 
 def test_the_generated_headers_are_what_the_generator_writes():
-    assert layout.stale() == [], "run `python -m tools.native.layout` and commit the headers"
+    assert layout.stale() == [], "run `python -m common.native.layout` and commit the headers"
 
 
 def test_the_headers_hold_the_python_values():

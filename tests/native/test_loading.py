@@ -15,16 +15,15 @@ import sys
 import numpy as np
 import pytest
 
+from common import firmware_env, native, runtimes
+from common.errors import EmulatorError
+from common.firmware_env import navk_host
 from host_emulator import __main__ as cli
-from host_emulator import firmware_env, runtimes
-from host_emulator.errors import EmulatorError
 from host_emulator.eval import parity
-from host_emulator.firmware_env import navk_host
 from host_emulator.runtimes import cpython
 from host_emulator.runtimes.m4f import guest
 from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
-from tools import native
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""The board formats written once in host_emulator/proto against what they must agree with:
+"""The board formats written once in common/proto against what they must agree with:
 the frame's field table against the contract in DESIGN.md section 6 (parsed from the document,
 not retyped), the firmware's packers (firmware/lib/records.py) against the record layouts, the
 CRC against crcmod's independent CRC-32, the host's tick arithmetic against the MicroPython
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 import f32
+from common.firmware_env import REPO_DIR
+from common.proto import frame as frame_schema
+from common.proto import records as rec_schema
+from common.proto.crc import crc32
+from common.proto.ticks import TICKS_PERIOD, ticks_diff
 from host_emulator.board import MPY_DIR
-from host_emulator.firmware_env import REPO_DIR
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import records as rec_schema
-from host_emulator.proto.crc import crc32
-from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
 
 DESIGN = REPO_DIR.parent / "shared" / "DESIGN.md"
 _CODES = {"int16": "h", "int32": "i", "u8": "B"}
@@ -103,9 +103,8 @@ def _firmware_ext(counter, tick):
 
 
 def test_the_firmwares_extended_frame_is_the_record_layout():
-    import records
-
     import geo
+    import records
 
     data, p, bg, ba, pos, coef = _firmware_ext(9, 0x3FFFFFFF)
     assert len(data) == rec_schema.EXT_LEN == records.EXT_LEN and rec_schema.crc_ok(data)

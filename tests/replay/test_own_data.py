@@ -17,10 +17,10 @@ import numpy as np
 import pymap3d
 import pytest
 
+from common.errors import EmulatorError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
 from host_emulator.__main__ import main
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
 from host_emulator.replay import board, kfgins, replay_run
 from host_emulator.replay import dataset as dsm
 from host_emulator.replay import to_stimulus as ts

@@ -14,12 +14,11 @@ import struct
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
-from host_emulator.board import MPY_DIR
-from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.firmware_env import FIRMWARE_DIR
+from common.errors import EmulatorError, FirmwareError
+from common.firmware_env import FIRMWARE_DIR
+from common.proto import stream
+from host_emulator.board import MPY_DIR, install_machine
 from host_emulator.model import display as model_display
-from host_emulator.proto import stream
 from host_emulator.runtimes import cpython, mpy_unix
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import board_input
@@ -403,7 +402,7 @@ print(json.dumps([out, _hex(imu.accel.regs), _hex(imu.gyro.regs), imu.accel.rese
 def _run_on_cpython(script):
     """The JSON the script prints, run on CPython over the same board (board/mpy loaded by
     firmware_env) after a power-on."""
-    firmware_env.install_machine().power_on()
+    install_machine().power_on()
     printed = []
     exec(script, {"_hex": lambda b: bytes(b).hex(), "print": printed.append})
     return json.loads(printed[-1])

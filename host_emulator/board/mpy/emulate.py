@@ -53,11 +53,8 @@ import sys
 import time  # board/mpy/time.py: this directory is sys.path[0]
 from array import array
 
-import machine  # board/mpy/machine.py
 from feed import (
-    MAGIC,
     PROGRESS_EVERY,
-    REC_LEN,
     app_stats,
     bytes_per_block,
     display_uart,
@@ -68,6 +65,9 @@ from feed import (
     stalled,
     start_firmware,
 )
+from feed_protocol import MAGIC, REC_LEN  # common/proto/mpy
+
+import machine  # board/mpy/machine.py
 
 if len(sys.argv) != 5:
     print("usage: micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR")

@@ -166,10 +166,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     # the firmware still gets the board's heap when the build's heap has room for both
     report = setup() if setup else None
     usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region
-    import machine
     from feed import (
         PROGRESS_EVERY,
-        REC_LEN,
         app_stats,
         bytes_per_block,
         display_uart,
@@ -180,6 +178,9 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         stalled,
         start_firmware,
     )
+    from feed_protocol import REC_LEN  # common/proto/mpy
+
+    import machine
 
     machine.TX_CAPACITY = TX_CAPACITY
     bpb = bytes_per_block()

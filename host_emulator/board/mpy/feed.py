@@ -2,7 +2,7 @@
 emulate.py (the MicroPython unix VM, mpy_unix runtime) and emulate_m4f.py (the emulated
 Cortex-M4F, m4f runtime). Plain MicroPython on the emulated `machine` and `time` beside it.
 
-Per stimulus record k (host_emulator/proto/stimulus.py; the host has checked the CRC), exactly
+Per stimulus record k (common/proto/stimulus.py; the host has checked the CRC), exactly
 as the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
 GNSS UART receives its bytes (`next_input`), the clock moves to t_k - pps_before_us and the
 PPS pin fires (if the record has an edge), the clock moves to t_k, the timer fires
@@ -23,15 +23,23 @@ import sys
 import time  # board/mpy/time.py
 from array import array
 
+from feed_protocol import (  # common/proto/mpy: the record, as the host writes it
+    EXIT_FIRMWARE_ERROR,
+    FLAG_IMU_SILENT,
+    FLAG_PPS,
+    FLAG_STALL,
+    REC_ACCEL,
+    REC_FLAGS,
+    REC_GYRO,
+    REC_LEN,
+    REC_N,
+    REC_PPS_BEFORE_US,
+    REC_TEMP,
+)
+
 import machine  # board/mpy/machine.py
 
-MAGIC = b"INSSTIM1"
-REC_LEN = 18  # gyro 6, accel 6, temperature i8, flags u8, pps_before_us u16, n u16
-FLAG_PPS = 1
-FLAG_IMU_SILENT = 2  # proto/stimulus.py: the IMU does not answer in this interval
-FLAG_STALL = 4  # proto/stimulus.py: the board is busy, the loop does not run (an injected stall)
 PROGRESS_EVERY = 1000  # ticks between progress lines
-EXIT_FIRMWARE_ERROR = 3
 
 
 def console(msg):
@@ -100,13 +108,13 @@ def next_input(f, rec, ubuf, imu, gnss):
     """The next record into the BMI055 registers and the GNSS UART; returns the UART byte
     buffer (grown when a record carries more)."""
     read_exact(f, rec, REC_LEN, "a record")
-    answers = not rec[13] & FLAG_IMU_SILENT
+    answers = not rec[REC_FLAGS] & FLAG_IMU_SILENT
     imu.accel.responds = answers
     imu.gyro.responds = answers
-    imu.set_registers(rec, 0, 6)
-    t = rec[12]
+    imu.set_registers(rec, REC_GYRO, REC_ACCEL)
+    t = rec[REC_TEMP]
     imu.set_temperature_raw(t - 256 if t >= 128 else t)
-    n = rec[16] | (rec[17] << 8)
+    n = rec[REC_N] | (rec[REC_N + 1] << 8)
     if n:
         if n > len(ubuf):
             ubuf = bytearray(n)
@@ -118,14 +126,14 @@ def next_input(f, rec, ubuf, imu, gnss):
 def stalled(rec):
     """True if the board is busy over this record's tick (an injected stall): the interrupt
     handlers run (fire_inputs), the loop does not."""
-    return rec[13] & FLAG_STALL
+    return rec[REC_FLAGS] & FLAG_STALL
 
 
 def fire_inputs(rec, t_k, pps):
     """The record's PPS edge (never back in time: an edge during start-up), then the clock to
     t_k and the tick timer: the firmware's interrupt handlers run."""
-    if rec[13] & FLAG_PPS:
-        edge = t_k - (rec[14] | (rec[15] << 8))
+    if rec[REC_FLAGS] & FLAG_PPS:
+        edge = t_k - (rec[REC_PPS_BEFORE_US] | (rec[REC_PPS_BEFORE_US + 1] << 8))
         if edge > time.now_us():
             time.set_us(edge)
         pps.fire()

@@ -4,7 +4,7 @@ MicroPython VM and on CPython alike, the one emulated board of every runtime:
 
 - in the VM, host_emulator/board/mpy/emulate.py puts this directory first on sys.path, so the
   firmware's `import machine` (and `import time`) find these files instead of the built-ins;
-- on CPython, host_emulator/firmware_env.install_machine() loads bmi055_model.py and this file
+- on CPython, host_emulator.board.install_machine() loads bmi055_model.py and this file
   as the modules `bmi055_model` and `machine`, and puts board/mpy/time.py's MicroPython-only
   functions on CPython's `time`; several boards run one after another in one process, each
   starting with `power_on()`.

@@ -2,14 +2,14 @@
 
 In the MicroPython VM this file is `time` (host_emulator/board/mpy/emulate.py puts this
 directory first on sys.path, so the firmware's `import time` finds it instead of the built-in
-module). On CPython, host_emulator/firmware_env.install_machine() loads it once and puts its
+module). On CPython, host_emulator.board.install_machine() loads it once and puts its
 MicroPython-only functions (ticks_*, sleep_ms, sleep_us, now_us, set_us, advance_us) on
 CPython's own `time`, whose time(), sleep() and perf_counter() stay the host's.
 
 The clock is an integer count of microseconds since power-on, `now_us()`. Only the emulator
 moves it forward (`set_us`, `advance_us`), and the firmware's own waits (`sleep_ms`,
 `sleep_us`) advance it by the time they ask for: the firmware's run time is zero on this clock.
-`ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and host_emulator/proto/ticks.py);
+`ticks_us`/`ticks_ms` wrap at 2**30 like the stm32 port's (and common/proto/ticks.py);
 `ticks_diff`/`ticks_add` do the port's modular arithmetic. Nothing here allocates (all values
 are small ints), so a tick's GC blocks are the firmware's own. On the emulated Cortex-M4F the
 tick functions run between `_emu_in()` and `_emu_out()` (see machine.py): they are the board's

@@ -1,7 +1,7 @@
 """The m4f runtime: the unmodified firmware loop on an emulated Cortex-M4F, the board's CPU and
 arithmetic, counting the instructions of every tick.
 
-MicroPython v1.28.0 (tools.toolchain's source tree) is built with its qemu port for our board
+MicroPython v1.28.0 (common.toolchain's source tree) is built with its qemu port for our board
 definition (boards/M4F_INS: QEMU's mps2-an386, Cortex-M4 with the single-precision FPU, hard
 float, `MICROPY_FLOAT_IMPL = float`, object representation A: the stm32 port's choices for the
 STM32F411), with the firmware frozen exactly as the board image freezes it (firmware/manifest.py)
@@ -45,10 +45,11 @@ import struct
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
+from common.proto.mpy.feed_protocol import EXIT_FIRMWARE_ERROR
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
 from host_emulator.runtimes.guest_output import (
     GuestOutput,
@@ -60,7 +61,6 @@ from host_emulator.runtimes.m4f import build as m4f_build
 
 QEMU = "qemu-system-arm"
 QEMU_MACHINE = "mps2-an386"
-EXIT_FIRMWARE_ERROR = 3  # feed.EXIT_FIRMWARE_ERROR
 EXIT_DRIVER_ERROR = 4  # the guest driver itself raised (a bug of the emulator)
 PER_TICK = np.dtype(
     [("instr", "<i4"), ("emu_instr", "<i4"), ("alloc_bytes", "<i4"), ("state", "u1"),

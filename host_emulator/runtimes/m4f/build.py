@@ -3,7 +3,7 @@
 with the `m4f` module (usermod/) and, frozen, the firmware exactly as the board image freezes
 it plus the emulated board and its driver (manifest.py).
 
-Out of tree, from tools.toolchain's MicroPython source (MICROPY_DIR) with its own mpy-cross,
+Out of tree, from common.toolchain's MicroPython source (MICROPY_DIR) with its own mpy-cross,
 into build/m4f/ (build/m4f-heap<N>/ for another GC heap size); make decides what is stale, so
 a second build with nothing changed takes a second.
 """
@@ -13,8 +13,8 @@ import pathlib
 import shutil
 import time
 
-from host_emulator.errors import EmulatorError
-from tools import toolchain
+from common import toolchain
+from common.errors import EmulatorError
 
 HERE = pathlib.Path(__file__).resolve().parent
 BOARD_DIR = HERE / "boards" / "M4F_INS"

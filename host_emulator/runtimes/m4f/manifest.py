@@ -6,3 +6,4 @@
 include("../../../firmware/manifest.py")
 for name in ("machine", "bmi055_model", "time", "feed", "emulate_m4f"):
     module(name + ".py", base_path="../../board/mpy")
+module("feed_protocol.py", base_path="../../../common/proto/mpy")  # the stimulus record

@@ -78,7 +78,7 @@ def ensure():
     """Install the pinned Debian toolchain when missing (as root); ToolchainError otherwise."""
     proc = subprocess.run(["bash", str(ENSURE_SH)], capture_output=True, text=True)
     if proc.returncode != 0:
-        raise ToolchainError(proc.stderr.strip() or "tools/toolchain/ensure.sh failed")
+        raise ToolchainError(proc.stderr.strip() or "common/toolchain/ensure.sh failed")
 
 
 def jobs():

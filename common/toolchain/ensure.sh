@@ -39,7 +39,7 @@ if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null; then
     apt-get install -y --no-install-recommends "${missing[@]}" >&2 || {
       echo "toolchain: apt-get could not install ${missing[*]}" >&2
       echo "  (a newer Debian revision? apt-cache policy ${missing[*]%%=*} lists what is" \
-           "available; update the pins in tools/toolchain/ensure.sh)" >&2
+           "available; update the pins in common/toolchain/ensure.sh)" >&2
       exit 1
     }
   fi

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from host_emulator import firmware_env
-from host_emulator.errors import EmulatorError
+from common import firmware_env
+from common.errors import EmulatorError
 
 
 class ConfigError(EmulatorError):

@@ -29,8 +29,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto.crc import crc32
+from common.errors import EmulatorError
+from common.proto.crc import crc32
 
 MAGIC = b"INSSESS2"
 MAGIC_V1 = b"INSSESS1"

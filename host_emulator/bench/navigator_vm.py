@@ -1,5 +1,5 @@
-"""Run the firmware's Navigator inside the real MicroPython VM on simulated data, and count
-what every tick allocates.
+"""A benchmark driver (bench-nav): the firmware's Navigator alone inside the real MicroPython
+VM on simulated data, counting what every tick allocates.
 
 On the board each float result is a 16-byte heap box, so the GC blocks a tick allocates are
 its number of boxed float operations, the best proxy for its CPU time (DESIGN.md 4). The VM
@@ -124,19 +124,3 @@ def run(imu, gnss, duration_s, profile="car", slices_per_tick=None, coning=None,
     out["blocks"] = np.frombuffer(blocks, dtype="<u2").astype(int)
     out["state"] = np.frombuffer(state, dtype=np.uint8).astype(int)
     return out
-
-
-def block_stats(blocks, state):
-    """Minimum, mean, 99th percentile and maximum blocks per tick, aligning and navigating."""
-    res = {}
-    for name, s in (("aligning", 1), ("navigating", 2)):
-        b = blocks[state == s]
-        if len(b):
-            res[name] = {
-                "ticks": int(len(b)),
-                "min": int(np.min(b)),
-                "mean": float(np.mean(b)),
-                "p99": float(np.percentile(b, 99)),
-                "max": int(np.max(b)),
-            }
-    return res

@@ -15,9 +15,9 @@ record starts.
 
 from dataclasses import dataclass, field
 
-from host_emulator.proto import frame, records
-from host_emulator.proto.frame import FRAME_LEN, FRAME_TYPE, HEADER
-from host_emulator.proto.records import EXT_TYPE, RAW_TYPE
+from common.proto import frame, records
+from common.proto.frame import FRAME_LEN, FRAME_TYPE, HEADER
+from common.proto.records import EXT_TYPE, RAW_TYPE
 
 FRAME, EXT, RAW = "frame", "ext", "raw"
 KIND = {FRAME_TYPE: FRAME, EXT_TYPE: EXT, RAW_TYPE: RAW}

@@ -14,7 +14,7 @@ most, and no tick late or missed.
 
 import numpy as np
 
-from host_emulator.proto import stream
+from common.proto import stream
 
 TARGET_MS = {"p99": 2.5, "max": 4.0}
 # the f411 runtime's run figures a report keeps (runtimes/f411/world.py's stats)

@@ -1,4 +1,4 @@
-"""bench/board_cost.py: the cost figures of an m4f run, checked on per-tick records made up
+"""eval/board_cost.py: the cost figures of an m4f run, checked on per-tick records made up
 so that every figure is known."""
 
 import json
@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from host_emulator.bench import board_cost
+from host_emulator.eval import board_cost
 from host_emulator.runtimes.m4f import PER_TICK
 
 
@@ -138,10 +138,11 @@ def _twin_ticks(busy_ms, states, late=()):
 
 
 def test_the_images_time_per_tick_is_stated_against_its_targets():
-    """bench/board_time.py and the page's section on the emulated STM32F411: busy time per
+    """eval/board_time.py and the page's section on the emulated STM32F411: busy time per
     phase, late ticks, and the targets (navigating p99 <= 2.5 ms, max <= 4 ms, none late or
     missed), met or not."""
-    from host_emulator.bench import board, board_time
+    from host_emulator.bench import board
+    from host_emulator.eval import board_time
 
     busy = [1.0] * 100 + [1.2] * 95 + [3.0] * 4 + [3.9]  # navigating: p99 3.0, max 3.9
     t, states = _twin_ticks([4.0] * 10 + busy, [1] * 10 + [2] * 200, late=[3])

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from host_emulator.bench import navigator as nav_runner
-from host_emulator.runtimes.mpy_unix import navigator as nav_vm
+from host_emulator.bench import navigator_vm as nav_vm
+from host_emulator.runtimes import mpy_unix
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
@@ -35,7 +36,7 @@ def test_navigates_on_micropython_like_on_the_desktop(vm_run):
 
 def test_no_tick_is_much_heavier_than_the_average(vm_run):
     _, out, _ = vm_run
-    stats = nav_vm.block_stats(out["blocks"], out["state"])["navigating"]
+    stats = mpy_unix.block_stats(out["blocks"], out["state"])["navigating"]
     # With the native kernels the INS and the filter slices allocate nothing (the Python ones
     # box ~320 floats per tick); the heaviest ticks are the fixes, whose delivery and
     # screening are still Python float work (measured: mean 0.28 blocks, max 494).

@@ -34,19 +34,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto.crc import crc32
+from common.errors import EmulatorError
+from common.proto.crc import crc32
+from common.proto.mpy.feed_protocol import (  # noqa: F401  (this module's names too)
+    FLAG_IMU_SILENT,
+    FLAG_PPS,
+    FLAG_STALL,
+    MAGIC,
+    REC_LEN,
+    TICK_US,
+    TRAILER,
+)
 
-MAGIC = b"INSSTIM1"
-TRAILER = b"END1"
-TICK_US = 5000
-_REC = struct.Struct("<6s6sbBHH")
-REC_LEN = _REC.size  # 18
-FLAG_PPS = 0x01
-FLAG_IMU_SILENT = 0x02  # board/mpy/feed.py repeats it
-# the board is busy in this interval (an injected stall): the timer and the interrupt handlers
-# run, the loop does not; board/mpy/feed.py repeats it
-FLAG_STALL = 0x04
+_REC = struct.Struct("<6s6sbBHH")  # feed_protocol's record
+if _REC.size != REC_LEN:
+    raise ImportError(f"feed_protocol.REC_LEN {REC_LEN} is not the record's {_REC.size} bytes")
 
 
 class StimulusError(EmulatorError):
@@ -187,7 +189,7 @@ class Stimulus:
 
     def write(self, path):
         """The stimulus file, whole or not at all (errors.write_atomic)."""
-        from host_emulator.errors import write_atomic
+        from common.errors import write_atomic
 
         write_atomic(path, self.to_bytes())
 

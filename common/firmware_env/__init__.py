@@ -2,10 +2,9 @@
 
 On the board `firmware/` is the filesystem root and `firmware/lib/` is on `sys.path`, so the
 portable core is imported as flat modules (`import f32, mat, rot`). `install()` reproduces that
-layout on the desktop and plugs the NumPy float32 backend into the seam; `install_machine()`
-adds the emulated board (board/mpy's `machine`, its BMI055 register model `bmi055_model`, and
-`time`) beneath it. `bmi055_model()` gives the register model alone, for an emulator with a
-clock of its own.
+layout on the desktop and plugs the NumPy float32 backend into the seam; the emulator adds
+its emulated board beneath it (host_emulator.board.install_machine: `machine`, the BMI055
+register model, `time`).
 
 Kernels: the firmware does `import navk` (firmware/lib/kern.py) and falls back to its Python
 kernels on ImportError. `use_kernels("native")` (the default; INS_KERNELS=python in the
@@ -46,7 +45,7 @@ def kernels():
 
 class _NavkFinder:
     """`import navk` -> the cffi build's module, while the native kernels are chosen (built on
-    first use: a failed build raises tools.native.NativeError, not ImportError, so the
+    first use: a failed build raises common.native.NativeError, not ImportError, so the
     firmware cannot silently fall back to its Python kernels)."""
 
     @classmethod
@@ -59,7 +58,7 @@ class _NavkFinder:
 
     @staticmethod
     def create_module(spec):
-        from host_emulator.firmware_env import navk_host
+        from common.firmware_env import navk_host
 
         return navk_host.load()
 
@@ -103,8 +102,8 @@ def use_kernels(kind=None):
 def install():
     """Idempotent: seam backend, `micropython` stand-in, search path, the board's float
     error behaviour, and `import navk` as use_kernels() says (native unless chosen else)."""
-    from host_emulator.firmware_env import f32_host
-    from host_emulator.firmware_env import micropython as fake_micropython
+    from common.firmware_env import f32_host
+    from common.firmware_env import micropython as fake_micropython
 
     sys.modules.setdefault("f32_host", f32_host)
     sys.modules.setdefault("micropython", fake_micropython)
@@ -119,71 +118,12 @@ def install():
         sys.modules["navk"] = None
 
 
-# MicroPython's time functions the board's time.py adds to CPython's `time` (whose own time(),
-# sleep() and perf_counter() the host keeps using)
-TIME_FUNCTIONS = ("ticks_us", "ticks_ms", "ticks_cpu", "ticks_diff", "ticks_add", "sleep_ms",
-                  "sleep_us", "now_us", "set_us", "advance_us")  # fmt: skip
-
-
-def _load(name, path):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def bmi055_model():
-    """board/mpy/bmi055_model.py, the BMI055 register model, as the module `bmi055_model`
-    (loaded once per process; machine.py imports it under that name). Its dies take a clock
-    (`Bmi055(now_us=...)`); without one they read board/mpy/time.py's, which only
-    install_machine() puts on CPython's `time`."""
-    from host_emulator.board import MPY_DIR
-
-    model = sys.modules.get("bmi055_model")
-    if model is None:
-        model = _load("bmi055_model", MPY_DIR / "bmi055_model.py")
-        sys.modules["bmi055_model"] = model
-    return model
-
-
-def install_machine():
-    """The emulated board (board/mpy) on CPython; returns its `machine` module.
-
-    Idempotent: the first call loads board/mpy/time.py (its MicroPython-only functions go onto
-    CPython's `time`), board/mpy/bmi055_model.py as the module `bmi055_model` and
-    board/mpy/machine.py (which imports it) as the module `machine`, once per process; the
-    firmware's modules keep the first ones they import (the BMI055 driver binds
-    time.sleep_ms). A run starts a fresh board with `machine.power_on()`."""
-    import time
-
-    from host_emulator.board import MPY_DIR
-
-    install()
-    machine = sys.modules.get("machine")
-    if machine is None or not hasattr(machine, "power_on"):
-        if not hasattr(time, "now_us"):
-            board_time = _load("host_emulator.board.mpy.time", MPY_DIR / "time.py")
-            for name in TIME_FUNCTIONS:  # not in CPython's time
-                setattr(time, name, getattr(board_time, name))
-        bmi055_model()
-        machine = _load("machine", MPY_DIR / "machine.py")
-        sys.modules["machine"] = machine
-    import gc
-
-    if not hasattr(gc, "mem_free"):  # CPython's heap is not the board's: report plenty free
-        gc.mem_free = lambda: 1 << 20
-    return machine
-
-
 def import_module(name):
     """A firmware module by its board name ("app", "drivers.bmi055", ...), for reading its
-    constants on CPython. The emulated board is installed first: the BMI055 driver binds
-    time.sleep_ms when it is first imported, and bound to anything else it would wait in real
-    time on every emulated board after (whose BMI055 then never leaves its reset: no frames at
-    all)."""
+    constants on CPython (install() first). The firmware's modules find MicroPython's `time`
+    functions when they call them, so the emulated board may come later
+    (host_emulator.board.install_machine)."""
     import importlib
 
-    install_machine()
+    install()
     return importlib.import_module(name)

@@ -5,7 +5,7 @@ lists the ports that exist, so every tool can say what to do."""
 import errno
 import os
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 MISSING, BUSY, DENIED, OTHER = "missing", "busy", "denied", "other"
 

@@ -16,8 +16,8 @@ import struct
 
 import numpy as np
 
-from host_emulator.proto.crc import crc32
-from host_emulator.proto.frame import HEADER
+from common.proto.crc import crc32
+from common.proto.frame import HEADER
 
 EXT_TYPE = 0x91
 RAW_TYPE = 0x92

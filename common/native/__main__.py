@@ -1,9 +1,9 @@
-"""python -m tools.native: build the kernels' three modules (make native), printing each
+"""python -m common.native: build the kernels' three modules (make native), printing each
 build's time and output; a failure says what to install and exits 1."""
 
 import sys
 
-from tools import native
+from common import native
 
 
 def main():

@@ -1,5 +1,5 @@
 """The native kernels on CPython: the module `navk` as the firmware imports it on the board, over
-the cffi build of firmware/native (tools.native.cffi_module, built on first use and cached).
+the cffi build of firmware/native (common.native.cffi_module, built on first use and cached).
 
 Same names and calling convention as the MicroPython native module (the `navk_` prefix
 dropped, positional arguments in the prototype's order), with NumPy buffers where the board
@@ -29,8 +29,8 @@ import types
 
 import numpy as np
 
-from tools import native
-from tools.native import bindings
+from common import native
+from common.native import bindings
 
 CACHE_MAX = 4096
 _module = None
@@ -143,7 +143,7 @@ def make_module(ext_path, protos):
 
 def load():
     """The module `navk` over the cffi build of firmware/native (built now if missing or
-    stale); one per process. tools.native.NativeError if it cannot be built."""
+    stale); one per process. common.native.NativeError if it cannot be built."""
     global _module
     if _module is None:
         _module = make_module(native.cffi_module(), native.prototypes())
