@@ -2,7 +2,7 @@
 raw-input records, stimulus and session files, the files tools.flash deploys).
 
 It is zlib's CRC-32, which the board computes with `binascii.crc32`: the host uses the same
-function, so there is one definition. tests/proto/test_crc.py checks it against crcmod's
+function, so there is one definition. tests/proto/test_formats.py checks it against crcmod's
 "crc-32", an independent implementation of the same polynomial.
 """
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Make sure the Debian cross toolchain and QEMU that the firmware image and the emulated
-# Cortex-M4F board are built and run with are installed (docs/board.md):
+# Cortex-M4F board are built and run with are installed (docs/image.md, docs/emulator.md):
 #   gcc-arm-none-eabi, libnewlib-arm-none-eabi (C library headers), qemu-system-arm;
 # and the host C compiler that builds the native kernels for the desktop (docs/native.md: the
 # x64 native module and the CPython extension): gcc.

@@ -119,8 +119,9 @@ released late: a one-second-old position handed over as new would hurt the filte
 navigator's delay ring reaches back 0.64 s).
 
 PPS: `pps_isr(pin)` only stores time.ticks_us() in pps_us and sets pps_flag = 1 (hard IRQ
-safe: no allocation, no float). The app reads and clears the flags with `pps_flag_take()`,
-`gga_flag_take()` and `epoch_take()` (each returns 0 or 1; no allocation).
+safe: no allocation, no float). `pps_flag_take()`, `gga_flag_take()` and `epoch_take()` return
+a flag (0 or 1) and clear it; the app reads and clears pps_flag, gga_seen and epoch_ready
+itself, a method call less per tick.
 
 Cost: the byte loop, the line checks and the field parsing are one native kernel
 (`nmea_scan`, firmware/native/nmea.c; `_scan_py` below is its reference, bit for bit on every

@@ -15,7 +15,7 @@ Conventions
   not write `out` over an input.
 - Arithmetic: every `+ - * /` is one correctly rounded float32 operation on the board and on
   the desktop model; `f32.sqrt` is correctly rounded. The order is part of the contract
-  (`host_emulator/reference/mat.py` repeats it bit for bit; an asm_thumb replacement must
+  (`host_emulator/model/mat.py` repeats it bit for bit; an asm_thumb replacement must
   keep it). Every sum starts from `s = 0.0` (or from the first element where stated) and
   adds terms one at a time in increasing index order, exactly like `op_AB`:
   `s = s + a[i][k] * b[k][j]` for k = 0 .. n-1. So `0.0 + (-0.0)` gives +0.0, as on the board.

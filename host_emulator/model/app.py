@@ -12,7 +12,7 @@ Modelled independently here (NumPy float32, or plain integers):
 - the virtual clock: tick k at t_k = t0 + k tick_us, PPS edges at t_k - pps_before_us,
   MicroPython's 30-bit ticks_us/ticks_diff; t0 is derived from the BMI055 driver's start-up
   waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
-  tests/test_parity.py against the tick start times the firmware's raw records carry);
+  tests/eval/test_parity.py against the tick start times the firmware's raw records carry);
 - app._deliver_fix: lat/lon split, height in dm (an epoch without one: the last one the
   receiver gave; before any, 0 in the frame and no fix for the navigator), f32 ratios for
   height, HDOP and speed, course x pi/18000 (rebuilt from its float32 bits), speed and

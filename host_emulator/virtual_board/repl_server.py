@@ -1,5 +1,5 @@
 """The virtual board's Python: runs inside one persistent MicroPython VM per board session and
-executes the code the host's REPL emulation (host_emulator/virtual_board.py) sends it.
+executes the code the host's REPL emulation (host_emulator/virtual_board/) sends it.
 
     micropython repl_server.py FS_DIR FLASH_KB CORRUPT_WRITES NONCE [FROZEN_DIR]
 

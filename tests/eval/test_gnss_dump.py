@@ -1,4 +1,4 @@
-"""`python -m host_emulator gnss-dump FILE [--json]` (host_emulator/gnss_dump.py): one line
+"""`python -m host_emulator gnss-dump FILE [--json]` (host_emulator/eval/gnss_dump.py): one line
 per accepted sentence, matching the driver's own records; counters on stderr; a clear error
 for an unreadable file."""
 

