@@ -1,6 +1,6 @@
 """firmware/app.py with the firmware's own board.py and drivers on the emulated board
-(board/mpy: `machine` with the BMI055 register model on SPI, UARTs; `time`'s virtual clock):
-frames out, GNSS silence, a missing or wrong
+(emulated_board/mpy: `machine` with the BMI055 register model on SPI, UARTs; `time`'s virtual
+clock): frames out, GNSS silence, a missing or wrong
 IMU, a corrupt configuration, and a real receiver log flowing through to the frames."""
 
 import importlib
@@ -13,7 +13,7 @@ import pytest
 
 from common.proto import stimulus, stream
 from host_emulator.bench import navigator as nav_runner
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
 LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z

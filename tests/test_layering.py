@@ -27,7 +27,7 @@ LAYERS = {
     "tools.flash": 11,  # deploys an image
     "tools.monitor": 12,  # joins a board through tools.flash's maintenance start
     "tools": 13,
-    "host_emulator.board": 20,
+    "host_emulator.emulated_board": 20,
     "host_emulator.f411": 20,
     "host_emulator.display": 20,
     "host_emulator.sim": 20,

@@ -3,7 +3,7 @@
 On the board `firmware/` is the filesystem root and `firmware/lib/` is on `sys.path`, so the
 portable core is imported as flat modules (`import f32, mat, rot`). `install()` reproduces that
 layout on the desktop and plugs the NumPy float32 backend into the seam; the emulator adds
-its emulated board beneath it (host_emulator.board.install_machine: `machine`, the BMI055
+its emulated board beneath it (host_emulator.emulated_board.install_machine: `machine`, the BMI055
 register model, `time`).
 
 Kernels: the firmware does `import navk` (firmware/lib/kern.py) and falls back to its Python
@@ -122,7 +122,7 @@ def import_module(name):
     """A firmware module by its board name ("app", "drivers.bmi055", ...), for reading its
     constants on CPython (install() first). The firmware's modules find MicroPython's `time`
     functions when they call them, so the emulated board may come later
-    (host_emulator.board.install_machine)."""
+    (host_emulator.emulated_board.install_machine)."""
     import importlib
 
     install()

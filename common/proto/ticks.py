@@ -3,8 +3,8 @@
 taken modulo that period into -2**29 .. 2**29 - 1.
 
 The host's one copy (the model's loop, the session replay). The emulated board's clock,
-board/mpy/time.py, runs inside a MicroPython VM too and cannot import host modules, so it has
-its own; tests/proto/test_formats.py checks that the two agree.
+emulated_board/mpy/time.py, runs inside a MicroPython VM too and cannot import host modules, so it
+has its own; tests/proto/test_formats.py checks that the two agree.
 """
 
 TICKS_PERIOD = 1 << 30

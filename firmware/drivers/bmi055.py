@@ -3,7 +3,7 @@
 The BMI055 is two chips in one package, each with its own chip select (active low) on a
 shared SPI bus (mode 0 or 3, up to 10 MHz). The driver never imports `machine`: the board
 builds the bus and pins and passes them in (`board.py`), and the host emulator passes its
-emulated board's (`host_emulator/board/mpy/machine.py`). It uses only `spi.write(buf)`,
+emulated board's (`host_emulator/emulated_board/mpy/machine.py`). It uses only `spi.write(buf)`,
 `spi.readinto(buf, 0)` (configuration), `spi.write_readinto(tx, rx)` (the data bursts) and
 `pin.value(v)`.
 

@@ -754,10 +754,10 @@ def _setting(plan, name):
 
 
 def _refused(values):
-    """The firmware's range table of today refuses it (replay/board.py `problem`)."""
-    from host_emulator.replay import board
+    """The firmware's range table of today refuses it (replay/run_config.py `problem`)."""
+    from host_emulator.replay import run_config
 
-    return board.problem(values) is not None
+    return run_config.problem(values) is not None
 
 
 def execute(plan, jobs, log=print):

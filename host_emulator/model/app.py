@@ -28,8 +28,8 @@ Modelled independently here (NumPy float32, or plain integers):
   0x92, encoded by proto/records.py.
 Shared with the firmware (integer or bit-level code, validated on its own):
 - the NMEA parser `drivers/gnss.py` Nmea (checked against gpsd on real logs), including its
-  `pps_isr`, which stamps the edge from the emulated board's virtual clock (board/mpy/time.py),
-  and its flag/epoch "take" methods;
+  `pps_isr`, which stamps the edge from the emulated board's virtual clock
+  (emulated_board/mpy/time.py), and its flag/epoch "take" methods;
 - the configuration: the file the runtimes write (proto/config.py) is decoded by
   firmware/lib/config.py and `BoardConfig.nav_config()` builds the navigator's configuration,
   as on the board (an explicit identity matrix becomes None there, for instance);
@@ -50,7 +50,7 @@ from common.proto import frame as frame_schema
 from common.proto import records
 from common.proto import stimulus as stim_mod
 from common.proto.ticks import TICKS_PERIOD, ticks_diff
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 from host_emulator.model import display
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel

@@ -28,8 +28,8 @@ from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
 from host_emulator.eval import evaluate, report, scenario_run
-from host_emulator.replay import board as board_settings
 from host_emulator.replay import diagnose, to_stimulus
+from host_emulator.replay import run_config as board_settings
 from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")

@@ -6,10 +6,10 @@ sent on its output UART, its console lines and its counters.
 
     fw = runtimes.get("cpython").run(stim, workdir, config_overrides=None, progress=None)
 
-    cpython   the firmware on CPython, over the emulated board of board/mpy (cpython.py);
+    cpython   the firmware on CPython, over the emulated board of emulated_board/mpy (cpython.py);
               float32 bit for bit through the seam's NumPy backend; the fastest, and the
               firmware's own tracebacks
-    mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over board/mpy
+    mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over emulated_board/mpy
               (mpy_unix/); its floats are doubles, so float output agrees to a tolerance;
               proves the firmware runs on MicroPython and counts the GC blocks of every tick
     m4f       the firmware on an emulated Cortex-M4F (QEMU mps2-an386, MicroPython v1.28.0

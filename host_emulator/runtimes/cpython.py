@@ -2,14 +2,14 @@
 emulated board.
 
 The firmware's own `board.py`, drivers and `app.py` run against the emulated board of
-board/mpy, the one the VM runtimes use too (`machine`: pins, SPI with the BMI055 register
+emulated_board/mpy, the one the VM runtimes use too (`machine`: pins, SPI with the BMI055 register
 model, UARTs with their receive rings, the PPS interrupt, the timer, the watchdog; `time`: the
 virtual clock), loaded by install_machine() and powered on afresh for every run.
 Floats are the float32 seam's NumPy backend, so what comes out is what the board computes, bit
 for bit.
 
-Per stimulus record k (proto/stimulus.py), as board/mpy/emulate.py does in the VM: the BMI055
-data and temperature registers take the record's values, the GNSS UART receives the record's
+Per stimulus record k (proto/stimulus.py), as emulated_board/mpy/emulate.py does in the VM: the
+BMI055 data and temperature registers take the record's values, the GNSS UART receives the record's
 bytes, the clock advances to the PPS edge (its interrupt fires) and to the tick's moment, the
 timer fires, the loop makes one pass (`App.service()`), and the output UART's transmit buffer
 is emptied. Time starts at power-on: the firmware's start-up (configuration, the BMI055
@@ -36,7 +36,7 @@ from common import firmware_env
 from common.errors import EmulatorError, FirmwareError
 from common.proto import config as board_config
 from common.proto import stimulus as stim_mod
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import FirmwareRun
 
 

@@ -10,12 +10,12 @@ Ctrl-A, with flow control), soft resets (Ctrl-D). Code runs in the real MicroPyt
 running repl_server.py (beside this file), with `fs_dir` mounted at /flash (capacity `flash_kb`).
 
 A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
-VM (board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated when the
-board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
+VM (emulated_board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated
+when the board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
 stops it. `machine.reset()` in the REPL resets the board (`resets` counts them): a new REPL
 VM, then main.py as at power-up, whose maintenance check (board.maintenance_start) reads the
-RTC backup registers the REPL's `stm` stand-in wrote (board/mpy/backup_domain.py: a file both
-VMs share, as the backup domain outlives a reset). Everything runs on one background thread
+RTC backup registers the REPL's `stm` stand-in wrote (emulated_board/mpy/backup_domain.py: a file
+both VMs share, as the backup domain outlives a reset). Everything runs on one background thread
 around select().
 """
 
@@ -34,7 +34,7 @@ import threading
 import time
 import tty
 
-from host_emulator.board import EMULATE, MPY_DIR
+from host_emulator.emulated_board import EMULATE, MPY_DIR
 from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
 

@@ -1,5 +1,5 @@
 """firmware/drivers/bmi055.py against the emulated board's BMI055 register model
-(host_emulator/board/mpy/bmi055_model.py, through machine.py, on CPython) and against a
+(host_emulator/emulated_board/mpy/bmi055_model.py, through machine.py, on CPython) and against a
 minimal fake bus inside the MicroPython VM: start-up (chip IDs, soft reset and its delays,
 range/bandwidth registers and their read-back), clear errors for the usual wiring faults, exact
 decoding of every count including the extremes, the over-range flag at its documented
@@ -13,7 +13,7 @@ import pytest
 
 from common.proto import stimulus
 from drivers import bmi055
-from host_emulator.board import bmi055_model, install_machine
+from host_emulator.emulated_board import bmi055_model, install_machine
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import imu as sim_imu
 

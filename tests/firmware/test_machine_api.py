@@ -1,6 +1,6 @@
 """`machine` as the stm32 port has it: the arguments its C takes, derived from the vendored
 MicroPython v1.28.0 source (common.toolchain.micropython_dir()), against the emulated board's
-stand-in (host_emulator/board/mpy/machine.py) and the firmware's own calls.
+stand-in (host_emulator/emulated_board/mpy/machine.py) and the firmware's own calls.
 
 - The port's tables: every `static const mp_arg_t allowed_args[] = {...}` that machine.UART,
   SPI (hardware SPI), Pin (init, irq), Timer (the soft timer) and WDT parse with
@@ -33,7 +33,7 @@ import pytest
 
 from common import toolchain
 from common.firmware_env import FIRMWARE_DIR, REPO_DIR
-from host_emulator.board import MPY_DIR, install_machine
+from host_emulator.emulated_board import MPY_DIR, install_machine
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 SRC = toolchain.micropython_dir()

@@ -11,7 +11,7 @@ import types
 import pytest
 
 from common.firmware_env import FIRMWARE_DIR
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 
 BKP18R, PWR_CR, DBP, APB1ENR, PWREN = 0x40002898, 0x40007000, 0x100, 0x40023840, 1 << 28
 ASKED, ON = 0x2D4D4E54, 0x2D4D4E4F  # tools/flash/maintenance.py (test_maintenance.py)

@@ -2,7 +2,7 @@
 the frame's field table against the contract in DESIGN.md section 6 (parsed from the document,
 not retyped), the firmware's packers (firmware/lib/records.py) against the record layouts, the
 CRC against crcmod's independent CRC-32, the host's tick arithmetic against the MicroPython
-side's (board/mpy/time.py)."""
+side's (emulated_board/mpy/time.py)."""
 
 import importlib.util
 import re
@@ -18,7 +18,7 @@ from common.proto import frame as frame_schema
 from common.proto import records as rec_schema
 from common.proto.crc import crc32
 from common.proto.ticks import TICKS_PERIOD, ticks_diff
-from host_emulator.board import MPY_DIR
+from host_emulator.emulated_board import MPY_DIR
 
 DESIGN = REPO_DIR.parent / "shared" / "DESIGN.md"
 _CODES = {"int16": "h", "int32": "i", "u8": "B"}

@@ -11,7 +11,7 @@ from common import firmware_env
 from common.errors import FirmwareError
 from common.proto import stimulus, stream
 from host_emulator import __main__ as cli
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input
 

@@ -14,7 +14,7 @@ import pytest
 from common.proto import config as board_config
 from common.proto import session_file, stream
 from common.proto.ticks import ticks_diff
-from host_emulator.board import install_machine
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import cpython
 from host_emulator.session import cli, compare, rebuild, record, replay, walk
 from host_emulator.sim import board_input

@@ -1,5 +1,5 @@
-"""The stimulus file as the feeding harnesses read it (host_emulator/board/mpy/feed.py, in the
-MicroPython VMs) and the host writes it (common/proto/stimulus.py): one definition for both.
+"""The stimulus file as the feeding harnesses read it (host_emulator/emulated_board/mpy/feed.py, in
+the MicroPython VMs) and the host writes it (common/proto/stimulus.py): one definition for both.
 
 File: MAGIC, then the header (common/proto/stimulus.py), then one REC_LEN-byte record per
 tick followed by its GNSS bytes, then TRAILER and the CRC. A record, little-endian:

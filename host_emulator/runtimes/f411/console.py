@@ -28,7 +28,7 @@ import tempfile
 import time
 
 from common.errors import EmulatorError
-from host_emulator.board import bmi055_model
+from host_emulator.emulated_board import bmi055_model
 
 BOARD = "NUCLEO_F411RE"
 SLICE_MS = 2  # board time a poll of the port runs the chip for, at least ...

@@ -5,8 +5,8 @@ MicroPython v1.28.0 (common.toolchain's source tree) is built with its qemu port
 definition (boards/M4F_INS: QEMU's mps2-an386, Cortex-M4 with the single-precision FPU, hard
 float, `MICROPY_FLOAT_IMPL = float`, object representation A: the stm32 port's choices for the
 STM32F411), with the firmware frozen exactly as the board image freezes it (firmware/manifest.py)
-and the emulated board beside it (board/mpy: machine.py, bmi055_model.py, time.py, feed.py and
-the guest driver emulate_m4f.py; manifest.py). See build.py.
+and the emulated board beside it (emulated_board/mpy: machine.py, bmi055_model.py, time.py, feed.py
+and the guest driver emulate_m4f.py; manifest.py). See build.py.
 
 QEMU runs it with `-icount shift=0`: one guest instruction is one ns of virtual time, and the
 `m4f` module (usermod/m4f/m4f.c) reads the MPS2's 25 MHz timer, so the guest counts its own
@@ -20,7 +20,7 @@ What it gives besides the frames:
   the emulated peripherals (machine.py, time.py: emulation, not firmware; subtract it), bytes
   allocated, the navigation state after it, and whether the app's own gc.collect() ran in it;
 - the heap is the board's (what a board with the image's BOARD_HEAP_BYTES heap would have free
-  when the firmware starts; board/mpy/emulate_m4f.py says how) and the app collects garbage
+  when the firmware starts; emulated_board/mpy/emulate_m4f.py says how) and the app collects garbage
   itself, as on the board;
 - with the display setting on, what the firmware's status page wrote to the screen's UART
   (`FirmwareRun.display` and `display_marks`, as the cpython runtime gives them; each tick's
@@ -35,7 +35,7 @@ cycle; the F411's flash wait states and MicroPython's branchy interpreter make i
 (docs/benchmarks/cpi.md gives the calibration: `python -m host_emulator cpi`). Interrupt
 entry/exit and the real peripherals' C drivers are not counted; the firmware's calls into them
 are, at a C method call's cost (the firmware holds each emulated part through m4f.Periph, a C
-handle: board/mpy/machine.py).
+handle: emulated_board/mpy/machine.py).
 """
 
 import os

@@ -26,8 +26,8 @@ BUILD_DIR = toolchain.BUILD_ROOT / "m4f"
 # image` reports it; tests/tools/test_image_build.py keeps the two equal). The build's heap adds
 # a reserve for the emulated board's objects (its modules, peripherals, C handles and the
 # driver's buffers: 6,960 bytes measured), sized so that the ballast the driver sets aside for
-# the rest (board/mpy/emulate_m4f.py) stays under a few hundred bytes: the collector scans a
-# ballast like any object, which would inflate every gc.collect().
+# the rest (emulated_board/mpy/emulate_m4f.py) stays under a few hundred bytes: the collector scans
+# a ballast like any object, which would inflate every gc.collect().
 BOARD_HEAP_BYTES = 89_568
 EMULATOR_RESERVE_BYTES = 7_168
 GC_HEAP_BYTES = BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES  # MICROPY_HEAP_SIZE of the build

@@ -2,11 +2,11 @@
 from PyPI, a double-precision build), fed from a stimulus, counting the GC blocks every tick
 allocates.
 
-The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs board/mpy/emulate.py,
+The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs emulated_board/mpy/emulate.py,
 which imports the firmware's own `board.py`, drivers and `app.py` on top of the emulated
-`machine` and `time` beside it (board/mpy/machine.py, board/mpy/time.py: pins, SPI with the
-BMI055 register model of board/mpy/bmi055_model.py, UARTs, the timer, the watchdog, a virtual
-clock in us since power-on).
+`machine` and `time` beside it (emulated_board/mpy/machine.py, emulated_board/mpy/time.py: pins, SPI
+with the BMI055 register model of emulated_board/mpy/bmi055_model.py, UARTs, the timer, the
+watchdog, a virtual clock in us since power-on).
 Each stimulus record is replayed exactly as the cpython runtime replays it, so both runtimes
 see the same input at the same virtual times.
 
@@ -44,7 +44,7 @@ from common.proto import config as board_config
 from common.proto import stimulus as stim_mod
 from common.proto.mpy.feed_protocol import EXIT_FIRMWARE_ERROR
 from host_emulator import runtimes
-from host_emulator.board import EMULATE
+from host_emulator.emulated_board import EMULATE
 from host_emulator.runtimes import FirmwareRun
 from host_emulator.runtimes.guest_output import (
     GuestOutput,

@@ -14,7 +14,7 @@ firmware's own board.py and drivers, backed by emulated peripherals on a virtual
 One board for every runtime: the VM finds machine.py, bmi055_model.py and time.py on its
 sys.path, the emulated Cortex-M4F has them frozen (runtimes/m4f/manifest.py); the cpython
 runtime, the model's virtual clock and the tests load them with
-host_emulator.board.install_machine() (machine.py as `machine`, bmi055_model.py as
+host_emulator.emulated_board.install_machine() (machine.py as `machine`, bmi055_model.py as
 `bmi055_model`, time.py's functions on CPython's `time`); bmi055_model() loads
 the register model alone. mpy/ is not a host package: it is loaded by file.
 """
@@ -44,9 +44,9 @@ def _load(name, path):
 
 
 def bmi055_model():
-    """board/mpy/bmi055_model.py, the BMI055 register model, as the module `bmi055_model`
+    """emulated_board/mpy/bmi055_model.py, the BMI055 register model, as the module `bmi055_model`
     (loaded once per process; machine.py imports it under that name). Its dies take a clock
-    (`Bmi055(now_us=...)`); without one they read board/mpy/time.py's, which only
+    (`Bmi055(now_us=...)`); without one they read emulated_board/mpy/time.py's, which only
     install_machine() puts on CPython's `time`."""
     model = sys.modules.get("bmi055_model")
     if model is None:
@@ -56,11 +56,11 @@ def bmi055_model():
 
 
 def install_machine():
-    """The emulated board (board/mpy) on CPython; returns its `machine` module.
+    """The emulated board (emulated_board/mpy) on CPython; returns its `machine` module.
 
-    Idempotent: the first call loads board/mpy/time.py (its MicroPython-only functions go onto
-    CPython's `time`), board/mpy/bmi055_model.py as the module `bmi055_model` and
-    board/mpy/machine.py (which imports it) as the module `machine`, once per process; the
+    Idempotent: the first call loads emulated_board/mpy/time.py (its MicroPython-only functions go
+    onto CPython's `time`), emulated_board/mpy/bmi055_model.py as the module `bmi055_model` and
+    emulated_board/mpy/machine.py (which imports it) as the module `machine`, once per process; the
     firmware's modules keep the first ones they import (the BMI055 driver binds
     time.sleep_ms). A run starts a fresh board with `machine.power_on()`."""
     import time
@@ -69,7 +69,7 @@ def install_machine():
     machine = sys.modules.get("machine")
     if machine is None or not hasattr(machine, "power_on"):
         if not hasattr(time, "now_us"):
-            board_time = _load("host_emulator.board.mpy.time", MPY_DIR / "time.py")
+            board_time = _load("host_emulator.emulated_board.mpy.time", MPY_DIR / "time.py")
             for name in TIME_FUNCTIONS:  # not in CPython's time
                 setattr(time, name, getattr(board_time, name))
         bmi055_model()

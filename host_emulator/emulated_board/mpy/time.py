@@ -1,8 +1,8 @@
 """The emulated board's `time`: the board's tick functions on a virtual clock.
 
-In the MicroPython VM this file is `time` (host_emulator/board/mpy/emulate.py puts this
+In the MicroPython VM this file is `time` (host_emulator/emulated_board/mpy/emulate.py puts this
 directory first on sys.path, so the firmware's `import time` finds it instead of the built-in
-module). On CPython, host_emulator.board.install_machine() loads it once and puts its
+module). On CPython, host_emulator.emulated_board.install_machine() loads it once and puts its
 MicroPython-only functions (ticks_*, sleep_ms, sleep_us, now_us, set_us, advance_us) on
 CPython's own `time`, whose time(), sleep() and perf_counter() stay the host's.
 

@@ -18,7 +18,7 @@ the emulated Cortex-M4F, and on CPython (firmware_env loads it by file as `bmi05
   is low (`attach`).
 
 The clock: a die times its start-up on `now_us`, a function returning microseconds, given at
-construction (`Bmi055(now_us=...)`, `GyroDie(now_us=...)`); by default board/mpy/time.py's
+construction (`Bmi055(now_us=...)`, `GyroDie(now_us=...)`); by default emulated_board/mpy/time.py's
 `time.now_us`, the virtual clock of the board the runtimes emulate. Another emulator with a
 clock of its own (a cycle-level STM32F411 model on CPython) passes its own and reuses the
 model unchanged. The clock is read only while a die is starting up.
@@ -30,7 +30,7 @@ the data registers goes by slices). Construction allocates.
 """
 
 import sys
-import time  # board/mpy/time.py in the VM and frozen on the emulated Cortex-M4F
+import time  # emulated_board/mpy/time.py in the VM and frozen on the emulated Cortex-M4F
 
 # Slices allocate on MicroPython (the firmware's ticks there must not), not on CPython, where
 # they are the faster way to move bytes
@@ -51,7 +51,7 @@ SOFTRESET_CMD = 0xB6
 class _Die:
     """One BMI055 die: register file, SPI protocol (address byte, bit 7 = read, then
     auto-incremented registers, no dummy byte), soft reset and start-up time on the clock
-    `now_us` (a function returning us; None: board/mpy/time.py's), faults (`responds`,
+    `now_us` (a function returning us; None: emulated_board/mpy/time.py's), faults (`responds`,
     `chip_id`, `ignore_writes`)."""
 
     name = "die"
@@ -259,7 +259,7 @@ class AccelDie(_Die):
 
 class Bmi055:
     """Both dies of one BMI055 (present=False: neither answers), on the clock `now_us` (a
-    function returning us; None: board/mpy/time.py's `time.now_us`)."""
+    function returning us; None: emulated_board/mpy/time.py's `time.now_us`)."""
 
     def __init__(self, present=True, accel_chip_id=None, gyro_chip_id=None, now_us=None):
         self.accel = AccelDie(accel_chip_id, now_us)

@@ -2,12 +2,13 @@
 drivers use, backed by emulated peripherals on a virtual clock. Plain Python that runs in the
 MicroPython VM and on CPython alike, the one emulated board of every runtime:
 
-- in the VM, host_emulator/board/mpy/emulate.py puts this directory first on sys.path, so the
+- in the VM, host_emulator/emulated_board/mpy/emulate.py puts this directory first on sys.path, so
+the
   firmware's `import machine` (and `import time`) find these files instead of the built-ins;
-- on CPython, host_emulator.board.install_machine() loads bmi055_model.py and this file
-  as the modules `bmi055_model` and `machine`, and puts board/mpy/time.py's MicroPython-only
-  functions on CPython's `time`; several boards run one after another in one process, each
-  starting with `power_on()`.
+- on CPython, host_emulator.emulated_board.install_machine() loads bmi055_model.py and this file
+  as the modules `bmi055_model` and `machine`, and puts emulated_board/mpy/time.py's
+  MicroPython-only functions on CPython's `time`; several boards run one after another in one
+  process, each starting with `power_on()`.
 
 The API is the stm32 port's (MicroPython v1.28.0, ports/stm32 and extmod/machine_*.c: the
 spec): a constructor or method takes the arguments its C takes, positional where the C allows
@@ -54,7 +55,7 @@ the part but its `m4f.Periph` (`_handle`): calling a method then costs a C metho
 board's machine classes have, and the Python method runs inside a bracket opened in C, so that
 its call (a frame of more than 11 words is allocated on the heap: py/objfun.c) is emulation too.
 
-Time: `time.now_us()` of board/mpy/time.py (us since power-on). Allocation: everything the
+Time: `time.now_us()` of emulated_board/mpy/time.py (us since power-on). Allocation: everything the
 firmware calls per tick (Pin.value, SPI write/readinto, UART any/readinto/write, WDT.feed)
 allocates nothing: integer work on preallocated buffers, index loops, no slices (but the
 stack-allocated slice of a whole-buffer store), tuples or bound methods; tests prove it under

@@ -20,7 +20,7 @@ Reports on stdout, one line each, parsed by host_emulator/runtimes/guest_output.
 
 import gc
 import sys
-import time  # board/mpy/time.py
+import time  # emulated_board/mpy/time.py
 from array import array
 
 from feed_protocol import (  # common/proto/mpy: the record, as the host writes it
@@ -37,7 +37,7 @@ from feed_protocol import (  # common/proto/mpy: the record, as the host writes 
     REC_TEMP,
 )
 
-import machine  # board/mpy/machine.py
+import machine  # emulated_board/mpy/machine.py
 
 PROGRESS_EVERY = 1000  # ticks between progress lines
 

@@ -50,7 +50,7 @@ import json
 import os
 import struct
 import sys
-import time  # board/mpy/time.py: this directory is sys.path[0]
+import time  # emulated_board/mpy/time.py: this directory is sys.path[0]
 from array import array
 
 from feed import (
@@ -67,7 +67,7 @@ from feed import (
 )
 from feed_protocol import MAGIC, REC_LEN  # common/proto/mpy
 
-import machine  # board/mpy/machine.py
+import machine  # emulated_board/mpy/machine.py
 
 if len(sys.argv) != 5:
     print("usage: micropython emulate.py FIRMWARE_DIR STIMULUS CONFIG OUT_DIR")

@@ -52,7 +52,7 @@ import sys
 import m4f
 import vfs
 
-# machine (board/mpy/machine.py, frozen as `machine`, with bmi055_model) and feed are
+# machine (emulated_board/mpy/machine.py, frozen as `machine`, with bmi055_model) and feed are
 # imported in main(), after the heap MicroPython itself holds is measured: their objects are
 # the emulator's
 
