@@ -160,7 +160,7 @@ class App:
         # long free runs: made after the configuration and the board, it failed to find one
         # when the heap held other objects before the firmware started (test_m4f's padding).
         # Through Navigator, not f32 and nav.MEM_FLOATS: two more globals in this module made
-        # every navigating tick dearer (the trial is in issue 17's notes)
+        # every navigating tick dearer (`make bench-board`, measured both ways)
         mem = Navigator.memory()
         self.console = console
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
@@ -196,7 +196,7 @@ class App:
         # less (the overdue tick at each extended frame): one array attribute. Every method
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
-        # they made every navigating tick dearer (issue 16's notes)
+        # they made every navigating tick dearer (`make bench-board`, measured both ways)
         self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0))
         self.t_worst_us = 0
         self.t_sum_us = 0

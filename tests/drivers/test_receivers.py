@@ -1,5 +1,5 @@
-"""Every common receiver kind completes its epochs without configuration (issue 17): the 20
-gpsd regression logs (../shared/data/nmea, INDEX.md) as they are (GGA+RMC(+VTG) receivers,
+"""Every common receiver kind completes its epochs without configuration: the 20
+gpsd regression logs (the NMEA data set, INDEX.md) as they are (GGA+RMC(+VTG) receivers,
 several talkers), and receiver kinds derived from them here, line by line, honestly: what a
 receiver configured that way would have printed of the same seconds.
 

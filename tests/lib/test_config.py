@@ -147,7 +147,7 @@ def test_out_of_range_values_are_refused(tmp_path):
     ],
 )
 def test_physically_impossible_values_are_refused_with_the_range(name, value, words):
-    """Finite but absurd settings (issue 16: gyro_bias0=3e38 gave a NaN covariance) are refused
+    """Finite but absurd settings (gyro_bias0=3e38 once gave a NaN covariance) are refused
     with the setting's name and its range; the defaults and the range's ends are accepted."""
     cfg = custom()
     setattr(cfg, name, value)

@@ -661,7 +661,7 @@ def test_position_only_straight_drive_starts_from_the_track():
     assert start.yaw_sigma_deg >= float(np.degrees(cfg.init_yaw_sigma)) - 1e-3
     assert abs(start.yaw_err_deg) < 3.0 * start.yaw_sigma_deg, start.yaw_err_deg
     # measured 5.3 m/s: the window began at a standstill anchor, 2.6 sigma (3.3 m/s with the
-    # 4-8 s windows before the anchors were kept for walkers; issue 17's notes)
+    # 4-8 s windows before the anchors were kept for walkers)
     assert start.vel_err < 3 * float(cfg.track_vel_sigma), start.vel_err
     assert start.p_vel == pytest.approx(float(cfg.track_vel_sigma) ** 2, rel=0.01)
     assert start.speed_tick == -1000000  # unknown speeds never reached the standstill veto

@@ -1,4 +1,4 @@
-"""Bringing one's own recording to `replay --kf-gins` (issue 17, item 5): the defaults (no
+"""Bringing one's own recording to `replay --kf-gins`: the defaults (no
 outages, scored from t0), --score-from, board settings (--set and dataset.yaml's board:),
 GNSS epochs at any time (no PPS, decimation, nothing dropped silently), the messages for the
 usual mistakes (units, separator, header, week), why a run never navigated, and the console's
