@@ -1,5 +1,5 @@
-"""The 5 ms loop (seed 001 5.2): the timer ISR counts a due tick; the loop reads the IMU,
-drains the GNSS bytes, runs the navigator and sends the frame.
+"""The 5 ms loop (docs/requirements.md, original main loop): the timer ISR counts a due tick; the
+loop reads the IMU, drains the GNSS bytes, runs the navigator and sends the frame.
 
 Per tick, in this order: BMI055 burst read -> bytes waiting on the GNSS UART into the NMEA
 parser -> a completed fix to the navigator (its measurement tick from the PPS edge when one

@@ -1,4 +1,5 @@
-"""Static guards of the float32 contract (DESIGN.md section 3) over every file in firmware/.
+"""Static guards of the float32 contract (docs/requirements.md, float32 contract) over every file in
+firmware/.
 
 Each rule is a function over source text, so it is tested twice: it must pass on the real
 firmware and it must catch a deliberately bad snippet (a guard that matches nothing would

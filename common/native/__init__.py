@@ -1,5 +1,5 @@
-"""The firmware's native float32 kernels (firmware/native, DESIGN.md 3 rule 7): one C source,
-three builds, all out of tree under build/native/ (docs/native.md):
+"""The firmware's native float32 kernels (firmware/native, docs/requirements.md, float32 contract
+rule 7): one C source, three builds, all out of tree under build/native/ (docs/native.md):
 
     natmod("armv7emsp")  build/native/armv7emsp/navk.mpy   the board (Cortex-M4F) and the
                                                            emulated one (runtimes/m4f)

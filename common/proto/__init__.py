@@ -1,6 +1,6 @@
 """What crosses between a board and a PC, each written once, shared by the emulator and tools/:
 
-frame.py         the 52-byte output frame (DESIGN.md 6): one field table
+frame.py         the 52-byte output frame (docs/requirements.md, output frame): one field table
 records.py       the extended frame (0x91) and the raw-input record (0x92)
 stream.py        the output stream: the one decoder (incremental), and a strict splitter
 crc.py           the CRC-32 of every protected record and file

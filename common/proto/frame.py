@@ -1,4 +1,5 @@
-"""The 52-byte output frame (DESIGN.md section 6, a **contract**), written once as a field table.
+"""The 52-byte output frame (docs/requirements.md, output frame, a **contract**), written once as a
+field table.
 
 `FIELDS` lists the fields in byte order (little-endian, signed unless the code is upper-case):
     name   the integer as the bytes hold it, named with its unit of count ("yaw_cdeg")

@@ -33,7 +33,7 @@ EXT_FIELDS = (
     ("mean_tick_us", "H", 1),
     ("overruns", "H", 1),  # wrapping
     ("gc_runs", "H", 1),
-    ("p_diag", "f", 15),  # covariance diagonal, seed 001's state order
+    ("p_diag", "f", 15),  # covariance diagonal, the error-state order of docs/requirements.md
     ("gyro_bias_rad_s", "f", 3),
     ("accel_bias_m_s2", "f", 3),
     ("pos_enu_m", "f", 3),  # from the origin

@@ -31,7 +31,8 @@ ENSURE_SH = pathlib.Path(__file__).with_name("ensure.sh")
 # Every MicroPython we build (the image, the emulated Cortex-M4F) compiles its C with this.
 # GCC contracts a*b + c into one fused multiply-add by default (vfma.f32 on the Cortex-M4F's
 # FPU: 300 of them in the v1.28.0 images, libm and mpz_as_float among them), which rounds once
-# where the float32 contract (DESIGN.md 3) and the NumPy model round after each operation.
+# where the float32 contract (docs/requirements.md, float32 contract) and the NumPy model round
+# after each operation.
 C_FLOAT_FLAGS = "-ffp-contract=off"
 
 

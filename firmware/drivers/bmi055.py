@@ -10,7 +10,7 @@ emulated board's (`host_emulator/emulated_board/mpy/machine.py`). It uses only `
 Protocol (both dies): the first byte is the register address, bit 7 set for a read; the
 following bytes are read (or written) at auto-incremented addresses. No dummy byte.
 
-Units and scales (datasheet figures, DESIGN.md 7):
+Units and scales (datasheet figures, docs/requirements.md, BMI055 facts):
     gyro counts: int16 at registers 0x02..0x07 (LSB first). Sensitivity per range, in
         LSB per (deg/s) x 10 (integers: no float literal in firmware/):
         2000 -> 164, 1000 -> 328, 500 -> 656, 250 -> 1312, 125 -> 2624.

@@ -1,17 +1,18 @@
-"""15-state error-state Kalman filter in float32, time-distributed (seed 001 5.5, seed 002).
+"""15-state error-state Kalman filter in float32, time-distributed (docs/requirements.md, integrated
+navigation and Kalman filter, docs/requirements.md, error-state filter formulation).
 
-Error state, in seed 001's order, with its signs (errors of the navigation quantities are
-nominal minus true, errors of the biases are true minus estimate):
+Error state, in the error-state order of docs/requirements.md, with its signs (errors of the
+navigation quantities are nominal minus true, errors of the biases are true minus estimate):
      0-2  dp  = p_nominal - p_true              m, ENU
      3-5  dv  = v_nominal - v_true              m/s, ENU
      6-8  phi : C_nominal = (I - [phi x]) C_true  rad, ENU
      9-11 dbg = b_g,true - b_g,estimate          rad/s, body
     12-14 dba = b_a,true - b_a,estimate          m/s^2, body
 So a measurement is written z = (nominal prediction - measured) = h dx + noise, and the
-closed-loop correction (seed 002) is p -= dp, v -= dv, q = q(phi) (x) q, b_g += dbg,
-b_a += dba, then dx = 0.
+closed-loop correction (docs/requirements.md, error-state filter formulation) is p -= dp, v -= dv, q
+= q(phi) (x) q, b_g += dbg, b_a += dba, then dx = 0.
 
-Dynamics, seed 001 eq. 5-28 plus the terms of the Earth-fixed frame (`earth_terms`):
+Dynamics, docs/requirements.md eq. 5-28 plus the terms of the Earth-fixed frame (`earth_terms`):
     dp'  = dv
     dv'  = [f_n x] phi + C_bn dba - [2 w_ie x] dv
     phi' = -C_bn dbg - [w_ie x] phi

@@ -12,9 +12,9 @@ Every float that outlives a function call lives in a buffer made by `zeros(n)`.
 - On the desktop MicroPython VM (double-precision build) buffers still store float32 but
   arithmetic runs in double: that VM proves the code *runs* on MicroPython, not its bits.
 
-Rules for code on top of this seam (DESIGN.md section 3): no decimal float literals other
-than 0.0, 1.0, 2.0, 0.5 (build constants with `ratio` or `from_bits`); convert ints with
-`f32()`, never `float()`; no `math` module outside this file; never divide by zero (the
+Rules for code on top of this seam (docs/requirements.md, float32 contract): no decimal float
+literals other than 0.0, 1.0, 2.0, 0.5 (build constants with `ratio` or `from_bits`); convert ints
+with `f32()`, never `float()`; no `math` module outside this file; never divide by zero (the
 board raises ZeroDivisionError) nor take `sqrt` of a negative (the board raises ValueError).
 """
 

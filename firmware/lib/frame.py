@@ -1,4 +1,5 @@
-"""The 52-byte output frame (DESIGN.md section 6, seed 001 4.4), packed without allocating.
+"""The 52-byte output frame (docs/requirements.md, output frame, docs/requirements.md, frame
+encoding rules), packed without allocating.
 
 | bytes | field | scale |
 |---|---|---|

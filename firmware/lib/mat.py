@@ -1,4 +1,5 @@
-"""Fixed-size matrix kernels on flat float32 buffers (the board's MAT library, seed 001 6.2).
+"""Fixed-size matrix kernels on flat float32 buffers (the board's MAT library, docs/requirements.md,
+matrix library).
 
 Conventions
 -----------
@@ -39,7 +40,8 @@ arithmetic result is one box; stores, ints and the constants 0.0/1.0/0.5 cost no
 
 Examples: a 15 x 15 product is 13500 blocks; a 6 x 6 `inv_spd` is 1118. Solving S K^T = H P
 with `chol_solve` (n = 6, k = 15: 2340) is cheaper and more accurate than forming S^-1 and
-multiplying (1118 + 2160). Big kernels must be spread over ticks by the caller (DESIGN.md 4).
+multiplying (1118 + 2160). Big kernels must be spread over ticks by the caller
+(docs/requirements.md, time budget).
 """
 
 import f32

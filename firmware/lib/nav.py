@@ -17,24 +17,24 @@ One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits 
 Frames and units: ENU navigation frame at the integer origin (geo.py), body x right, y forward,
 z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
 
-States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
-vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
-heading from the GNSS course over ground from `heading_speed_m_s` (a walk) on: this board has
-no magnetometer, so a static board cannot know its heading. A receiver that reports no course
-(GGA only, or position-only data) gives the heading from its track instead: the chord from an
+States (docs/requirements.md, original main loop): ALIGNING (1) levels roll and pitch and averages
+the gyro bias while the vehicle stands still, waits until GNSS is stable (consecutive good fixes),
+and takes the heading from the GNSS course over ground from `heading_speed_m_s` (a walk) on: this
+board has no magnetometer, so a static board cannot know its heading. A receiver that reports no
+course (GGA only, or position-only data) gives the heading from its track instead: the chord from an
 anchor fix once it is `track_min_m` long, whose direction is the course at the window's
 middle, turned by half the yaw change the gyros saw over the window (see `nav_align._track`).
 Then NAVIGATING (2): INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS
 position and velocity updates with the antenna lever arm, zero-velocity updates at standstill
 and the non-holonomic constraint for cars.
 
-GNSS delay (seed 001 5.5.4): a ring keeps the last RING ticks of position and velocity; a fix
-is compared with the state at its measurement time (the PPS tick when the caller knows it,
-else arrival minus the configured latency) and the correction is applied to the current state.
-The ring stores each state minus the corrections injected so far, so a correction injected
-between the fix time and the update does not make the comparison stale.
+GNSS delay (docs/requirements.md, GNSS delay compensation): a ring keeps the last RING ticks of
+position and velocity; a fix is compared with the state at its measurement time (the PPS tick when
+the caller knows it, else arrival minus the configured latency) and the correction is applied to the
+current state. The ring stores each state minus the corrections injected so far, so a correction
+injected between the fix time and the update does not make the comparison stale.
 
-Health (seed 000 FR009): 0 normal, 1 warning, 2 fault, with its causes (CAUSE_* below,
+Health (docs/requirements.md, FR009): 0 normal, 1 warning, 2 fault, with its causes (CAUSE_* below,
 docs/health.md): IMU samples that cannot be right are held, channels whose innovations keep
 failing are reset, and the filter's own uncertainty and drift say when not to trust it.
 """
@@ -68,7 +68,7 @@ IMU_FRESH = const(0x1C0)
 # its own, so not counted as an unchanged sample (a stall is not a stuck IMU)
 IMU_REPEAT = const(0x200)
 
-# Health (seed 000 FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
+# Health (docs/requirements.md, FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
 # (self.ctl[_C_CAUSES], the extended frame): 2 when a CAUSE_FAULTS bit is set, else 1 when any
 # bit is. "(1 s)": held for a second after the last occurrence. docs/health.md has the list.
 CAUSE_IMU_SAT = const(0x1)  # an IMU axis read over range (1 s)
@@ -867,7 +867,8 @@ class Navigator(Alignment, Aiding):
         self._start_gnss_update(((c[_C_TICK] - age) % RING) * 3, rk)
 
     def _inject(self):
-        """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
+        """Closed-loop correction (docs/requirements.md, error-state filter formulation): p -= dp, v
+        -= dv, q = q(phi) (x) q, b += db."""
         kf = self.kf
         c = self.ctl
         inject(self.ins.x, kf.e, self._corr)
@@ -1465,9 +1466,9 @@ def _ins_finite_py(x):
 
 
 def _inject_py(x, e, corr):
-    """Closed-loop correction (seed 002) of the state buffer x from the filter's dx (in e):
-    p -= dp, v -= dv, q = q(phi) (x) q, b += db (corr keeps the sum of p, v corrections);
-    then dx = 0."""
+    """Closed-loop correction (docs/requirements.md, error-state filter formulation) of the state
+    buffer x from the filter's dx (in e): p -= dp, v -= dv, q = q(phi) (x) q, b += db (corr keeps
+    the sum of p, v corrections); then dx = 0."""
     dx = f32.view(e, eskf.E_DX, eskf.N)
     att = f32.zeros(3)
     for i in range(3):

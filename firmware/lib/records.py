@@ -10,7 +10,8 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
      1 navigation state u8, 2 configuration status u8 (config.OK/MISSING/CORRUPT/INVALID)
      3 flags u8: bit 0 GNSS valid, bit 1 standstill, bit 2 IMU saturated
      4 worst tick us u16, 6 mean tick us u16, 8 overruns u16 (wrapping), 10 GC runs u16
-    12 P diagonal, 15 x f32 (seed 001 state order); the position's three hold P's plus the
+    12 P diagonal, 15 x f32 (the error-state order of docs/requirements.md); the position's three
+    hold P's plus the
        receiver's error the filter cannot see (Navigator.cv, nav._consistency)
     72 gyro bias rad/s 3 x f32, 84 accel bias m/s^2 3 x f32
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32

@@ -6,7 +6,7 @@
 #include "layout.h"
 #include "navk.h"
 
-/* Every build keeps each float operation as written (DESIGN.md 3 rule 7): -ffast-math or
+/* Every build keeps each float operation as written (docs/requirements.md, float32 contract rule 7): -ffast-math or
  * -Ofast (also when slipped in through CFLAGS) would let the compiler reorder them, so they stop
  * the build here. Fused multiply-adds are checked in the objects (tests/native). */
 #ifdef __FAST_MATH__

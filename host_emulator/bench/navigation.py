@@ -14,7 +14,7 @@ writing nothing: the measurements behind the tuning in firmware/lib/navcfg.py, e
 
 GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
   white      all white, as the filter assumes (the setting of the reference figures in
-             DESIGN.md section 10)
+             docs/requirements.md, reference figures)
   realistic  half the variance white, half a 60 s Gauss-Markov process (multipath and
              atmosphere are correlated in real receivers)
 """
@@ -33,7 +33,8 @@ import numpy as np
 
 from host_emulator import args as cli_args
 
-TARGETS = {  # issue 3, urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
+# docs/requirements.md, project targets: urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
+TARGETS = {
     "horiz_rms_m": 1.0,
     "vel_rms_m_s": 0.05,
     "roll_rms_deg": 0.2,

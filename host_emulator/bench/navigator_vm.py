@@ -2,10 +2,10 @@
 VM on simulated data, counting what every tick allocates.
 
 On the board each float result is a 16-byte heap box, so the GC blocks a tick allocates are
-its number of boxed float operations, the best proxy for its CPU time (DESIGN.md 4). The VM
-counts them exactly (gc.mem_alloc with the collector off); what it cannot show is time: its
-floats are doubles and it runs on a PC. Blocks are net: a function with many locals gets its
-call frame from the heap and frees it on return, which costs allocator time but no block.
+its number of boxed float operations, the best proxy for its CPU time (docs/requirements.md, time
+budget). The VM counts them exactly (gc.mem_alloc with the collector off); what it cannot show is
+time: its floats are doubles and it runs on a PC. Blocks are net: a function with many locals gets
+its call frame from the heap and frees it on return, which costs allocator time but no block.
 """
 
 import json

@@ -73,7 +73,7 @@ P_FRD_RFU = ds.SWAP_FRD_RFU  # FRD body -> the firmware's RFU body (and NED -> E
 @dataclass(frozen=True)
 class ReplayOptions:
     """How the recording is turned into the board's input (defaults: the protocol of
-    DESIGN.md 10, the one other filters were measured with)."""
+    docs/requirements.md, reference figures, the one other filters were measured with)."""
 
     gnss_rate_hz: float = 1.0  # epochs per second at most (GNSS_RATES_HZ; see _plan_gnss)
     gnss_noise_m: float | None = 1.5  # per horizontal axis; vertical twice that; None: as given

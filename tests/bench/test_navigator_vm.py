@@ -1,5 +1,6 @@
 """The navigator on the real MicroPython VM: it runs, agrees with the float32 desktop run,
-and spreads its work so that no tick is much heavier than the average (DESIGN.md 4).
+and spreads its work so that no tick is much heavier than the average (docs/requirements.md, time
+budget).
 
 GC blocks are counted exactly by the VM (one per boxed float operation, as on the board), so
 these are allocation bounds, not timings."""

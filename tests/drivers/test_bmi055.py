@@ -19,7 +19,8 @@ from host_emulator.sim import imu as sim_imu
 
 machine = install_machine()  # the emulated board; time.now_us is its clock
 
-# What the range and bandwidth registers mean (Bosch datasheet figures, DESIGN.md 7)
+# What the range and bandwidth registers mean (Bosch datasheet figures, docs/requirements.md, BMI055
+# facts)
 GYRO_RANGE_DPS = {0: 2000, 1: 1000, 2: 500, 3: 250, 4: 125}  # code -> deg/s
 ACCEL_RANGE_G = {0x03: 2, 0x05: 4, 0x08: 8, 0x0C: 16}  # code -> g
 GYRO_BW = {  # code -> (ODR Hz, filter bandwidth Hz)

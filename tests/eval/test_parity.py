@@ -196,9 +196,10 @@ def test_parity_without_receiver_speed_and_course():
 
 def test_parity_with_a_gga_only_receiver():
     """A receiver configured for GGA (and GSA) only: with gnss_need_speed 1 (the rule before the
-    parser learned what the receiver sends) no epoch ever completes (the parser waits for a speed sentence); by default
-    (2, auto) the parser learns that none comes, every GGA is a fix without speed and course,
-    and the navigator starts from the track, the same on both sides."""
+    parser learned what the receiver sends) no epoch ever completes (the parser waits for a
+    speed sentence); by default (2, auto) the parser learns that none comes, every GGA is a fix
+    without speed and course, and the navigator starts from the track, the same on both
+    sides."""
     model = sim_gnss.GnssModel(sigma_h_m=1.5, sigma_v_m=3.0, sentences=("GGA", "GSA"))
     stim = board_input.simulate("highway_outage", 50.0, seed=0, gnss_model=model).stimulus
     assert b"RMC" not in stim.uart_bytes and b"VTG" not in stim.uart_bytes

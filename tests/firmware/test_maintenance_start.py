@@ -96,9 +96,9 @@ def test_main_py_in_maintenance_starts_neither_the_loop_nor_the_watchdog(
 
 
 def test_the_watchdog_is_50_ms_and_what_derives_from_it(board):
-    """50 ms (seed 000 NFR005): the port takes it (IWDG_PR 0, LSI / 4, and RLR 399: 50.0 ms at
-    the LSI's 32 kHz), the loop catches up at most that many ticks, the stopped loop's timer
-    feeds it four times per timeout."""
+    """50 ms (docs/requirements.md, NFR005): the port takes it (IWDG_PR 0, LSI / 4, and RLR 399:
+    50.0 ms at the LSI's 32 kHz), the loop catches up at most that many ticks, the stopped loop's
+    timer feeds it four times per timeout."""
     import app
 
     machine = sys.modules["machine"]

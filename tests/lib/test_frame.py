@@ -24,8 +24,8 @@ def buf(values):
 
 
 def expected_frame(counter, gyro, accel, flags, lat_e7, lon_e7, h_dm, state, ypr, vel, pos):
-    """The frame of DESIGN.md section 6 with these integer field values, built from the one
-    field table (common/proto/frame.py, itself checked against DESIGN.md)."""
+    """The frame of docs/requirements.md, output frame with these integer field values, built from
+    the one field table (common/proto/frame.py, itself checked against docs/requirements.md)."""
     names = (
         *frame_schema.SENSOR_FIELDS, "pps", "gga", "gnss_valid", "lat_e7", "lon_e7",
         "height_dm", "nav_state", *frame_schema.NAV_FLOAT_FIELDS,

@@ -97,7 +97,7 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
 
 def test_static_board_levels_estimates_gyro_bias_and_waits_for_a_heading():
     """No magnetometer: a static board levels itself but cannot know its heading, so it stays
-    in the aligning state (seed 001 5.2) even with a stable GNSS fix."""
+    in the aligning state (docs/requirements.md, original main loop) even with a stable GNSS fix."""
     truth, imu, gnss = scenario("static", 40, seed=1)
     nav = car_nav(gnss)
     feed(nav, imu, gnss, 0, len(truth.t_s) - 1)

@@ -30,7 +30,8 @@ from host_emulator.model import fmath as model
 
 NATIVE = native.NATIVE_DIR
 HEADER = NATIVE / "fmath32.h"
-# DESIGN.md 3 rule 7: each + - * / rounded on its own, sqrtf one instruction, no fast-math
+# docs/requirements.md, float32 contract rule 7: each + - * / rounded on its own, sqrtf one
+# instruction, no fast-math
 FLOAT_FLAGS = [native.CFFI_OPT, *native.FLOAT_FLAGS]
 WARNINGS = ["-Wall", "-Wextra", "-Wdouble-promotion", "-Wfloat-conversion", "-Wconversion"]
 

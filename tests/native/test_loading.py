@@ -15,10 +15,11 @@ import sys
 import numpy as np
 import pytest
 
-from common import firmware_env, native, runtimes
+from common import firmware_env, native
 from common.errors import EmulatorError
 from common.firmware_env import navk_host
 from host_emulator import __main__ as cli
+from host_emulator import runtimes
 from host_emulator.eval import parity
 from host_emulator.runtimes import cpython
 from host_emulator.runtimes.m4f import guest

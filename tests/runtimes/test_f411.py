@@ -5,8 +5,9 @@ over 30 s (the issue's bar: what a user flashes is what the tests ran)."""
 
 import pytest
 
-from common import firmware_env, runtimes
+from common import firmware_env
 from common.proto import stream
+from host_emulator import runtimes
 from host_emulator.eval import parity
 from host_emulator.f411 import boards
 from host_emulator.f411.image import Image

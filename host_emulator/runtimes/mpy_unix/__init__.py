@@ -15,7 +15,8 @@ which the CPython runtime reproduces bit for bit), so integer output (counters, 
 fields, flags, GNSS fix fields, navigation state) is the same and float output agrees to a
 tolerance. What it adds: `blocks_per_tick`, the GC blocks each `App.service()` allocated
 (gc.mem_alloc() difference with the collector off; one block = one boxed float on the board
-and in the VM, DESIGN.md 4), with the navigation state per tick to split them by phase.
+and in the VM, docs/requirements.md, time budget), with the navigation state per tick to split them
+by phase.
 
 The screen: with the display setting on, what the firmware's status page writes to the display
 UART (board.PINS["display_uart"]) is taken by the VM's driver after start-up and after every
