@@ -219,8 +219,10 @@ class VirtualBoard:
     def _start_fw_vm(self):
         env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast",
                    INS_VM_BACKUP=str(self._backup))  # fmt: skip
-        if self.frozen_dir:  # after emulate.py's own entries (the firmware in /flash first)
-            env["MICROPYPATH"] = str(self.frozen_dir)
+        # after emulate.py's own entries (the firmware in /flash first): the frozen firmware if
+        # any, and what the host shares with the VM (the stimulus record, common/proto/mpy)
+        first = str(self.frozen_dir) if self.frozen_dir else vm.VM_PATH
+        env["MICROPYPATH"] = f"{first}:{vm.SHARED_DIR}"
         self._fw = subprocess.Popen(
             [
                 self._exe,
