@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain native lint accuracy bench-nav bench-board bench-faults bench-settings \
+.PHONY: demo test toolchain native layout lint accuracy bench-nav bench-board bench-faults bench-settings \
 	cpi accuracy-report \
 	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
@@ -16,20 +16,25 @@ $(STAMP): requirements.txt
 demo: $(STAMP)
 	$(BIN)/python -m host_emulator demo
 
-# on every core (pytest-xdist): builds shared by the tests take a lock (tools/toolchain locked)
+# on every core (pytest-xdist): builds shared by the tests take a lock (common/toolchain locked)
 test: $(STAMP) toolchain native
 	$(BIN)/python -m pytest -q -n auto
 
 # The Debian cross compiler and QEMU for the image and the emulated Cortex-M4F board: installed
 # (pinned) when missing if run as root, else the command to run is printed and make stops.
 toolchain:
-	@tools/toolchain/ensure.sh
+	@common/toolchain/ensure.sh
 
 # The native float32 kernels (firmware/native), three builds out of tree in build/native/
 # (docs/native.md): armv7emsp and x64 MicroPython native modules, the CPython (cffi) extension.
 # Seconds; make decides what is stale. A missing compiler stops it with what to install.
 native: $(STAMP) toolchain
-	$(BIN)/python -m tools.native
+	$(BIN)/python -m common.native
+
+# firmware/native/layout.h and tuning.h, generated from the firmware's Python constants (never
+# edited by hand; tests/native/test_layout.py fails when they are stale)
+layout: $(STAMP)
+	$(BIN)/python -m common.native.layout
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,5 +1,5 @@
-"""The 5 ms loop (seed 001 5.2): the timer ISR counts a due tick; the loop reads the IMU,
-drains the GNSS bytes, runs the navigator and sends the frame.
+"""The 5 ms loop (docs/requirements.md, original main loop): the timer ISR counts a due tick; the
+loop reads the IMU, drains the GNSS bytes, runs the navigator and sends the frame.
 
 Per tick, in this order: BMI055 burst read -> bytes waiting on the GNSS UART into the NMEA
 parser -> a completed fix to the navigator (its measurement tick from the PPS edge when one
@@ -25,13 +25,14 @@ import gc
 import time
 from array import array
 
+from micropython import const
+
 import config
 import frame
 import kern
 import records
 from drivers.bmi055 import BMI055, Bmi055Error
 from drivers.gnss import Nmea
-from micropython import const
 from nav import NAVIGATING, Navigator, nav_frame
 from status_page import StatusPage, font_for
 
@@ -159,7 +160,7 @@ class App:
         # long free runs: made after the configuration and the board, it failed to find one
         # when the heap held other objects before the firmware started (test_m4f's padding).
         # Through Navigator, not f32 and nav.MEM_FLOATS: two more globals in this module made
-        # every navigating tick dearer (the trial is in issue 17's notes)
+        # every navigating tick dearer (`make bench-board`, measured both ways)
         mem = Navigator.memory()
         self.console = console
         cfg, status, msg = config.load(board_module.CONFIG_PATH)
@@ -195,7 +196,7 @@ class App:
         # less (the overdue tick at each extended frame): one array attribute. Every method
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
-        # they made every navigating tick dearer (issue 16's notes)
+        # they made every navigating tick dearer (`make bench-board`, measured both ways)
         self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0))
         self.t_worst_us = 0
         self.t_sum_us = 0

@@ -1,9 +1,10 @@
 """The one file that knows the hardware: pins, buses, baud rates, the timer.
 
-Written for the stm32 port of MicroPython on an STM32F411, wired like the WMH601 (seed 001
-section 4), with one pin table per board the image is built for (docs/image.md); the board is
-told by the name the image gives itself (`sys.implementation._machine`, "NUCLEO-F411RE with
-STM32F411xE"). Change a table, nothing else, for another wiring.
+Written for the stm32 port of MicroPython on an STM32F411, wired like the WMH601
+(docs/requirements.md, board and features), with one pin table per board the image is built for
+(docs/image.md); the board is told by the name the image gives itself
+(`sys.implementation._machine`, "NUCLEO-F411RE with STM32F411xE"). Change a table, nothing
+else, for another wiring.
 
     BMI055 on SPI1 (mode 0, 10 MHz max: 4 MHz asked, 3 MHz given by the port's power-of-two
     prescalers at 96 MHz), accel CS and gyro CS active low
@@ -28,8 +29,9 @@ on the emulated STM32F411.
 
 import sys
 
-import machine
 from micropython import const
+
+import machine
 
 # Pins and peripherals per board (the keys of BOARDS are the images' MICROPY_HW_BOARD_NAME)
 _BLACKPILL = {
@@ -40,7 +42,9 @@ _BLACKPILL = {
     "pps": "B0",
     "out_uart": 1,
     "rs485_de": "A8",
-    "led": "C13",  # on when navigating (seed 001 5.2 lights an LED too); active low
+    # on when navigating (the original board's loop lights one too: docs/requirements.md,
+    # original main loop); active low
+    "led": "C13",
     "display_uart": 6,  # USART6: TX PA11, RX PA12 (the USB pins: see above)
 }
 _NUCLEO = {

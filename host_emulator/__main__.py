@@ -33,9 +33,9 @@ import dataclasses
 import importlib
 import sys
 
+from common.errors import EmulatorError
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError
 
 # commands with a parser of their own: name -> ("module:function" taking argv, help)
 DELEGATED = {
@@ -144,7 +144,7 @@ def _replay_options(args, ds):
     """ReplayOptions of the command line. The defaults depend on the source: drive_0708 keeps
     the protocol of its published figures (to_stimulus.ReplayOptions()), a KF-GINS dataset
     runs as it is (replay_run.kfgins_options())."""
-    from host_emulator.replay import board, replay_run, to_stimulus
+    from host_emulator.replay import replay_run, run_config, to_stimulus
 
     base = replay_run.kfgins_options(ds) if args.kf_gins else to_stimulus.ReplayOptions()
     noise = args.gnss_noise
@@ -161,7 +161,7 @@ def _replay_options(args, ds):
     skip = base.skip_s if args.score_from is None else args.score_from
     if not skip >= 0:
         raise EmulatorError("--score-from must be 0 or more (seconds after t0)")
-    settings = tuple(board.parse(text) for text in args.set)
+    settings = tuple(run_config.parse(text) for text in args.set)
     return dataclasses.replace(
         base,
         gnss_rate_hz=args.gnss_rate,
@@ -217,12 +217,12 @@ def _add_replay_options(p):
 
 def _settings_help():
     """`--set help`: every ins.cfg setting with its default (and range, for the floats)."""
-    from host_emulator.replay import board
+    from host_emulator.replay import run_config
 
     print("--set NAME=VALUE, the board settings (firmware/lib/config.py) and their defaults; the "
           "float ranges are what still navigates within the board spec "
           "(docs/benchmarks/settings.md):")  # fmt: skip
-    for name, value, limits in board.catalogue():
+    for name, value, limits in run_config.catalogue():
         print(f"  {name} = {value}" + (f"   ({limits})" if limits else ""))
 
 

@@ -6,7 +6,7 @@ so a bad scenario or duration reads the same in `run`, `parity`, `export` and th
 import argparse
 import sys
 
-from host_emulator.errors import EmulatorError, FirmwareError, os_error_text, quiet_broken_pipe
+from common.errors import EmulatorError, FirmwareError, os_error_text, quiet_broken_pipe
 
 MAX_DURATION_S = 24 * 3600.0
 

@@ -1,6 +1,6 @@
 """firmware/app.py with the firmware's own board.py and drivers on the emulated board
-(board/mpy: `machine` with the BMI055 register model on SPI, UARTs; `time`'s virtual clock):
-frames out, GNSS silence, a missing or wrong
+(emulated_board/mpy: `machine` with the BMI055 register model on SPI, UARTs; `time`'s virtual
+clock): frames out, GNSS silence, a missing or wrong
 IMU, a corrupt configuration, and a real receiver log flowing through to the frames."""
 
 import importlib
@@ -11,9 +11,9 @@ import time
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
+from common.proto import stimulus, stream
 from host_emulator.bench import navigator as nav_runner
-from host_emulator.proto import stimulus, stream
+from host_emulator.emulated_board import install_machine
 
 NMEA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea"
 LEVEL_COUNTS = ([3, -2, 1], [10, -5, 1024])  # a board at rest, z up: about 1 g on accel z
@@ -42,7 +42,7 @@ class Bench:
     """An emulated board, freshly powered on, with the firmware loaded on it."""
 
     def __init__(self, tmp_path, chip=True, chip_id=None, cfg_bytes=None):
-        self.machine = machine = firmware_env.install_machine()
+        self.machine = machine = install_machine()
         machine.power_on()
         import board
 
@@ -126,9 +126,8 @@ def test_the_fix_fields_split_and_round_as_geo_and_frame_do(tmp_path):
     """App._fix_fields writes out geo.split_into (latitude) and frame.round_div (height in dm,
     half away from zero): the same integers on both sides of zero and at the halves."""
     import frame
-    import nav
-
     import geo
+    import nav
 
     bench = Bench(tmp_path)
     a = bench.app

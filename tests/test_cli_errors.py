@@ -135,7 +135,7 @@ def test_a_closed_pipe_ends_a_command_quietly(argv, tmp_path):
 def test_a_write_the_disk_cuts_short_leaves_no_part_of_the_file(tmp_path, monkeypatch):
     """errors.write_atomic: ENOSPC halfway through leaves the previous file as it was, and no
     partial file beside it."""
-    from host_emulator.errors import write_atomic
+    from common.errors import write_atomic
 
     (tmp_path / "frames.bin").write_bytes(b"old")
     real = pathlib.Path.write_bytes
@@ -160,7 +160,7 @@ def test_export_into_a_broken_directory(broken_dir, capsys):
 
 
 def test_session_replay_and_repair_into_a_broken_directory(broken_dir, tmp_path, capsys):
-    from host_emulator.proto import session_file
+    from common.proto import session_file
     from host_emulator.session.cli import main
 
     bad, code = broken_dir

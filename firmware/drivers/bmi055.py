@@ -2,14 +2,15 @@
 
 The BMI055 is two chips in one package, each with its own chip select (active low) on a
 shared SPI bus (mode 0 or 3, up to 10 MHz). The driver never imports `machine`: the board
-builds the bus and pins and passes them in (`board.py`), and the host emulator passes fakes
-(`host_emulator/periph/spi.py`). It uses only `spi.write(buf)`, `spi.readinto(buf, 0)` and
+builds the bus and pins and passes them in (`board.py`), and the host emulator passes its
+emulated board's (`host_emulator/emulated_board/mpy/machine.py`). It uses only `spi.write(buf)`,
+`spi.readinto(buf, 0)` (configuration), `spi.write_readinto(tx, rx)` (the data bursts) and
 `pin.value(v)`.
 
 Protocol (both dies): the first byte is the register address, bit 7 set for a read; the
 following bytes are read (or written) at auto-incremented addresses. No dummy byte.
 
-Units and scales (datasheet figures, DESIGN.md 7):
+Units and scales (datasheet figures, docs/requirements.md, BMI055 facts):
     gyro counts: int16 at registers 0x02..0x07 (LSB first). Sensitivity per range, in
         LSB per (deg/s) x 10 (integers: no float literal in firmware/):
         2000 -> 164, 1000 -> 328, 500 -> 656, 250 -> 1312, 125 -> 2624.
@@ -43,8 +44,9 @@ the tests prove it on the MicroPython VM under `micropython.heap_lock()`.
 
 from array import array
 
-import kern
 from micropython import const
+
+import kern
 
 try:
     from time import sleep_ms as _sleep_ms

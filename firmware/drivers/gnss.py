@@ -119,8 +119,9 @@ released late: a one-second-old position handed over as new would hurt the filte
 navigator's delay ring reaches back 0.64 s).
 
 PPS: `pps_isr(pin)` only stores time.ticks_us() in pps_us and sets pps_flag = 1 (hard IRQ
-safe: no allocation, no float). The app reads and clears the flags with `pps_flag_take()`,
-`gga_flag_take()` and `epoch_take()` (each returns 0 or 1; no allocation).
+safe: no allocation, no float). `pps_flag_take()`, `gga_flag_take()` and `epoch_take()` return
+a flag (0 or 1) and clear it; the app reads and clears pps_flag, gga_seen and epoch_ready
+itself, a method call less per tick.
 
 Cost: the byte loop, the line checks and the field parsing are one native kernel
 (`nmea_scan`, firmware/native/nmea.c; `_scan_py` below is its reference, bit for bit on every
@@ -132,8 +133,9 @@ docs/benchmarks/board.md).
 import time
 from array import array
 
-import kern
 from micropython import const
+
+import kern
 
 try:
     from time import ticks_diff as _ticks_diff
@@ -179,7 +181,7 @@ _SEP_MAX_MM = const(200000)
 _NSAT_MAX = const(99)
 _HALF_DAY_MS = const(43200000)
 
-# self._s, the parser's int buffer (firmware/native/layout.h NS_* repeats it): the framing
+# self._s, the parser's int buffer (firmware/native/layout.h NS_*, generated from it): the framing
 # state between feeds, then the fields of the sentence that ended last
 _NS_I = const(0)  # next byte of the input
 _NS_K = const(1)  # characters in the line; -1 outside a sentence
@@ -220,10 +222,10 @@ _CAP = const(100000000)  # digit accumulator limit: v * 10 + 9 < 1e9 < 2**30
 _WRAP = const(0x3FFFFFFF)  # counters wrap here and stay small ints
 
 # Sentence formatters as (c1 << 16) | (c2 << 8) | c3.
-_F_GGA = const(0x474741)
-_F_RMC = const(0x524D43)
-_F_VTG = const(0x565447)
-_F_GSA = const(0x475341)
+_FMT_GGA = const(0x474741)
+_FMT_RMC = const(0x524D43)
+_FMT_VTG = const(0x565447)
+_FMT_GSA = const(0x475341)
 
 
 def lon_e7(deg, frac_e7):
@@ -732,9 +734,9 @@ class Nmea:
         if lb[_FS + 1] != 6 or lb[0] == 80 or not (65 <= lb[0] <= 90 and 65 <= lb[1] <= 90):
             return
         f = (lb[2] << 16) | (lb[3] << 8) | lb[4]
-        if f != _F_RMC and f != _F_VTG:
+        if f != _FMT_RMC and f != _FMT_VTG:
             return
-        if f == _F_RMC and self._s[_NS_NF] > 2:  # its time, where still readable, decides
+        if f == _FMT_RMC and self._s[_NS_NF] > 2:  # its time, where still readable, decides
             utc = _utc_ms(lb, 6, lb[_FS + 2] - 1)
             if utc >= 0 and utc != self._ep_utc:
                 return
@@ -1059,13 +1061,13 @@ def _line_py(s, lb, k, x, star, nf):
         # any talker (GP GN GL GA GB BD GQ QZ IN ...): two capitals, P (proprietary) excepted
         if 65 <= lb[0] <= 90 and lb[0] != 80 and 65 <= lb[1] <= 90:
             f = (lb[2] << 16) | (lb[3] << 8) | lb[4]
-            if f == _F_GGA:
+            if f == _FMT_GGA:
                 kind = GGA
-            elif f == _F_RMC:
+            elif f == _FMT_RMC:
                 kind = RMC
-            elif f == _F_VTG:
+            elif f == _FMT_VTG:
                 kind = VTG
-            elif f == _F_GSA:
+            elif f == _FMT_GSA:
                 kind = GSA
             s[_NS_TALKER] = t
     if kind == 0:

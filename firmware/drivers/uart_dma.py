@@ -19,10 +19,11 @@ start. Nothing here allocates: the addresses above 2**30 are module-level ints m
 everything else is a small int (stm.mem32 reads and writes, uctypes.addressof).
 """
 
-import frame
 import stm
 import uctypes
 from micropython import const
+
+import frame
 
 _RCC_AHB1ENR = 0x40023830
 _DMA2EN = const(1 << 22)

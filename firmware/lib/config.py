@@ -16,10 +16,9 @@ it allocates freely.
 import struct
 from binascii import crc32
 
-import navcfg
-
 import f32
 import mat
+import navcfg
 import rot
 
 OK = 0

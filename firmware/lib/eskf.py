@@ -1,17 +1,18 @@
-"""15-state error-state Kalman filter in float32, time-distributed (seed 001 5.5, seed 002).
+"""15-state error-state Kalman filter in float32, time-distributed (docs/requirements.md, integrated
+navigation and Kalman filter, docs/requirements.md, error-state filter formulation).
 
-Error state, in seed 001's order, with its signs (errors of the navigation quantities are
-nominal minus true, errors of the biases are true minus estimate):
+Error state, in the error-state order of docs/requirements.md, with its signs (errors of the
+navigation quantities are nominal minus true, errors of the biases are true minus estimate):
      0-2  dp  = p_nominal - p_true              m, ENU
      3-5  dv  = v_nominal - v_true              m/s, ENU
      6-8  phi : C_nominal = (I - [phi x]) C_true  rad, ENU
      9-11 dbg = b_g,true - b_g,estimate          rad/s, body
     12-14 dba = b_a,true - b_a,estimate          m/s^2, body
 So a measurement is written z = (nominal prediction - measured) = h dx + noise, and the
-closed-loop correction (seed 002) is p -= dp, v -= dv, q = q(phi) (x) q, b_g += dbg,
-b_a += dba, then dx = 0.
+closed-loop correction (docs/requirements.md, error-state filter formulation) is p -= dp, v -= dv, q
+= q(phi) (x) q, b_g += dbg, b_a += dba, then dx = 0.
 
-Dynamics, seed 001 eq. 5-28 plus the terms of the Earth-fixed frame (`earth_terms`):
+Dynamics, docs/requirements.md eq. 5-28 plus the terms of the Earth-fixed frame (`earth_terms`):
     dp'  = dv
     dv'  = [f_n x] phi + C_bn dba - [2 w_ie x] dv
     phi' = -C_bn dbg - [w_ie x] phi
@@ -41,10 +42,10 @@ where the slices fall. Measurement rows are sparse: each names its non-zero colu
 
 from array import array
 
-import kern
 from micropython import const
 
 import f32
+import kern
 
 N = const(15)
 IX_POS = const(0)
@@ -60,19 +61,19 @@ PROPAGATING = const(1)
 UPDATING = const(2)
 
 # self._s: scalars of the running job
-_T = const(0)  # propagation interval, s
-_DECAY_G = const(1)  # 1 - T/tau_g
-_DECAY_A = const(2)  # 1 - T/tau_a
-_S = const(3)  # innovation variance of the current scalar
-_Y = const(4)  # innovation of the current scalar
-_GATE2 = const(5)  # gate^2 (sigmas squared)
-_INV_TAU_G = const(6)
-_INV_TAU_A = const(7)
+_S_T = const(0)  # propagation interval, s
+_S_DECAY_G = const(1)  # 1 - T/tau_g
+_S_DECAY_A = const(2)  # 1 - T/tau_a
+_S_S = const(3)  # innovation variance of the current scalar
+_S_Y = const(4)  # innovation of the current scalar
+_S_GATE2 = const(5)  # gate^2 (sigmas squared)
+_S_INV_TAU_G = const(6)
+_S_INV_TAU_A = const(7)
 _NS = const(8)
 
 # The float buffer `Eskf.e` (its parts are the views P, dx, ...) and the int buffer `Eskf.i`
 # (the job's state), so that a native kernel takes the filter as two arguments.
-# firmware/native/layout.h repeats these offsets.
+# firmware/native/layout.h is generated from these offsets (common/native/layout.py).
 E_P = const(0)  # P (N x N)
 E_A = const(225)  # A = Phi P during propagation (N x N)
 E_U = const(450)  # Phi x (N)
@@ -165,9 +166,9 @@ class Eskf:
 
     def set_gate(self, gate_sigma, inv_tau_g, inv_tau_a):
         s = self._s
-        s[_GATE2] = gate_sigma * gate_sigma
-        s[_INV_TAU_G] = inv_tau_g
-        s[_INV_TAU_A] = inv_tau_a
+        s[_S_GATE2] = gate_sigma * gate_sigma
+        s[_S_INV_TAU_G] = inv_tau_g
+        s[_S_INV_TAU_A] = inv_tau_a
 
     def reset_p(self, diag):
         """P = diag(diag); drops any running job and pending dx."""
@@ -207,9 +208,9 @@ class Eskf:
     def start_propagation(self, dvn_sum, t_s, c_bn, w_ie_n):
         """Begin P <- Phi P Phi^T + Q T with the specific-force sum dvn_sum (m/s) over t_s."""
         s = self._s
-        s[_T] = t_s
-        s[_DECAY_G] = 1.0 - t_s * s[_INV_TAU_G]
-        s[_DECAY_A] = 1.0 - t_s * s[_INV_TAU_A]
+        s[_S_T] = t_s
+        s[_S_DECAY_G] = 1.0 - t_s * s[_S_INV_TAU_G]
+        s[_S_DECAY_A] = 1.0 - t_s * s[_S_INV_TAU_A]
         fn = self._fn
         for i in range(3):
             fn[i] = dvn_sum[i] / t_s
@@ -221,7 +222,7 @@ class Eskf:
 
     def _phi_apply(self, src, base):
         """self._u = Phi x, for x = src[base:base+15]."""
-        t = self._s[_T]
+        t = self._s[_S_T]
         x0 = src[base]
         x1 = src[base + 1]
         x2 = src[base + 2]
@@ -279,8 +280,8 @@ class Eskf:
         u[6] = x6 - t * da0
         u[7] = x7 - t * da1
         u[8] = x8 - t * da2
-        g = self._s[_DECAY_G]
-        a = self._s[_DECAY_A]
+        g = self._s[_S_DECAY_G]
+        a = self._s[_S_DECAY_A]
         u[9] = g * x9
         u[10] = g * x10
         u[11] = g * x11
@@ -308,7 +309,7 @@ class Eskf:
                 p[i * N + j] = x
                 p[j * N + i] = x
         else:
-            t = self._s[_T]
+            t = self._s[_S_T]
             p = self.P
             q = self.q_psd
             for i in range(N):
@@ -410,14 +411,14 @@ class Eskf:
             y = self._z[m] - hx
             self._z[m] = y  # from here on: the innovation and its variance (nav's bias watch)
             self._r[m] = sv
-            if not (sv > 0.0) or y * y > s[_GATE2] * sv:
+            if not (sv > 0.0) or y * y > s[_S_GATE2] * sv:
                 ii[I_REJECTED] += 1
                 ii[I_GATE_MASK] |= 1 << m
                 ii[I_M] = m + 1
                 ii[I_STEP] = 0
                 return
-            s[_S] = sv
-            s[_Y] = y
+            s[_S_S] = sv
+            s[_S_Y] = y
             for i in range(N):
                 ki = v[i] / sv
                 kg[i] = ki
@@ -429,7 +430,7 @@ class Eskf:
         i = st - 4
         ki = kg[i]
         vi = v[i]
-        ski = s[_S] * ki
+        ski = s[_S_S] * ki
         for j in range(i, N):
             kj = kg[j]
             x = ((p[i * N + j] - ki * v[j]) - vi * kj) + ski * kj

@@ -6,15 +6,15 @@ Every float that outlives a function call lives in a buffer made by `zeros(n)`.
   float32, every `+ - * /` is one correctly rounded float32 operation, and `sqrt` is the
   FPU's `vsqrt.f32` (correctly rounded). Buffers are `array('f')`.
 - On CPython the same names come from the host's NumPy backend (module `f32_host`, put in
-  place by `host_emulator.firmware_env.install()`): buffers are `numpy.float32` arrays, an
+  place by `common.firmware_env.install()`): buffers are `numpy.float32` arrays, an
   element read is a `numpy.float32` scalar, and every operation on it rounds to float32
   exactly as the board does. This is the desktop's bit-exact model of the board.
 - On the desktop MicroPython VM (double-precision build) buffers still store float32 but
   arithmetic runs in double: that VM proves the code *runs* on MicroPython, not its bits.
 
-Rules for code on top of this seam (DESIGN.md section 3): no decimal float literals other
-than 0.0, 1.0, 2.0, 0.5 (build constants with `ratio` or `from_bits`); convert ints with
-`f32()`, never `float()`; no `math` module outside this file; never divide by zero (the
+Rules for code on top of this seam (docs/requirements.md, float32 contract): no decimal float
+literals other than 0.0, 1.0, 2.0, 0.5 (build constants with `ratio` or `from_bits`); convert ints
+with `f32()`, never `float()`; no `math` module outside this file; never divide by zero (the
 board raises ZeroDivisionError) nor take `sqrt` of a negative (the board raises ValueError).
 """
 
@@ -49,7 +49,7 @@ else:
     except ImportError:
         raise ImportError(
             "f32: on CPython the firmware needs the NumPy float32 backend; "
-            "call host_emulator.firmware_env.install() before importing firmware modules"
+            "call common.firmware_env.install() before importing firmware modules"
         ) from None
 
 

@@ -1,4 +1,5 @@
-"""The 52-byte output frame (DESIGN.md section 6, seed 001 4.4), packed without allocating.
+"""The 52-byte output frame (docs/requirements.md, output frame, docs/requirements.md, frame
+encoding rules), packed without allocating.
 
 | bytes | field | scale |
 |---|---|---|
@@ -29,11 +30,12 @@ angles are passed as (whole degrees, fraction in 1e-7 deg, same sign) and packed
 16-bit halves: 1e7 = 152 * 65536 + 38528.
 """
 
-import kern
 from micropython import const
 
+import kern
+
 FRAME_LEN = const(52)
-# The int fields of `pack_fields` (firmware/native/layout.h repeats them)
+# The int fields of `pack_fields` (firmware/native/layout.h is generated from them)
 F_COUNTER = const(0)
 F_GYRO_LSB_X10 = const(1)
 F_ACCEL_LSB = const(2)

@@ -27,10 +27,10 @@ kernel call (`geo_enu`) and allocates nothing; `set_origin`'s coefficients are o
 
 from array import array
 
-import kern
 from micropython import const
 
 import f32
+import kern
 from fmath import cos, sin, sqrt
 
 # WGS-84: a = 6378137 m (exact in float32), e^2 = f (2 - f) with 1/f = 298.257223563.

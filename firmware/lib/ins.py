@@ -1,4 +1,5 @@
-"""Strapdown inertial mechanization in float32 (seed 001 section 5.4, seed 000 sections 1.3-1.5).
+"""Strapdown inertial mechanization in float32 (docs/requirements.md, strapdown INS and attitude,
+docs/requirements.md, INS background).
 
 Frame: the navigation frame n is the local tangent plane (ENU) at the navigator's integer
 origin (see geo.py). It is fixed to the Earth and does not move with the vehicle, so there is
@@ -24,11 +25,11 @@ every few hundred milliseconds: they change slowly and cost too much per tick.
 Units: rad, rad/s, m, m/s, m/s^2. Buffers are public and owned here.
 """
 
-import kern
 from micropython import const
 
 import f32
 import geo
+import kern
 import rot
 from fmath import sqrt
 

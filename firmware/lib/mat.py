@@ -1,4 +1,5 @@
-"""Fixed-size matrix kernels on flat float32 buffers (the board's MAT library, seed 001 6.2).
+"""Fixed-size matrix kernels on flat float32 buffers (the board's MAT library, docs/requirements.md,
+matrix library).
 
 Conventions
 -----------
@@ -15,7 +16,7 @@ Conventions
   not write `out` over an input.
 - Arithmetic: every `+ - * /` is one correctly rounded float32 operation on the board and on
   the desktop model; `f32.sqrt` is correctly rounded. The order is part of the contract
-  (`host_emulator/reference/mat.py` repeats it bit for bit; an asm_thumb replacement must
+  (`host_emulator/model/mat.py` repeats it bit for bit; an asm_thumb replacement must
   keep it). Every sum starts from `s = 0.0` (or from the first element where stated) and
   adds terms one at a time in increasing index order, exactly like `op_AB`:
   `s = s + a[i][k] * b[k][j]` for k = 0 .. n-1. So `0.0 + (-0.0)` gives +0.0, as on the board.
@@ -39,7 +40,8 @@ arithmetic result is one box; stores, ints and the constants 0.0/1.0/0.5 cost no
 
 Examples: a 15 x 15 product is 13500 blocks; a 6 x 6 `inv_spd` is 1118. Solving S K^T = H P
 with `chol_solve` (n = 6, k = 15: 2340) is cheaper and more accurate than forming S^-1 and
-multiplying (1118 + 2160). Big kernels must be spread over ticks by the caller (DESIGN.md 4).
+multiplying (1118 + 2160). Big kernels must be spread over ticks by the caller
+(docs/requirements.md, time budget).
 """
 
 import f32

@@ -17,43 +17,43 @@ One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits 
 Frames and units: ENU navigation frame at the integer origin (geo.py), body x right, y forward,
 z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
 
-States (seed 001 5.2): ALIGNING (1) levels roll and pitch and averages the gyro bias while the
-vehicle stands still, waits until GNSS is stable (consecutive good fixes), and takes the
-heading from the GNSS course over ground from `heading_speed_m_s` (a walk) on: this board has
-no magnetometer, so a static board cannot know its heading. A receiver that reports no course
-(GGA only, or position-only data) gives the heading from its track instead: the chord from an
+States (docs/requirements.md, original main loop): ALIGNING (1) levels roll and pitch and averages
+the gyro bias while the vehicle stands still, waits until GNSS is stable (consecutive good fixes),
+and takes the heading from the GNSS course over ground from `heading_speed_m_s` (a walk) on: this
+board has no magnetometer, so a static board cannot know its heading. A receiver that reports no
+course (GGA only, or position-only data) gives the heading from its track instead: the chord from an
 anchor fix once it is `track_min_m` long, whose direction is the course at the window's
 middle, turned by half the yaw change the gyros saw over the window (see `nav_align._track`).
 Then NAVIGATING (2): INS every tick (ins.py), filter work spread over ticks (eskf.py), GNSS
 position and velocity updates with the antenna lever arm, zero-velocity updates at standstill
 and the non-holonomic constraint for cars.
 
-GNSS delay (seed 001 5.5.4): a ring keeps the last RING ticks of position and velocity; a fix
-is compared with the state at its measurement time (the PPS tick when the caller knows it,
-else arrival minus the configured latency) and the correction is applied to the current state.
-The ring stores each state minus the corrections injected so far, so a correction injected
-between the fix time and the update does not make the comparison stale.
+GNSS delay (docs/requirements.md, GNSS delay compensation): a ring keeps the last RING ticks of
+position and velocity; a fix is compared with the state at its measurement time (the PPS tick when
+the caller knows it, else arrival minus the configured latency) and the correction is applied to the
+current state. The ring stores each state minus the corrections injected so far, so a correction
+injected between the fix time and the update does not make the comparison stale.
 
-Health (seed 000 FR009): 0 normal, 1 warning, 2 fault, with its causes (CAUSE_* below,
+Health (docs/requirements.md, FR009): 0 normal, 1 warning, 2 fault, with its causes (CAUSE_* below,
 docs/health.md): IMU samples that cannot be right are held, channels whose innovations keep
 failing are reset, and the filter's own uncertainty and drift say when not to trust it.
 """
 
 from array import array
 
+from micropython import const
+
 import eskf
+import f32
 import frame
+import geo
 import ins as ins_mod
 import kern
-from ins import Ins
-from micropython import const
-from nav_aid import NO_HEIGHT_VAR, Aiding, lever_vel
-from nav_align import Alignment
-
-import f32
-import geo
 import rot
 from fmath import cos, sin
+from ins import Ins
+from nav_aid import NO_HEIGHT_VAR, Aiding, lever_vel
+from nav_align import Alignment
 
 ALIGNING = const(1)
 NAVIGATING = const(2)
@@ -68,7 +68,7 @@ IMU_FRESH = const(0x1C0)
 # its own, so not counted as an unchanged sample (a stall is not a stuck IMU)
 IMU_REPEAT = const(0x200)
 
-# Health (seed 000 FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
+# Health (docs/requirements.md, FR009: 0 normal, 1 warning, 2 fault) says why in CAUSE_* bits
 # (self.ctl[_C_CAUSES], the extended frame): 2 when a CAUSE_FAULTS bit is set, else 1 when any
 # bit is. "(1 s)": held for a second after the last occurrence. docs/health.md has the list.
 CAUSE_IMU_SAT = const(0x1)  # an IMU axis read over range (1 s)
@@ -116,14 +116,16 @@ _ST_SPEED = const(5)  # speed of the last usable fix, m/s
 
 STILL_ALPHA = f32.ratio(1, 8)  # low-pass weight per detector step (50 Hz): ~0.16 s
 
-# self._cal: the calibration of raw counts (firmware/native/layout.h repeats the layout)
+# self._cal: the calibration of raw counts, and its flags (self.ctl[_C_CAL_FLAGS])
 _CAL_G = const(0)  # gyro counts per rad/s
 _CAL_A = const(1)  # accel counts per m/s^2
 _CAL_GB = const(2)  # gyro bias (3), rad/s
 _CAL_AB = const(5)  # accel bias (3), m/s^2
-_CAL_GM = const(8)  # gyro matrix (9), when flag 1
-_CAL_AM = const(17)  # accel matrix (9), when flag 2
+_CAL_GM = const(8)  # gyro matrix (9), when _CAL_HAS_GM
+_CAL_AM = const(17)  # accel matrix (9), when _CAL_HAS_AM
 _NCAL = const(26)
+_CAL_HAS_GM = const(1)
+_CAL_HAS_AM = const(2)
 # self._stp: the standstill detector's parameters; flags of its kernel
 _STP_ALPHA = const(0)
 _STP_ACCEL = const(1)
@@ -170,7 +172,7 @@ _FC_FAST = const(32)  # ... and a speed of heading_speed_m_s or more (nav_align.
 RAD_PER_CDEG = f32.from_bits(0x393702D3)  # pi / 18000 = 1.7453292e-4: radians per centidegree
 CDEG_PER_RAD = f32.from_bits(0x45B30CA0)  # 18000 / pi = 5729.578: centidegrees per radian
 # self.ctl: the per-tick control state and the integer configuration it needs, one int buffer
-# so that the native `nav_tick` runs a whole navigating tick (layout.h C_* repeats it)
+# so that the native `nav_tick` runs a whole navigating tick (layout.h C_*, generated from it)
 _C_TICK = const(0)  # ticks since start
 _C_STATE = const(1)  # ALIGNING, NAVIGATING
 _C_HEALTH = const(2)
@@ -431,11 +433,11 @@ class Navigator(Alignment, Aiding):
             cal[_CAL_GB + i] = cfg.gyro_bias0[i]
             cal[_CAL_AB + i] = cfg.accel_bias0[i]
         if cfg.gyro_matrix is not None:
-            flags |= 1
+            flags |= _CAL_HAS_GM
             for i in range(9):
                 cal[_CAL_GM + i] = cfg.gyro_matrix[i]
         if cfg.accel_matrix is not None:
-            flags |= 2
+            flags |= _CAL_HAS_AM
             for i in range(9):
                 cal[_CAL_AM + i] = cfg.accel_matrix[i]
         self.ctl[_C_CAL_FLAGS] = flags
@@ -865,7 +867,8 @@ class Navigator(Alignment, Aiding):
         self._start_gnss_update(((c[_C_TICK] - age) % RING) * 3, rk)
 
     def _inject(self):
-        """Closed-loop correction (seed 002): p -= dp, v -= dv, q = q(phi) (x) q, b += db."""
+        """Closed-loop correction (docs/requirements.md, error-state filter formulation): p -= dp, v
+        -= dv, q = q(phi) (x) q, b += db."""
         kf = self.kf
         c = self.ctl
         inject(self.ins.x, kf.e, self._corr)
@@ -1076,8 +1079,10 @@ def _imu_cal_py(w, f, gyro, accel, cal, flags):
 
 def _cal_si(w, f, w_in, f_in, cal, flags):
     """w, f = M (x - b0) from SI rate and specific force; False if not finite."""
-    _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), f32.view(cal, _CAL_GM, 9) if flags & 1 else None)
-    _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), f32.view(cal, _CAL_AM, 9) if flags & 2 else None)
+    gm = f32.view(cal, _CAL_GM, 9) if flags & _CAL_HAS_GM else None
+    _apply_cal(w, w_in, f32.view(cal, _CAL_GB, 3), gm)
+    am = f32.view(cal, _CAL_AM, 9) if flags & _CAL_HAS_AM else None
+    _apply_cal(f, f_in, f32.view(cal, _CAL_AB, 3), am)
     return _finite6(w, f)
 
 
@@ -1461,9 +1466,9 @@ def _ins_finite_py(x):
 
 
 def _inject_py(x, e, corr):
-    """Closed-loop correction (seed 002) of the state buffer x from the filter's dx (in e):
-    p -= dp, v -= dv, q = q(phi) (x) q, b += db (corr keeps the sum of p, v corrections);
-    then dx = 0."""
+    """Closed-loop correction (docs/requirements.md, error-state filter formulation) of the state
+    buffer x from the filter's dx (in e): p -= dp, v -= dv, q = q(phi) (x) q, b += db (corr keeps
+    the sum of p, v corrections); then dx = 0."""
     dx = f32.view(e, eskf.E_DX, eskf.N)
     att = f32.zeros(3)
     for i in range(3):

@@ -20,11 +20,11 @@ y forward, z up; m, m/s, rad. The rows are queued with `eskf.add_scalar` and the
 started; the filter works them off over the next ticks.
 """
 
-import eskf
-import ins as ins_mod
 from micropython import const
 
+import eskf
 import f32
+import ins as ins_mod
 from fmath import cos, sin
 
 # Indices into self._fx, the pending fix's floats, as nav.py defines them (an underscore const

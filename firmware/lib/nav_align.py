@@ -25,13 +25,13 @@ Runs only while aligning (natively: at fix ticks only); nothing here runs in a n
 
 from array import array
 
-import kern
 from micropython import const
-from nav_aid import NO_HEIGHT_VAR
 
 import f32
+import kern
 import rot
 from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
+from nav_aid import NO_HEIGHT_VAR
 
 # Indices into the Navigator's buffers, as nav.py defines them (an underscore const is inlined
 # and exists only in its own module; tests/lib/test_nav.py checks that the copies agree).

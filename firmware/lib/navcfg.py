@@ -21,7 +21,8 @@ def _deg(num, den=1):
 class NavConfig:
     def __init__(self, profile="car"):
         self.profile = profile
-        self.dt_s = f32.ratio(1, 200)  # IMU period (seed 001: 5 ms timer)
+        # IMU period (docs/requirements.md, board and features: a 5 ms timer)
+        self.dt_s = f32.ratio(1, 200)
         self.earth_terms = True  # Earth rate, Coriolis, gravity tilt (False: board's model)
         # Two-sample coning and sculling corrections: a small gain on the car drive, measured
         # together with 2 filter slices per tick (0.70 vs 0.72 m horizontal RMS for 503 vs 397
@@ -32,8 +33,9 @@ class NavConfig:
         # (nav._lag_search)
         self.gnss_lag_learn = True
 
-        # Sensor noise: BMI055 datasheet figures (DESIGN.md 7) with a margin of 2 for
-        # vibration and quantisation: gyro 0.014 deg/s/sqrt(Hz), accel 150 ug/sqrt(Hz).
+        # Sensor noise: BMI055 datasheet figures (docs/requirements.md, BMI055 facts) with a
+        # margin of 2 for vibration and quantisation: gyro 0.014 deg/s/sqrt(Hz), accel 150
+        # ug/sqrt(Hz).
         self.gyro_arw = _deg(28, 1000)  # rad/s/sqrt(Hz) = rad/sqrt(s)
         self.accel_vrw = f32.ratio(2942, 1000000)  # m/s^2/sqrt(Hz) (300 ug)
         # Bias instability as first-order Gauss-Markov processes (sigma, correlation time).
@@ -64,7 +66,8 @@ class NavConfig:
         # 0.48 / 0.55 / 0.62 / 1.12 with 0.1 / 0.08 / 0.07 / 0.05, horizontal RMS 0.67 / 0.69 /
         # 0.71 / 0.85 m)
         self.gnss_vel_sigma = f32.ratio(1, 10) if profile == "car" else f32.ratio(8, 100)
-        self.gnss_hdop_max = f32.f32(2)  # reject fixes with HDOP above (seed 000 NFR)
+        # reject fixes with HDOP above (docs/requirements.md, FR003)
+        self.gnss_hdop_max = f32.f32(2)
         self.gnss_min_quality = 1
         self.gnss_latency_s = f32.ratio(1, 10)  # fix time = arrival - latency when no PPS
         # a receiver that stamps its fixes late (its solution is older than the time in the
@@ -153,12 +156,14 @@ class NavConfig:
         self.fault_sigma_v_m = f32.ratio(20, 3)
         self.imu_stuck_s = f32.ratio(1, 10)
 
-        # IMU calibration (seed 000 1.2.1), sensor -> body: x_b = M (x_raw - b0). Identity
-        # M (None) skips the matrix product. Raw scale: counts per SI unit at the ranges.
+        # IMU calibration (docs/requirements.md, IMU deterministic errors), sensor -> body:
+        # x_b = M (x_raw - b0). Identity M (None) skips the matrix product. Raw scale: counts per
+        # SI unit at the ranges.
         self.gyro_bias0 = f32.zeros(3)  # rad/s
         self.accel_bias0 = f32.zeros(3)  # m/s^2
         self.gyro_matrix = None  # 9 values, row-major, or None for identity
         self.accel_matrix = None
-        # BMI055 at +-250 deg/s: 131.2 LSB/(deg/s); at +-2 g: 1024 LSB/g (DESIGN.md 7)
+        # BMI055 at +-250 deg/s: 131.2 LSB/(deg/s); at +-2 g: 1024 LSB/g (docs/requirements.md,
+        # BMI055 facts)
         self.gyro_counts_per_rad_s = f32.ratio(1312, 10) / _DEG
         self.accel_counts_per_m_s2 = f32.f32(1024) / G0_M_S2

@@ -10,7 +10,8 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
      1 navigation state u8, 2 configuration status u8 (config.OK/MISSING/CORRUPT/INVALID)
      3 flags u8: bit 0 GNSS valid, bit 1 standstill, bit 2 IMU saturated
      4 worst tick us u16, 6 mean tick us u16, 8 overruns u16 (wrapping), 10 GC runs u16
-    12 P diagonal, 15 x f32 (seed 001 state order); the position's three hold P's plus the
+    12 P diagonal, 15 x f32 (the error-state order of docs/requirements.md); the position's three
+    hold P's plus the
        receiver's error the filter cannot see (Navigator.cv, nav._consistency)
     72 gyro bias rad/s 3 x f32, 84 accel bias m/s^2 3 x f32
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32
@@ -35,12 +36,12 @@ import struct
 from array import array
 from binascii import crc32
 
-import frame
-import ins
-import kern
 from micropython import const
 
+import frame
 import geo
+import ins
+import kern
 
 EXT_TYPE = const(0x91)
 RAW_TYPE = const(0x92)
@@ -48,7 +49,7 @@ EXT_PAYLOAD = const(128)  # bytes after the counter
 EXT_LEN = const(4 + EXT_PAYLOAD + 4)
 RAW_MAX_GNSS = const(232)  # the length byte counts 23 + n <= 255
 RAW_MAX_LEN = const(4 + 22 + RAW_MAX_GNSS + 4)
-# The int fields of the extended frame (`ExtFrame.fields`; firmware/native/layout.h repeats them)
+# The int fields of the extended frame (`ExtFrame.fields`; layout.h is generated from them)
 EF_COUNTER = const(0)
 EF_HEALTH = const(1)
 EF_STATE = const(2)
@@ -64,7 +65,7 @@ EF_LON0_FRAC = const(11)
 EF_TICK = const(12)
 EF_CAUSES = const(13)
 NEF = const(14)
-# The int fields of the raw-input record (`RawRecord.fields`; firmware/native/layout.h repeats them)
+# The int fields of the raw-input record (`RawRecord.fields`; layout.h is generated from them)
 RF_COUNTER = const(0)
 RF_T0_US = const(1)  # the tick's start, time.ticks_us
 RF_PPS_US = const(2)  # the parser's PPS edge time

@@ -1,6 +1,6 @@
 """Attitude: quaternions, direction cosine matrices and Euler angles, in float32.
 
-Conventions (stated once for the whole firmware; seed 001 sections 5.1-5.4):
+Conventions (stated once for the whole firmware; docs/requirements.md, algorithm):
 
 - Navigation frame n: local East-North-Up. Body frame b: x right, y forward, z up.
 - `q_bn` = [w, x, y, z] (scalar first, Hamilton product) rotates body vectors into the

@@ -36,9 +36,10 @@ second (`bad_until`).
 
 from array import array
 
+from micropython import const
+
 import kern
 from frame import bytes_copy
-from micropython import const
 
 _SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT is 3:
 # odd, so a turn never shares its tick with an extended frame's, every 20 ticks)
@@ -79,7 +80,10 @@ _V_MAX = const(23170)  # |velocity| clamp, cm/s: the sum of two squares stays a 
 _VAR_MAX = const(0x1FFFFFFF)  # a variance's clamp, cm^2: the sum of two stays a small int
 _POS_MAX = const(99999999)  # cm
 _NONE = const(-0x40000000)  # _same's inputs before the first
-TN_SIGNED = const(0x1000)  # text_num's form: the sign before the digits
+TN_WIDTH = const(0xFF)  # text_num's form: width | decimals << TN_DEC_SHIFT | ...
+TN_DEC_SHIFT = const(8)
+TN_DEC = const(0xF)
+TN_SIGNED = const(0x1000)  # ... the sign before the digits
 TN_ZEROS = const(0x2000)  # ... zeros before them, not spaces
 _D1 = const(1 << 8)  # text_num's form: 1 decimal, 2 decimals
 _D2 = const(2 << 8)
@@ -129,8 +133,8 @@ def _text_num_py(t, p, v, form):
     """The int v over 10**dec into t[p:p+w], right-aligned, spaces before (form: w | dec << 8,
     | TN_ZEROS for zeros instead, | TN_SIGNED for its sign, + or -, just before the first digit,
     |v| then: a space must be left for it); p + w. The reference of the native `text_num`."""
-    w = form & 0xFF
-    dec = form >> 8 & 0xF
+    w = form & TN_WIDTH
+    dec = form >> TN_DEC_SHIFT & TN_DEC
     u = -v if v < 0 else v
     i = p + w
     while dec:

@@ -8,8 +8,8 @@
 #include "lever32.h"
 #include "navk.h"
 #include "rot32.h"
+#include "tuning.h"
 
-#define FREE_AIR F32_BITS(0x364F1914) /* ins.FREE_AIR: 3.086e-6 (m/s^2)/m */
 
 /* eskf.add_scalar: queue z = h dx + noise (variance r), h with nnz <= 3 non-zeros. */
 static int32_t add_scalar(float *e, int32_t *ii, float z, float r, int32_t nnz, int32_t i0,

@@ -2,15 +2,15 @@
  *
  * The method, the accuracy and the handling of NaN, inf, +-0 and |x| > 8192 are documented in
  * fmath.py; this is a line-by-line port. Each constant is built from the same bit pattern as
- * there (F32_BITS), each operation is the same float32 operation in the same order, and every
- * intermediate is a float: literals carry the f suffix (an unsuffixed 0.5 is a double and would
- * promote the whole expression). The build must keep that: -ffp-contract=off (no fused
- * multiply-add), no fast-math, no x87 (FLT_EVAL_METHOD 0; x86-64 SSE and the Cortex-M4F's FPU
- * both qualify), no flush-to-zero. sqrt is the correctly rounded __builtin_sqrtf, one
+ * there (F32_BITS; tuning.h, generated from fmath.py), each operation is the same float32
+ * operation in the same order, and every intermediate is a float: literals carry the f suffix
+ * (an unsuffixed 0.5 is a double and would promote the whole expression). The build must keep
+ * that: -ffp-contract=off (no fused multiply-add), no fast-math, no x87 (FLT_EVAL_METHOD 0;
+ * x86-64 SSE and the Cortex-M4F's FPU both qualify), no flush-to-zero. sqrt is the correctly rounded __builtin_sqrtf, one
  * instruction with -fno-math-errno.
  *
  * tests/native/test_fmath32.py compares every function with the NumPy model
- * host_emulator/model/fmath.py and with fmath.py itself, and these constants with fmath.py's.
+ * host_emulator/model/fmath.py and with fmath.py itself.
  */
 #ifndef FMATH32_H
 #define FMATH32_H
@@ -28,53 +28,9 @@ static inline float f32_from_bits(uint32_t u) {
 }
 #define F32_BITS(u) f32_from_bits(UINT32_C(u))
 
-/* fmath.py's constants, same names with the prefix FM_ */
-#define FM_PI F32_BITS(0x40490FDB)
-#define FM_HALF_PI F32_BITS(0x3FC90FDB)
-#define FM_TWO_PI F32_BITS(0x40C90FDB) /* unused, as in fmath.py */
-#define FM_QUARTER_PI F32_BITS(0x3F490FDB)
-#define FM_MINUS_QUARTER_PI F32_BITS(0xBF490FDB)
-#define FM_MINUS_HALF_PI F32_BITS(0xBFC90FDB)
-#define FM_PI_LO F32_BITS(0xB3BBBD2E)
-#define FM_HALF_PI_LO F32_BITS(0xB33BBD2E)
-#define FM_QUARTER_PI_LO F32_BITS(0xB2BBBD2E)
-#define FM_THREE_QUARTER_PI F32_BITS(0x4016CBE4)
-#define FM_THREE_QUARTER_PI_LO F32_BITS(0xB1CCDE2E)
-#define FM_NAN F32_BITS(0x7FC00000) /* the one NaN fmath.py returns */
-#define FM_FLT_MAX F32_BITS(0x7F7FFFFF)
-#define FM_HUGE F32_BITS(0x7E800000)
-
-#define FM_SINCOS_MAX F32_BITS(0x46000000)
-#define FM_MINUS_SINCOS_MAX F32_BITS(0xC6000000)
-#define FM_TWO_OVER_PI F32_BITS(0x3F22F983)
-#define FM_PIO2_1 F32_BITS(0x3FC90000)
-#define FM_PIO2_2 F32_BITS(0x39FDA000)
-#define FM_PIO2_3 F32_BITS(0x33A22169)
-#define FM_PIO2_3A F32_BITS(0x33A22000)
-#define FM_PIO2_3B F32_BITS(0x2C346000)
-#define FM_PIO2_4 F32_BITS(0x248D3132)
-#define FM_FINE F32_BITS(0x3A000000)
-#define FM_MINUS_FINE F32_BITS(0xBA000000)
-
-#define FM_S1 F32_BITS(0xBE2AAAA2)
-#define FM_S2 F32_BITS(0x3C088390)
-#define FM_S3 F32_BITS(0xB94C9D40)
-#define FM_C1 F32_BITS(0x3D2AAAA5)
-#define FM_C2 F32_BITS(0xBAB6060B)
-#define FM_C3 F32_BITS(0x37CCF185)
-#define FM_A1 F32_BITS(0xBEAAAA89)
-#define FM_A2 F32_BITS(0x3E4CBDAA)
-#define FM_A3 F32_BITS(0xBE1126F0)
-#define FM_A4 F32_BITS(0x3DD013B8)
-#define FM_A5 F32_BITS(0xBD523B1B)
-#define FM_B1 F32_BITS(0x3E2AAA93)
-#define FM_B2 F32_BITS(0x3D99A4AE)
-#define FM_B3 F32_BITS(0x3D352AD1)
-#define FM_B4 F32_BITS(0x3D0B5A0F)
-#define FM_B5 F32_BITS(0x3BDC06A5)
-#define FM_B6 F32_BITS(0x3D429B89)
-#define FM_ASIN_SPLIT F32_BITS(0x3F100000)       /* ratio(9, 16), exact */
-#define FM_MINUS_ASIN_SPLIT F32_BITS(0xBF100000) /* ratio(-9, 16) */
+/* fmath.py's constants, same names with the prefix FM_, and the kernels' other float32
+ * constants: generated from the Python (common/native/layout.py) */
+#include "tuning.h"
 
 /* Comparisons are written as in fmath.py: a NaN fails every one of them, so it takes the
  * same branch as there (the "not a <= b" forms stay negations). */

@@ -5,8 +5,6 @@
 #include "layout.h"
 #include "navk.h"
 
-#define GYRO_FRAME_X100 13107 /* 131.07 per deg/s, x100 */
-#define ACCEL_FRAME 16383 /* per g */
 
 /* frame.round_div: num / den (den > 0) rounded half away from zero (Python floor division). */
 static int32_t round_div(int64_t num, int64_t den) {
@@ -122,7 +120,6 @@ static void put_f32(uint8_t *buf, int off, float x) {
     put_i32(buf, off, (int32_t)b.u);
 }
 
-#define EXT_LEN 136
 
 void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const float *x,
     const float *coef, const float *cv) {

@@ -4,8 +4,8 @@
 #include "layout.h"
 #include "navk.h"
 #include "rot32.h"
+#include "tuning.h"
 
-#define TWELFTH (1.0f / 12.0f)
 
 /* v[i] += dv + a[i] dt; p[i] += (v_old + v_new) dt/2, Kahan-compensated. */
 static inline void advance(float *x, int i, float dv) {

@@ -5,8 +5,8 @@
 #include "layout.h"
 #include "navk.h"
 #include "rot32.h"
+#include "tuning.h"
 
-#define FROZEN_V2 1.0f /* nav._FROZEN_V2: a repeated fix while moving above 1 m/s (squared) */
 
 /* nav._apply_cal: out = m (x - b0), or x - b0 without a matrix. */
 static void apply_cal(float *out, const float *x, const float *b0, const float *m) {

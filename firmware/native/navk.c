@@ -3,19 +3,18 @@
  * -ffp-contract=off and without fast-math: every + - * / is one rounded float32 operation. */
 #include <stdint.h>
 
+#include "layout.h"
 #include "navk.h"
 
-/* Every build keeps each float operation as written (DESIGN.md 3 rule 7): -ffast-math or
+/* Every build keeps each float operation as written (docs/requirements.md, float32 contract rule 7): -ffast-math or
  * -Ofast (also when slipped in through CFLAGS) would let the compiler reorder them, so they stop
  * the build here. Fused multiply-adds are checked in the objects (tests/native). */
 #ifdef __FAST_MATH__
 #error "navk must not be compiled with -ffast-math or -Ofast"
 #endif
 
-/* Bumped whenever a kernel's signature or a buffer layout changes: firmware/lib/kern.py
- * refuses a module built from another version. */
-#define NAVK_ABI 8
-
+/* kern.ABI (layout.h NAVK_ABI), bumped whenever a kernel's signature or a buffer layout
+ * changes: firmware/lib/kern.py refuses a module built from another version. */
 int32_t navk_abi(void) { return NAVK_ABI; }
 
 void navk_add(float *out, const float *a, const float *b, int32_t n) {

@@ -1,4 +1,4 @@
-/* navk: the firmware's native float32 kernels (DESIGN.md section 3 rule 7).
+/* navk: the firmware's native float32 kernels (docs/requirements.md, float32 contract rule 7).
  *
  * This header is the one interface of the kernels. The bindings are generated from it: the
  * MicroPython native module (armv7emsp for the board, x64 for the desktop VM) and the cffi

@@ -16,25 +16,8 @@
 #include "lever32.h"
 #include "navk.h"
 #include "rot32.h"
+#include "tuning.h"
 
-#define MIN_LEVEL_F (49.0f / 10.0f) /* nav_align.MIN_LEVEL_F, m/s^2 */
-#define BW_ALPHA (1.0f / 4.0f) /* nav._BW_ALPHA: per second of fixes */
-#define BW_LIMIT 3.0f /* nav._BW_LIMIT */
-#define BS_CLIP 3.0f /* nav._BS_CLIP */
-#define BS_LIMIT (3.0f / 2.0f) /* nav._BS_LIMIT */
-#define BW_CLIP 5.0f /* nav._BW_CLIP */
-#define BW_N 5 /* nav._BW_N: position E, N, U, velocity E, N */
-#define AW_CLIP 5.0f /* nav._AW_CLIP */
-#define AW_LIMIT_LAT 2.0f /* nav._AW_LIMIT_LAT */
-#define AW_LIMIT_UP 3.0f /* nav._AW_LIMIT_UP */
-#define CN_LEN 64.0f /* nav._CN_N */
-#define CN_CLIP 25.0f /* nav._CN_CLIP */
-#define LAG_V2 4.0f /* nav._LAG_V2 */
-#define LAG_K0 4.0f /* nav._LAG_K0 */
-#define JUMP_M 15.0f /* nav_aid._JUMP_M */
-#define STEP_M 15.0f /* nav_aid._STEP_M */
-#define STEP_HALF_A 0.5f /* nav_aid._STEP_HALF_A */
-#define NO_HEIGHT_VAR 100000000.0f /* nav_aid.NO_HEIGHT_VAR, m^2 */
 
 #define PH_START 0 /* a new tick */
 #define PH_SCHEDULE 1 /* after a fix was screened (EV_FIX) */
@@ -254,8 +237,8 @@ static void lag_search(int32_t *c, float *m, int32_t age) {
     float k = cn[CN_KL];
     if (pair) {
         k = k + 1.0f;
-        if (k > CN_LEN) {
-            k = CN_LEN;
+        if (k > CN_N) {
+            k = CN_N;
         }
         cn[CN_KL] = k;
     }
@@ -461,9 +444,9 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
         return;
     }
     float *cn = m + M_CN;
-    float k = cn[CN_K] + 1.0f / cn[CN_RK]; /* a window of CN_LEN seconds at any rate */
-    if (k > CN_LEN) {
-        k = CN_LEN;
+    float k = cn[CN_K] + 1.0f / cn[CN_RK]; /* a window of CN_N seconds at any rate */
+    if (k > CN_N) {
+        k = CN_N;
     }
     cn[CN_K] = k;
     float a = 1.0f / k;

@@ -7,18 +7,11 @@
 #include "layout.h"
 #include "navk.h"
 
-#define EMPTY (-0x3FFFFFFE) /* num(): empty field */
-#define BAD (-0x3FFFFFFF) /* num(): syntax error */
-#define CAP 100000000 /* digit accumulator limit: v * 10 + 9 < 1e9 */
-#define FMT_GGA 0x474741
-#define FMT_RMC 0x524D43
-#define FMT_VTG 0x565447
-#define FMT_GSA 0x475341
 
 /* gnss._num */
 static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
     if (a >= b) {
-        return EMPTY;
+        return NMEA_EMPTY;
     }
     int32_t c = line[a];
     int32_t neg = c == 45;
@@ -35,8 +28,8 @@ static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
         if (0 <= c && c <= 9) {
             nd += 1;
             if (dec < k) {
-                if (v >= CAP) {
-                    return BAD;
+                if (v >= NMEA_CAP) {
+                    return NMEA_BAD;
                 }
                 v = v * 10 + c;
                 if (dec >= 0) {
@@ -49,18 +42,18 @@ static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
         } else if (c == -2 && dec < 0) {
             dec = 0;
         } else {
-            return BAD;
+            return NMEA_BAD;
         }
     }
     if (nd == 0) {
-        return BAD;
+        return NMEA_BAD;
     }
     if (dec < 0) {
         dec = 0;
     }
     while (dec < k) {
-        if (v >= CAP) {
-            return BAD;
+        if (v >= NMEA_CAP) {
+            return NMEA_BAD;
         }
         v *= 10;
         dec += 1;
@@ -73,11 +66,11 @@ static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
 
 /* gnss._nn */
 static int32_t nn(int32_t v) {
-    if (v == EMPTY) {
+    if (v == NMEA_EMPTY) {
         return -1;
     }
     if (v < 0) {
-        return BAD;
+        return NMEA_BAD;
     }
     return v;
 }
@@ -148,13 +141,13 @@ static int32_t utc_ms(const uint8_t *line, int32_t a, int32_t b) {
         return -1;
     }
     if (b - a < 6) {
-        return BAD;
+        return NMEA_BAD;
     }
     int32_t v = 0;
     for (int32_t i = a; i < a + 6; i++) {
         int32_t c = line[i] - 48;
         if (c < 0 || c > 9) {
-            return BAD;
+            return NMEA_BAD;
         }
         v = v * 10 + c;
     }
@@ -163,13 +156,13 @@ static int32_t utc_ms(const uint8_t *line, int32_t a, int32_t b) {
     int32_t i = a + 6;
     if (i < b) {
         if (line[i] != 46) {
-            return BAD;
+            return NMEA_BAD;
         }
         i += 1;
         while (i < b) {
             int32_t c = line[i] - 48;
             if (c < 0 || c > 9) {
-                return BAD;
+                return NMEA_BAD;
             }
             if (n < 3) {
                 ms = ms * 10 + c;
@@ -294,14 +287,14 @@ static int32_t gga(int32_t *s, const uint8_t *line, const uint8_t *fs, int32_t n
     int32_t ns = nn(num(line, fs[7], fs[8] - 1, 0));
     int32_t hd = nn(num(line, fs[8], fs[9] - 1, 2));
     int32_t alt = num(line, fs[9], fs[10] - 1, 3);
-    int32_t sep = EMPTY;
+    int32_t sep = NMEA_EMPTY;
     if (nf >= 12) {
         sep = num(line, fs[11], fs[12] - 1, 3);
     }
-    if (utc == BAD || p < 0 || q == BAD || ns == BAD || hd == BAD) {
+    if (utc == NMEA_BAD || p < 0 || q == NMEA_BAD || ns == NMEA_BAD || hd == NMEA_BAD) {
         return 0;
     }
-    if (alt == BAD || sep == BAD) {
+    if (alt == NMEA_BAD || sep == NMEA_BAD) {
         return 0;
     }
     s[NS_UTC] = utc;
@@ -345,10 +338,10 @@ static int32_t rmc(int32_t *s, const uint8_t *line, const uint8_t *fs, int32_t n
     if (nf > 12) {
         mode = chr_(line, fs[12], fs[13] - 1);
     }
-    if (utc == BAD || st < 0 || p < 0 || mode < 0) {
+    if (utc == NMEA_BAD || st < 0 || p < 0 || mode < 0) {
         return 0;
     }
-    if (kn == BAD || crs == BAD) {
+    if (kn == NMEA_BAD || crs == NMEA_BAD) {
         return 0;
     }
     s[NS_UTC] = utc;
@@ -373,7 +366,7 @@ static int32_t vtg(int32_t *s, const uint8_t *line, const uint8_t *fs, int32_t n
     if (nf > 9) {
         mode = chr_(line, fs[9], fs[10] - 1);
     }
-    if (crs == BAD || kn == BAD || kmh == BAD || mode < 0) {
+    if (crs == NMEA_BAD || kn == NMEA_BAD || kmh == NMEA_BAD || mode < 0) {
         return 0;
     }
     int32_t spd = -1;
@@ -398,7 +391,7 @@ static int32_t gsa(int32_t *s, const uint8_t *line, const uint8_t *fs, int32_t n
     int32_t pd = nn(num(line, fs[15], fs[16] - 1, 2));
     int32_t hd = nn(num(line, fs[16], fs[17] - 1, 2));
     int32_t vd = nn(num(line, fs[17], fs[18] - 1, 2));
-    if (mode < 0 || fix == BAD || pd == BAD || hd == BAD || vd == BAD) {
+    if (mode < 0 || fix == NMEA_BAD || pd == NMEA_BAD || hd == NMEA_BAD || vd == NMEA_BAD) {
         return 0;
     }
     int32_t nsv = 0;
@@ -442,13 +435,13 @@ static int32_t line_end(int32_t *s, uint8_t *lb, int32_t k, int32_t x, int32_t s
         /* any talker (GP GN GL GA GB BD GQ QZ IN ...): two capitals, P (proprietary) excepted */
         if (line[0] >= 65 && line[0] <= 90 && line[0] != 80 && line[1] >= 65 && line[1] <= 90) {
             int32_t f = (line[2] << 16) | (line[3] << 8) | line[4];
-            if (f == FMT_GGA) {
+            if (f == NMEA_FMT_GGA) {
                 kind = NR_GGA;
-            } else if (f == FMT_RMC) {
+            } else if (f == NMEA_FMT_RMC) {
                 kind = NR_RMC;
-            } else if (f == FMT_VTG) {
+            } else if (f == NMEA_FMT_VTG) {
                 kind = NR_VTG;
-            } else if (f == FMT_GSA) {
+            } else if (f == NMEA_FMT_GSA) {
                 kind = NR_GSA;
             }
             s[NS_TALKER] = t;

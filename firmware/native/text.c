@@ -5,13 +5,9 @@
 #include <stdint.h>
 
 #include "navk.h"
+#include "layout.h"
 
 /* status_page's forms of a number: width | decimals << 8 | TN_SIGNED | TN_ZEROS */
-#define TN_WIDTH 0xFF
-#define TN_DEC_SHIFT 8
-#define TN_DEC 0xF
-#define TN_SIGNED 0x1000
-#define TN_ZEROS 0x2000
 
 /* The int v over 10**dec into t[p:p+w], right-aligned, spaces (TN_ZEROS: zeros) before; with
  * TN_SIGNED its sign (+ or -) just before the first digit (|v| then; a space must be left for

@@ -1,7 +1,8 @@
 """Measurements, run on purpose (minutes), that write the figures docs/ quotes:
 
 navigation.py       `bench-nav`: accuracy over seeds and GNSS error models, and the cost
-                    per tick in the VM (navigator.py drives the navigator alone)
+                    per tick in the VM (navigator.py drives the navigator alone on CPython,
+                    navigator_vm.py inside the MicroPython VM)
 accuracy_report.py  `accuracy-report`: drive_0708 and the scenarios -> docs/accuracy.md
 float32.py          `float32`: the float32 math functions over their domains, then the
                     rotation and lat/lon kernels (core_figures.py) -> docs/float32.md
@@ -9,6 +10,7 @@ digests.py          `digests`: the change indicator (tests/change_indication/)
 settings.py         `bench-settings`: every board setting swept, what still navigates within
                     the board spec -> docs/benchmarks/settings.md (firmware/lib/config.py's
                     ranges)
-board_cost.py       the cost of a tick on the board's CPU from an m4f run's instruction counts
-                    (run --runtime m4f, bench-board)
+board.py            `bench-board`: the image's tick time and the board's RAM on the emulated
+                    STM32F411 and Cortex-M4F -> docs/benchmarks/board.md (what a tick costs:
+                    eval/board_cost.py, eval/board_time.py)
 """

@@ -1,7 +1,8 @@
 """`make accuracy-report`: docs/accuracy.md (and docs/benchmarks/accuracy.json) from fresh runs.
 
 The firmware on CPython (bit-identical to the board's float32 arithmetic) over:
-- drive_0708 under the protocol (DESIGN.md 10), with this IMU's board settings;
+- drive_0708 under the protocol (docs/requirements.md, reference figures), with this IMU's
+  board settings;
 - the same with the firmware's BMI055 default settings (what a user gets without tuning);
 - the same without outages, and with the RTK velocity sent as receiver speed/course;
 - the simulated scenarios urban_drive and highway_outage (seed 0, full length).
@@ -73,7 +74,8 @@ def markdown(results):
         "## drive_0708 (real car drive, RTK reference)",
         "",
         "549 s, 100 Hz low-cost IMU, RTK fixed solution of the antenna as the reference "
-        "(DESIGN.md 9). The protocol other filters were measured with (DESIGN.md 10): RTK "
+        "(docs/requirements.md, real drive drive_0708). The protocol other filters were measured "
+        "with (docs/requirements.md, reference figures): RTK "
         "positions at whole GPST seconds with white noise 1.5/1.5/3 m (numpy default_rng(1)), "
         "the filter told those sigmas, no velocity, no GNSS for 15 s at t0+60, t0+200 and "
         "t0+400 s, metrics from t0+30 s. `python -m host_emulator replay --dataset drive_0708 "
@@ -94,7 +96,8 @@ def markdown(results):
         f"| raw 1 Hz GNSS input (ours) | {fmt(p['gnss_horiz_rms_m'], unit='m')} | "
         f"{fmt(p['gnss_vert_rms_m'], unit='m')} | | | | |",
         "",
-        "Other filters under the same protocol (DESIGN.md 10, not re-run here):",
+        "Other filters under the same protocol (docs/requirements.md, reference figures; not "
+        "re-run here):",
         "",
         "| filter | horizontal RMS with GNSS | vertical RMS | end of outages 1/2/3 |",
         "|---|---|---|---|",

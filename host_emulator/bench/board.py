@@ -4,7 +4,7 @@
 Runs the unmodified app loop on the emulated Cortex-M4F (runtimes/m4f) over a whole simulated
 drive, once with the default configuration, once with coning on and 2 filter slices per tick,
 and once with a 10 Hz receiver (at 115200 baud: the filter then runs 4 slices per tick), and
-writes what a tick costs the board's CPU (bench/board_cost.py: instructions per tick
+writes what a tick costs the board's CPU (eval/board_cost.py: instructions per tick
 by phase, the emulation set apart, garbage collection, time per tick at 100 MHz for the CPI
 range, overruns) together with the heap, the start-up and the firmware image's budget, to
 FILE (default docs/benchmarks/board.md; the numbers in a .json and a plot beside it).
@@ -12,14 +12,15 @@ FILE (default docs/benchmarks/board.md; the numbers in a .json and a plot beside
 Beside it, the image itself on the emulated STM32F411 (runtimes/f411) over the same drive,
 raw-input records off and on, with the 10 Hz receiver, and with the screen's status page (the
 display setting on, the UsartGPU on USART6): the time each tick takes at the image's 96 MHz,
-the port's drivers, interrupts and DMA included (bench/board_time.py), and what a turn of the
+the port's drivers, interrupts and DMA included (eval/board_time.py), and what a turn of the
 page costs, tick by tick against the run without it.
 
 The emulated Cortex-M4F runs at about real time, the emulated STM32F411 at 0.4-1x, so the
 default (urban_drive, 600 s, seven runs on two processes) takes about an hour. It is a
-benchmark: the design budget (DESIGN.md 4: p99 <= 50,000 and max <= 100,000 instructions per
-tick, no gc.collect while navigating) and the image's targets (a navigating tick at most 2.5 ms
-at p99 and 4 ms at most, no tick late or missed) are reported against, not asserted.
+benchmark: the design budget (docs/requirements.md, time budget: p99 <= 50,000 and max <=
+100,000 instructions per tick, no gc.collect while navigating) and the image's targets (a
+navigating tick at most 2.5 ms at p99 and 4 ms at most, no tick late or missed) are reported
+against, not asserted.
 """
 
 import json
@@ -31,10 +32,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.firmware_env import REPO_DIR
 from host_emulator import args as cli_args
-from host_emulator.bench import board_cost
-from host_emulator.errors import EmulatorError
-from host_emulator.firmware_env import REPO_DIR
+from host_emulator.eval import board_cost
 from host_emulator.runtimes.m4f import build as m4f_build
 
 # label, the board settings over the defaults, the simulated receiver (sim/gnss.py GnssModel
@@ -72,8 +73,8 @@ NAV_PROFILES = {
     "default, a 10 Hz receiver": "rate: 10 Hz",
 }
 NAV_JSON = REPO_DIR / "docs" / "benchmarks" / "navigation.json"
-# A whole app tick once navigating: p99 and max from DESIGN.md 4, the mean and no overrun at
-# the high CPI from issue 15 (0.6 ms mean at CPI 2.05 and 100 MHz)
+# A whole app tick once navigating (docs/requirements.md: the time budget's p99 and max, the
+# project targets' mean, 0.6 ms at CPI 2.05 and 100 MHz, and no overrun at the high CPI)
 BUDGET = {"mean": 30_000, "p99": 50_000, "max": 100_000}
 DEFAULT_OUT = REPO_DIR / "docs" / "benchmarks" / "board.md"
 
@@ -130,7 +131,7 @@ def _one(task):
 def _one_twin(task):
     """One configuration on the f411 runtime (the image on the emulated STM32F411)."""
     label, overrides, receiver, scenario, duration = task
-    from host_emulator.bench import board_time
+    from host_emulator.eval import board_time
 
     stim, fw = _run_runtime("f411", label, overrides, receiver, scenario, duration)
     if isinstance(fw, str):  # e.g. the chip reset by its watchdog
@@ -162,7 +163,7 @@ def image_budget():
     """(the firmware image's budget lines, None), building it if needed (tools/image, cached:
     seconds), or (None, the reason) if it cannot be built here."""
     try:
-        from tools import toolchain
+        from common import toolchain
         from tools.image import budget, build
 
         report = build.build(build.DEFAULT_BOARD, log=lambda *_: None)
@@ -216,7 +217,7 @@ def _plot(results, path):
 
 
 def _plot_twin(results, path):
-    from host_emulator.bench import board_time
+    from host_emulator.eval import board_time
 
     def decorate(ax, r, t, y):
         for key, ls in (("p99", "--"), ("max", ":")):
@@ -231,7 +232,7 @@ def _plot_twin(results, path):
 
 def twin_lines(twin, m4f_results):
     """The section on the image executed on the emulated STM32F411."""
-    from host_emulator.bench import board_time
+    from host_emulator.eval import board_time
 
     if not twin:
         return []
@@ -485,8 +486,9 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
         "a tick overruns when that exceeds 5 ms. Not counted, so the times are a floor: "
         "interrupt entry and exit, the C drivers of SPI and the UARTs, DMA.",
         "",
-        f"Budget, a whole app tick once navigating: mean <= {BUDGET['mean']:,} (issue 15), "
-        f"p99 <= {BUDGET['p99']:,}, max <= {BUDGET['max']:,} instructions (DESIGN.md 4), no "
+        f"Budget, a whole app tick once navigating (docs/requirements.md, time budget and project "
+        f"targets): mean <= {BUDGET['mean']:,}, p99 <= {BUDGET['p99']:,}, max <= "
+        f"{BUDGET['max']:,} instructions, no "
         f"gc.collect() while navigating, and no tick overrunning at CPI {high:g}.",
         "",
         "| configuration | phase | ticks | mean | p50 | p99 | max | emulation mean | "

@@ -1,12 +1,12 @@
 """The accuracy figures of the rotation and
 lat/lon kernels quoted in docs/float32.md, measured on the firmware (float32, desktop) against
-independent float64 references: seed 001 eq. 5-6 and 5-11 written out, and pymap3d (part of
-`python -m host_emulator float32`)."""
+independent float64 references: docs/requirements.md eq. 5-6 and 5-11 written out, and pymap3d (part
+of `python -m host_emulator float32`)."""
 
 import numpy as np
 import pymap3d
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()
@@ -20,7 +20,7 @@ RNG = np.random.default_rng(2026)
 
 
 def seed_c_bn(yaw, pitch, roll):
-    """C_bn = (R_y(roll) R_x(pitch) R_z(yaw))^T, seed 001 eq. 5-6."""
+    """C_bn = (R_y(roll) R_x(pitch) R_z(yaw))^T, docs/requirements.md eq. 5-6."""
     cy, sy, cp, sp, cr, sr = (
         np.cos(yaw),
         np.sin(yaw),
@@ -36,7 +36,7 @@ def seed_c_bn(yaw, pitch, roll):
 
 
 def seed_exp(theta):
-    """exp([theta x]), seed 001 eq. 5-11."""
+    """exp([theta x]), docs/requirements.md eq. 5-11."""
     t = np.linalg.norm(theta)
     k = np.array([[0, -theta[2], theta[1]], [theta[2], 0, -theta[0]], [-theta[1], theta[0], 0]])
     return np.eye(3) + np.sin(t) / t * k + (1 - np.cos(t)) / t**2 * (k @ k)

@@ -71,11 +71,11 @@ import sys
 import textwrap
 import time
 
+from common import toolchain
+from common.errors import EmulatorError
 from host_emulator import args as cli_args
-from host_emulator.errors import EmulatorError
 from host_emulator.runtimes.m4f import build as m4f_build
 from host_emulator.runtimes.m4f import guest
-from tools import toolchain
 
 HERE = pathlib.Path(__file__).resolve().parent
 PUBLISHED = HERE / "perf_bench_f401.json"

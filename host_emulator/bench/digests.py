@@ -19,9 +19,9 @@ import pathlib
 import sys
 import tempfile
 
+from common.firmware_env import REPO_DIR
+from common.proto import stream
 from host_emulator import runtimes
-from host_emulator.firmware_env import REPO_DIR
-from host_emulator.proto import stream
 
 DIR = REPO_DIR / "tests" / "change_indication"
 # (name, scenario, seconds, seed, board configuration overrides): the first two include

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import records, stream
 from host_emulator import args as cli_args
-from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate
-from host_emulator.proto import records, stream
 from host_emulator.sim import board_input
 from host_emulator.sim import faults as faults_mod
 

@@ -14,7 +14,7 @@ writing nothing: the measurements behind the tuning in firmware/lib/navcfg.py, e
 
 GNSS error models (sigma 2/2/4 m E/N/U at HDOP 1, 1 Hz, velocity 0.05 m/s):
   white      all white, as the filter assumes (the setting of the reference figures in
-             DESIGN.md section 10)
+             docs/requirements.md, reference figures)
   realistic  half the variance white, half a 60 s Gauss-Markov process (multipath and
              atmosphere are correlated in real receivers)
 """
@@ -33,7 +33,8 @@ import numpy as np
 
 from host_emulator import args as cli_args
 
-TARGETS = {  # issue 3, urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
+# docs/requirements.md, project targets: urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
+TARGETS = {
     "horiz_rms_m": 1.0,
     "vel_rms_m_s": 0.05,
     "roll_rms_deg": 0.2,
@@ -134,13 +135,12 @@ def _one(task):
     ((ImuModel or GnssModel field, value), ...) over the scenario's simulated sensors}."""
     name, seed, white, profile = task[:4]
     trial = task[4] if len(task) > 4 else {}
-    from host_emulator import firmware_env
+    from common import firmware_env
     from host_emulator.bench import navigator
 
     firmware_env.install()
-    import navcfg
-
     import f32
+    import navcfg
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -216,7 +216,8 @@ def _standing_speed(run, truth, settle_s=2.0):
 
 
 def _vm_cost():
-    from host_emulator.runtimes.mpy_unix import navigator as vm_navigator
+    from host_emulator.bench import navigator_vm as vm_navigator
+    from host_emulator.runtimes import mpy_unix
     from host_emulator.sim import gnss as sim_gnss
     from host_emulator.sim import imu as sim_imu
     from host_emulator.sim import trajectory
@@ -227,13 +228,13 @@ def _vm_cost():
     res = {}
     for label, kw in VM_VARIANTS:
         out = vm_navigator.run(imu, gnss, 180, **kw)
-        res[label] = vm_navigator.block_stats(out["blocks"], out["state"])
+        res[label] = mpy_unix.block_stats(out["blocks"], out["state"])
     return res
 
 
 def _footprint():
     """Bytes of a Navigator on the (64-bit) VM, and of the core's .mpy for the board."""
-    from host_emulator.firmware_env import LIB_DIR
+    from common.firmware_env import LIB_DIR
     from host_emulator.runtimes.mpy_unix import vm
 
     nav_bytes = vm.run_json(
@@ -570,7 +571,7 @@ def _sim_setting(kind):
 
 
 def _nav_config_names():
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     import navcfg

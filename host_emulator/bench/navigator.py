@@ -19,17 +19,16 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymap3d
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.sim.trajectory import wrap_pi
 
 firmware_env.install()
 
+import f32  # noqa: E402
+import geo  # noqa: E402
 import nav as nav_mod  # noqa: E402
 import navcfg  # noqa: E402
 from nav import NAVIGATING, Navigator  # noqa: E402
-
-import f32  # noqa: E402
-import geo  # noqa: E402
 
 
 @dataclass

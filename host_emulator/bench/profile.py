@@ -19,8 +19,8 @@ import pathlib
 import sys
 import tempfile
 
+from common.errors import EmulatorError
 from host_emulator import args as cli_args
-from host_emulator.errors import EmulatorError
 
 # (module, class or None, attribute names): what is wrapped, besides every navk function
 TARGETS = (

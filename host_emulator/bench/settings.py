@@ -54,10 +54,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from common.errors import EmulatorError
 from host_emulator import args as cli_args
 from host_emulator.bench.faults import TRUST_M
 from host_emulator.bench.navigation import SCENARIO_PROFILES
-from host_emulator.errors import EmulatorError
 
 DEFAULT_OUT = pathlib.Path("docs/benchmarks/settings.md")
 # scenario: run seconds (full: the whole scenario, its outages included; quick)
@@ -202,7 +202,7 @@ def defaults_of(name):
 
 
 def _firmware_config():
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     import config  # the firmware's (firmware/lib/config.py)
@@ -754,10 +754,10 @@ def _setting(plan, name):
 
 
 def _refused(values):
-    """The firmware's range table of today refuses it (replay/board.py `problem`)."""
-    from host_emulator.replay import board
+    """The firmware's range table of today refuses it (replay/run_config.py `problem`)."""
+    from host_emulator.replay import run_config
 
-    return board.problem(values) is not None
+    return run_config.problem(values) is not None
 
 
 def execute(plan, jobs, log=print):

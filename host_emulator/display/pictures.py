@@ -8,9 +8,9 @@ strict reader and the renderer (usartgpu.py, screen.py, device.play).
 import io
 from pathlib import Path
 
+from common.errors import EmulatorError, write_atomic
 from host_emulator.display import device
 from host_emulator.display.screen import PALETTE, Screen
-from host_emulator.errors import EmulatorError, write_atomic
 
 STRIP = 8  # screens in the strip
 STRIP_COLUMNS = 4

@@ -21,7 +21,7 @@ and the offset.
 
 from dataclasses import dataclass
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 END = b"\r\n"  # ends a batch: the screen draws what came before it
 REPLY = b"OK\r\n"

@@ -10,7 +10,7 @@ or the first record one side lacks.
 import struct
 from dataclasses import dataclass, field
 
-from host_emulator.proto import frame, records
+from common.proto import frame, records
 
 FRAME, EXT, RAW = "frame", "extended frame", "raw record"
 

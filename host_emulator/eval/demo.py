@@ -4,8 +4,7 @@ CPython, and a short table of how well it navigated, for someone new to the proj
 Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
-from host_emulator.bench import board_cost, board_time
-from host_emulator.eval import scenario_run
+from host_emulator.eval import board_cost, board_time, scenario_run
 from host_emulator.eval.report import fmt
 
 

@@ -18,8 +18,8 @@ import argparse
 import json
 import sys
 
-from host_emulator import firmware_env
-from host_emulator.errors import quiet_broken_pipe
+from common import firmware_env
+from common.errors import quiet_broken_pipe
 
 firmware_env.install()
 

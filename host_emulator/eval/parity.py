@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import config as board_config
+from common.proto import records, stream
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError
 from host_emulator.eval.compare import EXT, FRAME, RAW, KindResult, compare_kind
-from host_emulator.proto import config as board_config
-from host_emulator.proto import records, stream
 
 LABELS = ("firmware", "model")
 

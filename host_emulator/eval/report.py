@@ -12,7 +12,7 @@ GNSS outages are shaded in every time plot.
 
 import numpy as np
 
-from host_emulator.bench import board_cost, board_time
+from host_emulator.eval import board_cost, board_time
 
 _DEG = 180.0 / np.pi
 PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")

@@ -20,15 +20,14 @@ import time
 
 import numpy as np
 
+from common.errors import EmulatorError, write_atomic
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
+from common.proto import stream
 from host_emulator import args as cli_args
 from host_emulator import runtimes
-from host_emulator.bench import board_cost, board_time
 from host_emulator.display import pictures
-from host_emulator.errors import EmulatorError, write_atomic
-from host_emulator.eval import evaluate, report
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto import stream
+from host_emulator.eval import board_cost, board_time, evaluate, report
 from host_emulator.sim import board_input, trajectory
 from host_emulator.sim import faults as faults_mod
 

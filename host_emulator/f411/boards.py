@@ -43,7 +43,7 @@ BOARDS = {
 
 
 def get(name):
-    from host_emulator.errors import EmulatorError
+    from common.errors import EmulatorError
 
     b = BOARDS.get(name)
     if b is None:

@@ -23,7 +23,7 @@ date are skipped this way (a UART's TXE and TC, SPI's flags, FLASH_SR.BSY, IWDG_
 loop runs instruction by instruction.
 """
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 
 class TwinError(EmulatorError):

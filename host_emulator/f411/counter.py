@@ -25,7 +25,7 @@ import pathlib
 import sys
 import tempfile
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 SOURCE = pathlib.Path(__file__).with_name("counter.c")
 ROOT = pathlib.Path(__file__).resolve().parents[2]

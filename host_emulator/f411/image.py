@@ -11,7 +11,7 @@ would name the wrong functions.
 import bisect
 import pathlib
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 FLASH_BASE = 0x08000000
 FLASH_SIZE = 512 * 1024

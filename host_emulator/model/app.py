@@ -12,7 +12,7 @@ Modelled independently here (NumPy float32, or plain integers):
 - the virtual clock: tick k at t_k = t0 + k tick_us, PPS edges at t_k - pps_before_us,
   MicroPython's 30-bit ticks_us/ticks_diff; t0 is derived from the BMI055 driver's start-up
   waits (GYRO_RESET_MS + ACCEL_RESET_MS, rounded up to the next tick moment; checked in
-  tests/test_parity.py against the tick start times the firmware's raw records carry);
+  tests/eval/test_parity.py against the tick start times the firmware's raw records carry);
 - app._deliver_fix: lat/lon split, height in dm (an epoch without one: the last one the
   receiver gave; before any, 0 in the frame and no fix for the navigator), f32 ratios for
   height, HDOP and speed, course x pi/18000 (rebuilt from its float32 bits), speed and
@@ -28,8 +28,8 @@ Modelled independently here (NumPy float32, or plain integers):
   0x92, encoded by proto/records.py.
 Shared with the firmware (integer or bit-level code, validated on its own):
 - the NMEA parser `drivers/gnss.py` Nmea (checked against gpsd on real logs), including its
-  `pps_isr`, which stamps the edge from the emulated board's virtual clock (board/mpy/time.py),
-  and its flag/epoch "take" methods;
+  `pps_isr`, which stamps the edge from the emulated board's virtual clock
+  (emulated_board/mpy/time.py), and its flag/epoch "take" methods;
 - the configuration: the file the runtimes write (proto/config.py) is decoded by
   firmware/lib/config.py and `BoardConfig.nav_config()` builds the navigator's configuration,
   as on the board (an explicit identity matrix becomes None there, for instance);
@@ -44,22 +44,22 @@ import time  # CPython's, with the board's ticks_us and set_us once install_mach
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
+from common.proto import config as board_config
+from common.proto import frame as frame_schema
+from common.proto import records
+from common.proto import stimulus as stim_mod
+from common.proto.ticks import TICKS_PERIOD, ticks_diff
+from host_emulator.emulated_board import install_machine
 from host_emulator.model import display
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.nav import NavModel
-from host_emulator.proto import config as board_config
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import records
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
 
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
+import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
 import nav as fw_nav  # noqa: E402  (radians per centidegree of course)
 from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
-
-import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
 
 F32 = np.float32
 _FRAME = frame_schema.numpy_dtype()
@@ -313,7 +313,7 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
     cfg_status = config.OK if cfg.validate() is None else config.INVALID
     model = NavModel(cfg.nav_config())
     g = Nmea(need_speed=cfg.gnss_need_speed)  # as app.App builds its parser
-    firmware_env.install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
+    install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
     fw_app, fw_board, _, bmi055 = _firmware()
 
     n = len(stim)

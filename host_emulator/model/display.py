@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host_emulator.proto import records
+from common.proto import records
 
 SLOT = 8  # ticks between turns
 PHASE = 3  # the loop's tick count mod SLOT at a turn

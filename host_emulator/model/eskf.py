@@ -9,7 +9,7 @@ gate) the model branches too.
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model.f32ops import F32, ONE, TWO, ZERO, cross, mat_vec, vec
 
 firmware_env.install()
@@ -29,8 +29,8 @@ UPDATING = fw_eskf.UPDATING
 class EskfModel:
     """Error state x = [dp, dv, phi, dbg, dba] (15), covariance P (15x15), time-distributed.
 
-    Propagation P <- Phi P Phi^T + Q T with Phi = I + F T (F of seed 001 eq. 5-28 plus the
-    Earth-rate terms), as 15 column slices A[:, j] = Phi P[j, :] (P symmetric), 15 row slices
+    Propagation P <- Phi P Phi^T + Q T with Phi = I + F T (F of docs/requirements.md eq. 5-28 plus
+    the Earth-rate terms), as 15 column slices A[:, j] = Phi P[j, :] (P symmetric), 15 row slices
     P[i, i:] = P[i:, i] = (Phi A[i, :])[i:], and one slice adding Q T and clamping the diagonal.
     Update: per scalar z = h x + noise(r), 3 slices of v = P h^T (5 rows each), one slice for
     S = h v + r, the gate y^2 <= gate^2 S and K = v / S, x += K y, then 15 Joseph rows

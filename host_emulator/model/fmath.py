@@ -12,7 +12,7 @@ import functools
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 
 firmware_env.install()
 import fmath as fw  # noqa: E402  (the firmware module: one table of constants)

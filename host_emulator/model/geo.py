@@ -3,7 +3,7 @@ origin, vectorised over points (one origin per call). Operation order mirrors th
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import fmath
 
 firmware_env.install()

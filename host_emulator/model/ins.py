@@ -7,14 +7,13 @@ constants are the firmware module's.
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.f32ops import F32, HALF, ONE, ZERO, cross, mat_vec, vec
 
 firmware_env.install()
-import ins as fw_ins  # noqa: E402  (constants shared with the firmware, not retyped)
-
 import geo as fw_geo  # noqa: E402
+import ins as fw_ins  # noqa: E402  (constants shared with the firmware, not retyped)
 
 
 class InsModel:

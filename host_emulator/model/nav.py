@@ -23,7 +23,7 @@ The files mirror the firmware's, one model beside each firmware module:
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import fmath as ref_fmath
 from host_emulator.model import geo as ref_geo
 from host_emulator.model import rot as ref_rot
@@ -44,10 +44,9 @@ from host_emulator.model.nav_aid import AidingModel
 from host_emulator.model.nav_align import AlignmentModel
 
 firmware_env.install()
+import geo as fw_geo  # noqa: E402
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
 import nav_align as fw_nav_align  # noqa: E402
-
-import geo as fw_geo  # noqa: E402
 
 
 def _rate_slices(interval, configured):

@@ -8,7 +8,7 @@ fix's sigmas. Rows are queued as (z, r, [(k, h_k), ...]) in the firmware's order
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import fmath as ref_fmath
 from host_emulator.model.eskf import IX_ATT, IX_POS, IX_VEL
 from host_emulator.model.f32ops import F32, ONE, ZERO, cross, mat_vec, vec

@@ -7,17 +7,16 @@ from the track of the fixes, and the start of navigation.
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import fmath as ref_fmath
 from host_emulator.model import rot as ref_rot
 from host_emulator.model.eskf import IX_ATT
 from host_emulator.model.f32ops import F32, HALF, TWO, ZERO, vec
 
 firmware_env.install()
+import fmath as fw_fmath  # noqa: E402
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
 import nav_align as fw_nav_align  # noqa: E402
-
-import fmath as fw_fmath  # noqa: E402
 import rot as fw_rot  # noqa: E402
 
 TR_SLOTS = fw_nav_align._TR_SLOTS

@@ -7,7 +7,7 @@ bit-identical; conventions are those stated in the firmware module.
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.model import fmath
 
 firmware_env.install()

@@ -90,7 +90,7 @@ def gait(f_b_m_s2, dt_s):
 
 def of_stimulus(stim):
     """Gait of what a stimulus feeds the board's accelerometer (its counts at its range)."""
-    from host_emulator.proto import stimulus as stim_mod
+    from common.proto import stimulus as stim_mod
     from host_emulator.sim import imu as imu_mod
 
     counts = stim_mod.accel_counts(stim.accel_regs).astype(float)

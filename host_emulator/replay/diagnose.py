@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.replay import board
+from common.proto import stimulus as stim_mod
+from host_emulator.replay import run_config
 from host_emulator.sim import imu as imu_mod
 
 MIN_LEVEL_M_S2 = 4.9  # nav_align.MIN_LEVEL_F
@@ -126,9 +126,9 @@ def _track(rep, cfg, t, p, usable, tick_s):
 def why(rep, console=()):
     """One line: why the firmware did not navigate on this replay, and what to do."""
     values = rep.stimulus.config
-    cfg = board.nav_config(values)
+    cfg = run_config.nav_config(values)
     tick_s = rep.stimulus.tick_us * 1e-6
-    src = {name: rep.sources.get(name, board.REPLAY) for name in values}
+    src = {name: rep.sources.get(name, run_config.REPLAY) for name in values}
 
     levelled, f_best = _levels(rep, cfg, tick_s)
     if not levelled:

@@ -1,5 +1,6 @@
-"""The drive_0708 recording (DESIGN.md 9): a 549 s car drive with a low-cost 100 Hz IMU and
-an RTK solution of the antenna (rtklibexplorer, BSD-3; read from ../shared/data/drive_0708).
+"""The drive_0708 recording (docs/requirements.md, real drive drive_0708): a 549 s car drive with a
+low-cost 100 Hz IMU and an RTK solution of the antenna (rtklibexplorer, BSD-3; read from
+../shared/data/drive_0708).
 
 Files and how they are read:
 - `imu_1934.csv`: ax, ay, az [g], gx, gy, gz [deg/s], t [ms of the IMU's own clock], 100 Hz.
@@ -35,7 +36,7 @@ import struct
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.replay import dataset as ds
 from host_emulator.replay import rtklib_pos
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 from .dataset import GPS_EPOCH
 

@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.sim.trajectory import euler_to_dcm
 
 from .dataset import SWAP_FRD_RFU, WEEK_S, Dataset, Imu, Positions, mount_matrix
@@ -217,13 +217,13 @@ def parse_description(path):
 def _board_settings(path, entries):
     """{name: value} of a board: block, each line parsed as `config set NAME=VALUE` parses it
     and checked by the firmware's own validation (FormatError naming the line)."""
-    from host_emulator.replay import board
+    from host_emulator.replay import run_config
 
     out = {}
     for name, (text, line) in entries.items():
         value = text[1:-1] if text.startswith("[") and text.endswith("]") else text
         try:
-            key, parsed = board.parse(f"{name}={value}", where="board:")
+            key, parsed = run_config.parse(f"{name}={value}", where="board:")
         except EmulatorError as e:
             raise FormatError(f"{path}:{line}: {e}") from None
         out[key] = parsed

@@ -22,20 +22,20 @@ import time
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import stream
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
-from host_emulator.errors import EmulatorError
 from host_emulator.eval import evaluate, report, scenario_run
-from host_emulator.proto import stream
-from host_emulator.replay import board as board_settings
 from host_emulator.replay import diagnose, to_stimulus
+from host_emulator.replay import run_config as board_settings
 from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
 
-# DESIGN.md 10: two open filters on drive_0708 under the same protocol (1 Hz, 1.5/1.5/3 m,
-# 15 s outages at t0 + 60/200/400 s, metrics from t0 + 30 s)
+# docs/requirements.md, reference figures: two open filters on drive_0708 under the same protocol (1
+# Hz, 1.5/1.5/3 m, 15 s outages at t0 + 60/200/400 s, metrics from t0 + 30 s)
 REFERENCE_ROWS = (
     ("raw 1 Hz GNSS input", "2.13 m", "3.17 m", "-"),
     ("KF-GINS (C++, 21 states, tuned noise)", "2.15 m", "1.69 m", "22.3 / 27.5 / 11.5 m"),
@@ -202,7 +202,7 @@ def markdown(m, rep, console=()):
         lines.append("")
     if m["dataset"] == "drive_0708" and opt == to_stimulus.ReplayOptions(duration_s=None):
         lines += [
-            "Other filters under the same protocol (DESIGN.md 10):",
+            "Other filters under the same protocol (docs/requirements.md, reference figures):",
             "",
             "| filter | horizontal RMS with GNSS | vertical RMS | end of outages 1/2/3 |",
             "|---|---|---|---|",

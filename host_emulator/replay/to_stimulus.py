@@ -35,7 +35,7 @@ the firmware takes its heading from the track); `gnss_velocity_sigma` adds the s
 velocity with that noise, as a receiver's Doppler speed.
 
 Board settings: the ones derived here, then the dataset's (`Dataset.board_config`), then
-`ReplayOptions.config` (--set), checked by the firmware's validation (replay/board.py).
+`ReplayOptions.config` (--set), checked by the firmware's validation (replay/run_config.py).
 `Replay.notes` says what was done with the data (anything left out is counted there).
 """
 
@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymap3d
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.replay import board, carrier
+from common.errors import EmulatorError
+from common.proto import stimulus as stim_mod
+from host_emulator.replay import carrier, run_config
 from host_emulator.replay import dataset as ds
 from host_emulator.sim import board_input, nmea, trajectory
 from host_emulator.sim import gnss as gnss_mod
@@ -73,7 +73,7 @@ P_FRD_RFU = ds.SWAP_FRD_RFU  # FRD body -> the firmware's RFU body (and NED -> E
 @dataclass(frozen=True)
 class ReplayOptions:
     """How the recording is turned into the board's input (defaults: the protocol of
-    DESIGN.md 10, the one other filters were measured with)."""
+    docs/requirements.md, reference figures, the one other filters were measured with)."""
 
     gnss_rate_hz: float = 1.0  # epochs per second at most (GNSS_RATES_HZ; see _plan_gnss)
     gnss_noise_m: float | None = 1.5  # per horizontal axis; vertical twice that; None: as given
@@ -115,7 +115,8 @@ class Replay:
     options: ReplayOptions
     ranges: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)  # what was done with the data, for the console
-    sources: dict = field(default_factory=dict)  # board setting -> board.DATASET / COMMAND_LINE
+    # board setting -> run_config.DATASET / COMMAND_LINE
+    sources: dict = field(default_factory=dict)
     pps: bool = True  # a PPS edge at each epoch (else timed by gnss_latency_s)
     latency_s: float | None = None  # measured completion latency of the epochs (no PPS)
     gnss_recorded: bool = False  # the GNSS input is the dataset's GNSS file (else the reference)
@@ -480,8 +481,8 @@ def convert(dataset, opt=None):
     # board settings: the dataset's, then the options' (--set); the replay's own go first
     ds_cfg = {} if opt.sensor_defaults else dict(dataset.board_config)
     user = {**ds_cfg, **dict(opt.config)}
-    sources = {name: board.DATASET for name in ds_cfg}
-    sources.update((name, board.COMMAND_LINE) for name, _ in opt.config)
+    sources = {name: run_config.DATASET for name in ds_cfg}
+    sources.update((name, run_config.COMMAND_LINE) for name, _ in opt.config)
 
     _check_spans(dataset)
     imu = dataset.imu
@@ -620,8 +621,8 @@ def convert(dataset, opt=None):
     notes.append(_gnss_note(plan, m, baud, latency, user, sources))
     notes.append(_profile(accel_counts, ranges, config, user, sources))
     config.update(user)
-    board.check_scorable(config, sources)
-    refused = board.problem(config)
+    run_config.check_scorable(config, sources)
+    refused = run_config.problem(config)
     if refused:
         raise EmulatorError(f"the firmware refuses the replay's board settings: {refused}")
     head = {
@@ -666,7 +667,7 @@ def _profile(accel_counts, ranges, config, user, sources):
     gait = carrier.gait(accel_counts / lsb * carrier.G_M_S2, TICK_S)
     if "profile" not in user:
         config["profile"] = 1 if gait.walking else 0
-        sources["profile"] = board.DETECTED
+        sources["profile"] = run_config.DETECTED
         if gait.walking:
             return (f"profile 1 (handheld), chosen from the data: {gait.describe()}; "
                     "--set profile=0 runs it as a vehicle")  # fmt: skip

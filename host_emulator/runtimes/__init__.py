@@ -6,10 +6,10 @@ sent on its output UART, its console lines and its counters.
 
     fw = runtimes.get("cpython").run(stim, workdir, config_overrides=None, progress=None)
 
-    cpython   the firmware on CPython, over the emulated board of board/mpy (cpython.py);
+    cpython   the firmware on CPython, over the emulated board of emulated_board/mpy (cpython.py);
               float32 bit for bit through the seam's NumPy backend; the fastest, and the
               firmware's own tracebacks
-    mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over board/mpy
+    mpy_unix  the firmware in the MicroPython 1.29 unix VM from PyPI, over emulated_board/mpy
               (mpy_unix/); its floats are doubles, so float output agrees to a tolerance;
               proves the firmware runs on MicroPython and counts the GC blocks of every tick
     m4f       the firmware on an emulated Cortex-M4F (QEMU mps2-an386, MicroPython v1.28.0
@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 
 @dataclass(eq=False)
@@ -129,10 +129,10 @@ _built = {}
 
 
 def native_module(arch):
-    """The path of navk.mpy built for `arch` (tools.native.ARCHS), brought up to date when a
+    """The path of navk.mpy built for `arch` (common.native.ARCHS), brought up to date when a
     file of firmware/native changed since this process last built it; EmulatorError saying
     what to install when it cannot be built."""
-    from tools import native
+    from common import native
 
     key = tuple((p.name, p.stat().st_mtime_ns) for p in native.inputs())
     if _built.get(arch, (None,))[0] != key:

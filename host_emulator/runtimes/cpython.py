@@ -2,14 +2,14 @@
 emulated board.
 
 The firmware's own `board.py`, drivers and `app.py` run against the emulated board of
-board/mpy, the one the VM runtimes use too (`machine`: pins, SPI with the BMI055 register
+emulated_board/mpy, the one the VM runtimes use too (`machine`: pins, SPI with the BMI055 register
 model, UARTs with their receive rings, the PPS interrupt, the timer, the watchdog; `time`: the
-virtual clock), loaded by firmware_env.install_machine() and powered on afresh for every run.
+virtual clock), loaded by install_machine() and powered on afresh for every run.
 Floats are the float32 seam's NumPy backend, so what comes out is what the board computes, bit
 for bit.
 
-Per stimulus record k (proto/stimulus.py), as board/mpy/emulate.py does in the VM: the BMI055
-data and temperature registers take the record's values, the GNSS UART receives the record's
+Per stimulus record k (proto/stimulus.py), as emulated_board/mpy/emulate.py does in the VM: the
+BMI055 data and temperature registers take the record's values, the GNSS UART receives the record's
 bytes, the clock advances to the PPS edge (its interrupt fires) and to the tick's moment, the
 timer fires, the loop makes one pass (`App.service()`), and the output UART's transmit buffer
 is emptied. Time starts at power-on: the firmware's start-up (configuration, the BMI055
@@ -32,10 +32,11 @@ import traceback
 
 import numpy as np
 
-from host_emulator import firmware_env
-from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
+from common import firmware_env
+from common.errors import EmulatorError, FirmwareError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import FirmwareRun
 
 
@@ -54,11 +55,11 @@ def _firmware_failed(exc, where):
 def _use_kernels(kernels):
     """firmware_env.use_kernels(kernels), the native module built first: EmulatorError if it
     cannot be (rather than an error inside the firmware's `import navk`)."""
-    from tools import native
+    from common import native
 
     kind = firmware_env.use_kernels(kernels)
     if kind == "native":
-        from host_emulator.firmware_env import navk_host
+        from common.firmware_env import navk_host
 
         try:
             navk_host.load()
@@ -78,7 +79,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
         stim = stim_mod.read(stim)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
 
-    machine = firmware_env.install_machine()
+    machine = install_machine()
     kind = _use_kernels(kernels)
     machine.power_on()
     import app

@@ -1,4 +1,4 @@
-"""The report lines a MicroPython guest prints (host_emulator/board/mpy/feed.py: C console,
+"""The report lines a MicroPython guest prints (host_emulator/emulated_board/mpy/feed.py: C console,
 P progress, E error + traceback + E-END, S statistics), read back on the host, for the runtimes
 that run the firmware in a MicroPython (mpy_unix, m4f); and the display stream's marks from the
 bytes per tick those guests record."""
@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError, FirmwareError
+from common.errors import EmulatorError, FirmwareError
 
 
 def display_marks(data, per_tick, start_bytes, where_run):

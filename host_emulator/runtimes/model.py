@@ -5,7 +5,7 @@ no board around it). Bit for bit the cpython runtime's output (tests/eval/test_p
 import os
 import time
 
-from host_emulator.proto import stimulus as stim_mod
+from common.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
 
 

@@ -6,11 +6,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from common.proto import config as board_config
+from common.proto import session_file
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
-from host_emulator.proto import config as board_config
-from host_emulator.proto import session_file
 from host_emulator.session.record import record
 from host_emulator.session.replay import replay
 

@@ -9,9 +9,9 @@ within VM_FLOAT_STEPS steps, and only the extended frames' integer fields are co
 
 from dataclasses import dataclass
 
+from common.proto import frame, records, stream
+from common.proto.records import CRC_LEN, EXT_OFFSETS, RAW_OFFSETS
 from host_emulator.eval.compare import EXT, FRAME, RAW, KindResult, compare_kind
-from host_emulator.proto import frame, records, stream
-from host_emulator.proto.records import CRC_LEN, EXT_OFFSETS, RAW_OFFSETS
 from host_emulator.session.walk import TICK_US
 
 LABELS = ("recorded", "replayed")

@@ -6,10 +6,10 @@ pps_before_us = ticks_diff(t0_us, pps_us) before the tick (MicroPython's ticks_u
 
 import numpy as np
 
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto.frame import FRAME_TYPE
-from host_emulator.proto.stream import Decoded
-from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
+from common.proto import stimulus as stim_mod
+from common.proto.frame import FRAME_TYPE
+from common.proto.stream import Decoded
+from common.proto.ticks import TICKS_PERIOD, ticks_diff
 from host_emulator.session.walk import TICK_US, Recording, from_decoded, parse, rates
 
 

@@ -10,8 +10,8 @@ import stat
 import sys
 import time
 
-from host_emulator.proto import config as board_config
-from host_emulator.proto.session_file import FORMAT, SessionError, SessionWriter
+from common.proto import config as board_config
+from common.proto.session_file import FORMAT, SessionError, SessionWriter
 
 
 def _is_serial_name(source):
@@ -39,7 +39,7 @@ def _open_source(source, baud):
         raise SessionError(f"no such file or serial port: {source}")
     import serial
 
-    from host_emulator.proto import serial_port
+    from common.proto import serial_port
 
     try:
         port = serial_port.open_port(source, baud, 0.2)

@@ -5,9 +5,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from common.proto import config as board_config
+from common.proto.session_file import SessionError, load
 from host_emulator import runtimes
-from host_emulator.proto import config as board_config
-from host_emulator.proto.session_file import SessionError, load
 from host_emulator.replay import carrier
 from host_emulator.session.compare import Comparison, compare
 from host_emulator.session.rebuild import to_stimulus

@@ -19,14 +19,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_emulator import firmware_env
-from host_emulator.proto import config as board_config
-from host_emulator.proto import records
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto.frame import FRAME_TYPE
-from host_emulator.proto.records import EXT_TYPE, RAW_TYPE
-from host_emulator.proto.session_file import SessionError
-from host_emulator.proto.stream import StreamDecoder
+from common import firmware_env
+from common.proto import config as board_config
+from common.proto import records
+from common.proto import stimulus as stim_mod
+from common.proto.frame import FRAME_TYPE
+from common.proto.records import EXT_TYPE, RAW_TYPE
+from common.proto.session_file import SessionError
+from common.proto.stream import StreamDecoder
 
 TICK_US = stim_mod.TICK_US
 TICK_MASK = 0x3FFFFFFF  # the extended frame's tick field wraps here

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host_emulator.proto import stimulus as stim_mod
+from common.proto import stimulus as stim_mod
 from host_emulator.sim import gnss as gnss_mod
 from host_emulator.sim import imu as imu_mod
 from host_emulator.sim import nmea, trajectory

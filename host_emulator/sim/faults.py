@@ -1,5 +1,5 @@
 """Faults a board meets, injected into a stimulus where the firmware meets them: the BMI055's
-data registers, the GNSS UART's bytes and the PPS edges (issue 16). The unmodified firmware then
+data registers, the GNSS UART's bytes and the PPS edges. The unmodified firmware then
 runs on any runtime as on a board with that fault.
 
 A fault is written `KIND@T0+DURATION[:PARAM]` (seconds from the start of the stimulus; PARAM as
@@ -53,8 +53,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus as stim_mod
+from common.errors import EmulatorError
+from common.proto import stimulus as stim_mod
 from host_emulator.sim import imu as imu_mod
 from host_emulator.sim import nmea
 

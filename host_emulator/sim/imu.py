@@ -12,7 +12,8 @@ samples gives the stated angle/velocity random walk. (The chip's digital low-pas
 would lower the per-sample spread and correlate neighbouring samples without changing the
 low-frequency density; it is not modelled.)
 
-Defaults and their sources (DESIGN.md sections 7 and 10, Bosch BMI055 datasheet figures):
+Defaults and their sources (docs/requirements.md, BMI055 facts and reference figures, Bosch BMI055
+datasheet figures):
     gyro  +-250 deg/s, 131.2 LSB/(deg/s) (datasheet; the output frame's 131.07 is FRAME_*);
           counts clip at the int16 limits (+-249.7 deg/s at this range)
     accel +-2 g, 1024 LSB/g after the 12-bit shift; counts here are the shifted 12-bit

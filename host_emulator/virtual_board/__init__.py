@@ -10,12 +10,12 @@ Ctrl-A, with flow control), soft resets (Ctrl-D). Code runs in the real MicroPyt
 running repl_server.py (beside this file), with `fs_dir` mounted at /flash (capacity `flash_kb`).
 
 A soft reset from the friendly REPL runs the firmware in fs_dir as main.py does, in a second
-VM (board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated when the
-board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
+VM (emulated_board/mpy/emulate.py in its streaming mode) fed from a simulated scenario generated
+when the board starts: its console lines come out on `port`, its RS485 bytes on `rs485_port`; Ctrl-C
 stops it. `machine.reset()` in the REPL resets the board (`resets` counts them): a new REPL
 VM, then main.py as at power-up, whose maintenance check (board.maintenance_start) reads the
-RTC backup registers the REPL's `stm` stand-in wrote (board/mpy/backup_domain.py: a file both
-VMs share, as the backup domain outlives a reset). Everything runs on one background thread
+RTC backup registers the REPL's `stm` stand-in wrote (emulated_board/mpy/backup_domain.py: a file
+both VMs share, as the backup domain outlives a reset). Everything runs on one background thread
 around select().
 """
 
@@ -34,7 +34,7 @@ import threading
 import time
 import tty
 
-from host_emulator.board import EMULATE, MPY_DIR
+from host_emulator.emulated_board import EMULATE, MPY_DIR
 from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
 
@@ -219,8 +219,10 @@ class VirtualBoard:
     def _start_fw_vm(self):
         env = dict(os.environ, INS_VM_STREAM="realtime" if self.realtime else "fast",
                    INS_VM_BACKUP=str(self._backup))  # fmt: skip
-        if self.frozen_dir:  # after emulate.py's own entries (the firmware in /flash first)
-            env["MICROPYPATH"] = str(self.frozen_dir)
+        # after emulate.py's own entries (the firmware in /flash first): the frozen firmware if
+        # any, and what the host shares with the VM (the stimulus record, common/proto/mpy)
+        first = str(self.frozen_dir) if self.frozen_dir else vm.VM_PATH
+        env["MICROPYPATH"] = f"{first}:{vm.SHARED_DIR}"
         self._fw = subprocess.Popen(
             [
                 self._exe,
@@ -567,9 +569,9 @@ class VirtualBoard:
         at most twice a second (and when the firmware stops)."""
         if self.display is None:
             return
+        from common.proto import config as board_config
         from host_emulator.display.device import UsartGpu
         from host_emulator.display.usartgpu import DisplayError
-        from host_emulator.proto import config as board_config
 
         try:
             if self._gpu is None:
@@ -589,7 +591,7 @@ class VirtualBoard:
             return
         import io
 
-        from host_emulator.errors import write_atomic
+        from common.errors import write_atomic
 
         buf = io.BytesIO()
         self._gpu.screen.image(scale=2).save(buf, "PNG")
@@ -650,8 +652,8 @@ def main(argv=None):
         help="an image with the firmware frozen (this checkout's firmware/ and its fwid)",
     )
     args = p.parse_args(argv)
+    from common.errors import EmulatorError
     from host_emulator import args as cli_args
-    from host_emulator.errors import EmulatorError
 
     try:
         cli_args.check_scenario(args.scenario)
@@ -665,8 +667,8 @@ def main(argv=None):
         return 2
     frozen_tmp = None
     if args.frozen:
+        from common.toolchain import ToolchainError
         from tools.image import fwid
-        from tools.toolchain import ToolchainError
 
         frozen_tmp = tempfile.TemporaryDirectory(prefix="vboard-frozen-")
         try:

@@ -1,5 +1,5 @@
 """The virtual board's Python: runs inside one persistent MicroPython VM per board session and
-executes the code the host's REPL emulation (host_emulator/virtual_board.py) sends it.
+executes the code the host's REPL emulation (host_emulator/virtual_board/) sends it.
 
     micropython repl_server.py FS_DIR FLASH_KB CORRUPT_WRITES NONCE [FROZEN_DIR]
 
@@ -19,8 +19,8 @@ bytes, empty if none), SENTINEL = b"\\x00\\x1bVB" + NONCE + b":".
 
 The board's hardware, for the maintenance start (firmware/board.py, tools/flash/
 maintenance.py), with the environment variables INS_VB_BACKUP (the backup domain's file) and
-INS_VB_MPY (host_emulator/board/mpy): `stm` is backup_domain.py's stand-in (mem32 over the RTC
-backup registers, PWR_CR and RCC_APB1ENR, nothing else), `machine` the unix port's plus
+INS_VB_MPY (host_emulator/emulated_board/mpy): `stm` is backup_domain.py's stand-in (mem32 over the
+RTC backup registers, PWR_CR and RCC_APB1ENR, nothing else), `machine` the unix port's plus
 reset() and reset_cause() as the stm32 port has them. machine.reset() ends the code there: the
 server writes SENTINEL + b"reset\\n" and exits (the host resets the board: a new VM, main.py
 as at power-up). INS_VB_RESET_CAUSE: what reset_cause() gives (the host's reset).

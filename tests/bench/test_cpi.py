@@ -8,9 +8,9 @@ import pathlib
 
 import pytest
 
+from common.errors import EmulatorError
 from host_emulator.__main__ import main as cli_main
 from host_emulator.bench import cpi
-from host_emulator.errors import EmulatorError
 from host_emulator.runtimes.m4f import build as m4f_build
 
 COMMITTED = pathlib.Path(__file__).resolve().parents[2] / "docs" / "benchmarks" / "cpi.json"

@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
+from common.errors import EmulatorError
 from host_emulator import runtimes
 from host_emulator.__main__ import main
 from host_emulator.display import device, pictures
 from host_emulator.display.screen import Screen
 from host_emulator.display.usartgpu import DisplayError, Stream
-from host_emulator.errors import EmulatorError
 from host_emulator.runtimes import FirmwareRun
 from host_emulator.sim import board_input
 

@@ -1,5 +1,5 @@
 """firmware/drivers/bmi055.py against the emulated board's BMI055 register model
-(host_emulator/board/mpy/bmi055_model.py, through machine.py, on CPython) and against a
+(host_emulator/emulated_board/mpy/bmi055_model.py, through machine.py, on CPython) and against a
 minimal fake bus inside the MicroPython VM: start-up (chip IDs, soft reset and its delays,
 range/bandwidth registers and their read-back), clear errors for the usual wiring faults, exact
 decoding of every count including the extremes, the over-range flag at its documented
@@ -10,16 +10,17 @@ import time
 
 import numpy as np
 import pytest
-from drivers import bmi055
 
-from host_emulator import firmware_env
-from host_emulator.proto import stimulus
+from common.proto import stimulus
+from drivers import bmi055
+from host_emulator.emulated_board import bmi055_model, install_machine
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import imu as sim_imu
 
-machine = firmware_env.install_machine()  # the emulated board; time.now_us is its clock
+machine = install_machine()  # the emulated board; time.now_us is its clock
 
-# What the range and bandwidth registers mean (Bosch datasheet figures, DESIGN.md 7)
+# What the range and bandwidth registers mean (Bosch datasheet figures, docs/requirements.md, BMI055
+# facts)
 GYRO_RANGE_DPS = {0: 2000, 1: 1000, 2: 500, 3: 250, 4: 125}  # code -> deg/s
 ACCEL_RANGE_G = {0x03: 2, 0x05: 4, 0x08: 8, 0x0C: 16}  # code -> g
 GYRO_BW = {  # code -> (ODR Hz, filter bandwidth Hz)
@@ -419,7 +420,7 @@ def test_a_die_runs_on_the_clock_it_is_given():
     """bmi055_model is machine's BMI055 (re-exported), and a die takes another emulator's
     clock (`now_us`): its start-up after a soft reset ends on that clock, whatever the board's
     says; without one it runs on the board's (time.now_us)."""
-    model = firmware_env.bmi055_model()
+    model = bmi055_model()
     assert machine.Bmi055 is model.Bmi055 and machine.GyroDie is model.GyroDie
     machine.power_on()
     now = [1000]

@@ -19,9 +19,9 @@ from fractions import Fraction
 
 import pynmea2
 import pytest
-from drivers import gnss
 
-from host_emulator.firmware_env import REPO_DIR
+from common.firmware_env import REPO_DIR
+from drivers import gnss
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"

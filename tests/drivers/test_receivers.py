@@ -1,5 +1,5 @@
-"""Every common receiver kind completes its epochs without configuration (issue 17): the 20
-gpsd regression logs (../shared/data/nmea, INDEX.md) as they are (GGA+RMC(+VTG) receivers,
+"""Every common receiver kind completes its epochs without configuration: the 20
+gpsd regression logs (the NMEA data set, INDEX.md) as they are (GGA+RMC(+VTG) receivers,
 several talkers), and receiver kinds derived from them here, line by line, honestly: what a
 receiver configured that way would have printed of the same seconds.
 
@@ -30,9 +30,9 @@ import re
 
 import numpy as np
 import pytest
-from drivers import gnss
 
-from host_emulator.firmware_env import REPO_DIR
+from common.firmware_env import REPO_DIR
+from drivers import gnss
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
 LOGS = sorted(p.name[:-4] for p in NMEA_DIR.glob("*.log"))
@@ -392,8 +392,8 @@ def test_an_rmc_only_receiver_navigates():
     height. The frame shows height 0 (no GGA ever gave one); the navigator gets
     nav.FI_NO_HEIGHT and corrects east and north only, and its height is its own. Both sides
     agree in every bit."""
+    from common.proto import stream
     from host_emulator.eval import evaluate, parity
-    from host_emulator.proto import stream
     from host_emulator.sim import board_input
     from host_emulator.sim import gnss as sim_gnss
 

@@ -1,4 +1,4 @@
-"""`python -m host_emulator gnss-dump FILE [--json]` (host_emulator/gnss_dump.py): one line
+"""`python -m host_emulator gnss-dump FILE [--json]` (host_emulator/eval/gnss_dump.py): one line
 per accepted sentence, matching the driver's own records; counters on stderr; a clear error
 for an unreadable file."""
 
@@ -7,10 +7,10 @@ import subprocess
 import sys
 
 import pytest
-from drivers import gnss
 
+from common.firmware_env import REPO_DIR
+from drivers import gnss
 from host_emulator.eval import gnss_dump
-from host_emulator.firmware_env import REPO_DIR
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
 needs_logs = pytest.mark.skipif(not NMEA_DIR.is_dir(), reason=f"no NMEA logs in {NMEA_DIR}")

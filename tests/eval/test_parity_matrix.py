@@ -21,8 +21,8 @@ import struct
 import numpy as np
 import pytest
 
+from common.proto import stream
 from host_emulator.eval import parity
-from host_emulator.proto import stream
 from host_emulator.runtimes import cpython, mpy_unix
 from host_emulator.sim import board_input
 

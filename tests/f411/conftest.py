@@ -7,10 +7,10 @@ import subprocess
 
 import pytest
 
+from common import toolchain
 from host_emulator.f411 import boards
 from host_emulator.f411.chip import F411
 from host_emulator.f411.image import Image
-from tools import toolchain
 
 HERE = pathlib.Path(__file__).parent
 _built = {}

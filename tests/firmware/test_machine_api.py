@@ -1,6 +1,6 @@
 """`machine` as the stm32 port has it: the arguments its C takes, derived from the vendored
-MicroPython v1.28.0 source (tools.toolchain.micropython_dir()), against the emulated board's
-stand-in (host_emulator/board/mpy/machine.py) and the firmware's own calls.
+MicroPython v1.28.0 source (common.toolchain.micropython_dir()), against the emulated board's
+stand-in (host_emulator/emulated_board/mpy/machine.py) and the firmware's own calls.
 
 - The port's tables: every `static const mp_arg_t allowed_args[] = {...}` that machine.UART,
   SPI (hardware SPI), Pin (init, irq), Timer (the soft timer) and WDT parse with
@@ -31,11 +31,10 @@ from dataclasses import dataclass
 
 import pytest
 
-from host_emulator import firmware_env
-from host_emulator.board import MPY_DIR
-from host_emulator.firmware_env import FIRMWARE_DIR, REPO_DIR
+from common import toolchain
+from common.firmware_env import FIRMWARE_DIR, REPO_DIR
+from host_emulator.emulated_board import MPY_DIR, install_machine
 from host_emulator.runtimes.mpy_unix import vm as mpvm
-from tools import toolchain
 
 SRC = toolchain.micropython_dir()
 PROJECT_BOARDS = REPO_DIR / "tools" / "image" / "boards"
@@ -522,7 +521,7 @@ def test_an_unreadable_table_fails_loudly(tmp_path, monkeypatch):
 
 @pytest.fixture
 def machine():
-    m = firmware_env.install_machine()
+    m = install_machine()
     m.power_on()
     return m
 

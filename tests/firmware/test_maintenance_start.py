@@ -10,8 +10,8 @@ import types
 
 import pytest
 
-from host_emulator import firmware_env
-from host_emulator.firmware_env import FIRMWARE_DIR
+from common.firmware_env import FIRMWARE_DIR
+from host_emulator.emulated_board import install_machine
 
 BKP18R, PWR_CR, DBP, APB1ENR, PWREN = 0x40002898, 0x40007000, 0x100, 0x40023840, 1 << 28
 ASKED, ON = 0x2D4D4E54, 0x2D4D4E4F  # tools/flash/maintenance.py (test_maintenance.py)
@@ -42,7 +42,7 @@ class Mem32:
 
 @pytest.fixture
 def board():
-    machine = firmware_env.install_machine()
+    machine = install_machine()
     machine.power_on()
     import board
 
@@ -96,9 +96,9 @@ def test_main_py_in_maintenance_starts_neither_the_loop_nor_the_watchdog(
 
 
 def test_the_watchdog_is_50_ms_and_what_derives_from_it(board):
-    """50 ms (seed 000 NFR005): the port takes it (IWDG_PR 0, LSI / 4, and RLR 399: 50.0 ms at
-    the LSI's 32 kHz), the loop catches up at most that many ticks, the stopped loop's timer
-    feeds it four times per timeout."""
+    """50 ms (docs/requirements.md, NFR005): the port takes it (IWDG_PR 0, LSI / 4, and RLR 399:
+    50.0 ms at the LSI's 32 kHz), the loop catches up at most that many ticks, the stopped loop's
+    timer feeds it four times per timeout."""
     import app
 
     machine = sys.modules["machine"]

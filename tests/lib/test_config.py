@@ -6,11 +6,11 @@ import json
 import struct
 from binascii import crc32
 
-import config
-import navcfg
 import numpy as np
 import pytest
 
+import config
+import navcfg
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 
@@ -147,7 +147,7 @@ def test_out_of_range_values_are_refused(tmp_path):
     ],
 )
 def test_physically_impossible_values_are_refused_with_the_range(name, value, words):
-    """Finite but absurd settings (issue 16: gyro_bias0=3e38 gave a NaN covariance) are refused
+    """Finite but absurd settings (gyro_bias0=3e38 once gave a NaN covariance) are refused
     with the setting's name and its range; the defaults and the range's ends are accepted."""
     cfg = custom()
     setattr(cfg, name, value)
@@ -205,10 +205,9 @@ print(json.dumps([status, cfg.gyro_range_dps, list(cfg.lever_b_m), cfg.gnss_late
 def test_mounting_rotation_turns_sensor_axes_into_body_axes():
     """A board mounted turned 90 deg about up (sensor x = body forward): a rate about the
     sensor's x axis is a rate about the body's y axis once calibrated."""
+    import f32
     import navcfg  # noqa: F401
     from nav import Navigator
-
-    import f32
 
     c = config.BoardConfig()
     c.mount_ypr_deg = [90.0, 0.0, 0.0]

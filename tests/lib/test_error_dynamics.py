@@ -3,13 +3,14 @@ the firmware: F (eskf.py) and the measurement rows the navigator queues (nav_aid
 
 Bit-for-bit parity with the NumPy model cannot catch a sign or a term that the firmware and
 its mirror share, so every expectation here comes from the error definitions alone (eskf.py's
-docstring, DESIGN.md 5; ENU navigation frame, state order dp, dv, phi, dbg, dba):
+docstring, docs/requirements.md, conventions; ENU navigation frame, state order dp, dv, phi, dbg,
+dba):
     dp = p_nominal - p_true,  dv = v_nominal - v_true,  C_nominal = (I - [phi x]) C_true,
     dbg = b_g,true - b_g,estimate,  dba = b_a,true - b_a,estimate.
 Here a true state is built from a nominal one and dx with C_true = exp([phi x]) C_nominal (the
 same definition to first order, and exactly what `_inject` applies).
 
-1. F typed from seed 001 eq. 5-28/5-29 plus the Earth-fixed frame's terms, against
+1. F typed from docs/requirements.md eq. 5-28/5-29 plus the Earth-fixed frame's terms, against
    `Eskf._phi_apply` (Phi = I + F T), within Higham's float32 rounding bound; and deliberately
    wrong F's fail the same comparison.
 2. F derived numerically from the continuous nominal and true dynamics (finite differences of
@@ -23,13 +24,13 @@ same definition to first order, and exactly what `_inject` applies).
 
 from dataclasses import dataclass
 
-import eskf
-import nav as nav_mod
-import navcfg
 import numpy as np
 import pytest
 
+import eskf
 import f32
+import nav as nav_mod
+import navcfg
 import rot
 
 POS = slice(0, 3)
@@ -99,8 +100,9 @@ def as64(buf):
 
 
 def textbook_F(C_bn, f_n, w_ie_n, inv_tau_g, inv_tau_a, earth_terms):
-    """Continuous-time F: seed 001 eq. 5-28 (F_av = [f_n x], eq. 5-29), plus Coriolis and Earth
-    rate on the attitude in the Earth-fixed tangent frame, plus first-order Gauss-Markov biases."""
+    """Continuous-time F: docs/requirements.md eq. 5-28 (F_av = [f_n x], eq. 5-29), plus Coriolis
+    and Earth rate on the attitude in the Earth-fixed tangent frame, plus first-order Gauss-Markov
+    biases."""
     F = np.zeros((N, N))
     F[POS, VEL] = I3
     F[VEL, ATT] = skew(f_n)

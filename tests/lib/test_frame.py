@@ -5,12 +5,12 @@ conversions, and allocation-freedom of the integer paths in the MicroPython VM."
 import json
 import struct
 
-import frame
 import numpy as np
 import pytest
 
 import f32
-from host_emulator.proto import frame as frame_schema
+import frame
+from common.proto import frame as frame_schema
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 F32 = np.float32
@@ -24,8 +24,8 @@ def buf(values):
 
 
 def expected_frame(counter, gyro, accel, flags, lat_e7, lon_e7, h_dm, state, ypr, vel, pos):
-    """The frame of DESIGN.md section 6 with these integer field values, built from the one
-    field table (host_emulator/proto/frame.py, itself checked against DESIGN.md)."""
+    """The frame of docs/requirements.md, output frame with these integer field values, built from
+    the one field table (common/proto/frame.py, itself checked against docs/requirements.md)."""
     names = (
         *frame_schema.SENSOR_FIELDS, "pps", "gga", "gnss_valid", "lat_e7", "lon_e7",
         "height_dm", "nav_state", *frame_schema.NAV_FLOAT_FIELDS,

@@ -37,7 +37,9 @@ def random_points(lat0_e7, lon0_e7, h0, n, max_d_m):
     return np.rint(lat * 1e7).astype(np.int64), np.rint(lon * 1e7).astype(np.int64), h
 
 
-ORIGINS = [  # (lat0_e7, lon0_e7, h0_m): equator, Xi'an (seed 001's test drives), 60 N, 80 S
+# (lat0_e7, lon0_e7, h0_m): equator, Xi'an (near the original board's test drives,
+# docs/requirements.md), 60 N, 80 S
+ORIGINS = [
     (0, 0, 0.0),
     (342600000, 1089400000, 400.0),
     (600000000, -1500000000, 50.0),

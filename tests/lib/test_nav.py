@@ -2,22 +2,22 @@
 GNSS data: alignment, accuracy after alignment, robustness (gating, R floor, faults, outages)
 and re-anchoring. Bit-exactness against the NumPy model is in tests/model/test_nav_model.py."""
 
+import numpy as np
+import pytest
+
 import eskf
+import f32
 import nav as fw_nav
 import nav_aid
 import nav_align
 import navcfg
-import numpy as np
-import pytest
-from nav import ALIGNING, NAVIGATING, Navigator
-
-import f32
 from host_emulator.bench import navigation as bench_nav
 from host_emulator.bench import navigator as nav_runner
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
 from host_emulator.sim.trajectory import wrap_pi
+from nav import ALIGNING, NAVIGATING, Navigator
 
 DT = 0.005
 
@@ -97,7 +97,7 @@ def test_mixins_repeat_the_navigators_buffer_indices_exactly():
 
 def test_static_board_levels_estimates_gyro_bias_and_waits_for_a_heading():
     """No magnetometer: a static board levels itself but cannot know its heading, so it stays
-    in the aligning state (seed 001 5.2) even with a stable GNSS fix."""
+    in the aligning state (docs/requirements.md, original main loop) even with a stable GNSS fix."""
     truth, imu, gnss = scenario("static", 40, seed=1)
     nav = car_nav(gnss)
     feed(nav, imu, gnss, 0, len(truth.t_s) - 1)
@@ -661,7 +661,7 @@ def test_position_only_straight_drive_starts_from_the_track():
     assert start.yaw_sigma_deg >= float(np.degrees(cfg.init_yaw_sigma)) - 1e-3
     assert abs(start.yaw_err_deg) < 3.0 * start.yaw_sigma_deg, start.yaw_err_deg
     # measured 5.3 m/s: the window began at a standstill anchor, 2.6 sigma (3.3 m/s with the
-    # 4-8 s windows before the anchors were kept for walkers; issue 17's notes)
+    # 4-8 s windows before the anchors were kept for walkers)
     assert start.vel_err < 3 * float(cfg.track_vel_sigma), start.vel_err
     assert start.p_vel == pytest.approx(float(cfg.track_vel_sigma) ** 2, rel=0.01)
     assert start.speed_tick == -1000000  # unknown speeds never reached the standstill veto

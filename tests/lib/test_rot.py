@@ -1,5 +1,5 @@
-"""firmware/lib/rot.py: against seed 001 written out directly (eq. 5-6, 5-11), bit for bit
-against the NumPy model, inside the MicroPython VM, and what it allocates there."""
+"""firmware/lib/rot.py: against docs/requirements.md written out directly (eq. 5-6, 5-11), bit for
+bit against the NumPy model, inside the MicroPython VM, and what it allocates there."""
 
 import json
 
@@ -20,8 +20,9 @@ RNG = np.random.default_rng(20261121)
 
 
 def seed_c_nb(yaw, pitch, roll):
-    """Seed 001 eq. 5-6 as printed: C_n^b = R(theta_y) R(theta_x) R(theta_z), with theta_y the
-    roll about the forward axis, theta_x the pitch about the right axis, theta_z the yaw."""
+    """docs/requirements.md eq. 5-6 as printed: C_n^b = R(theta_y) R(theta_x) R(theta_z), with
+    theta_y the roll about the forward axis, theta_x the pitch about the right axis, theta_z the
+    yaw."""
     cy, sy = np.cos(yaw), np.sin(yaw)
     cp, sp = np.cos(pitch), np.sin(pitch)
     cr, sr = np.cos(roll), np.sin(roll)

@@ -10,9 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
+from common import firmware_env
+from common.proto import records as proto_records
 from host_emulator.model import display as model_display
-from host_emulator.proto import records as proto_records
 
 firmware_env.install()
 import app  # noqa: E402

@@ -16,22 +16,22 @@ meant to exercise really happened, so it cannot pass vacuously.
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+import pytest
+
 import eskf
+import f32
+import geo
 import ins as ins_mod
 import nav as nav_mod
 import nav_align
 import navcfg
-import numpy as np
-import pytest
-from nav import CAUSE_GNSS_IMPLAUSIBLE, NAVIGATING, Navigator
-
-import f32
-import geo
 from host_emulator.bench import navigator as nav_runner
 from host_emulator.model.nav import NavModel
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
+from nav import CAUSE_GNSS_IMPLAUSIBLE, NAVIGATING, Navigator
 
 F32 = np.float32
 DT = trajectory.DT_S

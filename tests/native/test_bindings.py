@@ -1,4 +1,4 @@
-"""tools/native/bindings.py: navk.h's prototypes -> the MicroPython module's C and cffi's cdef.
+"""common/native/bindings.py: navk.h's prototypes -> the MicroPython module's C and cffi's cdef.
 
 The generator takes the header's navk_* prototypes (comments, preprocessor lines and static
 definitions skipped), refuses any type it cannot bind (naming the prototype), and writes one
@@ -9,8 +9,8 @@ import pathlib
 
 import pytest
 
-from tools import native
-from tools.native import bindings
+from common import native
+from common.native import bindings
 
 SAMPLE = pathlib.Path(__file__).with_name("sample")
 

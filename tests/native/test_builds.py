@@ -1,4 +1,4 @@
-"""The three builds of the native kernels (tools/native) give the same float32 bits everywhere.
+"""The three builds of the native kernels (common/native) give the same float32 bits everywhere.
 
 A sample navk.h/navk.c (tests/native/sample: every argument and result type, 0 to 12
 arguments, sqrtf and a*b+c) is built the three ways into a temporary directory: the cffi
@@ -22,11 +22,11 @@ import sys
 import numpy as np
 import pytest
 
-from host_emulator.firmware_env import navk_host
+from common import native, toolchain
+from common.firmware_env import navk_host
+from common.native import bindings
 from host_emulator.runtimes.m4f import guest
 from host_emulator.runtimes.mpy_unix import vm
-from tools import native, toolchain
-from tools.native import bindings
 
 SAMPLE = pathlib.Path(__file__).with_name("sample")
 F32 = np.float32
@@ -351,7 +351,7 @@ def test_the_cffi_build_is_cached_by_content_and_safe_to_share(tmp_path):
     shutil.copytree(SAMPLE, src)
     root = tmp_path / "build"
     code = (
-        f"import sys; sys.path.insert(0, {str(toolchain.REPO)!r}); from tools import native; "
+        f"import sys; sys.path.insert(0, {str(toolchain.REPO)!r}); from common import native; "
         f"print(native.cffi_module({str(src)!r}, {str(root)!r}))"
     )
     procs = [

@@ -7,12 +7,12 @@
     changes, every float32 in [9/16, 1] for asin, random bit patterns over the whole float32
     range, and specials;
 (b) they equal fmath.py itself, run on numpy.float32 scalars, on a few thousand inputs;
-(c) fmath32.h's constants are fmath.py's;
+(c) the FM_ constants (tuning.h, which common/native/layout.py generates) are fmath.py's;
 (d) fmath32.h compiles without a warning about double or float conversions, and the code GCC
     makes of it holds no fused multiply-add, no x87 and no double arithmetic (x86-64, also with
     FMA available, and the Cortex-M4F when arm-none-eabi-gcc is installed).
 
-The C under test is the CPython build of the kernels (tools.native.cffi_module: cffi over every
+The C under test is the CPython build of the kernels (common.native.cffi_module: cffi over every
 firmware/native/*.c with the float flags of all the native builds).
 """
 
@@ -25,12 +25,13 @@ import numpy as np
 import pytest
 
 import fmath
+from common import native
 from host_emulator.model import fmath as model
-from tools import native
 
 NATIVE = native.NATIVE_DIR
 HEADER = NATIVE / "fmath32.h"
-# DESIGN.md 3 rule 7: each + - * / rounded on its own, sqrtf one instruction, no fast-math
+# docs/requirements.md, float32 contract rule 7: each + - * / rounded on its own, sqrtf one
+# instruction, no fast-math
 FLOAT_FLAGS = [native.CFFI_OPT, *native.FLOAT_FLAGS]
 WARNINGS = ["-Wall", "-Wextra", "-Wdouble-promotion", "-Wfloat-conversion", "-Wconversion"]
 
@@ -46,7 +47,7 @@ RNG_SEED = 20240611
 @pytest.fixture(scope="module")
 def navk():
     """The CPython build of the kernels (firmware_env.navk_host: built unless cached)."""
-    from host_emulator.firmware_env import navk_host
+    from common.firmware_env import navk_host
 
     return navk_host.load()
 
@@ -54,7 +55,7 @@ def navk():
 def run_c(navk, name, *args):
     args = [np.ascontiguousarray(a, dtype=F32) for a in args]
     out = np.empty(args[0].shape, dtype=F32)
-    from host_emulator.firmware_env import navk_host
+    from common.firmware_env import navk_host
 
     getattr(navk, f"{name}_n")(out, *args, out.size)
     navk_host.clear_cache()  # the wrapper's pointer cache would keep these big arrays alive
@@ -261,7 +262,8 @@ def test_equals_firmware_module(navk):
 
 
 def test_constants_are_fmath_constants():
-    defined = dict(re.findall(r"#define FM_(\w+) F32_BITS\((0x[0-9A-F]{8})\)", HEADER.read_text()))
+    text = (NATIVE / "tuning.h").read_text()
+    defined = dict(re.findall(r"#define FM_(\w+) F32_BITS\((0x[0-9A-F]{8})\)", text))
     python = {
         name: int(bits(value))
         for name, value in vars(fmath).items()

@@ -1,102 +1,71 @@
-"""The native kernels and the Python modules agree on every buffer layout: each `#define` of
-firmware/native/layout.h equals the constant of the Python module it repeats."""
+"""The numbers the native kernels share with the firmware's Python are written once: layout.h
+and tuning.h are what common/native/layout.py generates from the Python modules, and no C file
+defines a number of its own under a name the Python side also has."""
 
 import re
 
+import numpy as np
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR, import_module
+from common.firmware_env import FIRMWARE_DIR, import_module
+from common.native import layout
 
-LAYOUT_H = FIRMWARE_DIR / "native" / "layout.h"
-
-# C name prefix -> (module, Python name for the rest of the C name); first match wins
-RULES = (
-    ("CAL_HAS_", None, None),  # flags, checked below
-    ("X_", "ins", "X_"),
-    ("NX", "ins", "NX"),
-    ("S_", "eskf", "_"),
-    ("E_", "eskf", "E_"),
-    ("I_", "eskf", "I_"),
-    ("IX_", "eskf", "IX_"),
-    ("NE", "eskf", "NE"),
-    ("NI", "eskf", "NI"),
-    ("N", "eskf", "N"),
-    ("MAX_", "eskf", "MAX_"),
-    ("IDLE", "eskf", "IDLE"),
-    ("PROPAGATING", "eskf", "PROPAGATING"),
-    ("UPDATING", "eskf", "UPDATING"),
-    ("CAL_", "nav", "_CAL_"),
-    ("NCAL", "nav", "_NCAL"),
-    ("C_", "nav", "_C_"),
-    ("NC", "nav", "_NC"),
-    ("CN_", "nav", "_CN_"),
-    ("NCN", "nav", "_NCN"),
-    ("LS_", "nav", "_LS_"),
-    ("NLS", "nav", "_NLS"),
-    ("M_", "nav", "_M_"),
-    ("NM", "nav", "_NM"),
-    ("OPT_", "nav", "_OPT_"),
-    ("JOB_", "nav", "_JOB_"),
-    ("EV_", "nav", "_EV_"),
-    ("ALIGNING", "nav", "ALIGNING"),
-    ("NAVIGATING", "nav", "NAVIGATING"),
-    ("RING", "nav", "RING"),
-    ("STP_", "nav", "_STP_"),
-    ("NSTP", "nav", "_NSTP"),
-    ("STILL_", "nav", "_STILL_"),
-    ("ST_", "nav", "_ST_"),
-    ("AID_", "nav", "_AID_"),
-    ("AW_", "nav", "_AW_"),
-    ("INFLATE_", "nav", "_INFLATE_"),
-    ("NAID", "nav", "_NAID"),
-    ("FX_", "nav", "_FX_"),
-    ("FI_", "nav", "FI_"),
-    ("NFI", "nav", "NFI"),
-    ("FC_", "nav", "_FC_"),
-    ("US_", "nav_aid", "_US_"),
-    ("F_", "frame", "F_"),
-    ("NF", "frame", "NF"),
-    ("EF_", "records", "EF_"),
-    ("NEF", "records", "NEF"),
-    ("RF_", "records", "RF_"),
-    ("NRF", "records", "NRF"),
-    ("GEO_", "geo", ""),
-    ("BMI055_", "drivers.bmi055", ""),
-    ("NMEA_MAXLEN", "drivers.gnss", "MAXLEN"),
-    ("NMEA_MAXF", "drivers.gnss", "_MAXF"),
-    ("NS_", "drivers.gnss", "_NS_"),
-    ("NR_", "drivers.gnss", "_NR_"),
-)
+NATIVE = FIRMWARE_DIR / "native"
 
 
-def defines():
-    out = {}
-    for m in re.finditer(r"^#define\s+([A-Z][A-Z0-9_]*)\s+(-?\d+)\b", LAYOUT_H.read_text(), re.M):
-        out[m.group(1)] = int(m.group(2))
-    return out
+def defines(text):
+    """{name: value text} of a C text's object-like #defines with a value."""
+    return dict(re.findall(r"^#define[ \t]+([A-Z][A-Z0-9_]*)[ \t]+(\S[^/\n]*?)\s*(?:/\*.*)?$",
+                           text, re.M))  # fmt: skip
 
 
-def python_name(c_name):
-    for prefix, module, replacement in RULES:
-        exact = not prefix.endswith("_")
-        if (exact and c_name == prefix) or (not exact and c_name.startswith(prefix)):
-            if module is None:
-                return None, None
-            return module, replacement + c_name[len(prefix) :] if not exact else replacement
-    raise AssertionError(f"layout.h: {c_name} has no Python counterpart in RULES")
+def test_the_generated_headers_are_what_the_generator_writes():
+    assert layout.stale() == [], "run `python -m common.native.layout` and commit the headers"
 
 
-@pytest.mark.parametrize("c_name", sorted(defines()))
-def test_layout_constant_equals_python(c_name):
-    module, name = python_name(c_name)
-    if module is None:
-        return
-    value = getattr(import_module(module), name)
-    assert defines()[c_name] == value, f"layout.h {c_name} = {defines()[c_name]}, {module}.{name}"
+def test_the_headers_hold_the_python_values():
+    """Spot checks through an independent reading: an index, a negative hex code, a flag, a
+    float32 by its bits."""
+    ints = defines((NATIVE / "layout.h").read_text())
+    nav = import_module("nav")
+    gnss = import_module("drivers.gnss")
+    assert int(ints["C_INFLATE"]) == nav._C_INFLATE
+    assert ints["NMEA_BAD"] == "(-0x3FFFFFFF)" and gnss._BAD == -0x3FFFFFFF
+    assert ints["CAUSE_FAULTS"] == hex(nav.CAUSE_FAULTS).upper().replace("0X", "0x")
+    assert int(ints["CAL_HAS_AM"]) == nav._CAL_HAS_AM == 2
+    floats = defines((NATIVE / "tuning.h").read_text())
+    bits = int(np.array(import_module("nav_align").MIN_LEVEL_F).view(np.uint32))
+    assert floats["MIN_LEVEL_F"] == f"F32_BITS(0x{bits:08X})"
 
 
-def test_layout_has_every_block():
-    # the calibration flags are literals in nav.Navigator._set_calibration (bit 0, bit 1)
-    d = defines()
-    assert (d["CAL_HAS_GM"], d["CAL_HAS_AM"]) == (1, 2)
-    assert len(d) > 100
+def test_no_kernel_defines_a_number_the_python_side_holds():
+    """A #define in a .c or a hand-written header whose name, without a prefix the generator
+    adds, is a Python constant of the firmware would be a second copy of it."""
+    python = set()
+    for module, *_ in layout.LAYOUT + layout.TUNING:
+        python.update(name.lstrip("_") for name, _ in layout._names(layout._module_path(module)))
+    generated = {"layout.h", "tuning.h"}
+    copies = []
+    for path in sorted(NATIVE.glob("*.[ch]")):
+        if path.name in generated:
+            continue
+        for name in defines(path.read_text()):
+            bare = re.sub(r"^(NMEA_|GEO_|BMI055_|NAVK_|FM_)", "", name)
+            if name in python or bare in python:
+                copies.append(f"{path.name}: {name}")
+    assert copies == []
+
+
+def test_a_stale_header_is_reported(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(layout, "NATIVE_DIR", tmp_path)
+    (tmp_path / "layout.h").write_text("/* old */\n")
+    assert layout.main(["--check"]) == 1
+    err = capsys.readouterr().err
+    assert "layout.h is stale" in err and "tuning.h is stale" in err
+    assert layout.main([]) == 0 and layout.main(["--check"]) == 0
+
+
+def test_a_pattern_that_selects_nothing_is_an_error(monkeypatch):
+    monkeypatch.setattr(layout, "LAYOUT", (("ins", "x", "", ("NO_SUCH_*",)),))
+    with pytest.raises(layout.LayoutError, match="NO_SUCH_"):
+        layout.headers()

@@ -15,16 +15,16 @@ import sys
 import numpy as np
 import pytest
 
+from common import firmware_env, native
+from common.errors import EmulatorError
+from common.firmware_env import navk_host
 from host_emulator import __main__ as cli
-from host_emulator import firmware_env, runtimes
-from host_emulator.errors import EmulatorError
+from host_emulator import runtimes
 from host_emulator.eval import parity
-from host_emulator.firmware_env import navk_host
 from host_emulator.runtimes import cpython
 from host_emulator.runtimes.m4f import guest
 from host_emulator.runtimes.mpy_unix import vm
 from host_emulator.sim import board_input
-from tools import native
 
 
 @pytest.fixture
@@ -118,7 +118,7 @@ def test_the_vm_finds_navk_only_when_native():
     assert vm.run(probe, kernels="python").split() == ["P"]
     assert vm.run(probe, kernels="native").split()[0] == "N"
     env = vm.env("python")
-    assert env["MICROPYPATH"] == ".frozen"
+    assert env["MICROPYPATH"] == f".frozen:{vm.SHARED_DIR}"  # no navk there
     assert vm.env("native")["MICROPYPATH"].startswith(str(native.natmod_dir("x64")))
 
 

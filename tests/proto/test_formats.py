@@ -1,8 +1,8 @@
-"""The board formats written once in host_emulator/proto against what they must agree with:
-the frame's field table against the contract in DESIGN.md section 6 (parsed from the document,
-not retyped), the firmware's packers (firmware/lib/records.py) against the record layouts, the
-CRC against crcmod's independent CRC-32, the host's tick arithmetic against the MicroPython
-side's (board/mpy/time.py)."""
+"""The board formats written once in common/proto against what they must agree with:
+the frame's field table against the contract in docs/requirements.md, output frame (parsed from the
+document, not retyped), the firmware's packers (firmware/lib/records.py) against the record layouts,
+the CRC against crcmod's independent CRC-32, the host's tick arithmetic against the MicroPython
+side's (emulated_board/mpy/time.py)."""
 
 import importlib.util
 import re
@@ -13,30 +13,53 @@ import numpy as np
 import pytest
 
 import f32
-from host_emulator.board import MPY_DIR
-from host_emulator.firmware_env import REPO_DIR
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import records as rec_schema
-from host_emulator.proto.crc import crc32
-from host_emulator.proto.ticks import TICKS_PERIOD, ticks_diff
+from common.firmware_env import REPO_DIR
+from common.proto import frame as frame_schema
+from common.proto import records as rec_schema
+from common.proto.crc import crc32
+from common.proto.ticks import TICKS_PERIOD, ticks_diff
+from host_emulator.emulated_board import MPY_DIR
 
-DESIGN = REPO_DIR.parent / "shared" / "DESIGN.md"
+REQUIREMENTS = REPO_DIR / "docs" / "requirements.md"
+# the contract itself, outside the repository (the design notes the checks beyond it read)
+DESIGN_NOTES = REPO_DIR.parent / "shared" / "DESIGN.md"
 _CODES = {"int16": "h", "int32": "i", "u8": "B"}
+
+
+def _table(text):
+    """The '| bytes | field | scale |' rows of a frame table, as written."""
+    return re.findall(r"^\| \d+(?:-\d+)? \| [^|]+ \| [^|]+ \|$", text, re.M)
+
+
+def _contract_section():
+    text = REQUIREMENTS.read_text()
+    start = text.index("### Output frame (contract)")
+    return text[start : text.index("\n### ", start + 1)]
 
 
 def _design_rows():
     """(first byte, last byte, struct code, scale per unit or None) of each row of the frame
-    table in DESIGN.md section 6."""
-    text = DESIGN.read_text()
-    section = text[text.index("## 6.") : text.index("## 7.")]
+    table in docs/requirements.md, output frame (contract)."""
     rows = []
-    for m in re.finditer(r"^\| (\d+)(?:-(\d+))? \| ([^|]+) \| ([^|]+) \|$", section, re.M):
+    for m in re.finditer(
+        r"^\| (\d+)(?:-(\d+))? \| ([^|]+) \| ([^|]+) \|$", _contract_section(), re.M
+    ):
         first, last = int(m[1]), int(m[2] or m[1])
         kind = re.search(r"\((int16|int32|u8)\)", m[3])
         code = _CODES[kind[1]] if kind else "B"  # header, counter: bytes
         scale = re.match(r"([\d.e]+) per ", m[4])
         rows.append((first, last, code, float(scale[1]) if scale else None))
     return rows
+
+
+def test_the_repositorys_frame_table_is_the_contracts():
+    """docs/requirements.md carries the contract's frame table row for row (the design notes'
+    section 6, outside the repository: compared where they are, as on the CI machine)."""
+    if not DESIGN_NOTES.exists():
+        pytest.skip(f"the design notes are not at {DESIGN_NOTES}")
+    notes = DESIGN_NOTES.read_text()
+    section = notes[notes.index("## 6.") : notes.index("## 7.")]
+    assert _table(_contract_section()) == _table(section) != []
 
 
 def _effective_scale(f):
@@ -103,9 +126,8 @@ def _firmware_ext(counter, tick):
 
 
 def test_the_firmwares_extended_frame_is_the_record_layout():
-    import records
-
     import geo
+    import records
 
     data, p, bg, ba, pos, coef = _firmware_ext(9, 0x3FFFFFFF)
     assert len(data) == rec_schema.EXT_LEN == records.EXT_LEN and rec_schema.crc_ok(data)

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from host_emulator.proto import serial_port
+from common.proto import serial_port
 
 HOLD = (
     "import fcntl, os, sys, time\n"

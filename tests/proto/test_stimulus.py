@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus
+from common.errors import EmulatorError
+from common.proto import stimulus
 
 
 def small():

@@ -7,9 +7,9 @@ import random
 
 import pytest
 
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import records, stream
-from host_emulator.proto.stream import EXT, FRAME, RAW, StreamDecoder
+from common.proto import frame as frame_schema
+from common.proto import records, stream
+from common.proto.stream import EXT, FRAME, RAW, StreamDecoder
 from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input
 

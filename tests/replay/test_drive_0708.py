@@ -5,8 +5,8 @@ rotation fails here before any filter runs."""
 import numpy as np
 import pytest
 
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import stimulus as stim_mod
+from common.errors import EmulatorError
+from common.proto import stimulus as stim_mod
 from host_emulator.replay import dataset as ds
 from host_emulator.replay import drive_0708
 from host_emulator.replay import to_stimulus as ts

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.replay import kfgins
 from host_emulator.replay.dataset import WEEK_S, Dataset, Positions, gpst, mount_matrix
 from host_emulator.replay.kfgins import FormatError

@@ -1,4 +1,4 @@
-"""Bringing one's own recording to `replay --kf-gins` (issue 17, item 5): the defaults (no
+"""Bringing one's own recording to `replay --kf-gins`: the defaults (no
 outages, scored from t0), --score-from, board settings (--set and dataset.yaml's board:),
 GNSS epochs at any time (no PPS, decimation, nothing dropped silently), the messages for the
 usual mistakes (units, separator, header, week), why a run never navigated, and the console's
@@ -17,12 +17,12 @@ import numpy as np
 import pymap3d
 import pytest
 
+from common.errors import EmulatorError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
 from host_emulator.__main__ import main
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.replay import board, kfgins, replay_run
 from host_emulator.replay import dataset as dsm
+from host_emulator.replay import kfgins, replay_run, run_config
 from host_emulator.replay import to_stimulus as ts
 from host_emulator.replay.formats import FormatError
 from host_emulator.sim import board_input
@@ -219,7 +219,7 @@ def test_board_section_of_dataset_yaml(written, tmp_path):
     assert cfg["gyro_arw"] == 0.0017 and cfg["gyro_bias0"] == [0.001, -0.002, 0.0005]
     assert cfg["profile"] == 0 and rep.sources["profile"] == "--set"
     assert rep.sources["gyro_arw"] == "dataset"
-    assert "gyro_arw=0.0017 (dataset)" in board.describe(cfg, rep.sources)
+    assert "gyro_arw=0.0017 (dataset)" in run_config.describe(cfg, rep.sources)
     # written back as a board: block (export keeps them)
     kfgins.write(tmp_path / "again", ds)
     assert kfgins.read(tmp_path / "again").board_config == ds.board_config
@@ -492,7 +492,7 @@ def test_a_dataset_beyond_every_range_asks_about_units(drive):
 
 def _heading_speed_m_s():
     """The firmware's default heading_speed_m_s (navcfg), as the diagnosis reads it."""
-    return float(board.nav_config(board.defaults()).heading_speed_m_s)
+    return float(run_config.nav_config(run_config.defaults()).heading_speed_m_s)
 
 
 def test_never_navigated_standing_still(tmp_path, capsys):
@@ -505,7 +505,9 @@ def test_never_navigated_standing_still(tmp_path, capsys):
         "error: the firmware never navigated on urban_drive: no course in the fixes (RMC speed "
         "and course empty), and their track never "
     )
-    cfg = board.nav_config(board.defaults())  # the firmware's track: a chord of track_min_m
+    cfg = run_config.nav_config(
+        run_config.defaults()
+    )  # the firmware's track: a chord of track_min_m
     assert f"never covered track_min_m {float(cfg.track_min_m):g} m in track_s to" in err
     assert "the reference moves at most 0.00 m/s" in err and err.count("\n") == 1
 

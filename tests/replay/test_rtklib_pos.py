@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 from host_emulator.replay import rtklib_pos
 from host_emulator.replay.dataset import WEEK_S, Positions, gpst
 from host_emulator.replay.rtklib_pos import FormatError

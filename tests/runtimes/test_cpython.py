@@ -7,10 +7,11 @@ import time
 import numpy as np
 import pytest
 
+from common import firmware_env
+from common.errors import FirmwareError
+from common.proto import stimulus, stream
 from host_emulator import __main__ as cli
-from host_emulator import firmware_env
-from host_emulator.errors import FirmwareError
-from host_emulator.proto import stimulus, stream
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input
 
@@ -29,7 +30,7 @@ def highway_run(highway, tmp_path_factory):
 def test_the_firmware_driver_reads_the_stimulus_registers():
     """Registers set from a stimulus record reach the firmware's BMI055 driver unchanged
     (gyro int16, accel 12-bit left-justified with new_data), after its own start-up."""
-    board_machine = firmware_env.install_machine()
+    board_machine = install_machine()
     board_machine.power_on()
     import machine
     from drivers.bmi055 import BMI055
@@ -55,7 +56,7 @@ def test_the_firmware_driver_reads_the_stimulus_registers():
 
 
 def test_the_uart_receive_ring_drops_what_does_not_fit():
-    machine = firmware_env.install_machine()
+    machine = install_machine()
     machine.power_on()
     port = machine.UART(2, 9600, rxbuf=16)
     port.feed(b"0123456789")

@@ -5,11 +5,12 @@ over 30 s (the issue's bar: what a user flashes is what the tests ran)."""
 
 import pytest
 
-from host_emulator import firmware_env, runtimes
+from common import firmware_env
+from common.proto import stream
+from host_emulator import runtimes
 from host_emulator.eval import parity
 from host_emulator.f411 import boards
 from host_emulator.f411.image import Image
-from host_emulator.proto import stream
 from host_emulator.runtimes import f411
 from host_emulator.runtimes.f411 import flashfs
 from host_emulator.sim import board_input
@@ -111,7 +112,7 @@ def test_a_recorded_session_replays_on_the_image(tmp_path):
     """session replay --runtime f411: a board's recording (raw records on; here the CPython
     runtime's output stands for the board's) rebuilt into its input and run on the image: the
     same stream, the board's own clock in the raw records aside."""
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
     from host_emulator.runtimes import cpython
     from host_emulator.session import record, replay
 

@@ -14,7 +14,7 @@ filesystem, its console a serial port the board tools open (runtimes/f411/consol
 
 import pytest
 
-from host_emulator.proto import config as board_config
+from common.proto import config as board_config
 from host_emulator.runtimes.f411.console import TwinBoard
 from tools.flash import deploy
 from tools.flash import maintenance as maint

@@ -18,8 +18,8 @@ import sys
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR
-from tools import toolchain
+from common import toolchain
+from common.firmware_env import FIRMWARE_DIR
 
 VM_MAX_STATE_ON_STACK_WORDS = 11  # py/objfun.c: sizeof(mp_uint_t) * 11
 EXC_STACK_WORDS = 3  # mp_exc_stack_t: handler, val_sp, prev_exc

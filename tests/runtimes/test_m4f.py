@@ -9,17 +9,16 @@ are compared with the NumPy model byte for byte and its instruction counts are c
 import numpy as np
 import pytest
 
+from common import toolchain
+from common.errors import EmulatorError, FirmwareError
+from common.proto import stream
 from host_emulator import runtimes
-from host_emulator.bench import board_cost
-from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.eval import parity
+from host_emulator.eval import board_cost, parity
 from host_emulator.eval.scenario_run import firmware_metrics
-from host_emulator.proto import stream
 from host_emulator.runtimes import m4f
 from host_emulator.runtimes.m4f import build as m4f_build
 from host_emulator.runtimes.m4f import guest
 from host_emulator.sim import board_input
-from tools import toolchain
 
 
 @pytest.fixture(scope="module")
@@ -218,7 +217,7 @@ def test_alignment_allocates_only_at_fixes_and_less_than_the_app_assumes(quick):
     first stable fix allocates (the origin), at most _FIX_BYTES. The app counts the fixes
     against the room its last heap check found and checks again only when they may have used
     it up (app.py). Before the bits, every aligning fix allocated 32 bytes."""
-    from host_emulator.firmware_env import import_module
+    from common.firmware_env import import_module
 
     t = quick[1].firmware_run.per_tick
     aligning = t["state"] == 1
@@ -396,7 +395,7 @@ def test_the_registry_offers_it_for_parity_only_where_bits_match():
 
 
 def test_no_fused_multiply_add_in_the_build():
-    """tools.toolchain.C_FLOAT_FLAGS (-ffp-contract=off): without it GCC fuses a*b + c into one
+    """common.toolchain.C_FLOAT_FLAGS (-ffp-contract=off): without it GCC fuses a*b + c into one
     vfma.f32, rounding once where the float32 contract rounds twice (300 of them otherwise)."""
     elf = m4f_build.build(progress=None)
     assert toolchain.fused_multiply_adds(elf) == []

@@ -1,7 +1,7 @@
-"""The firmware loop in the real MicroPython VM (host_emulator/runtimes/mpy_unix, board/mpy): the
-same frames as the CPython runtime, GC blocks per tick, firmware exceptions with their tick,
-and the emulated board (BMI055 register model, UART, pins) answering alike in the VM and on
-CPython, allocation-free in the VM.
+"""The firmware loop in the real MicroPython VM (host_emulator/runtimes/mpy_unix,
+emulated_board/mpy): the same frames as the CPython runtime, GC blocks per tick, firmware exceptions
+with their tick, and the emulated board (BMI055 register model, UART, pins) answering alike in the
+VM and on CPython, allocation-free in the VM.
 
 The VM is a double-precision build: integer-only output must match the CPython runtime (the
 float32 model of the board) exactly; float output only to a tolerance (see below)."""
@@ -14,12 +14,11 @@ import struct
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
-from host_emulator.board import MPY_DIR
-from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.firmware_env import FIRMWARE_DIR
+from common.errors import EmulatorError, FirmwareError
+from common.firmware_env import FIRMWARE_DIR
+from common.proto import stream
+from host_emulator.emulated_board import MPY_DIR, install_machine
 from host_emulator.model import display as model_display
-from host_emulator.proto import stream
 from host_emulator.runtimes import cpython, mpy_unix
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from host_emulator.sim import board_input
@@ -401,16 +400,16 @@ print(json.dumps([out, _hex(imu.accel.regs), _hex(imu.gyro.regs), imu.accel.rese
 
 
 def _run_on_cpython(script):
-    """The JSON the script prints, run on CPython over the same board (board/mpy loaded by
+    """The JSON the script prints, run on CPython over the same board (emulated_board/mpy loaded by
     firmware_env) after a power-on."""
-    firmware_env.install_machine().power_on()
+    install_machine().power_on()
     printed = []
     exec(script, {"_hex": lambda b: bytes(b).hex(), "print": printed.append})
     return json.loads(printed[-1])
 
 
 def test_the_board_answers_the_same_transactions_alike_on_cpython_and_in_the_vm():
-    """board/mpy/machine.py is the board of both the cpython runtime and the VM's: random
+    """emulated_board/mpy/machine.py is the board of both the cpython runtime and the VM's: random
     transactions over both BMI055 dies, with sample updates and clock steps, give the same
     MISO bytes, registers, resets, transaction log and register writes under both
     interpreters."""

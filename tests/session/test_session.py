@@ -11,10 +11,10 @@ import time
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
-from host_emulator.proto import config as board_config
-from host_emulator.proto import session_file, stream
-from host_emulator.proto.ticks import ticks_diff
+from common.proto import config as board_config
+from common.proto import session_file, stream
+from common.proto.ticks import ticks_diff
+from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import cpython
 from host_emulator.session import cli, compare, rebuild, record, replay, walk
 from host_emulator.sim import board_input
@@ -129,7 +129,7 @@ def test_pps_edges_across_the_ticks_us_wrap(capture, monkeypatch, tmp_path):
     assert first_tick_us % TICK == 0  # the first timer moment after start-up (clock from 0)
     start = (1 << 30) + 3176 - 2_000_000 - first_tick_us  # tick 400: 3176 us after the wrap
 
-    machine = firmware_env.install_machine()
+    machine = install_machine()
     power_on = machine.power_on
     monkeypatch.setattr(machine, "power_on", lambda: power_on(start))  # a late power-on clock
     out = cpython.run(stim, tmp_path / "board", {"raw_record": 1}).out
@@ -276,7 +276,7 @@ def test_a_format_1_session_file_still_reads(capture, values, tmp_path):
     to the cut, a damaged one whole with a warning that it cannot say where."""
     import json
 
-    from host_emulator.proto.crc import crc32
+    from common.proto.crc import crc32
 
     head = json.dumps({"format": 1, "config": values}).encode()
     body = b"INSSESS1" + struct.pack("<I", len(head)) + head + capture

@@ -8,10 +8,10 @@ import re
 import numpy as np
 import pytest
 
+from common.proto import records as rec_schema
+from common.proto import stimulus as stim_mod
+from common.proto import stream
 from host_emulator.__main__ import main
-from host_emulator.proto import records as rec_schema
-from host_emulator.proto import stimulus as stim_mod
-from host_emulator.proto import stream
 from host_emulator.runtimes import cpython
 from host_emulator.sim import board_input, faults, nmea
 
@@ -182,7 +182,7 @@ def test_run_injects_faults_and_lists_them(tmp_path, capsys):
 def _epochs(stim):
     """(tick, epoch fields) of every epoch the firmware's NMEA parser completes, fed the
     stimulus' bytes tick by tick; and its count of rejected lines."""
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     from drivers.gnss import Nmea
@@ -346,7 +346,7 @@ def test_the_navigator_steps_through_at_most_the_watchdogs_ticks(stim, tmp_path)
     ticks are counted, but the navigator steps through app._CATCH_UP_MAX (10, the watchdog's
     timeout in ticks) of them, so its clock falls 30 ticks behind the timer's; CPython gives
     the model's bytes."""
-    from host_emulator import firmware_env
+    from common import firmware_env
     from host_emulator.eval import parity
 
     app = firmware_env.import_module("app")

@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from host_emulator import firmware_env
+from common import firmware_env
 from host_emulator.sim import board_input, gnss, nmea, trajectory
 
 firmware_env.install()
@@ -118,7 +118,7 @@ def test_the_simulation_becomes_a_stimulus(drive):
     s = sim.stimulus
     assert len(s) == 4000 and s.header["scenario"] == "static" and s.header["seed"] == 2
     assert s.config["gnss_baud"] == 9600 and s.config["lever_b_m"] == [0.0, 0.5, 1.0]
-    from host_emulator.proto import stimulus
+    from common.proto import stimulus
 
     assert np.array_equal(stimulus.gyro_counts(s.gyro_regs), sim.imu.gyro_counts[:4000])
     assert np.array_equal(stimulus.accel_counts(s.accel_regs), sim.imu.accel_counts[:4000])

@@ -1,11 +1,11 @@
 """The firmware image the image, flash and deploy tests share: WEACT_F411_BLACKPILL built once
 per session into build/image (cached there between runs; a clean clone builds it from scratch,
 about a minute), copied to a temporary output folder. No skip: without the toolchain the
-build fails, as it must under CI (tools.toolchain.ensure installs it when it may)."""
+build fails, as it must under CI (common.toolchain.ensure installs it when it may)."""
 
 import pytest
 
-from tools import toolchain
+from common import toolchain
 from tools.image import build
 
 

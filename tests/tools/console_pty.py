@@ -7,7 +7,7 @@ import select
 import sys
 import time
 
-from host_emulator.firmware_env import REPO_DIR
+from common.firmware_env import REPO_DIR
 
 
 class Console:

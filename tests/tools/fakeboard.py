@@ -334,8 +334,8 @@ def _reset():
 
 class _Mem32:
     """stm.mem32 over the fake's backup registers, PWR_CR (DBP) and RCC_APB1ENR, as
-    host_emulator/board/mpy/backup_domain.py: a backup register written without DBP keeps its
-    value; any other address raises ValueError."""
+    host_emulator/emulated_board/mpy/backup_domain.py: a backup register written without DBP keeps
+    its value; any other address raises ValueError."""
 
     BKP0, PWR_CR, APB1ENR = 0x40002850, 0x40007000, 0x40023840
 

@@ -21,10 +21,10 @@ import io
 import json
 import struct
 
-import config  # firmware/lib/config.py (tests/conftest.py installs the firmware environment)
 import numpy as np
 import pytest
 
+import config  # firmware/lib/config.py (tests/conftest.py installs the firmware environment)
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 from tools.flash.__main__ import main
 

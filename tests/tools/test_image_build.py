@@ -9,8 +9,8 @@ import zlib
 
 import pytest
 
-from host_emulator.firmware_env import FIRMWARE_DIR
-from tools import toolchain
+from common import toolchain
+from common.firmware_env import FIRMWARE_DIR
 from tools.flash import dfu
 from tools.image import budget, build, fwid
 from tools.image.__main__ import main
@@ -207,7 +207,7 @@ def test_the_emulated_cortex_m4f_gives_the_firmware_this_images_heap(weact_image
 
 
 def test_the_image_has_no_fused_multiply_add(weact_image):
-    """Built with tools.toolchain.C_FLOAT_FLAGS, as the emulated Cortex-M4F is."""
+    """Built with common.toolchain.C_FLOAT_FLAGS, as the emulated Cortex-M4F is."""
     assert toolchain.fused_multiply_adds(weact_image[0]["elf"]) == []
 
 
@@ -224,7 +224,7 @@ def test_the_build_pins_micropythons_version_whatever_repository_holds_the_tree(
     in: a copy vendored inside another project would say that project's commit. The build
     passes the tree's own version (and its own commit only when the tree is a repository of
     its own)."""
-    from tools import toolchain
+    from common import toolchain
 
     src = toolchain.micropython_dir() / "py" / "mpconfig.h"
     outer = tmp_path / "project"

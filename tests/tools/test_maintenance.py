@@ -12,7 +12,7 @@ import ast
 import pytest
 from fakeboard import FakeSerial
 
-from host_emulator.firmware_env import FIRMWARE_DIR
+from common.firmware_env import FIRMWARE_DIR
 from tools.flash import deploy
 from tools.flash import maintenance as maint
 from tools.flash.errors import FlashError, NotResponding, TransferCorrupted

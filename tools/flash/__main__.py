@@ -9,12 +9,12 @@ import pathlib
 import sys
 import tempfile
 
-from host_emulator.errors import os_error_text, quiet_broken_pipe, write_atomic
+from common.errors import os_error_text, quiet_broken_pipe, write_atomic
 from tools.flash.errors import FlashError
 
 
 def _config_module():
-    from host_emulator import firmware_env
+    from common import firmware_env
 
     firmware_env.install()
     import config
@@ -38,7 +38,7 @@ def _build(args):
 
 def _decode_config(data, what, advice):
     """The BoardConfig in a configuration file's bytes; FlashError naming `what` otherwise."""
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
 
     try:
         return board_config.decode(data)
@@ -79,7 +79,7 @@ def _written(cfg):
     """(bytes, BoardConfig read back from them) of a changed configuration, checked as the board
     checks it when it loads the file: its float32s, not the Python doubles typed (proto/config.py
     `written`); FlashError if the board would refuse it."""
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
 
     data, back, problem = board_config.written(cfg)
     if problem:
@@ -153,16 +153,16 @@ def _image(args):
 
 
 def _print_config(cfg, config):
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
 
     for _rid, name, _kind, _n, _default in config._SCHEMA:
         print(f"{name} = {board_config.format_setting(getattr(cfg, name))}")
 
 
 def _parse_setting(text, config):
-    """(name, value) of a NAME=VALUE (host_emulator/proto/config.py's parser, which `replay
+    """(name, value) of a NAME=VALUE (common/proto/config.py's parser, which `replay
     --set` shares)."""
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
 
     try:
         return board_config.parse_setting(text)
@@ -243,7 +243,7 @@ def _config(args):
     else:
         deploy.write_config(args.port, args.baud, data)
         print("a soft reset applies it: the board was soft-reset and loads it now")
-    from host_emulator.proto import config as board_config
+    from common.proto import config as board_config
 
     for name, value in changes:
         text = board_config.format_setting(getattr(cfg, name) if value is not None else None)

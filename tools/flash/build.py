@@ -4,7 +4,7 @@ Layout (the board's /flash is firmware/): lib/x.py -> lib/x.mpy, drivers/x.py ->
 app.py -> app.mpy, board.py -> board.mpy; main.py is copied as source because MicroPython runs
 main.py (not main.mpy) at boot. Each .mpy embeds its board path ("lib/nav.py") as the source
 name, so tracebacks name the board's files and the bytes do not depend on the checkout's path.
-lib/navk.mpy is the native kernels (tools.native, armv7emsp, built on demand): a native module
+lib/navk.mpy is the native kernels (common.native, armv7emsp, built on demand): a native module
 cannot be frozen into an image, so it goes to the filesystem even beside a frozen firmware.
 
 The budget follows FatFs's f_mkfs as MicroPython formats a flash filesystem (lib/oofatfs/ff.c):
@@ -19,8 +19,8 @@ import shutil
 import subprocess
 import sys
 
-from host_emulator.firmware_env import FIRMWARE_DIR
-from host_emulator.proto.crc import crc32
+from common.firmware_env import FIRMWARE_DIR
+from common.proto.crc import crc32
 from tools.flash.errors import FlashError, FlashFull
 
 SECTOR = 512
@@ -94,8 +94,8 @@ NATIVE_ARCH = "armv7emsp"  # the board's: Cortex-M4F, single-precision FPU
 
 
 def native_module(arch=NATIVE_ARCH):
-    """The navk.mpy built for `arch` (tools.native); FlashError saying what to install."""
-    from tools import native
+    """The navk.mpy built for `arch` (common.native); FlashError saying what to install."""
+    from common import native
 
     try:
         return native.natmod(arch)

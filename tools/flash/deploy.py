@@ -10,8 +10,8 @@ reports (sys.implementation._mpy: armv7emsp on the board, x64 on the virtual boa
 import pathlib
 import time
 
-from host_emulator.proto import serial_port, stream
-from host_emulator.proto.crc import crc32
+from common.proto import serial_port, stream
+from common.proto.crc import crc32
 from tools.flash import build as build_mod
 from tools.flash import maintenance as maint
 from tools.flash.errors import (
@@ -274,7 +274,7 @@ FROZEN_PACKAGES = ("drivers",)  # firmware packages a frozen image carries: on /
 
 def host_firmware_id():
     """The id of this checkout's firmware (tools/image/fwid.py); FlashError if unreadable."""
-    from tools import toolchain
+    from common import toolchain
     from tools.image import fwid
 
     try:

@@ -1,7 +1,7 @@
 """Write a firmware image (.dfu) to an STM32F411 in its ROM DFU bootloader, and verify it.
 
 The USB work is MicroPython's own tools/pydfu.py, imported from the MicroPython tree
-(tools.toolchain.micropython_dir()), over pyusb and libusb. Around it this module adds what a
+(common.toolchain.micropython_dir()), over pyusb and libusb. Around it this module adds what a
 user needs before and after:
 
 1. the .dfu is parsed by pydfu (its CRC checked) and its elements must lie in the F411's flash;
@@ -22,7 +22,7 @@ import importlib.util
 import io
 import struct
 
-from tools import toolchain
+from common import toolchain
 from tools.flash.errors import FlashError
 
 STM32_BOOTLOADER = (0x0483, 0xDF11)

@@ -41,11 +41,11 @@ def _parser():
 
 def main(argv=None):
     args = _parser().parse_args(argv)
-    from host_emulator.errors import os_error_text, quiet_broken_pipe
+    from common.errors import os_error_text, quiet_broken_pipe
+    from common.toolchain import ToolchainError
     from tools.image.budget import BudgetError
     from tools.image.build import ImageError
     from tools.image.fwid import FirmwareIdError
-    from tools.toolchain import ToolchainError
 
     try:
         return args.func(args)

@@ -15,7 +15,7 @@ The budget the image must meet: its code fits the 384 KB code region and its vec
 sector 0 (the linker refuses otherwise, and build.py turns its message into ours), and the
 heap is at least MIN_HEAP_BYTES: the firmware keeps ~16 KB live after start-up and collects
 when fewer than 12 KB are free (app.py's _GC_LOW_WATER), so a heap much under 64 KB would
-collect every few ticks (DESIGN.md section 4 measures a collection at ~1.8 ms).
+collect every few ticks (docs/requirements.md, time budget, measures a collection at ~1.8 ms).
 """
 
 import re

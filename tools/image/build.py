@@ -2,7 +2,7 @@
 
     build(board) -> report dict; the image files in out/image/<board>/
 
-Steps: the toolchain (tools.toolchain.ensure: Debian's arm-none-eabi-gcc), the MicroPython
+Steps: the toolchain (common.toolchain.ensure: Debian's arm-none-eabi-gcc), the MicroPython
 tree (micropython_dir(), v1.28.0) and its own mpy-cross; then, in build/image/<board>/:
 
     gen/fwid.py       the firmware id module (tools/image/fwid.py), rewritten only when its
@@ -27,7 +27,7 @@ import shutil
 import subprocess
 import time
 
-from tools import toolchain
+from common import toolchain
 from tools.image import budget, fwid
 from tools.image.boards import BOARDS, DEFAULT_BOARD
 
@@ -295,7 +295,7 @@ def _build(board, out_dir, log, build_root, board_dir):
         )
     # each written whole or not at all: another process (a parallel test worker, the twin)
     # may be reading the image that a build of the same tree rewrites
-    from host_emulator.errors import write_atomic
+    from common.errors import write_atomic
 
     write_atomic(out_dir / "firmware.dfu", (obj / "firmware.dfu").read_bytes())
     write_atomic(out_dir / "firmware.hex", (obj / "firmware.hex").read_bytes())

@@ -21,8 +21,8 @@ import pathlib
 import shutil
 import zlib
 
-from host_emulator.firmware_env import FIRMWARE_DIR
-from tools import toolchain
+from common import toolchain
+from common.firmware_env import FIRMWARE_DIR
 
 MODULE = "fwid"  # the frozen module's name on the board
 FIRMWARE_MANIFEST = FIRMWARE_DIR / "manifest.py"

@@ -1,4 +1,4 @@
 """Decode, watch, record and export what an INS board sends: `python -m tools.monitor`
 (docs/monitor.md). source: serial port or capture file; clock: the board time of each frame;
 view: live view and summary; export: CSV and MDF4; cli: the command line. The stream decoder
-and the record layouts are host_emulator/proto's, shared with the emulator."""
+and the record layouts are common/proto's, shared with the emulator."""

@@ -13,10 +13,10 @@ import datetime
 import sys
 import time
 
-from host_emulator.errors import os_error_text, quiet_broken_pipe
-from host_emulator.proto import config as board_config
-from host_emulator.proto import session_file
-from host_emulator.proto.stream import EXT, FRAME, StreamDecoder
+from common.errors import os_error_text, quiet_broken_pipe
+from common.proto import config as board_config
+from common.proto import session_file
+from common.proto.stream import EXT, FRAME, StreamDecoder
 from tools.monitor import export, view
 from tools.monitor.clock import TickClock
 from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports

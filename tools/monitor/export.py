@@ -106,7 +106,8 @@ def sigma(p):
 
 def sigmas(e):
     """{pos, vel, att_deg, gyro_bias_deg_h, accel_bias_mg}: 3 values each, from p_diag
-    (seed 001 state order: position, velocity, attitude error, gyro bias, accel bias)."""
+    (the error-state order of docs/requirements.md: position, velocity, attitude error, gyro bias,
+    accel bias)."""
     s = [sigma(p) for p in e["p_diag"]]
     return {
         "pos": s[0:3],

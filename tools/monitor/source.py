@@ -1,10 +1,10 @@
 """Where the bytes come from: a serial port (pyserial) or a file (a raw capture or a session
-file, host_emulator/proto/session_file.py). Every user mistake becomes a MonitorError with a message
+file, common/proto/session_file.py). Every user mistake becomes a MonitorError with a message
 that says what to do."""
 
 from pathlib import Path
 
-from host_emulator.proto import serial_port, session_file
+from common.proto import serial_port, session_file
 
 
 class MonitorError(Exception):

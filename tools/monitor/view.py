@@ -5,7 +5,7 @@ terminal, or as one line per second when stdout is not a terminal; and the final
 import collections
 import math
 
-from host_emulator.proto import records
+from common.proto import records
 from tools.monitor.export import sigmas
 
 NAV_STATES = {1: "ALIGNING", 2: "NAVIGATING"}

@@ -31,10 +31,10 @@ import time
 
 import numpy as np
 
+from common.errors import EmulatorError, FirmwareError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError, FirmwareError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
 
 DEFAULT_BOARD = "WEACT_F411_BLACKPILL"
@@ -62,7 +62,7 @@ def image_files(board_name, log=None):
 
 def deployed_files(stim, config_overrides, kernels, workdir):
     """What deploy writes to /flash next to an image with the firmware frozen."""
-    from host_emulator.firmware_env import FIRMWARE_DIR
+    from common.firmware_env import FIRMWARE_DIR
 
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     files = {

@@ -27,8 +27,8 @@ lib/navk.mpy) or `files`. Figures: `chip.resets` (cycle, reason) says whether th
 import tempfile
 import time
 
-from host_emulator import firmware_env
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
+from host_emulator.emulated_board import bmi055_model
 
 BOARD = "NUCLEO_F411RE"
 SLICE_MS = 2  # board time a poll of the port runs the chip for, at least ...
@@ -64,7 +64,7 @@ class TwinBoard:
         chip.flash_write_raw(flashfs.PART_BASE, part)
         clock = chip.clock
         self.clock = clock
-        self.imu = firmware_env.bmi055_model().Bmi055(now_us=lambda: int(clock.us()))
+        self.imu = bmi055_model().Bmi055(now_us=lambda: int(clock.us()))
         chip.spi1.attach(self.imu.accel, *chip.pin(bd.cs_accel))
         chip.spi1.attach(self.imu.gyro, *chip.pin(bd.cs_gyro))
         regs = bytes(stim.gyro_regs[0]) + bytes(stim.accel_regs[0])  # at rest

@@ -20,7 +20,7 @@ import pathlib
 import subprocess
 import tempfile
 
-from host_emulator.errors import EmulatorError
+from common.errors import EmulatorError
 
 PART_BASE = 0x08004000
 PART_SIZE = 48 * 1024

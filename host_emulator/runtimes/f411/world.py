@@ -1,6 +1,6 @@
 """What surrounds the emulated STM32F411 on the board, fed from a stimulus.
 
-- The BMI055: both dies of board/mpy/bmi055_model.py (the register model every runtime
+- The BMI055: both dies of emulated_board/mpy/bmi055_model.py (the register model every runtime
   shares) on SPI1 behind their chip-select pins, timing their start-up on the twin's clock.
   At tick k's moment T_k the data and temperature registers take stimulus record k; in an
   interval flagged IMU-silent neither die answers.
@@ -39,13 +39,13 @@ import bisect
 
 import numpy as np
 
-from host_emulator import firmware_env
+from common.errors import EmulatorError
+from common.proto import records, stream
 from host_emulator.display.device import UsartGpu
 from host_emulator.display.usartgpu import REPLY, DisplayError
-from host_emulator.errors import EmulatorError
+from host_emulator.emulated_board import bmi055_model
 from host_emulator.f411 import image as image_mod
 from host_emulator.model import display as page_model
-from host_emulator.proto import records, stream
 
 PPS_HIGH_US = 100_000
 _CAT = {name: i for i, name in enumerate(image_mod.CATEGORIES)}
@@ -63,7 +63,7 @@ class World:
         self.gnss_baud = gnss_baud
         clock = chip.clock
         self.clock = clock
-        self.imu = firmware_env.bmi055_model().Bmi055(now_us=lambda: int(clock.us()))
+        self.imu = bmi055_model().Bmi055(now_us=lambda: int(clock.us()))
         spi = chip.spi1
         spi.attach(self.imu.accel, *chip.pin(board.cs_accel))
         spi.attach(self.imu.gyro, *chip.pin(board.cs_gyro))

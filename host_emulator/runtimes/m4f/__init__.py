@@ -1,12 +1,12 @@
 """The m4f runtime: the unmodified firmware loop on an emulated Cortex-M4F, the board's CPU and
 arithmetic, counting the instructions of every tick.
 
-MicroPython v1.28.0 (tools.toolchain's source tree) is built with its qemu port for our board
+MicroPython v1.28.0 (common.toolchain's source tree) is built with its qemu port for our board
 definition (boards/M4F_INS: QEMU's mps2-an386, Cortex-M4 with the single-precision FPU, hard
 float, `MICROPY_FLOAT_IMPL = float`, object representation A: the stm32 port's choices for the
 STM32F411), with the firmware frozen exactly as the board image freezes it (firmware/manifest.py)
-and the emulated board beside it (board/mpy: machine.py, bmi055_model.py, time.py, feed.py and
-the guest driver emulate_m4f.py; manifest.py). See build.py.
+and the emulated board beside it (emulated_board/mpy: machine.py, bmi055_model.py, time.py, feed.py
+and the guest driver emulate_m4f.py; manifest.py). See build.py.
 
 QEMU runs it with `-icount shift=0`: one guest instruction is one ns of virtual time, and the
 `m4f` module (usermod/m4f/m4f.c) reads the MPS2's 25 MHz timer, so the guest counts its own
@@ -20,7 +20,7 @@ What it gives besides the frames:
   the emulated peripherals (machine.py, time.py: emulation, not firmware; subtract it), bytes
   allocated, the navigation state after it, and whether the app's own gc.collect() ran in it;
 - the heap is the board's (what a board with the image's BOARD_HEAP_BYTES heap would have free
-  when the firmware starts; board/mpy/emulate_m4f.py says how) and the app collects garbage
+  when the firmware starts; emulated_board/mpy/emulate_m4f.py says how) and the app collects garbage
   itself, as on the board;
 - with the display setting on, what the firmware's status page wrote to the screen's UART
   (`FirmwareRun.display` and `display_marks`, as the cpython runtime gives them; each tick's
@@ -35,7 +35,7 @@ cycle; the F411's flash wait states and MicroPython's branchy interpreter make i
 (docs/benchmarks/cpi.md gives the calibration: `python -m host_emulator cpi`). Interrupt
 entry/exit and the real peripherals' C drivers are not counted; the firmware's calls into them
 are, at a C method call's cost (the firmware holds each emulated part through m4f.Periph, a C
-handle: board/mpy/machine.py).
+handle: emulated_board/mpy/machine.py).
 """
 
 import os
@@ -45,10 +45,11 @@ import struct
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
+from common.proto.mpy.feed_protocol import EXIT_FIRMWARE_ERROR
 from host_emulator import runtimes
-from host_emulator.errors import EmulatorError
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
 from host_emulator.runtimes import FirmwareRun
 from host_emulator.runtimes.guest_output import (
     GuestOutput,
@@ -60,7 +61,6 @@ from host_emulator.runtimes.m4f import build as m4f_build
 
 QEMU = "qemu-system-arm"
 QEMU_MACHINE = "mps2-an386"
-EXIT_FIRMWARE_ERROR = 3  # feed.EXIT_FIRMWARE_ERROR
 EXIT_DRIVER_ERROR = 4  # the guest driver itself raised (a bug of the emulator)
 PER_TICK = np.dtype(
     [("instr", "<i4"), ("emu_instr", "<i4"), ("alloc_bytes", "<i4"), ("state", "u1"),

@@ -3,7 +3,7 @@
 with the `m4f` module (usermod/) and, frozen, the firmware exactly as the board image freezes
 it plus the emulated board and its driver (manifest.py).
 
-Out of tree, from tools.toolchain's MicroPython source (MICROPY_DIR) with its own mpy-cross,
+Out of tree, from common.toolchain's MicroPython source (MICROPY_DIR) with its own mpy-cross,
 into build/m4f/ (build/m4f-heap<N>/ for another GC heap size); make decides what is stale, so
 a second build with nothing changed takes a second.
 """
@@ -13,8 +13,8 @@ import pathlib
 import shutil
 import time
 
-from host_emulator.errors import EmulatorError
-from tools import toolchain
+from common import toolchain
+from common.errors import EmulatorError
 
 HERE = pathlib.Path(__file__).resolve().parent
 BOARD_DIR = HERE / "boards" / "M4F_INS"
@@ -24,12 +24,12 @@ BUILD_DIR = toolchain.BUILD_ROOT / "m4f"
 
 # The firmware's heap is the board's: 89,568 bytes on the WEACT_F411_BLACKPILL image (`make
 # image` reports it; tests/tools/test_image_build.py keeps the two equal). The build's heap adds
-# a reserve for the emulated board's objects (its modules, peripherals, C handles and the
-# driver's buffers: 6,960 bytes measured), sized so that the ballast the driver sets aside for
-# the rest (board/mpy/emulate_m4f.py) stays under a few hundred bytes: the collector scans a
-# ballast like any object, which would inflate every gc.collect().
+# a reserve for the emulated board's objects (its modules, peripherals, C handles, the driver's
+# buffers and the stimulus record's module: 7,232 bytes measured), sized so that the ballast the
+# driver sets aside for the rest (emulated_board/mpy/emulate_m4f.py) stays under a few hundred
+# bytes: the collector scans a ballast like any object, which would inflate every gc.collect().
 BOARD_HEAP_BYTES = 89_568
-EMULATOR_RESERVE_BYTES = 7_168
+EMULATOR_RESERVE_BYTES = 7_440
 GC_HEAP_BYTES = BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES  # MICROPY_HEAP_SIZE of the build
 
 

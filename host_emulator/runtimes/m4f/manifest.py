@@ -2,7 +2,8 @@
 # exactly as the board image freezes it, plus the emulated board (machine, time: found before
 # the built-in modules of those names, as frozen modules come first on sys.path; bmi055_model,
 # the BMI055 register model machine imports) and the guest driver that feeds it a stimulus
-# (host_emulator/board/mpy).
+# (host_emulator/emulated_board/mpy).
 include("../../../firmware/manifest.py")
 for name in ("machine", "bmi055_model", "time", "feed", "emulate_m4f"):
-    module(name + ".py", base_path="../../board/mpy")
+    module(name + ".py", base_path="../../emulated_board/mpy")
+module("feed_protocol.py", base_path="../../../common/proto/mpy")  # the stimulus record

@@ -2,11 +2,11 @@
 from PyPI, a double-precision build), fed from a stimulus, counting the GC blocks every tick
 allocates.
 
-The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs board/mpy/emulate.py,
+The VM (`micropython`, MicroPython 1.29's unix port, see vm.py) runs emulated_board/mpy/emulate.py,
 which imports the firmware's own `board.py`, drivers and `app.py` on top of the emulated
-`machine` and `time` beside it (board/mpy/machine.py, board/mpy/time.py: pins, SPI with the
-BMI055 register model of board/mpy/bmi055_model.py, UARTs, the timer, the watchdog, a virtual
-clock in us since power-on).
+`machine` and `time` beside it (emulated_board/mpy/machine.py, emulated_board/mpy/time.py: pins, SPI
+with the BMI055 register model of emulated_board/mpy/bmi055_model.py, UARTs, the timer, the
+watchdog, a virtual clock in us since power-on).
 Each stimulus record is replayed exactly as the cpython runtime replays it, so both runtimes
 see the same input at the same virtual times.
 
@@ -15,7 +15,8 @@ which the CPython runtime reproduces bit for bit), so integer output (counters, 
 fields, flags, GNSS fix fields, navigation state) is the same and float output agrees to a
 tolerance. What it adds: `blocks_per_tick`, the GC blocks each `App.service()` allocated
 (gc.mem_alloc() difference with the collector off; one block = one boxed float on the board
-and in the VM, DESIGN.md 4), with the navigation state per tick to split them by phase.
+and in the VM, docs/requirements.md, time budget), with the navigation state per tick to split them
+by phase.
 
 The screen: with the display setting on, what the firmware's status page writes to the display
 UART (board.PINS["display_uart"]) is taken by the VM's driver after start-up and after every
@@ -38,12 +39,13 @@ import pathlib
 
 import numpy as np
 
+from common.errors import EmulatorError
+from common.firmware_env import FIRMWARE_DIR
+from common.proto import config as board_config
+from common.proto import stimulus as stim_mod
+from common.proto.mpy.feed_protocol import EXIT_FIRMWARE_ERROR
 from host_emulator import runtimes
-from host_emulator.board import EMULATE
-from host_emulator.errors import EmulatorError
-from host_emulator.firmware_env import FIRMWARE_DIR
-from host_emulator.proto import config as board_config
-from host_emulator.proto import stimulus as stim_mod
+from host_emulator.emulated_board import EMULATE
 from host_emulator.runtimes import FirmwareRun
 from host_emulator.runtimes.guest_output import (
     GuestOutput,
@@ -51,10 +53,9 @@ from host_emulator.runtimes.guest_output import (
     firmware_error,
     run_guest,
 )
-from host_emulator.runtimes.mpy_unix import navigator, vm
+from host_emulator.runtimes.mpy_unix import vm
 
 HEAP_KB = 512
-EXIT_FIRMWARE_ERROR = 3  # emulate.py's exit status after an "E" report
 
 
 def _default_timeout_s(stim):
@@ -153,7 +154,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         "imu_error": reported["imu_error"],
         "config_status": reported["config_status"],
         **_block_stats(blocks),
-        "blocks_by_state": navigator.block_stats(blocks, state),
+        "blocks_by_state": block_stats(blocks, state),
         "ticks_navigating": int(np.sum(state == 2)),
         "app_gc_runs": reported["app_gc_runs"],  # collections inside a tick: 0, else counts are off
         "negative_ticks": reported["negative_ticks"],
@@ -198,3 +199,19 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     result.nav_state = state  # per tick, after it (1 aligning, 2 navigating)
     result.display, result.display_marks = display, marks
     return result
+
+
+def block_stats(blocks, state):
+    """Minimum, mean, 99th percentile and maximum blocks per tick, aligning and navigating."""
+    res = {}
+    for name, s in (("aligning", 1), ("navigating", 2)):
+        b = blocks[state == s]
+        if len(b):
+            res[name] = {
+                "ticks": int(len(b)),
+                "min": int(np.min(b)),
+                "mean": float(np.mean(b)),
+                "p99": float(np.percentile(b, 99)),
+                "max": int(np.max(b)),
+            }
+    return res

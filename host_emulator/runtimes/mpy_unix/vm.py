@@ -10,10 +10,10 @@ Scripts see `firmware/lib` and `firmware` on `sys.path` like the board, plus hel
 as hex (exact), `_blocks(fn)` counts the GC blocks one call of `fn()` allocates, and
 `_locked(fn)` is True if `fn()` runs under `micropython.heap_lock()` without allocating.
 
-Kernels: the VM's search path is set through MICROPYPATH (`env(kernels)`): ".frozen" alone for
-the Python kernels, the directory of the x64 navk.mpy (tools.native, built on demand) before
-it for the native ones, so that `import navk` finds the native module or nothing (never a
-stray one in ~/.micropython/lib).
+Kernels: the VM's search path is set through MICROPYPATH (`env(kernels)`): ".frozen" and the
+modules the host shares with the VM (common/proto/mpy) for the Python kernels, the directory of
+the x64 navk.mpy (common.native, built on demand) before them for the native ones, so that
+`import navk` finds the native module or nothing (never a stray one in ~/.micropython/lib).
 """
 
 import json
@@ -26,7 +26,8 @@ import tempfile
 
 import numpy as np
 
-from host_emulator.firmware_env import FIRMWARE_DIR, LIB_DIR
+from common.firmware_env import FIRMWARE_DIR, LIB_DIR
+from common.proto.mpy import feed_protocol
 
 _PRELUDE = f"""
 import sys, gc, array, binascii, micropython
@@ -79,6 +80,7 @@ def micropython_exe():
 
 
 VM_PATH = ".frozen"  # the VM's own frozen modules; the script's directory comes first anyway
+SHARED_DIR = pathlib.Path(feed_protocol.__file__).parent  # what the host and the VM share
 
 
 def env(kernels=None):
@@ -87,9 +89,9 @@ def env(kernels=None):
     from host_emulator import runtimes
 
     kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
-    path = VM_PATH
+    path = f"{VM_PATH}:{SHARED_DIR}"
     if kind == "native":
-        path = f"{runtimes.native_module('x64').parent}:{VM_PATH}"
+        path = f"{runtimes.native_module('x64').parent}:{path}"
     return {**os.environ, "MICROPYPATH": path}
 
 

@@ -7,9 +7,9 @@
 //   executed since init(), modulo 2**30 so that it stays a small int (no heap allocation);
 //   differences are taken modulo 2**30 as time.ticks_diff does.
 // - Time spent in emulation, not firmware: emu_in()/emu_out() bracket the emulated
-//   peripherals' Python code (host_emulator/board/mpy/machine.py); the instructions between
-//   them are summed here, emu_total() returns the sum modulo 2**30. Brackets nest: only the
-//   outermost one counts.
+//   peripherals' Python code (host_emulator/emulated_board/mpy/machine.py); the instructions
+//   between them are summed here, emu_total() returns the sum modulo 2**30. Brackets nest: only
+//   the outermost one counts.
 // - Periph(obj): the firmware's handle on an emulated peripheral or clock function. On a board
 //   machine.Pin/SPI/UART/WDT methods and time.ticks_us are C: calling one costs a C method call.
 //   A Periph's methods (PERIPH_METHODS) and its call are C as well: the firmware's call costs
@@ -71,7 +71,8 @@ static inline uint32_t counts(void) {
 static mp_obj_t m4f_init(void) {
     // The port's 1 ms SysTick interrupt would land in the counted code at a phase that depends
     // on when the host's REPL input arrived: off, so that counts repeat exactly (the emulated
-    // board's clock is its own, board/mpy/time.py; interrupts are not counted, as documented).
+    // board's clock is its own, emulated_board/mpy/time.py; interrupts are not counted, as
+    // documented).
     SYSTICK_CSR = 0;
     TIMER_CTRL = 0;
     TIMER_RELOAD = 0xffffffffu;
