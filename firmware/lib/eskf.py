@@ -1,5 +1,5 @@
-"""15-state error-state Kalman filter in float32, time-distributed (docs/requirements.md, integrated
-navigation and Kalman filter, docs/requirements.md, error-state filter formulation).
+"""15-state error-state Kalman filter in float32, time-distributed (docs/requirements.md:
+integrated navigation and Kalman filter, error-state filter formulation).
 
 Error state, in the error-state order of docs/requirements.md, with its signs (errors of the
 navigation quantities are nominal minus true, errors of the biases are true minus estimate):
@@ -9,8 +9,8 @@ navigation quantities are nominal minus true, errors of the biases are true minu
      9-11 dbg = b_g,true - b_g,estimate          rad/s, body
     12-14 dba = b_a,true - b_a,estimate          m/s^2, body
 So a measurement is written z = (nominal prediction - measured) = h dx + noise, and the
-closed-loop correction (docs/requirements.md, error-state filter formulation) is p -= dp, v -= dv, q
-= q(phi) (x) q, b_g += dbg, b_a += dba, then dx = 0.
+closed-loop correction (docs/requirements.md, error-state filter formulation) is p -= dp,
+v -= dv, q = q(phi) (x) q, b_g += dbg, b_a += dba, then dx = 0.
 
 Dynamics, docs/requirements.md eq. 5-28 plus the terms of the Earth-fixed frame (`earth_terms`):
     dp'  = dv

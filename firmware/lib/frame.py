@@ -1,5 +1,5 @@
-"""The 52-byte output frame (docs/requirements.md, output frame, docs/requirements.md, frame
-encoding rules), packed without allocating.
+"""The 52-byte output frame (docs/requirements.md: output frame, frame encoding rules), packed
+without allocating.
 
 | bytes | field | scale |
 |---|---|---|

@@ -1,5 +1,5 @@
-"""Strapdown inertial mechanization in float32 (docs/requirements.md, strapdown INS and attitude,
-docs/requirements.md, INS background).
+"""Strapdown inertial mechanization in float32 (docs/requirements.md: strapdown INS and
+attitude, INS background).
 
 Frame: the navigation frame n is the local tangent plane (ENU) at the navigator's integer
 origin (see geo.py). It is fixed to the Earth and does not move with the vehicle, so there is

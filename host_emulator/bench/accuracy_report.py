@@ -75,7 +75,7 @@ def markdown(results):
         "",
         "549 s, 100 Hz low-cost IMU, RTK fixed solution of the antenna as the reference "
         "(docs/requirements.md, real drive drive_0708). The protocol other filters were measured "
-        "with (docs/requirements.md, reference figures): RTK "
+        "with (its reference figures): RTK "
         "positions at whole GPST seconds with white noise 1.5/1.5/3 m (numpy default_rng(1)), "
         "the filter told those sigmas, no velocity, no GNSS for 15 s at t0+60, t0+200 and "
         "t0+400 s, metrics from t0+30 s. `python -m host_emulator replay --dataset drive_0708 "
