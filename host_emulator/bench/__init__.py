@@ -9,7 +9,7 @@ float32.py          `float32`: the float32 math functions over their domains, th
 digests.py          `digests`: the change indicator (tests/change_indication/)
 settings.py         `bench-settings`: every board setting swept, what still navigates within
                     the board spec -> docs/benchmarks/settings.md (firmware/lib/config.py's
-                    ranges)
+                    ranges; the page: settings_report.py)
 board.py            `bench-board`: the image's tick time and the board's RAM on the emulated
                     STM32F411 and Cortex-M4F -> docs/benchmarks/board.md (what a tick costs:
                     eval/board_cost.py, eval/board_time.py)

@@ -10,6 +10,7 @@ import json
 import pytest
 
 from host_emulator.bench import settings as bench
+from host_emulator.bench import settings_report
 
 SW = {s.name: s for s in bench.SWEEPS}
 
@@ -67,7 +68,7 @@ def test_the_report_says_the_criterion_the_range_and_the_refusals(quick):
     lo, hi, den = data["ranges"]["gate_sigma"]["table_row"]
     assert lo / den == 5.0 and hi / den == 100.0  # the quick sweep: only the ends and 5
     # a value the firmware's table refuses now is still run (the table widened) and marked
-    refused = bench._refused({"gate_sigma": 1.0})
+    refused = settings_report._refused({"gate_sigma": 1.0})
     assert ("| 1 *refused* |" in text) == refused
 
 
