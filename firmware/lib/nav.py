@@ -1202,7 +1202,8 @@ _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 # a bias step passes it fixes before the drift limit, while its errors pass 10 m
 _BS_CLIP = f32.f32(3)
 _BS_LIMIT = f32.ratio(3, 2)
-_BW_CLIP = f32.f32(5)  # one innovation counts at most this much: an outlier alone is no jump
+_BW_CLIP = f32.f32(5)  # one innovation counts at most this much (both watches): an outlier
+# alone is no jump
 _BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
 # The aiding watch (_aid_watch): the same running means of y / sqrt(S) for the constraints a
 # drifting INS breaks within seconds, long before GNSS shows it: the non-holonomic
@@ -1211,7 +1212,6 @@ _BW_N = const(5)  # the scalars watched: position E, N, U, velocity E, N
 # off), a yaw-rate step of 0.3 deg/s the lateral one in 5-6 s (`make bench-faults`). The limits
 # stay above the real drive's means (drive_0708, logged once while choosing them: 0.89
 # lateral, 2.51 vertical, road bumps) and the simulated no-fault runs' (below 0.7).
-_AW_CLIP = f32.f32(5)
 _AW_LIMIT_LAT = f32.f32(2)
 _AW_LIMIT_UP = f32.f32(3)
 
@@ -1220,30 +1220,30 @@ def _aid_watch(e, mem, n):
     """After an aiding update of n scalars (E_Z/E_R: innovation y and variance S): the non-
     holonomic constraint (n = 2: body lateral, vertical velocity) or the zero-velocity update
     (n = 3: east, north, up velocity). Running means of y / sqrt(S) in mem's _M_AW, each ratio
-    clipped at _AW_CLIP, weight _BW_ALPHA per update: lateral from the constraint's row 0,
-    vertical from its row 1 and the update's row 2 (body z and up agree while nearly level).
-    The update's horizontal rows are left out: at the real drive's stops they reach 10 sigma
-    in one update. Returns _AW_HIT_LAT and _AW_HIT_UP for the means beyond
+    clipped at _BW_CLIP, weight _BW_ALPHA per update, as the drift watch's: lateral from the
+    constraint's row 0, vertical from its row 1 and the update's row 2 (body z and up agree
+    while nearly level). The update's horizontal rows are left out: at the real drive's stops
+    they reach 10 sigma in one update. Returns _AW_HIT_LAT and _AW_HIT_UP for the means beyond
     their limits. A detector (health 2, docs/health.md), and for the vertical channel the
     trigger of its containment (_INFLATE_VERTICAL)."""
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
     aw = f32.view(mem, _M_AW, 2)
+    if n == 2:
+        k0 = _AW_LAT  # rows 0, 1: the means _AW_LAT, _AW_UP
+    elif n == 3:
+        k0 = _AW_UP  # row 2: the mean _AW_UP
+    else:
+        return 0
     hit = 0
-    for k in range(2):
-        j = k
-        if n == 3:
-            if k == _AW_LAT:
-                continue
-            j = 2
-        elif n != 2:
-            return 0
+    for k in range(k0, 2):
+        j = k if n == 2 else 2
         if r[j] > 0.0:
             q = z[j] / f32.sqrt(r[j])
-            if q > _AW_CLIP:
-                q = _AW_CLIP
-            elif q < -_AW_CLIP:
-                q = -_AW_CLIP
+            if q > _BW_CLIP:
+                q = _BW_CLIP
+            elif q < -_BW_CLIP:
+                q = -_BW_CLIP
             aw[k] = aw[k] + _BW_ALPHA * (q - aw[k])
             lim = _AW_LIMIT_LAT if k == _AW_LAT else _AW_LIMIT_UP
             if aw[k] > lim or aw[k] < -lim:

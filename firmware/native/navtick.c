@@ -399,28 +399,29 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
 
 /* nav._aid_watch: after the non-holonomic constraint (n = 2: rows lateral, vertical) or the
    zero-velocity update (n = 3: its row 2, up, into the vertical mean), the running means of
-   y / sqrt(S) clipped at AW_CLIP; AW_HIT_LAT, AW_HIT_UP for those beyond their limits */
+   y / sqrt(S) clipped at BW_CLIP as drift_watch's; AW_HIT_LAT, AW_HIT_UP for those beyond their
+   limits */
 static int32_t aid_watch(const float *e, float *m, int32_t n) {
     const float *z = e + E_Z;
     const float *r = e + E_R;
     float *aw = m + M_AW;
+    int32_t k0;
+    if (n == 2) {
+        k0 = AW_LAT; /* rows 0, 1: the means AW_LAT, AW_UP */
+    } else if (n == 3) {
+        k0 = AW_UP; /* row 2: the mean AW_UP */
+    } else {
+        return 0;
+    }
     int32_t hit = 0;
-    for (int32_t k = 0; k < 2; k++) {
-        int32_t j = k;
-        if (n == 3) {
-            if (k == AW_LAT) {
-                continue;
-            }
-            j = 2;
-        } else if (n != 2) {
-            return 0;
-        }
+    for (int32_t k = k0; k < 2; k++) {
+        int32_t j = n == 2 ? k : 2;
         if (r[j] > 0.0f) {
             float q = z[j] / __builtin_sqrtf(r[j]);
-            if (q > AW_CLIP) {
-                q = AW_CLIP;
-            } else if (q < -AW_CLIP) {
-                q = -AW_CLIP;
+            if (q > BW_CLIP) {
+                q = BW_CLIP;
+            } else if (q < -BW_CLIP) {
+                q = -BW_CLIP;
             }
             aw[k] = aw[k] + BW_ALPHA * (q - aw[k]);
             float lim = k == AW_LAT ? AW_LIMIT_LAT : AW_LIMIT_UP;

@@ -604,7 +604,7 @@ class NavModel(AlignmentModel, AidingModel):
         return hit
 
     def _aid_watch(self, innov):
-        """nav._aid_watch: running means of y / sqrt(S) (clipped at _AW_CLIP) of the
+        """nav._aid_watch: running means of y / sqrt(S) (clipped at _BW_CLIP) of the
         non-holonomic constraint's lateral and vertical rows, and of the zero-velocity
         update's up row into the vertical one; the _AW_HIT_* bits of those beyond their
         limits."""
@@ -618,7 +618,7 @@ class NavModel(AlignmentModel, AidingModel):
         hit = 0
         for k, (y, s) in rows:
             if s > 0.0:
-                q = min(max(y / np.sqrt(s), -fw_nav._AW_CLIP), fw_nav._AW_CLIP)
+                q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
                 aw[k] = aw[k] + fw_nav._BW_ALPHA * (q - aw[k])
                 lim = fw_nav._AW_LIMIT_LAT if k == fw_nav._AW_LAT else fw_nav._AW_LIMIT_UP
                 if abs(aw[k]) > lim:
