@@ -17,6 +17,6 @@ module("board.py")
 package("drivers")
 for name in (
     "config", "eskf", "f32", "fmath", "frame", "geo", "ins", "kern", "mat", "nav", "nav_aid",
-    "nav_align", "navcfg", "records", "rot", "status_page",
+    "nav_align", "nav_kern", "navcfg", "records", "rot", "status_page",
 ):  # fmt: skip
     module(name + ".py", base_path="lib")

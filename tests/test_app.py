@@ -87,10 +87,10 @@ def field(f, fmt, off):
 
 
 def test_the_app_constants_are_the_correctly_rounded_values():
-    import nav
+    import nav_kern
 
-    assert nav.CDEG_PER_RAD == np.float32(18000 / np.pi)
-    assert nav.RAD_PER_CDEG == np.float32(np.pi / 18000)
+    assert nav_kern.CDEG_PER_RAD == np.float32(18000 / np.pi)
+    assert nav_kern.RAD_PER_CDEG == np.float32(np.pi / 18000)
 
 
 def test_the_apps_copies_of_the_frame_navigator_and_record_indices_agree():

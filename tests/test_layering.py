@@ -21,8 +21,9 @@ LAYERS = {
     "common.native": 1,  # the kernels' builds and their bindings
     "common.firmware_env": 2,  # navk on CPython is the cffi build
     "common.proto": 3,  # the configuration codec is the firmware's own
-    "common.native.layout": 3,  # the headers, from the firmware's Python
-    "common": 4,  # the package's docstring
+    "common.native.layout": 4,  # the headers (and the copies), from the firmware's Python
+    "common.native.const_copies": 3,  # the consts firmware modules repeat, from the owner
+    "common": 5,  # the package's docstring
     "tools.image": 10,
     "tools.flash": 11,  # deploys an image
     "tools.monitor": 12,  # joins a board through tools.flash's maintenance start

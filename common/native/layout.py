@@ -1,7 +1,8 @@
 """The constants the native kernels share with the firmware's Python, generated from it.
 
-    python -m common.native.layout          rewrite firmware/native/layout.h and tuning.h
-    python -m common.native.layout --check  exit 1, naming the files, if either is stale
+    python -m common.native.layout          rewrite firmware/native/layout.h and tuning.h, and
+                                            the const blocks of const_copies.py
+    python -m common.native.layout --check  exit 1, naming the files, if one is stale
 
 Every number the C and the Python sides both use is written once, in the Python module that
 owns it (a `const()`, a plain int, or a float32 from the seam: `f32.f32`, `f32.ratio`,
@@ -29,6 +30,7 @@ import textwrap
 import numpy as np
 
 from common.firmware_env import FIRMWARE_DIR, import_module, install, use_kernels
+from common.native import const_copies
 
 NATIVE_DIR = FIRMWARE_DIR / "native"
 
@@ -72,9 +74,10 @@ LAYOUT = (
 TUNING = (
     ("fmath", "the float32 sin, cos, atan2 and asin (fmath32.h)", "FM_", ("*",)),
     ("ins", "gravity and the coning terms", "", ("FREE_AIR", "TWELFTH")),
-    ("nav", "the watches (drift, suspicion, aiding), the receiver's unseen error and lag, "
-     "the frozen receiver", "",
-     ("_FROZEN_V2", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*")),
+    ("nav_kern", "the watches (drift, suspicion, aiding), the receiver's unseen error and lag, "
+     "the frozen receiver, the angle units", "",
+     ("_FROZEN_V2", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
+      "CDEG_PER_RAD")),
     ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_M", "_STEP_*")),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),
 )  # fmt: skip
@@ -186,9 +189,15 @@ def headers():
     }  # fmt: skip
 
 
+def generated():
+    """{path: text} of every file this writes: the headers, and the firmware modules' copies of
+    another module's private consts (const_copies.py)."""
+    return {**headers(), **const_copies.generated()}
+
+
 def stale():
-    """The generated headers whose file differs from what this writes."""
-    return [p for p, text in headers().items() if not p.exists() or p.read_text() != text]
+    """The generated files that differ from what this writes."""
+    return [p for p, text in generated().items() if not p.exists() or p.read_text() != text]
 
 
 def _shown(path):
@@ -200,7 +209,8 @@ def _shown(path):
 def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="python -m common.native.layout",
-        description="Write firmware/native/layout.h and tuning.h from the firmware's Python.",
+        description="Write firmware/native/layout.h and tuning.h from the firmware's Python, "
+        "and the consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py.",
     )
     ap.add_argument("--check", action="store_true", help="only say whether they are stale")
     args = ap.parse_args(argv)
@@ -210,10 +220,11 @@ def main(argv=None):
             for p in old:
                 print(f"layout: {_shown(p)} is stale", file=sys.stderr)
             return 1 if old else 0
-        for p, text in headers().items():
-            p.write_text(text)
-            print(f"wrote {_shown(p)}")
-    except LayoutError as e:
+        for p, text in generated().items():
+            if not p.exists() or p.read_text() != text:
+                p.write_text(text)
+                print(f"wrote {_shown(p)}")
+    except (LayoutError, const_copies.CopyError) as e:
         print(f"layout: {e}", file=sys.stderr)
         return 1
     return 0

@@ -47,7 +47,7 @@ _SCHEMA = (
     (9, "gnss_need_speed", _INT, 1, 2),
     (10, "coning", _INT, 1, 0),  # 1: two-sample coning and sculling corrections (navcfg)
     (11, "slices_per_tick", _INT, 1, 1),  # slices of filter work per tick (1..4, eskf.py)
-    (12, "gnss_lag_learn", _INT, 1, 1),  # 1: search and apply the fixes' lag (nav._lag_search)
+    (12, "gnss_lag_learn", _INT, 1, 1),  # 1: search and apply the fixes' lag (nav_kern.lag_search)
     (20, "gyro_bias0", _FLOAT, 3, None),  # rad/s
     (21, "accel_bias0", _FLOAT, 3, None),  # m/s^2
     (22, "gyro_matrix", _FLOAT, 9, None),  # scale factor + misalignment (+ mounting)

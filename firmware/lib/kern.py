@@ -11,6 +11,8 @@ present and built for this firmware (its `abi()` equals ABI), else the Python ke
 same signature. `NATIVE` and `describe()` say which was chosen (the app prints it at start-up).
 """
 
+import sys as _sys
+
 ABI = 8  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
 
 navk = None
@@ -28,6 +30,9 @@ except ValueError as e:  # a .mpy for another architecture or MicroPython versio
     _why = "navk.mpy not loadable: " + str(e)
 
 NATIVE = navk is not None
+# CPython (the emulator's hosts, the tests): where a module's heap does not count (nav.py)
+HOST = _sys.implementation.name != "micropython"
+del _sys
 
 
 def pick(name, python_kernel):

@@ -27,27 +27,28 @@ import f32
 import ins as ins_mod
 from fmath import cos, sin
 
-# Indices into self._fx, the pending fix's floats, as nav.py defines them (an underscore const
-# is inlined and exists only in its own module; tests/lib/test_nav.py checks the copies agree).
+# The Navigator's buffers, as nav.py lays them out (an underscore const is inlined and exists
+# only in its own module, so a module that indexes them repeats what it uses)
+_X_V = const(3)  # ins.X_V: the velocity in Ins.x (tests/lib/test_nav.py checks this one)
+# ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
 _FX_HDOP = const(1)
 _FX_SPEED = const(2)
 _FX_COURSE = const(3)
 _FX_SIG_H = const(4)
 _FX_SIG_V = const(5)
-_X_V = const(3)  # ins.X_V: the velocity in Ins.x
-_C_TICK = const(0)  # self.ctl: the control state
+_C_TICK = const(0)
+_C_ACCEPT_TICK = const(9)
 _C_REJECTS = const(10)
 _C_FIX_TICK = const(19)
 _C_USED_TICK = const(20)
-_C_T_SECOND = const(32)
 _C_V_REJECTS = const(47)
-_C_ACCEPT_TICK = const(9)
 _C_RESET_UNTIL = const(62)
 _C_LAST_TICK = const(72)
-_M_X = const(0)  # self.mem: Ins.x
-_M_E = const(52)  # ... Eskf.e
-_M_US = const(1595)  # ... self._used
-_M_LAST = const(1654)  # ... the last fix the filter took (east, north)
+_M_X = const(0)
+_M_E = const(52)
+_M_US = const(1595)
+_M_LAST = const(1654)
+# ---- end of nav.py's consts ----
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
@@ -122,7 +123,7 @@ class Aiding:
     def _start_gnss_update(self, b, rk):
         """The fix in self._gp against the state at its measurement time, at offset b of the
         delay ring (self._ring_p, self._ring_v) plus the corrections injected since; its
-        position variances times rk (nav._rate_r)."""
+        position variances times rk (nav_kern.rate_r)."""
         self.ctl[_C_USED_TICK] = self.ctl[_C_FIX_TICK]
         cfg = self.cfg
         kf = self.kf

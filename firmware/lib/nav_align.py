@@ -33,10 +33,19 @@ import rot
 from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
 from nav_aid import NO_HEIGHT_VAR
 
-# Indices into the Navigator's buffers, as nav.py defines them (an underscore const is inlined
-# and exists only in its own module; tests/lib/test_nav.py checks that the copies agree).
-_NAVIGATING = const(2)  # nav.NAVIGATING
-_C_TICK = const(0)  # self.ctl: the control state
+# The Navigator's buffers, as nav.py lays them out (an underscore const is inlined and exists
+# only in its own module, so a module that indexes them repeats what it uses)
+_IX_YAW = const(8)  # eskf.IX_ATT + 2: the yaw's row of the covariance (tests/lib/test_nav.py)
+# ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
+_NAVIGATING = const(2)
+_FX_H = const(0)
+_FX_SPEED = const(2)
+_FX_COURSE = const(3)
+_FX_SIG_V = const(5)
+_FC_SPEED = const(2)
+_FC_COURSE = const(16)
+_FC_FAST = const(32)
+_C_TICK = const(0)
 _C_STATE = const(1)
 _C_STILL = const(3)
 _C_ACCEPT_TICK = const(9)
@@ -54,16 +63,9 @@ _C_TRK_SET = const(30)
 _C_TRK_TICK = const(31)
 _C_T_LEVEL = const(38)
 _C_T_TRACK = const(39)
-_IX_YAW = const(8)  # eskf.IX_ATT + 2: the yaw's row of the covariance
-_FX_H = const(0)  # self._fx: the pending fix's floats
-_FX_SPEED = const(2)
-_FX_COURSE = const(3)
-_FX_SIG_V = const(5)
-_FC_SPEED = const(2)  # fix_check's bits (nav._fix_check_py): the fix has a speed
-_FC_COURSE = const(16)  # ... a course
-_FC_FAST = const(32)  # ... a speed of heading_speed_m_s or more
-_M_CN = const(1645)  # self.mem: the consistency block, and in it
-_CN_VV = const(4)  # the vertical variance the filter does not hold, m^2
+_M_CN = const(1645)
+_CN_VV = const(4)
+# ---- end of nav.py's consts ----
 
 # self._trk: the track anchors (heading from GNSS positions, see _track), used only here: a
 # float array, 3 floats per anchor, oldest first, and an int array of their measurement ticks,
@@ -174,7 +176,7 @@ class Alignment:
         if not c[_C_LEVELED]:
             c[_C_TRK_SET] = 0
             return
-        # fix_check's bits, not the floats: an aligning fix boxes no float (nav._fix_check_py)
+        # fix_check's bits, not the floats: an aligning fix boxes no float (nav_kern.fix_check)
         if u & _FC_COURSE or (u & _FC_SPEED and not u & _FC_FAST):
             # the receiver's course, or its speed says it (nearly) stands: the track's chord
             # would be the fixes' noise (an RMC's course is empty at a standstill)

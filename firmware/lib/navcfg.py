@@ -30,7 +30,7 @@ class NavConfig:
         self.coning = False
         # search how late the fixes are against their stamps (their velocity against the
         # track at candidate lags) and compare them with the state of that moment
-        # (nav._lag_search)
+        # (nav_kern.lag_search)
         self.gnss_lag_learn = True
 
         # Sensor noise: BMI055 datasheet figures (docs/requirements.md, BMI055 facts) with a

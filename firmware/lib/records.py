@@ -12,7 +12,7 @@ Extended frame, type 0x91 (every `ext_every_ticks`), payload after the counter:
      4 worst tick us u16, 6 mean tick us u16, 8 overruns u16 (wrapping), 10 GC runs u16
     12 P diagonal, 15 x f32 (the error-state order of docs/requirements.md); the position's three
     hold P's plus the
-       receiver's error the filter cannot see (Navigator.cv, nav._consistency)
+       receiver's error the filter cannot see (Navigator.cv, nav_kern.consistency)
     72 gyro bias rad/s 3 x f32, 84 accel bias m/s^2 3 x f32
     96 position m 3 x f32 (ENU from the origin), 108 origin lat i32, 112 origin lon i32
        (1e-7 deg; the integrated lat/lon is the origin plus the position, through geo.py)

@@ -2,6 +2,7 @@
  * the extended frame (firmware/lib/records.py `_ext_pack_py`). */
 #include <stdint.h>
 
+#include "fmath32.h" /* F32_BITS and tuning.h: CDEG_PER_RAD */
 #include "layout.h"
 #include "navk.h"
 
@@ -138,7 +139,7 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     for (int i = 0; i < 15; i++) {
         put_f32(buf, 16 + 4 * i, p[16 * i]);
     }
-    /* the position's: P's plus the receiver's unseen error (nav._consistency) */
+    /* the position's: P's plus the receiver's unseen error (nav_kern.consistency) */
     put_f32(buf, 16, p[0] + cv[0]);
     put_f32(buf, 20, p[16] + cv[0]);
     put_f32(buf, 24, p[32] + cv[1]);
@@ -187,18 +188,13 @@ void navk_bytes_copy(uint8_t *dst, int32_t off, const uint8_t *src, int32_t n) {
     }
 }
 
-/* nav._nav_frame_py: the frame of the navigator's state in m (Navigator.mem), the attitude as
+/* nav_kern.nav_frame: the frame of the navigator's state in m (Navigator.mem), the attitude as
  * yaw, pitch, roll into m's ypr first; the fix's latitude and longitude from fields. */
 void navk_nav_frame(uint8_t *buf, const int32_t *fields, const int16_t *gyro,
     const int16_t *accel, float *m) {
-    /* nav.CDEG_PER_RAD, 18000 / pi as float32: the same bits as the Python constant */
-    union {
-        uint32_t u;
-        float f;
-    } cdeg_per_rad = { 0x45B30CA0u };
     int32_t lat[2] = { fields[F_LAT_DEG], fields[F_LAT_FRAC] };
     int32_t lon[2] = { fields[F_LON_DEG], fields[F_LON_FRAC] };
     navk_euler(m + M_YPR, m + M_X + X_C);
     navk_frame_pack(buf, fields, gyro, accel, lat, lon, m + M_YPR, m + M_X + X_V, m + M_X + X_P,
-        cdeg_per_rad.f);
+        CDEG_PER_RAD);
 }

@@ -282,6 +282,7 @@
 #define M_BS 1704
 #define M_AW 1709
 #define NM 1711
+#define BW_N 5
 #define AW_LAT 0
 #define AW_UP 1
 #define AW_HIT_LAT 1
@@ -304,7 +305,6 @@
 #define LS_N 16
 #define LS_M 32
 #define NLS 48
-#define BW_N 5
 
 /* frame.py: the int fields of App._frame_ints and the frame's scales */
 #define FRAME_LEN 52

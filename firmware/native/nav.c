@@ -118,12 +118,8 @@ void navk_euler(float *ypr, const float *c_bn) {
     rot_dcm_to_euler(ypr, c_bn);
 }
 
-/* nav._fix_in_py: the receiver's integers as the fix's floats. */
+/* nav_kern.fix_in: the receiver's integers as the fix's floats. */
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
-    union {
-        uint32_t u;
-        float f;
-    } rad_per_cdeg = {0x393702D3u}; /* nav.RAD_PER_CDEG: pi / 18000 */
     fx[FX_SIG_V] = 0.0f;
     if (fi[FI_ALT_MM] == FI_NO_HEIGHT) { /* no height: gnss_rows holds v_U instead */
         fx[FX_H] = 0.0f;
@@ -137,7 +133,7 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
     if (fi[FI_SPEED_MM_S] >= 0) {
         fx[FX_SPEED] = (float)fi[FI_SPEED_MM_S] / 1000.0f;
         if (fi[FI_COURSE_CDEG] >= 0) {
-            fx[FX_COURSE] = (float)fi[FI_COURSE_CDEG] * rad_per_cdeg.f;
+            fx[FX_COURSE] = (float)fi[FI_COURSE_CDEG] * RAD_PER_CDEG;
         }
     }
     fx[FX_SIG_H] = 0.0f;
@@ -176,7 +172,7 @@ void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
     c[C_FIX_PENDING] = 1;
 }
 
-/* nav._fix_check_py: FC_* bits of a fix whose quality is acceptable. */
+/* nav_kern.fix_check: FC_* bits of a fix whose quality is acceptable. */
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid) {
     if (!(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {
         return 0;

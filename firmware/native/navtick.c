@@ -72,7 +72,7 @@ static void update_health(int32_t *c) {
     c[C_HEALTH] = (k & CAUSE_FAULTS) ? 2 : (k ? 1 : 0);
 }
 
-/* nav._imu_check: 1 if the counts cannot be a working BMI055's sample; keeps the last counts
+/* nav_kern.imu_check: 1 if the counts cannot be a working BMI055's sample; keeps the last counts
  * and the runs of unchanged ones (not for a repeat of the same read) */
 static int32_t imu_check(int32_t *c, const int16_t *g, const int16_t *a) {
     int32_t st = c[C_IMU_STATUS];
@@ -106,13 +106,13 @@ static int32_t imu_check(int32_t *c, const int16_t *g, const int16_t *a) {
     return c[C_N_SAME_G] >= c[C_T_STUCK] || c[C_N_SAME_A] >= c[C_T_STUCK];
 }
 
-/* nav._finite6 */
+/* nav_kern.finite6 */
 static int32_t finite6(const float *w, const float *f) {
     float s = w[0] + w[1] + w[2] + f[0] + f[1] + f[2];
     return s - s == 0.0f;
 }
 
-/* nav._uncertain */
+/* nav_kern.uncertain */
 static int32_t uncertain(const float *e, const float *aid, const float *m) {
     float lim = aid[AID_FAULT_SIGMA];
     float lim2 = lim * lim;
@@ -209,7 +209,7 @@ static void still_update(int32_t *c, float *st, const float *f, const float *w, 
     c[C_STILL] = c[C_N_STILL] >= c[C_T_STILL] ? 1 : 0;
 }
 
-/* nav._lag_search: per candidate lag, the change of the velocity residual against the
+/* nav_kern.lag_search: per candidate lag, the change of the velocity residual against the
  * ring's track between consecutive fixes, its running mean of squares, and the lag applied
  * (the least, shrunk by the evidence against no lag) */
 static void lag_search(int32_t *c, float *m, int32_t age) {
@@ -296,7 +296,7 @@ static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
     }
     c[C_JOB] = JOB_GNSS;
     c[C_UPDATES] += 1;
-    /* nav._rate_r: the factor on the position variances, the fixes a second taken (1 to 10) */
+    /* nav_kern.rate_r: the factor on the position variances, the fixes a second taken (1 to 10) */
     float rk = 1.0f;
     int32_t d = c[C_FIX_TICK] - c[C_LAST_TICK];
     if (!(c[C_LAST_TICK] == 0 || d <= 0 || d >= c[C_T_SECOND])) {
@@ -356,7 +356,7 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
     }
 }
 
-/* nav._drift_watch: 2 when a running mean of normalised innovations passes the limit, else 1
+/* nav_kern.drift_watch: 2 when a running mean of normalised innovations passes the limit, else 1
    when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT, else 0 */
 static int32_t drift_watch(const float *e, float *m, int32_t n) {
     const float *z = e + E_Z;
@@ -397,7 +397,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
     return hit;
 }
 
-/* nav._aid_watch: after the non-holonomic constraint (n = 2: rows lateral, vertical) or the
+/* nav_kern.aid_watch: after the non-holonomic constraint (n = 2: rows lateral, vertical) or the
    zero-velocity update (n = 3: its row 2, up, into the vertical mean), the running means of
    y / sqrt(S) clipped at BW_CLIP as drift_watch's; AW_HIT_LAT, AW_HIT_UP for those beyond their
    limits */
@@ -433,7 +433,7 @@ static int32_t aid_watch(const float *e, float *m, int32_t n) {
     return hit;
 }
 
-/* nav._consistency: after a GNSS update whose position rows were all accepted, the running
+/* nav_kern.consistency: after a GNSS update whose position rows were all accepted, the running
  * means of y^2/S and from them the receiver's error variance the filter cannot see */
 static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     if (n < 3 || (mask & 7)) {

@@ -54,8 +54,10 @@
 #define FREE_AIR F32_BITS(0x364F1914) /* 3.086e-06 */
 #define TWELFTH F32_BITS(0x3DAAAAAB) /* 0.083333336 */
 
-/* nav.py: the watches (drift, suspicion, aiding), the receiver's unseen error and lag, the
- * frozen receiver */
+/* nav_kern.py: the watches (drift, suspicion, aiding), the receiver's unseen error and lag, the
+ * frozen receiver, the angle units */
+#define RAD_PER_CDEG F32_BITS(0x393702D3) /* 0.00017453292 */
+#define CDEG_PER_RAD F32_BITS(0x45B30CA0) /* 5729.578 */
 #define FROZEN_V2 F32_BITS(0x3F800000) /* 1. */
 #define BW_ALPHA F32_BITS(0x3E800000) /* 0.25 */
 #define BW_LIMIT F32_BITS(0x40400000) /* 3. */

@@ -463,7 +463,7 @@ def report(results, vm, footprint, seeds, wall):
         "rate), each scenario's profile, the fixes handed to the navigator at their epochs (the "
         "NMEA and PPS timing of 5 and 10 Hz epochs is tested in tests/eval/test_parity.py). The "
         "filter runs more slices per tick as the fixes come faster (nav._rate_slices), and "
-        "takes each fix's position variances times the fixes a second it takes (nav._rate_r; "
+        "takes each fix's position variances times the fixes a second it takes (nav_kern.rate_r; "
         'docs/navigation.md, "Receivers faster than 1 Hz").',
         "",
         "| scenario (profile) | receiver | horiz RMS m | horiz RMS (GNSS) m | vel RMS m/s "

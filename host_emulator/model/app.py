@@ -58,7 +58,7 @@ from host_emulator.model.nav import NavModel
 firmware_env.install()
 import config  # noqa: E402  (firmware/lib/config.py: the board's configuration file)
 import geo as fw_geo  # noqa: E402  (the origin height's index; the longitude's e7 join)
-import nav as fw_nav  # noqa: E402  (radians per centidegree of course)
+import nav_kern  # noqa: E402  (radians per centidegree of course)
 from drivers.gnss import Nmea  # noqa: E402  (the shared NMEA parser)
 
 F32 = np.float32
@@ -117,7 +117,7 @@ def frame_bytes(t, cfg):
     gyro = np.clip(_round_div(t["gyro"] * fw_frame._GYRO_FRAME_X100, 10 * lsb_x10), -32768, 32767)
     accel = np.clip(_round_div(t["accel"] * fw_frame._ACCEL_FRAME, lsb_g), -32768, 32767)
     ypr = ref_rot.dcm_to_euler(t["c_bn"])  # (F, 3) yaw, pitch, roll, rad
-    ypr = _round_clamp(ypr * fw_nav.CDEG_PER_RAD, -32768, 32767)
+    ypr = _round_clamp(ypr * nav_kern.CDEG_PER_RAD, -32768, 32767)
     vel = _round_clamp(t["v_n"] * F32(100), -32768, 32767)
     for i, (xyz, enu) in enumerate(zip("xyz", "enu", strict=True)):
         fr[f"gyro_{xyz}"] = gyro[:, i]
@@ -210,7 +210,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
     if g.epoch_speed_mm_s >= 0:
         speed = F32(g.epoch_speed_mm_s) / F32(1000)
         if g.epoch_course_cdeg >= 0:
-            course = F32(g.epoch_course_cdeg) * fw_nav.RAD_PER_CDEG
+            course = F32(g.epoch_course_cdeg) * nav_kern.RAD_PER_CDEG
     fix_tick = -1
     age_us = ticks_diff(now_us, g.epoch_pps_us)
     if g.epoch_utc_ms > 0:  # app._fix_tick: from the fix's own moment in its second
@@ -222,7 +222,7 @@ def deliver_fix(g, model, fix, hdop_max, now_us, pps, ticks):
         fix_tick = model.tick - age_us // fw_app._US_PER_TICK
     elif pps["last"]:  # app._fix_tick: no edge for this fix though edges came before
         pps["bad"] = ticks + fw_app._SECOND_TICKS
-    if alt_mm is None:  # no height yet (an RMC-only receiver): nav._fix_in_py
+    if alt_mm is None:  # no height yet (an RMC-only receiver): nav_kern.fix_in
         model.gnss(lat, lon, 0.0, g.epoch_quality, hdop, speed, course, fix_tick, sigma_v_m=-1.0)
         return
     h = F32(alt_mm) / F32(1000)

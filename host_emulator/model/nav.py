@@ -47,6 +47,7 @@ firmware_env.install()
 import geo as fw_geo  # noqa: E402
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
 import nav_align as fw_nav_align  # noqa: E402
+import nav_kern  # noqa: E402  (... and the kernels' tuning)
 
 
 def _rate_slices(interval, configured):
@@ -207,9 +208,9 @@ class NavModel(AlignmentModel, AidingModel):
         self.drift_watch = np.zeros(fw_nav._BW_N, F32)  # running means of normalised innovations
         self.suspect_watch = np.zeros(fw_nav._BW_N, F32)  # ... clipped at _BS_CLIP: suspicion
         self.aid_watch = np.zeros(2, F32)  # nav._M_AW: the aiding watch's running means
-        # the receiver's unseen error and the fixes' lag (nav._consistency, layout nav._CN_*)
+        # the receiver's unseen error and the fixes' lag (nav_kern.consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
-        self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav._lag_search's residuals and means
+        self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav_kern.lag_search's residuals and means
         self.lag_tick = 0  # measurement tick of the last fix the lag search took (0: none)
         self.since_prop = 0
         self.since_zupt = 0
@@ -242,7 +243,7 @@ class NavModel(AlignmentModel, AidingModel):
 
     def imu_raw(self, gyro_counts, accel_counts, saturated=False, fresh=True, repeat=False):
         """A tick of BMI055 counts; a sample that cannot be a working sensor's is replaced by
-        the previous one (nav._imu_check); repeat: a missed tick's repeat of the last read."""
+        the previous one (nav_kern.imu_check); repeat: a missed tick's repeat of the last read."""
         self.imu_status = (1 if saturated else 0) | (fw_nav.IMU_FRESH if fresh else 0)
         if repeat:
             self.imu_status |= fw_nav.IMU_REPEAT
@@ -452,7 +453,7 @@ class NavModel(AlignmentModel, AidingModel):
         same = (self.fix_lat_e7, self.fix_lon_e7) == self.prev_fix
         self.prev_fix = (self.fix_lat_e7, self.fix_lon_e7)
         v = self.ins.v_n
-        if same and (v[0] * v[0] + v[1] * v[1] > fw_nav._FROZEN_V2 or self.frozen):
+        if same and (v[0] * v[0] + v[1] * v[1] > nav_kern._FROZEN_V2 or self.frozen):
             self.frozen = True  # nav._C_FROZEN: until the fix changes
             self.implausible_until = self.tick + self.ticks_second
             return True
@@ -581,22 +582,22 @@ class NavModel(AlignmentModel, AidingModel):
         self.job = JOB_NONE
 
     def _drift_watch(self, innov):
-        """nav._drift_watch: running means of y / sqrt(S) of the position east, north, up
+        """nav_kern.drift_watch: running means of y / sqrt(S) of the position east, north, up
         and the velocity east and north; 2 (and both sets restarted) when one passes the
         limit, else 1 when one of the suspicion's (each ratio clipped at _BS_CLIP) passes
         _BS_LIMIT, else 0."""
         bw, bs = self.drift_watch, self.suspect_watch
-        a = fw_nav._BW_ALPHA / self.consistency[fw_nav._CN_RK]  # a fix: 1 / rk of a second's
+        a = nav_kern._BW_ALPHA / self.consistency[fw_nav._CN_RK]  # a fix: 1 / rk of a second's
         hit = 0
         for j, (y, s) in enumerate(innov[: fw_nav._BW_N]):
             if s > 0.0:
-                q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
+                q = min(max(y / np.sqrt(s), -nav_kern._BW_CLIP), nav_kern._BW_CLIP)
                 bw[j] = bw[j] + a * (q - bw[j])
-                if abs(bw[j]) > fw_nav._BW_LIMIT:
+                if abs(bw[j]) > nav_kern._BW_LIMIT:
                     hit = 2
-                q = min(max(q, -fw_nav._BS_CLIP), fw_nav._BS_CLIP)
+                q = min(max(q, -nav_kern._BS_CLIP), nav_kern._BS_CLIP)
                 bs[j] = bs[j] + a * (q - bs[j])
-                if abs(bs[j]) > fw_nav._BS_LIMIT:
+                if abs(bs[j]) > nav_kern._BS_LIMIT:
                     hit = max(hit, 1)
         if hit == 2:
             bw[:] = ZERO
@@ -604,7 +605,7 @@ class NavModel(AlignmentModel, AidingModel):
         return hit
 
     def _aid_watch(self, innov):
-        """nav._aid_watch: running means of y / sqrt(S) (clipped at _BW_CLIP) of the
+        """nav_kern.aid_watch: running means of y / sqrt(S) (clipped at _BW_CLIP) of the
         non-holonomic constraint's lateral and vertical rows, and of the zero-velocity
         update's up row into the vertical one; the _AW_HIT_* bits of those beyond their
         limits."""
@@ -618,15 +619,15 @@ class NavModel(AlignmentModel, AidingModel):
         hit = 0
         for k, (y, s) in rows:
             if s > 0.0:
-                q = min(max(y / np.sqrt(s), -fw_nav._BW_CLIP), fw_nav._BW_CLIP)
-                aw[k] = aw[k] + fw_nav._BW_ALPHA * (q - aw[k])
-                lim = fw_nav._AW_LIMIT_LAT if k == fw_nav._AW_LAT else fw_nav._AW_LIMIT_UP
+                q = min(max(y / np.sqrt(s), -nav_kern._BW_CLIP), nav_kern._BW_CLIP)
+                aw[k] = aw[k] + nav_kern._BW_ALPHA * (q - aw[k])
+                lim = nav_kern._AW_LIMIT_LAT if k == fw_nav._AW_LAT else nav_kern._AW_LIMIT_UP
                 if abs(aw[k]) > lim:
                     hit |= 1 << k
         return hit
 
     def _rate_r(self):
-        """nav._rate_r: the factor on the fix's position variances, the fixes a second the
+        """nav_kern.rate_r: the factor on the fix's position variances, the fixes a second the
         filter takes (1 to 10), from this fix's measurement tick and the last one taken."""
         d = self.fix_tick - self.last_used_tick
         if self.last_used_tick == 0 or d <= 0 or d >= self.ticks_second:
@@ -635,7 +636,7 @@ class NavModel(AlignmentModel, AidingModel):
         return F32(self.ticks_second) / F32(d)
 
     def _consistency(self, innov, mask):
-        """nav._consistency: after a fix whose three position rows were accepted, the running
+        """nav_kern.consistency: after a fix whose three position rows were accepted, the running
         means of y^2/S (east/north, up) over _CN_N seconds of fixes and the unseen variances
         (1 - mean) sigma^2; then, from
         the velocity rows, the fixes' lag behind their stamps and the ticks applied."""
@@ -645,12 +646,12 @@ class NavModel(AlignmentModel, AidingModel):
         if not (se > 0.0 and sn > 0.0 and su > 0.0):
             return
         cn = self.consistency
-        k = min(cn[fw_nav._CN_K] + ONE / cn[fw_nav._CN_RK], fw_nav._CN_N)
+        k = min(cn[fw_nav._CN_K] + ONE / cn[fw_nav._CN_RK], nav_kern._CN_N)
         cn[fw_nav._CN_K] = k
         a = ONE / k
-        qe = min(ye * ye / se, fw_nav._CN_CLIP)
-        qn = min(yn * yn / sn, fw_nav._CN_CLIP)
-        qu = min(yu * yu / su, fw_nav._CN_CLIP)
+        qe = min(ye * ye / se, nav_kern._CN_CLIP)
+        qn = min(yn * yn / sn, nav_kern._CN_CLIP)
+        qu = min(yu * yu / su, nav_kern._CN_CLIP)
         qh = (qe + qn) * HALF
         cn[fw_nav._CN_MH] = cn[fw_nav._CN_MH] + a * (qh - cn[fw_nav._CN_MH])
         sig = self.used[5]
@@ -658,7 +659,7 @@ class NavModel(AlignmentModel, AidingModel):
         if cn[fw_nav._CN_MH] < ONE:
             cn[fw_nav._CN_VH] = (ONE - cn[fw_nav._CN_MH]) * (sig * sig)
         sig = self.used[6]  # < 0: the fix had no height, and the state's is unknown
-        cn[fw_nav._CN_VV] = fw_nav.NO_HEIGHT_VAR
+        cn[fw_nav._CN_VV] = nav_kern.NO_HEIGHT_VAR
         if sig > 0.0:
             cn[fw_nav._CN_MV] = cn[fw_nav._CN_MV] + a * (qu - cn[fw_nav._CN_MV])
             cn[fw_nav._CN_VV] = ZERO
@@ -666,7 +667,7 @@ class NavModel(AlignmentModel, AidingModel):
                 cn[fw_nav._CN_VV] = (ONE - cn[fw_nav._CN_MV]) * (sig * sig)
 
     def _lag_search(self, age):
-        """nav._lag_search: per candidate lag, the change of the velocity residual against the
+        """nav_kern.lag_search: per candidate lag, the change of the velocity residual against the
         ring's track between consecutive fixes, its running mean of squares, and the lag
         applied (the least, shrunk by the evidence against no lag)."""
         cn = self.consistency
@@ -677,7 +678,7 @@ class NavModel(AlignmentModel, AidingModel):
             return  # pairs about a second apart at any rate
         self.lag_tick = self.fix_tick
         course, sp = self.fix[3], self.fix[2]
-        if (not self.cfg.gnss_lag_learn or course < 0.0 or not sp * sp > fw_nav._LAG_V2
+        if (not self.cfg.gnss_lag_learn or course < 0.0 or not sp * sp > nav_kern._LAG_V2
                 or age < 0 or age + step * (nc - 1) > RING - 1
                 or self.tick < self.drift_until or self.tick < self.gated_until):  # fmt: skip
             self.lag_tick = 0
@@ -688,7 +689,7 @@ class NavModel(AlignmentModel, AidingModel):
         pair = 1 <= t <= 2 * self.ticks_second
         k = cn[fw_nav._CN_KL]
         if pair:
-            k = min(k + ONE, fw_nav._CN_N)
+            k = min(k + ONE, nav_kern._CN_N)
             cn[fw_nav._CN_KL] = k
         a = ONE / k if pair else ZERO
         best = 0
@@ -711,7 +712,7 @@ class NavModel(AlignmentModel, AidingModel):
         lag = F32(best * step) * dt
         cn[fw_nav._CN_LAG] = lag
         cn[fw_nav._CN_LAGT] = ZERO
-        if best == 0 or k < fw_nav._LAG_K0:
+        if best == 0 or k < nav_kern._LAG_K0:
             return
         m = ls[fw_nav._LS_M + best]
         if not m > 0.0:

@@ -49,7 +49,7 @@ class AidingModel:
         """Antenna position p + C_bn l against the fix at its measurement time (ring slot
         `slot`, plus the corrections injected since): z = dp + [(C l) x] phi; and, with a
         course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course). The
-        position variances times rk (nav._rate_r)."""
+        position variances times rk (nav_kern.rate_r)."""
         cfg = self.cfg
         kf = self.kf
         p_then = self.ring_p[slot]

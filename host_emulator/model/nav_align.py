@@ -156,7 +156,7 @@ class AlignmentModel:
         y = y * y
         self.init_diag[IX_ATT + 2] = var_course if var_course > y else y
         if self.fix[5] < 0.0:  # a receiver without height: the height is unknown
-            self.consistency[fw_nav._CN_VV] = fw_nav.NO_HEIGHT_VAR
+            self.consistency[fw_nav._CN_VV] = fw_nav_align.NO_HEIGHT_VAR
         ins = self.ins
         ypr = ref_rot.dcm_to_euler(ins.c_bn)
         ypr[fw_rot.YAW] = -course

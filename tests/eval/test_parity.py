@@ -248,7 +248,7 @@ def test_the_vectorised_frame_equals_the_firmware_packer():
     range of every field: rounding ties, the int16/int32 clamps, NaN and infinities, pitch
     at +-90 deg, longitudes beyond 107.37 deg, all sensor ranges."""
     import frame
-    import nav
+    import nav_kern
     import rot
 
     rng = np.random.default_rng(5)
@@ -301,7 +301,7 @@ def test_the_vectorised_frame_equals_the_firmware_packer():
                 buf, int(t["counter"][i]), t["gyro"][i].tolist(), t["accel"][i].tolist(),
                 lsb_x10, lsb_g, int(t["pps"][i]), int(t["gga"][i]), int(t["valid"][i]),
                 pair(int(t["lat_e7"][i])), pair(int(t["lon_e7"][i])), int(t["height_dm"][i]),
-                int(t["state"][i]), nav.CDEG_PER_RAD, ypr, v[i], p[i],
+                int(t["state"][i]), nav_kern.CDEG_PER_RAD, ypr, v[i], p[i],
             )  # fmt: skip
             assert bytes(buf) == model[i].tobytes(), (gyro_range, i)
 

@@ -8,8 +8,7 @@ import pytest
 import eskf
 import f32
 import nav as fw_nav
-import nav_aid
-import nav_align
+import nav_kern
 import navcfg
 from host_emulator.bench import navigation as bench_nav
 from host_emulator.bench import navigator as nav_runner
@@ -42,57 +41,6 @@ def car_nav(gnss):
 def state_is_finite(nav):
     vals = [*nav.ins.p_n, *nav.ins.v_n, *nav.ins.q_bn, *nav.ins.bg, *nav.ins.ba, *nav.kf.P]
     return bool(np.all(np.isfinite(np.asarray(vals, dtype=float))))
-
-
-def test_mixins_repeat_the_navigators_buffer_indices_exactly():
-    """nav_align.py and nav_aid.py repeat the private consts of nav.py they index with (an
-    underscore const is inlined and exists only in its own module on the board); on CPython
-    they are module attributes, so the copies can be checked against nav.py's."""
-    copies = {
-        nav_align: [
-            "_FX_H",
-            "_FX_SPEED",
-            "_FX_COURSE",
-            "_FX_SIG_V",
-            "_M_CN",
-            "_CN_VV",
-            "_FC_SPEED",
-            "_FC_COURSE",
-            "_FC_FAST",
-        ],  # fmt: skip
-        nav_aid: [
-            "_FX_HDOP",
-            "_FX_SPEED",
-            "_FX_COURSE",
-            "_FX_SIG_H",
-            "_FX_SIG_V",
-            "_M_X",
-            "_M_E",
-            "_M_US",
-            "_M_LAST",
-        ],
-    }
-    for module, names in copies.items():
-        for name in names:
-            assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
-    import ins as ins_mod
-
-    assert nav_aid._X_V == ins_mod.X_V
-    assert nav_align._NAVIGATING == fw_nav.NAVIGATING
-    assert nav_align._IX_YAW == eskf.IX_ATT + 2
-    ctl = {n for n in vars(fw_nav) if n.startswith("_C_")}
-    for module in (nav_align, nav_aid):
-        names = {n for n in vars(module) if n.startswith("_C_")}
-        assert names and names <= ctl, module.__name__
-        for name in names:
-            assert getattr(module, name) == getattr(fw_nav, name), (module.__name__, name)
-    # every layout index a mixin defines is one of these copies or a buffer it owns
-    owned = {nav_align: "_TR_", nav_aid: "_US_"}
-    for module, names in copies.items():
-        prefixes = ("_FX_", "_FC_", "_ST_", "_TR_", "_US_", "_M_", "_CN_")
-        consts = {n for n in vars(module) if n.startswith(prefixes)}
-        assert consts == set(names) | {n for n in consts if n.startswith(owned[module])}
-        assert not any(n.startswith(owned[module]) for n in vars(fw_nav))
 
 
 def test_static_board_levels_estimates_gyro_bias_and_waits_for_a_heading():
@@ -175,7 +123,7 @@ def test_correlated_gnss_errors_are_found_and_reported():
 
 
 def test_the_rate_factor_is_the_fixes_a_second_the_filter_takes():
-    """nav._rate_r from the measurement ticks of the queued fix and of the last one the filter
+    """nav_kern.rate_r from the measurement ticks of the queued fix and of the last one the filter
     took: 1 at 1 Hz and slower, after a reset (no last fix) or a stamp that did not advance;
     5 for fixes 40 ticks apart; at most 10. And the running means of _consistency then span
     _CN_N seconds of fixes: 100 fixes at 5 a second count 20."""
@@ -185,7 +133,7 @@ def test_the_rate_factor_is_the_fixes_a_second_the_filter_takes():
              (500, 500, 1.0), (510, 500, 1.0), (301, 500, 200 / 199))  # fmt: skip
     for last, fix, rk in cases:
         c[fw_nav._C_LAST_TICK], c[fw_nav._C_FIX_TICK] = last, fix
-        assert float(fw_nav._rate_r(c)) == pytest.approx(rk, rel=1e-6), (last, fix)
+        assert float(nav_kern.rate_r(c)) == pytest.approx(rk, rel=1e-6), (last, fix)
     e, mem = nav.kf.e, nav.mem
     mem[fw_nav._M_CN + fw_nav._CN_RK] = 5.0
     z = f32.view(e, eskf.E_Z, 3)
@@ -194,32 +142,32 @@ def test_the_rate_factor_is_the_fixes_a_second_the_filter_takes():
     for _ in range(100):
         r[0], r[1], r[2] = 4.0, 4.0, 16.0
         z[0], z[1], z[2] = 1.0, 1.0, 2.0
-        fw_nav._consistency(e, mem, 5, 0)
+        nav_kern.consistency(e, mem, 5, 0)
     assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == pytest.approx(20.0, rel=1e-5)
 
 
 def test_consistency_estimates_the_innovations_deficit():
-    """nav._consistency on made-up innovations: y^2/S of 0.25 east and north (mean 0.25) and
+    """nav_kern.consistency on made-up innovations: y^2/S of 0.25 east and north (mean 0.25) and
     1.5 up give (1 - 0.25) sigma_h^2 unseen horizontally and nothing vertically; a fix with a
     gated position row, or fewer than three rows, changes nothing."""
     nav = Navigator(navcfg.NavConfig("car"))
     e, mem = nav.kf.e, nav.mem
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
-    mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0  # a fix a second (nav._rate_r)
+    mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0  # a fix a second (nav_kern.rate_r)
     mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
     mem[fw_nav._M_US + 6] = 4.0
     for k in range(100):
         r[0], r[1], r[2] = 4.0, 4.0, 16.0
         z[0], z[1], z[2] = 1.0 if k % 2 else -1.0, 1.0, 4.0 * F32(1.5) ** 0.5
-        fw_nav._consistency(e, mem, 5, 0)
+        nav_kern.consistency(e, mem, 5, 0)
     assert float(nav.cv[0]) == pytest.approx(0.75 * 4.0, rel=1e-5)
     assert float(nav.cv[1]) == 0.0
-    assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(fw_nav._CN_N)
+    assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(nav_kern._CN_N)
     before = np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN])
     z[0] = 100.0
-    fw_nav._consistency(e, mem, 5, 1)  # east gated
-    fw_nav._consistency(e, mem, 2, 0)  # no height row
+    nav_kern.consistency(e, mem, 5, 1)  # east gated
+    nav_kern.consistency(e, mem, 2, 0)  # no height row
     assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
 
 
