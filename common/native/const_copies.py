@@ -23,6 +23,7 @@ COPIES = (
     ("nav_kern", "nav"),
     ("nav_aid", "nav"),
     ("nav_align", "nav"),
+    ("drivers.gnss_kern", "drivers.gnss"),
 )
 
 _BEGIN = "# ---- {owner}'s consts used here: `python -m common.native.layout` writes them ----"

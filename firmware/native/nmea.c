@@ -8,7 +8,7 @@
 #include "navk.h"
 
 
-/* gnss._num */
+/* gnss_kern._num */
 static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
     if (a >= b) {
         return NMEA_EMPTY;
@@ -64,7 +64,7 @@ static int32_t num(const uint8_t *line, int32_t a, int32_t b, int32_t k) {
     return neg ? -v : v;
 }
 
-/* gnss._nn */
+/* gnss_kern._nn */
 static int32_t nn(int32_t v) {
     if (v == NMEA_EMPTY) {
         return -1;
@@ -75,7 +75,7 @@ static int32_t nn(int32_t v) {
     return v;
 }
 
-/* gnss._mins */
+/* gnss_kern._mins */
 static int32_t mins(const uint8_t *line, int32_t a, int32_t b) {
     int32_t p = a;
     while (p < b && line[p] != 46) {
@@ -88,7 +88,7 @@ static int32_t mins(const uint8_t *line, int32_t a, int32_t b) {
     return p;
 }
 
-/* gnss._uint */
+/* gnss_kern._uint */
 static int32_t uint_(const uint8_t *line, int32_t a, int32_t p) {
     int32_t v = 0;
     while (a < p) {
@@ -102,7 +102,7 @@ static int32_t uint_(const uint8_t *line, int32_t a, int32_t p) {
     return v;
 }
 
-/* gnss._min_e7 */
+/* gnss_kern._min_e7 */
 static int32_t min_e7(const uint8_t *line, int32_t p, int32_t b) {
     int32_t v = 0;
     int32_t i = p;
@@ -184,7 +184,7 @@ static int32_t utc_ms(const uint8_t *line, int32_t a, int32_t b) {
     return ((h * 60 + m) * 60 + s) * 1000 + ms;
 }
 
-/* gnss._char */
+/* gnss_kern._char */
 static int32_t chr_(const uint8_t *line, int32_t a, int32_t b) {
     if (a >= b) {
         return 0;
@@ -195,7 +195,7 @@ static int32_t chr_(const uint8_t *line, int32_t a, int32_t b) {
     return line[a];
 }
 
-/* gnss._hex */
+/* gnss_kern._hex */
 static int32_t hex(int32_t c) {
     if (48 <= c && c <= 57) {
         return c - 48;
@@ -409,7 +409,7 @@ static int32_t gsa(int32_t *s, const uint8_t *line, const uint8_t *fs, int32_t n
     return 1;
 }
 
-/* gnss._line_py: a line lb[0:k] ended by CR/LF: the result of the scan */
+/* gnss_kern._line: a line lb[0:k] ended by CR/LF: the result of the scan */
 static int32_t line_end(int32_t *s, uint8_t *lb, int32_t k, int32_t x, int32_t star, int32_t nf) {
     const uint8_t *line = lb;
     uint8_t *fs = lb + NMEA_MAXLEN;
@@ -465,7 +465,7 @@ static int32_t line_end(int32_t *s, uint8_t *lb, int32_t k, int32_t x, int32_t s
     return ok ? kind : NR_BAD_FIELD;
 }
 
-/* gnss._scan_py: consume buf[s[NS_I]:n] up to the first thing the parser reports (a line's
+/* gnss_kern.scan: consume buf[s[NS_I]:n] up to the first thing the parser reports (a line's
  * end, a rejection); 0 when all n bytes are consumed. The framing state lives in s between
  * calls, the line and its comma table in lb (NMEA_MAXLEN + NMEA_MAXF + 1 bytes). */
 int32_t navk_nmea_scan(int32_t *s, uint8_t *lb, const uint8_t *buf, int32_t n) {

@@ -21,7 +21,7 @@ import pynmea2
 import pytest
 
 from common.firmware_env import REPO_DIR
-from drivers import gnss
+from drivers import gnss, gnss_kern
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
@@ -955,8 +955,8 @@ def test_stored_ints_stay_small_through_every_function_on_real_logs(monkeypatch)
     equals: test_the_native_scan_equals_the_python_reference) over the logs with the widest
     numbers and the most damage, and check every int local. The scan's byte loop is checked at
     its return (its locals are indices and bytes)."""
-    monkeypatch.setattr(gnss, "_scan", gnss._scan_py)
-    mod = gnss.__file__
+    monkeypatch.setattr(gnss, "_scan", gnss_kern.scan)
+    mods = {gnss.__file__, gnss_kern.__file__}
     seen = collections.Counter()
 
     def local(frame, event, arg):
@@ -969,9 +969,9 @@ def test_stored_ints_stay_small_through_every_function_on_real_logs(monkeypatch)
         return local
 
     def tracer(frame, event, arg):
-        if frame.f_code.co_filename != mod:
+        if frame.f_code.co_filename not in mods:
             return None
-        if frame.f_code.co_name == "_scan_py":
+        if frame.f_code.co_name == "scan":
             frame.f_trace_lines = False
         return local
 
@@ -1029,7 +1029,7 @@ def test_the_native_scan_equals_the_python_reference(monkeypatch):
     epochs, counters and attributes, and the same parser buffers, byte for byte."""
     import kern
 
-    assert kern.NATIVE and gnss._scan is not gnss._scan_py
+    assert kern.NATIVE and gnss._scan is not gnss_kern.scan
     native = gnss._scan
     data = b"".join(log_bytes(n) for n in LOGS)
     cases = [log_bytes(n) for n in LOGS] + _mutated(data, 11, 3000)
@@ -1037,7 +1037,7 @@ def test_the_native_scan_equals_the_python_reference(monkeypatch):
     seen = collections.Counter()
     for i, case in enumerate(cases):
         got = []
-        for scan in (native, gnss._scan_py):
+        for scan in (native, gnss_kern.scan):
             monkeypatch.setattr(gnss, "_scan", scan)
             got.append(_state(feed_chunks(Recorder(), case, seed=i, check=False)))
         assert got[0] == got[1], i
@@ -1051,7 +1051,7 @@ def test_the_native_scan_equals_the_python_reference(monkeypatch):
 
 _VM_RECORDER = """
 import json
-from drivers import gnss
+from drivers import gnss, gnss_kern
 A = %r
 E = %r
 class R(gnss.Nmea):

@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 from common.firmware_env import REPO_DIR
-from drivers import gnss
+from drivers import gnss, gnss_kern
 
 NMEA_DIR = REPO_DIR.parent / "shared" / "data" / "nmea"
 LOGS = sorted(p.name[:-4] for p in NMEA_DIR.glob("*.log"))
@@ -352,11 +352,11 @@ def test_what_the_old_rule_delivered_and_the_overrides(monkeypatch):
 
 
 def _vtg_mm_s(line):
-    """A VTG's speed as the parser takes it: km/h, else knots, to mm/s (gnss._vtg_py)."""
+    """A VTG's speed as the parser takes it: km/h, else knots, to mm/s (gnss_kern._vtg)."""
     f = line.strip().split(b"*")[0].split(b",")
     if f[7]:
         return (round(float(f[7]) * 10**4) + 18) // 36
-    return gnss._knots_mm_s(round(float(f[5]) * 10**4))
+    return gnss_kern._knots_mm_s(round(float(f[5]) * 10**4))
 
 
 @needs_logs
