@@ -273,6 +273,25 @@ def screen_section(m):
 
 def markdown(m, description="", console=(), notes=()):
     """report.md text from the metrics dict."""
+    lines = _title_lines(m, description)
+    lines += _figures_table(m)
+    lines += screen_section(m)
+    lines += _outage_table(m)
+    lines += _run_lines(m)
+    lines += _gc_lines(m)
+    lines += _board_lines(m)
+    lines += [f"- {n}" for n in notes]
+    lines += ["", "## Plots", ""]
+    for p in PLOTS:
+        lines.append(f"![{p[:-4]}]({p})")
+        lines.append("")
+    if console:
+        lines += ["## Firmware console", "", "```", *console, "```", ""]
+    return "\n".join(lines)
+
+
+def _title_lines(m, description):
+    """report.md's title, the description, and a note if the run never navigated."""
     lines = [
         f"# Emulator run: {m['scenario']} ({m['duration_s']:g} s, seed {m['seed']}, "
         f"{m['runtime']})",
@@ -288,7 +307,12 @@ def markdown(m, description="", console=(), notes=()):
             "GNSS course once moving faster than the heading threshold.",
             "",
         ]
-    lines += [
+    return lines
+
+
+def _figures_table(m):
+    """report.md's paragraph on what ran and its table of errors against the truth."""
+    return [
         "The unmodified firmware loop ran on an emulated board (BMI055 registers over SPI, NMEA "
         "bytes on the GNSS UART at the receiver's baud rate, PPS interrupt, 5 ms timer on a "
         "virtual clock). Errors are those of its output frames against the simulation's truth, "
@@ -311,7 +335,11 @@ def markdown(m, description="", console=(), notes=()):
         f"| time to navigation | {fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]
-    lines += screen_section(m)
+
+
+def _outage_table(m):
+    """report.md's table of the horizontal error at the end of each GNSS outage, if any."""
+    lines = []
     if m["outages"]:
         lines += ["| GNSS outage | length | horizontal error at its end |", "|---|---|---|"]
         for o in m["outages"]:
@@ -320,8 +348,13 @@ def markdown(m, description="", console=(), notes=()):
                 f"{fmt(o['horiz_err_end_m'], unit='m')} |"
             )
         lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
+    return lines
+
+
+def _run_lines(m):
+    """report.md's "The run" section: ticks and wall time, output frames, GNSS input."""
     rt = m["realtime_factor"]
-    lines += [
+    return [
         "## The run",
         "",
         f"- {m['ticks']} ticks in {m['wall_s']:.1f} s of wall time: {rt:.1f}x real time "
@@ -332,6 +365,11 @@ def markdown(m, description="", console=(), notes=()):
         f"{m.get('nmea_rejected', 'n/a')} rejected by the firmware's parser; "
         f"{m.get('gnss_rx_overflow', 'n/a')} bytes lost to a full UART ring.",
     ]
+
+
+def _gc_lines(m):
+    """The run's GC blocks per tick (MicroPython VM), overall and per state; else none."""
+    lines = []
     if m.get("gc_blocks_per_tick_mean") is not None:
         lines.append(
             f"- GC blocks allocated per tick (MicroPython VM): mean "
@@ -343,6 +381,12 @@ def markdown(m, description="", console=(), notes=()):
                 f"  - {state}: {b['ticks']} ticks, min {b['min']}, mean {b['mean']:.0f}, "
                 f"p99 {b['p99']:.0f}, max {b['max']}"
             )
+    return lines
+
+
+def _board_lines(m):
+    """The run's cost and time per tick on the emulated board, where measured; else none."""
+    lines = []
     if m.get("board_cost"):
         lines.append(
             "- Cost on the board's CPU (emulated Cortex-M4F, instructions counted; "
@@ -356,11 +400,4 @@ def markdown(m, description="", console=(), notes=()):
         )
         lines += [f"  - {t.strip()}" for t in board_time.lines(m["board_time"],
                                                                m.get("board_run"))]  # fmt: skip
-    lines += [f"- {n}" for n in notes]
-    lines += ["", "## Plots", ""]
-    for p in PLOTS:
-        lines.append(f"![{p[:-4]}]({p})")
-        lines.append("")
-    if console:
-        lines += ["## Firmware console", "", "```", *console, "```", ""]
-    return "\n".join(lines)
+    return lines
