@@ -352,7 +352,7 @@ def _outage_table(m):
 
 
 def _run_lines(m):
-    """report.md's "The run" section: ticks and wall time, output frames, GNSS input."""
+    """The first lines of report.md's "The run" section: ticks, wall time, frames, GNSS input."""
     rt = m["realtime_factor"]
     return [
         "## The run",
