@@ -16,6 +16,9 @@ One class, `Navigator`, its methods in three files by job (as PX4's EKF2 splits 
   arm, zero-velocity update, non-holonomic constraint) and the reset to GNSS;
 and nav_kern.py holds the Python kernels, the reference of the native ones (navk) this flow
 calls: the sample check, the watches, the receiver's unseen error, the lag search...
+nav.py stays over 800 lines: its methods share the Navigator's buffers and counters, and a
+further module costs the image's code region, which has a few hundred bytes left
+(docs/benchmarks/board.md, "Firmware image"; nav_kern.py and gnss_kern.py took 108 net).
 Frames and units: ENU navigation frame at the integer origin (geo.py), body x right, y forward,
 z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
 

@@ -20,6 +20,9 @@ def _deg(num, den=1):
 
 class NavConfig:
     def __init__(self, profile="car"):
+        """Every setting with its value and where the value comes from, one after another:
+        one flat list on purpose (about 150 lines), read top to bottom like a table; the
+        profiles' differences are the branches at their settings."""
         self.profile = profile
         # IMU period (docs/requirements.md, board and features: a 5 ms timer)
         self.dt_s = f32.ratio(1, 200)

@@ -277,24 +277,7 @@ def twin_lines(twin, m4f_results):
     if not ok:
         return lines
     lines += ["", "![busy time per tick](board_time.png)", "", "### Against the targets", ""]
-    t = board_time.TARGET_MS
-    for r in ok:
-        nav = r["time"]["phases"].get("navigating")
-        run = r["run"]
-        if nav is None:
-            lines.append(f"- {r['label']}: never navigated.")
-            continue
-        b = nav["busy_ms"]
-        met = [b["p99"] <= t["p99"], b["max"] <= t["max"] and not nav["late_ticks"],
-               not run["overruns"] and not run["late_ticks"]]  # fmt: skip
-        lines.append(
-            f"- {r['label']}: navigating busy p99 {b['p99']:.2f} ms (target <= {t['p99']:g}), "
-            f"max {b['max']:.2f} ms (<= {t['max']:g}); {run['overruns']} ticks missed and "
-            f"{run['late_ticks']} late in the whole run (target 0); the watchdog fed at most "
-            f"{run['watchdog_longest_gap_ms']:.1f} ms apart (timeout "
-            f"{run['watchdog_timeout_ms']:g} ms). "
-            + ("Met." if all(met) else f"Not met ({len(met) - sum(met)} of {len(met)}).")
-        )
+    lines += [_twin_target_line(r, board_time.TARGET_MS) for r in ok]
     lines += page_lines(ok)
     m4f_nav = [r["cost"]["phases"]["navigating"]["firmware_instr"]["mean"]
                for r in m4f_results if "error" not in r
@@ -313,6 +296,26 @@ def twin_lines(twin, m4f_results):
     lines += ["", "Wall time of the emulation: "
               + ", ".join(f"{r['label']} {r['wall_s']:.0f} s" for r in ok) + "."]  # fmt: skip
     return lines
+
+
+def _twin_target_line(r, t):
+    """A twin run's navigating busy time, missed and late ticks and the watchdog's longest gap
+    against the image's targets t (eval/board_time.py TARGET_MS)."""
+    nav = r["time"]["phases"].get("navigating")
+    run = r["run"]
+    if nav is None:
+        return f"- {r['label']}: never navigated."
+    b = nav["busy_ms"]
+    met = [b["p99"] <= t["p99"], b["max"] <= t["max"] and not nav["late_ticks"],
+           not run["overruns"] and not run["late_ticks"]]  # fmt: skip
+    return (
+        f"- {r['label']}: navigating busy p99 {b['p99']:.2f} ms (target <= {t['p99']:g}), "
+        f"max {b['max']:.2f} ms (<= {t['max']:g}); {run['overruns']} ticks missed and "
+        f"{run['late_ticks']} late in the whole run (target 0); the watchdog fed at most "
+        f"{run['watchdog_longest_gap_ms']:.1f} ms apart (timeout "
+        f"{run['watchdog_timeout_ms']:g} ms). "
+        + ("Met." if all(met) else f"Not met ({len(met) - sum(met)} of {len(met)}).")
+    )
 
 
 def page_cost(base_ms, page_ms, gc=None, tick_ms=5.0):
@@ -467,6 +470,9 @@ def _overruns(t):
 
 def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_JSON,
              twin=()):  # fmt: skip
+    """docs/benchmarks/board.md: instructions per tick by configuration and phase, the
+    budget, what the options buy, the image on the emulated STM32F411 (twin), the heap and
+    start-up, the image's budget."""
     low, central, high, source = board_cost.cpi_range()
     lines = [
         "# What a tick costs the board",
@@ -500,63 +506,82 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
     results = [r for r in results if "error" not in r]
     for r in results:
         for phase, ph in r["cost"]["phases"].items():
-            fi = ph["firmware_instr"]
-            t = ph["time_ms"]
-            gc = (
-                f"{ph['gc_collections']} (every {ph['ticks_per_collection']:.0f} ticks)"
-                if ph["gc_collections"]
-                else "0"
-            )
-            one = f"{ph['gc_collect_instr']:,.0f}" if ph["gc_collect_instr"] is not None else "-"
-            shares = " / ".join(_overruns(t[f"{c:g}"]) for c in (low, central, high))
-            lines.append(
-                f"| {r['label']} | {phase} | {ph['ticks']} | {fi['mean']:,.0f} | "
-                f"{fi['p50']:,.0f} | {fi['p99']:,.0f} | {fi['max']:,} | "
-                f"{ph['emulation_instr']['mean']:,.0f} | {gc} | {one} | "
-                f"{t[f'{central:g}']['mean']:.1f} / {t[f'{central:g}']['p99']:.1f} | {shares} |"
-            )
+            lines.append(_phase_row(r["label"], phase, ph, (low, central, high)))
     for r in failed:
         lines += ["", f"**{r['label']}: the run failed:**", "", "```", r["error"], "```"]
     if not results:
         return "\n".join(lines)
     nav = results[0]["cost"]["phases"].get("navigating")
     lines += ["", "![instructions per tick](board_ticks.png)", "", "## Against the budget", ""]
-    if nav:
-        fi = nav["firmware_instr"]
-        over = nav["time_ms"][f"{high:g}"]["overrun_share"]
-        met = [
-            fi["mean"] <= BUDGET["mean"],
-            fi["p99"] <= BUDGET["p99"],
-            fi["max"] <= BUDGET["max"],
-            nav["gc_collections"] == 0,
-            over == 0,
-        ]
-        n_over = nav["time_ms"][f"{high:g}"]["overrun_ticks"]
-        beyond = nav["ticks_over"]
-        lines.append(
-            f"Default configuration, navigating: mean {fi['mean']:,.0f} instructions "
-            f"({fi['mean'] / BUDGET['mean']:.2f}x the budget), p99 {fi['p99']:,.0f} "
-            f"({fi['p99'] / BUDGET['p99']:.2f}x), max {fi['max']:,} "
-            f"({fi['max'] / BUDGET['max']:.1f}x; {_ticks(beyond[str(BUDGET['max'])])} over "
-            f"{BUDGET['max']:,}, {beyond[str(BUDGET['p99'])]} over {BUDGET['p99']:,}), "
-            f"{nav['gc_collections']} gc.collect() in "
-            f"{nav['ticks']} navigating ticks (budget 0), {_ticks(n_over)} ({100 * over:.3f} %) "
-            f"overrunning at CPI {high:g} (budget 0); mean allocation "
-            f"{nav['alloc_bytes_per_tick']['mean']:,.0f} bytes per tick "
-            f"({nav['alloc_bytes_per_tick']['mean'] / 16:,.0f} blocks of 16 bytes). "
-            + (
-                "The budget is met."
-                if all(met)
-                else f"The budget is not met ({len(met) - sum(met)} of {len(met)} figures)."
-            )
-        )
-    else:
-        lines.append("The firmware never navigated in this run: no navigating figures.")
+    lines.append(_budget_line(nav, high))
     lines += accuracy_cost_lines(results, nav_json)
     lines += twin_lines(list(twin), results)
+    lines += _heap_lines(results, central)
+    lines += _image_lines(budget, budget_why, results)
+    return "\n".join(lines)
+
+
+def _phase_row(label, phase, ph, cpis):
+    """The cost table's row of a run's phase; cpis: the CPI range (low, central, high)."""
+    low, central, high = cpis
+    fi = ph["firmware_instr"]
+    t = ph["time_ms"]
+    gc = (
+        f"{ph['gc_collections']} (every {ph['ticks_per_collection']:.0f} ticks)"
+        if ph["gc_collections"]
+        else "0"
+    )
+    one = f"{ph['gc_collect_instr']:,.0f}" if ph["gc_collect_instr"] is not None else "-"
+    shares = " / ".join(_overruns(t[f"{c:g}"]) for c in (low, central, high))
+    return (
+        f"| {label} | {phase} | {ph['ticks']} | {fi['mean']:,.0f} | "
+        f"{fi['p50']:,.0f} | {fi['p99']:,.0f} | {fi['max']:,} | "
+        f"{ph['emulation_instr']['mean']:,.0f} | {gc} | {one} | "
+        f"{t[f'{central:g}']['mean']:.1f} / {t[f'{central:g}']['p99']:.1f} | {shares} |"
+    )
+
+
+def _budget_line(nav, high):
+    """The default configuration's navigating figures against BUDGET (nav None: it never
+    navigated); high: the CPI the overruns are counted at."""
+    if not nav:
+        return "The firmware never navigated in this run: no navigating figures."
+    fi = nav["firmware_instr"]
+    over = nav["time_ms"][f"{high:g}"]["overrun_share"]
+    met = [
+        fi["mean"] <= BUDGET["mean"],
+        fi["p99"] <= BUDGET["p99"],
+        fi["max"] <= BUDGET["max"],
+        nav["gc_collections"] == 0,
+        over == 0,
+    ]
+    n_over = nav["time_ms"][f"{high:g}"]["overrun_ticks"]
+    beyond = nav["ticks_over"]
+    return (
+        f"Default configuration, navigating: mean {fi['mean']:,.0f} instructions "
+        f"({fi['mean'] / BUDGET['mean']:.2f}x the budget), p99 {fi['p99']:,.0f} "
+        f"({fi['p99'] / BUDGET['p99']:.2f}x), max {fi['max']:,} "
+        f"({fi['max'] / BUDGET['max']:.1f}x; {_ticks(beyond[str(BUDGET['max'])])} over "
+        f"{BUDGET['max']:,}, {beyond[str(BUDGET['p99'])]} over {BUDGET['p99']:,}), "
+        f"{nav['gc_collections']} gc.collect() in "
+        f"{nav['ticks']} navigating ticks (budget 0), {_ticks(n_over)} ({100 * over:.3f} %) "
+        f"overrunning at CPI {high:g} (budget 0); mean allocation "
+        f"{nav['alloc_bytes_per_tick']['mean']:,.0f} bytes per tick "
+        f"({nav['alloc_bytes_per_tick']['mean'] / 16:,.0f} blocks of 16 bytes). "
+        + (
+            "The budget is met."
+            if all(met)
+            else f"The budget is not met ({len(met) - sum(met)} of {len(met)} figures)."
+        )
+    )
+
+
+def _heap_lines(results, central):
+    """The heap and start-up section, from the first run's heap figures (the garbage
+    collections: every run's); central: the CPI of the start-up's time."""
     h = results[0]["heap"]
     own_live = h["live_after_start"] - h["emulator_bytes"] - h["ballast_bytes"] - h["system_bytes"]
-    lines += [
+    return [
         "",
         "## Heap and start-up",
         "",
@@ -574,9 +599,13 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
         + ", ".join(f"{r['label']}: {r['heap']['app_gc_runs']}" for r in results)
         + ".",
         "",
-        "## Firmware image",
-        "",
     ]
+
+
+def _image_lines(budget, budget_why, results):
+    """The firmware image's section (budget: `make image`'s lines, or None and why), and the
+    runs' wall time."""
+    lines = ["## Firmware image", ""]
     if budget:
         lines += ["`make image` (docs/image.md):", "", "```", *budget, "```"]
     else:
@@ -588,7 +617,7 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
         + ".",
         "",
     ]
-    return "\n".join(lines)
+    return lines
 
 
 def main(argv=None):

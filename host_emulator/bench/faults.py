@@ -306,6 +306,9 @@ def _fmt(x, d=1):
 
 
 def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()):
+    """docs/benchmarks/faults.md: the matrix (a row per kind, its seeds together), the
+    coverage and the no-fault runs, the receivers at other rates, the subset run in the
+    MicroPython VM."""
     lines = [
         "# Fault benchmark",
         "",
@@ -335,34 +338,46 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()
     by_spec = {}
     for r in rows:
         by_spec.setdefault(r["spec"], []).append(r)
-    for case in MATRIX:
-        rs = by_spec.get(_spec(case, t0), [])
-        errs = [r for r in rs if "error" in r]
-        if errs:
-            lines.append(f"| `{_spec(case, t0)}` | | raised: {errs[0]['error']} | | | | | | |")
-            continue
-        counted = [r for r in rs if r["counts"]]
-        seen = [r["detect_s"] for r in rs if r["detect_s"] is not None]
-        if any(r["detect_s"] is None for r in counted) or not seen:
-            det_s = "-"
-        else:  # the slowest, harmless runs included: a step is detected whatever its effect
-            det_s = _fmt(max(seen), 2)
-        if len(counted) < len(rs):
-            n_missed = sum(1 for r in rs if not r["counts"] and r["detect_s"] is None)
-            det_s += f", {len(rs) - len(counted)} harmless"
-            if n_missed:
-                det_s += f" ({n_missed} never detected)"
-        known = [c for c in case.causes if c in _BITS]
-        lines.append(
-            f"| `{_spec(case, t0)}` | {', '.join(known) or '(none yet)'} "
-            f"| {det_s} ({case.deadline_s:g}) "
-            f"| {sum(r['frames_over_10m'] for r in rs)} ({sum(r['missed_over_10m'] for r in rs)}) "
-            f"| {sum(r['frames_over_3x'] for r in rs)} ({sum(r['missed_over_3x'] for r in rs)}) "
-            f"| {_fmt(max(r['peak_h_m'] for r in rs))} / {_fmt(max(r['peak_v_m'] for r in rs))} "
-            f"| {_recover(rs)} "
-            f"| {_worst(rs, 'h_30s_m')} / {_worst(rs, 'v_30s_m')} "
-            f"| {'yes' if all(r['finite'] for r in rs) else '**no**'} |"
-        )
+    lines += [_matrix_row(case, by_spec.get(_spec(case, t0), []), t0) for case in MATRIX]
+    lines += _coverage_lines(rows, nominal_rows, rate_rows)
+    lines += _rate_lines(rate_rows)
+    lines += _vm_lines(vm_rows)
+    return "\n".join(lines)
+
+
+def _matrix_row(case, rs, t0):
+    """The matrix's row of a kind over its seeds' rows rs (the first that raised, if one
+    did)."""
+    errs = [r for r in rs if "error" in r]
+    if errs:
+        return f"| `{_spec(case, t0)}` | | raised: {errs[0]['error']} | | | | | | |"
+    counted = [r for r in rs if r["counts"]]
+    seen = [r["detect_s"] for r in rs if r["detect_s"] is not None]
+    if any(r["detect_s"] is None for r in counted) or not seen:
+        det_s = "-"
+    else:  # the slowest, harmless runs included: a step is detected whatever its effect
+        det_s = _fmt(max(seen), 2)
+    if len(counted) < len(rs):
+        n_missed = sum(1 for r in rs if not r["counts"] and r["detect_s"] is None)
+        det_s += f", {len(rs) - len(counted)} harmless"
+        if n_missed:
+            det_s += f" ({n_missed} never detected)"
+    known = [c for c in case.causes if c in _BITS]
+    return (
+        f"| `{_spec(case, t0)}` | {', '.join(known) or '(none yet)'} "
+        f"| {det_s} ({case.deadline_s:g}) "
+        f"| {sum(r['frames_over_10m'] for r in rs)} ({sum(r['missed_over_10m'] for r in rs)}) "
+        f"| {sum(r['frames_over_3x'] for r in rs)} ({sum(r['missed_over_3x'] for r in rs)}) "
+        f"| {_fmt(max(r['peak_h_m'] for r in rs))} / {_fmt(max(r['peak_v_m'] for r in rs))} "
+        f"| {_recover(rs)} "
+        f"| {_worst(rs, 'h_30s_m')} / {_worst(rs, 'v_30s_m')} "
+        f"| {'yes' if all(r['finite'] for r in rs) else '**no**'} |"
+    )
+
+
+def _coverage_lines(rows, nominal_rows, rate_rows):
+    """The detection coverage, the frames above TRUST_M without health 2, the no-fault
+    runs."""
     detected, total, harmless, misses10, every = totals(rows, rate_rows)
     cov = 100.0 * detected / total if total else 0.0
     nom = ", ".join(
@@ -370,7 +385,7 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()
         f"{n['health2']} of {n['frames']} frames"
         for n in nominal_rows
     )
-    lines += [
+    return [
         "",
         f"Detection coverage: {detected} of {total} injected faults ({cov:.0f} %; target "
         f">= 90 %; {harmless} sensor steps that never moved the solution beyond 3x the "
@@ -384,53 +399,64 @@ def markdown(rows, nominal_rows, seeds, run_s, t0, cmd, vm_rows=(), rate_rows=()
         f"No-fault runs (horizontal / vertical RMS over the navigation phase): {nom}.",
         "",
     ]
-    if rate_rows:
-        lines += [
-            "## Receivers by their rate",
-            "",
-            "The same drive without a fault, its receiver at another rate (the same sentences "
-            "and error model, at 115200 baud), against the 1 Hz run of the same seed; its "
-            "frames above "
-            f"{TRUST_M:g} m without health 2 count in the target above.",
-            "",
-            "| receiver | seed | horizontal / vertical RMS m | 1 Hz horizontal m "
-            "| >10 m (not 2) | health 2 frames | finite |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for r in rate_rows:
-            if "error" in r:
-                lines.append(f"| {r['rate_hz']:g} Hz | {r['seed']} | raised: {r['error']} "
-                             "| | | | |")  # fmt: skip
-                continue
-            lines.append(
-                f"| {r['rate_hz']:g} Hz | {r['seed']} | {r['rms_h_m']:.2f} / {r['rms_v_m']:.2f} "
-                f"| {r['rms_h_1hz_m']:.2f} | {r['frames_over_10m']} ({r['missed_over_10m']}) "
-                f"| {r['health2']} | {'yes' if r['finite'] else '**no**'} |"
-            )
-        lines.append("")
-    if vm_rows:
-        lines += [
-            "## In the MicroPython VM",
-            "",
-            "A subset on the unix port of MicroPython (double-precision floats: the firmware's "
-            "logic on MicroPython, not the board's bits), seed 0, against the VM's own run "
-            "without the fault:",
-            "",
-            "| fault | detect s | >10 m (not 2) | peak h / v m | recover s | finite |",
-            "|---|---|---|---|---|---|",
-        ]
-        for r in vm_rows:
-            if "error" in r:
-                lines.append(f"| `{r['spec']}` | raised: {r['error']} | | | | |")
-                continue
-            lines.append(
-                f"| `{r['spec']}` | {_fmt(r['detect_s'], 2)} "
-                f"| {r['frames_over_10m']} ({r['missed_over_10m']}) "
-                f"| {_fmt(r['peak_h_m'])} / {_fmt(r['peak_v_m'])} | {_fmt(r['recover_s'])} "
-                f"| {'yes' if r['finite'] else '**no**'} |"
-            )
-        lines.append("")
-    return "\n".join(lines)
+
+
+def _rate_lines(rate_rows):
+    """The receivers at other rates than 1 Hz (none: no section)."""
+    if not rate_rows:
+        return []
+    lines = [
+        "## Receivers by their rate",
+        "",
+        "The same drive without a fault, its receiver at another rate (the same sentences "
+        "and error model, at 115200 baud), against the 1 Hz run of the same seed; its "
+        "frames above "
+        f"{TRUST_M:g} m without health 2 count in the target above.",
+        "",
+        "| receiver | seed | horizontal / vertical RMS m | 1 Hz horizontal m "
+        "| >10 m (not 2) | health 2 frames | finite |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rate_rows:
+        if "error" in r:
+            lines.append(f"| {r['rate_hz']:g} Hz | {r['seed']} | raised: {r['error']} "
+                         "| | | | |")  # fmt: skip
+            continue
+        lines.append(
+            f"| {r['rate_hz']:g} Hz | {r['seed']} | {r['rms_h_m']:.2f} / {r['rms_v_m']:.2f} "
+            f"| {r['rms_h_1hz_m']:.2f} | {r['frames_over_10m']} ({r['missed_over_10m']}) "
+            f"| {r['health2']} | {'yes' if r['finite'] else '**no**'} |"
+        )
+    lines.append("")
+    return lines
+
+
+def _vm_lines(vm_rows):
+    """The subset run in the MicroPython VM (none: no section)."""
+    if not vm_rows:
+        return []
+    lines = [
+        "## In the MicroPython VM",
+        "",
+        "A subset on the unix port of MicroPython (double-precision floats: the firmware's "
+        "logic on MicroPython, not the board's bits), seed 0, against the VM's own run "
+        "without the fault:",
+        "",
+        "| fault | detect s | >10 m (not 2) | peak h / v m | recover s | finite |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in vm_rows:
+        if "error" in r:
+            lines.append(f"| `{r['spec']}` | raised: {r['error']} | | | | |")
+            continue
+        lines.append(
+            f"| `{r['spec']}` | {_fmt(r['detect_s'], 2)} "
+            f"| {r['frames_over_10m']} ({r['missed_over_10m']}) "
+            f"| {_fmt(r['peak_h_m'])} / {_fmt(r['peak_v_m'])} | {_fmt(r['recover_s'])} "
+            f"| {'yes' if r['finite'] else '**no**'} |"
+        )
+    lines.append("")
+    return lines
 
 
 def totals(rows, rate_rows=()):

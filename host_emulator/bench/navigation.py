@@ -336,6 +336,8 @@ def _walk_table(results):
 
 
 def report(results, vm, footprint, seeds, wall):
+    """docs/benchmarks/navigation.md: accuracy by GNSS error model, the walks, configurations,
+    receivers (late, by sentences, by rate), the targets and the cost per tick in the VM."""
     lines = [
         "# Navigation benchmark (simulated BMI055 + GNSS)",
         "",
@@ -349,6 +351,21 @@ def report(results, vm, footprint, seeds, wall):
         "right; below 1: larger than the errors; above 1: too small).",
         "",
     ]
+    lines += _accuracy_lines(results)
+    lines += _walk_table(results)
+    lines += _configuration_lines(results)
+    lines += _late_receiver_lines(results)
+    lines += _sentence_receiver_lines(results)
+    lines += _rate_receiver_lines(results)
+    lines += _target_lines(results)
+    lines += _vm_cost_lines(vm, footprint)
+    lines += ["", f"Benchmark wall time: {wall:.0f} s.", ""]
+    return "\n".join(lines)
+
+
+def _accuracy_lines(results):
+    """The accuracy tables, white and realistic GNSS; the runs short of 3-sigma coverage."""
+    lines = []
     short = []
     for white in (True, False):
         label = "white" if white else "realistic (half 60 s-correlated)"
@@ -385,8 +402,12 @@ def report(results, vm, footprint, seeds, wall):
         "3-sigma coverage below 95 %: " + (", ".join(short) if short else "none") + ".",
         "",
     ]
-    lines += _walk_table(results)
-    lines += [
+    return lines
+
+
+def _configuration_lines(results):
+    """The profiles and options compared on urban_drive (white GNSS)."""
+    lines = [
         "## Configurations on the car drive",
         "",
         "urban_drive, white GNSS. The handheld profile (a board in a hand held in the car) has "
@@ -406,7 +427,12 @@ def report(results, vm, footprint, seeds, wall):
                 f"| {profile} | {_mean(rows, 'horiz_rms_m'):.2f} | "
                 f"{_mean(rows, 'vel_rms_m_s'):.3f} | {_mean(rows, 'yaw_rms_deg'):.2f} | {outs} |"
             )
-    lines += [
+    return lines
+
+
+def _late_receiver_lines(results):
+    """The receivers whose fixes are late against their stamps (LATE_RECEIVERS)."""
+    lines = [
         "",
         "## Receivers whose fixes are late against their stamps",
         "",
@@ -431,7 +457,12 @@ def report(results, vm, footprint, seeds, wall):
                            ("horiz_rms_gnss_m", 2), ("vel_rms_m_s", 3), ("yaw_rms_deg", 2),
                            "outages", ("lag_s", 3))  # fmt: skip
             lines.append(f"| {label} | {cells} |")
-    lines += [
+    return lines
+
+
+def _sentence_receiver_lines(results):
+    """The receivers by the sentences they print (RECEIVERS)."""
+    lines = [
         "",
         "## Receivers by the sentences they print",
         "",
@@ -454,7 +485,12 @@ def report(results, vm, footprint, seeds, wall):
                                ("yaw_rms_deg", 2), ("nav_after_move_s", 1), "outages",
                                "coverage", ("pos_nees_h", 2))  # fmt: skip
                 lines.append(f"| {name} ({prof}) | {label} | {cells} |")
-    lines += [
+    return lines
+
+
+def _rate_receiver_lines(results):
+    """The receivers by their rate (RATES_HZ), white and realistic errors."""
+    lines = [
         "",
         "## Receivers by their rate",
         "",
@@ -481,7 +517,12 @@ def report(results, vm, footprint, seeds, wall):
                                    "coverage", ("pos_nees_h", 2))  # fmt: skip
                     errors = "" if white else ", realistic errors"
                     lines.append(f"| {name} ({prof}) | {rate} Hz{errors} | {cells} |")
-    lines += [
+    return lines
+
+
+def _target_lines(results):
+    """urban_drive against TARGETS, the outages against OUTAGE_TARGETS."""
+    lines = [
         "",
         "## Against the targets (urban_drive, white GNSS)",
         "",
@@ -501,7 +542,12 @@ def report(results, vm, footprint, seeds, wall):
                     f"| horizontal error after the {o['length_s']:g} s outage ({name}) | "
                     f"<= {t:g} | {v:.2f} | {'yes' if v <= t else 'NO'} |"
                 )
-    lines += [
+    return lines
+
+
+def _vm_cost_lines(vm, footprint):
+    """The GC blocks per tick in the MicroPython VM, and the memory footprint."""
+    lines = [
         "",
         "## Cost per tick on the MicroPython VM",
         "",
@@ -526,8 +572,7 @@ def report(results, vm, footprint, seeds, wall):
             "VM; the core's bytecode (`firmware/lib/*.py` through `mpy-cross -march=armv7emsp`) "
             f"is {footprint['lib_mpy_bytes']} bytes.",
         ]
-    lines += ["", f"Benchmark wall time: {wall:.0f} s.", ""]
-    return "\n".join(lines)
+    return lines
 
 
 def _trial_setting(text):
@@ -609,7 +654,8 @@ def _trial(args):
     return 0
 
 
-def main(argv=None):
+def _parser():
+    """bench-nav's arguments: the full benchmark's and --trial's."""
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator bench-nav",
         description=__doc__,
@@ -659,6 +705,70 @@ def main(argv=None):
             metavar="NAME=VALUE",
             help=f"--trial: a number field of the simulated {where}, e.g. {example}",
         )
+    return ap
+
+
+def _tasks(seeds):
+    """The full benchmark's runs, `seeds` seeds each: every scenario, its profile, both GNSS
+    error models; the configurations and receivers the accuracy tables do not run."""
+    tasks = [
+        (n, s, w, p)
+        for n, p in SCENARIO_PROFILES.items()
+        for w in (True, False)
+        for s in range(seeds)
+    ]
+    tasks += [("urban_drive", s, True, p) for p in PROFILES if p != "car" for s in range(seeds)]
+    tasks += [
+        (n, s, True, r)
+        for r, (n, lag_s, learn, pps, _set_s) in LATE_RECEIVERS.items()
+        if not _on_time(lag_s, learn, pps)
+        for s in range(seeds)
+    ]
+    tasks += [
+        (n, s, True, _receiver_task(r))
+        for n in RECEIVER_SCENARIOS
+        for r in RECEIVERS
+        if r != "GGA + RMC"
+        for s in range(seeds)
+    ]
+    tasks += [
+        (n, s, w, _rate_task(r)) for n in RATE_SCENARIOS for w in (True, False) for r in RATES_HZ
+        for s in range(seeds)
+    ]  # fmt: skip
+    return tasks
+
+
+def _run_tasks(tasks, jobs):
+    """task -> metrics of each run, on `jobs` processes, with progress on stderr."""
+    results = {}
+    with ProcessPoolExecutor(max_workers=jobs) as ex:
+        for i, (task, m) in enumerate(ex.map(_one, tasks), 1):
+            results[task] = m
+            name, seed, white, profile = task
+            print(
+                f"[{i}/{len(tasks)}] {name} seed {seed} {'white' if white else 'realistic'} "
+                f"{profile}: horiz {m['horiz_rms_m']:.2f} m, yaw {m['yaw_rms_deg']:.2f} deg",
+                file=sys.stderr,
+                flush=True,
+            )
+    return results
+
+
+def _vm_figures():
+    """(the per-tick cost in the VM, the memory footprint), or ({}, {}) if that failed."""
+    print("[vm] measuring per-tick cost and memory in the MicroPython VM...", file=sys.stderr)
+    try:
+        vm = _vm_cost()
+        footprint = _footprint()
+    except (AssertionError, OSError, subprocess.CalledProcessError) as e:
+        # report what was measured, and say what was not
+        print(f"[vm] failed: {e}", file=sys.stderr)
+        vm, footprint = {}, {}
+    return vm, footprint
+
+
+def main(argv=None):
+    ap = _parser()
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
@@ -675,51 +785,8 @@ def main(argv=None):
         ap.error("--nav, --imu, --gnss, --realistic, --rate, --receiver and --profile go with "
                  "--trial")  # fmt: skip
     t0 = time.perf_counter()
-    tasks = [
-        (n, s, w, p)
-        for n, p in SCENARIO_PROFILES.items()
-        for w in (True, False)
-        for s in range(args.seeds)
-    ]
-    tasks += [
-        ("urban_drive", s, True, p) for p in PROFILES if p != "car" for s in range(args.seeds)
-    ]
-    tasks += [
-        (n, s, True, r)
-        for r, (n, lag_s, learn, pps, _set_s) in LATE_RECEIVERS.items()
-        if not _on_time(lag_s, learn, pps)
-        for s in range(args.seeds)
-    ]
-    tasks += [
-        (n, s, True, _receiver_task(r))
-        for n in RECEIVER_SCENARIOS
-        for r in RECEIVERS
-        if r != "GGA + RMC"
-        for s in range(args.seeds)
-    ]
-    tasks += [
-        (n, s, w, _rate_task(r)) for n in RATE_SCENARIOS for w in (True, False) for r in RATES_HZ
-        for s in range(args.seeds)
-    ]  # fmt: skip
-    results = {}
-    with ProcessPoolExecutor(max_workers=args.jobs) as ex:
-        for i, (task, m) in enumerate(ex.map(_one, tasks), 1):
-            results[task] = m
-            name, seed, white, profile = task
-            print(
-                f"[{i}/{len(tasks)}] {name} seed {seed} {'white' if white else 'realistic'} "
-                f"{profile}: horiz {m['horiz_rms_m']:.2f} m, yaw {m['yaw_rms_deg']:.2f} deg",
-                file=sys.stderr,
-                flush=True,
-            )
-    print("[vm] measuring per-tick cost and memory in the MicroPython VM...", file=sys.stderr)
-    try:
-        vm = _vm_cost()
-        footprint = _footprint()
-    except (AssertionError, OSError, subprocess.CalledProcessError) as e:
-        # report what was measured, and say what was not
-        print(f"[vm] failed: {e}", file=sys.stderr)
-        vm, footprint = {}, {}
+    results = _run_tasks(_tasks(args.seeds), args.jobs)
+    vm, footprint = _vm_figures()
     text = report(results, vm, footprint, args.seeds, time.perf_counter() - t0)
     print(text)
     out = pathlib.Path(args.out)

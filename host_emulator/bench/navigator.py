@@ -139,26 +139,7 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None,
         if align_t is None and nav.state == NAVIGATING:
             align_t = t
         if k % decimate == 0 and nav.state == NAVIGATING:
-            h = nav.lat_lon(e7_buf)
-            e7[:] = e7_buf[0], geo.join_e7(e7_buf[1], e7_buf[2])
-            nav.euler()
-            nav.p_diag(pd)
-            ins = nav.ins
-            rows.append(
-                (
-                    t,
-                    int(e7[0]),
-                    int(e7[1]),
-                    float(h),
-                    *map(float, ins.v_n),
-                    *map(float, nav.ypr),
-                    *map(float, ins.bg),
-                    *map(float, ins.ba),
-                    *np.sqrt(np.maximum(np.asarray(pd, float), 0)),
-                    nav.state,
-                    nav.health,
-                )
-            )
+            rows.append(_nav_row(nav, t, e7, e7_buf, pd))
         if progress and k % 2000 == 0:
             progress(k, n)
 
@@ -166,17 +147,9 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None,
     feed(nav, imu, gnss, 0, n, on_tick=record, pps=pps)
     wall = time.perf_counter() - t0
     a = np.array(rows, dtype=float) if rows else np.zeros((0, 34))
-    o = truth.origin
-    if len(a):
-        e, nn, u = pymap3d.geodetic2enu(
-            a[:, 1] / 1e7, a[:, 2] / 1e7, a[:, 3], o.lat_e7 / 1e7, o.lon_e7 / 1e7, o.h_m
-        )
-        p = np.stack([e, nn, u], axis=-1)
-    else:
-        p = np.zeros((0, 3))
     return NavRun(
         t_s=a[:, 0],
-        p_n=p,
+        p_n=_enu_m(a, truth.origin),
         v_n=a[:, 4:7],
         ypr=a[:, 7:10],
         bg=a[:, 10:13],
@@ -198,6 +171,40 @@ def run(truth, imu, gnss, cfg=None, duration_s=None, decimate=20, progress=None,
             "lag_ticks": int(nav.mem[nav_mod._M_CN + nav_mod._CN_LAGT]),
         },
     )
+
+
+def _nav_row(nav, t_s, e7, e7_buf, pd):
+    """One row of run's table at t_s: time, lat/lon (1e-7 deg, through the int32 e7),
+    height, v_n, yaw/pitch/roll, gyro and accel biases, the 15 sigmas, state, health.
+    e7, e7_buf and pd are run's buffers, reused from row to row."""
+    h = nav.lat_lon(e7_buf)
+    e7[:] = e7_buf[0], geo.join_e7(e7_buf[1], e7_buf[2])
+    nav.euler()
+    nav.p_diag(pd)
+    ins = nav.ins
+    return (
+        t_s,
+        int(e7[0]),
+        int(e7[1]),
+        float(h),
+        *map(float, ins.v_n),
+        *map(float, nav.ypr),
+        *map(float, ins.bg),
+        *map(float, ins.ba),
+        *np.sqrt(np.maximum(np.asarray(pd, float), 0)),
+        nav.state,
+        nav.health,
+    )
+
+
+def _enu_m(a, origin):
+    """ENU positions (m, from origin) of the rows' lat/lon/height; (0, 3) without rows."""
+    if not len(a):
+        return np.zeros((0, 3))
+    e, nn, u = pymap3d.geodetic2enu(
+        a[:, 1] / 1e7, a[:, 2] / 1e7, a[:, 3], origin.lat_e7 / 1e7, origin.lon_e7 / 1e7, origin.h_m
+    )
+    return np.stack([e, nn, u], axis=-1)
 
 
 def metrics(run_, truth, outages=(), skip_s=0.0):

@@ -16,7 +16,8 @@ sys.path, the emulated Cortex-M4F has them frozen (runtimes/m4f/manifest.py); th
 runtime, the model's virtual clock and the tests load them with
 host_emulator.emulated_board.install_machine() (machine.py as `machine`, bmi055_model.py as
 `bmi055_model`, time.py's functions on CPython's `time`); bmi055_model() loads
-the register model alone. mpy/ is not a host package: it is loaded by file.
+the register model alone and feed() the feed loop. mpy/ is not a host package: it is loaded
+by file.
 """
 
 import pathlib
@@ -53,6 +54,21 @@ def bmi055_model():
         model = _load("bmi055_model", MPY_DIR / "bmi055_model.py")
         sys.modules["bmi055_model"] = model
     return model
+
+
+def feed():
+    """emulated_board/mpy/feed.py, the feed loop every runtime runs, as the module `feed` on
+    CPython (loaded once per process, after install_machine(): it imports `machine` and the
+    stimulus record's constants, common/proto/mpy/feed_protocol.py, as `feed_protocol`, the
+    names the VMs know them by)."""
+    module = sys.modules.get("feed")
+    if module is None:
+        from common.proto.mpy import feed_protocol
+
+        sys.modules.setdefault("feed_protocol", feed_protocol)
+        module = _load("feed", MPY_DIR / "feed.py")
+        sys.modules["feed"] = module
+    return module
 
 
 def install_machine():

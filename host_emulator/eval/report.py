@@ -132,7 +132,17 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     plt = _plt()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
+    info = {"insets": _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes)}
+    _errors_png(plt, out_dir, title, err, outages, t_end)
+    info["attitude_ylim"], info["truth_yaw"] = _attitude_png(
+        plt, out_dir, title, tr, err, truth, nav, outages, t_end
+    )
+    _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end)
+    return info
 
+
+def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):
+    """trajectory.png; the number of zoomed insets drawn."""
     zooms = _zooms(truth, tr, nav, list(outages))
     if zooms:  # the drive on the left, the end of each outage zoomed on the right
         fig = plt.figure(figsize=(11, 7))
@@ -163,11 +173,14 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     ax.set_title(f"{title}: trajectory")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    info = {"insets": len(zooms)}
     fig.tight_layout()
     fig.savefig(out_dir / "trajectory.png", dpi=110)
     plt.close(fig)
+    return len(zooms)
 
+
+def _errors_png(plt, out_dir, title, err, outages, t_end):
+    """errors.png: position and velocity errors (E, N, U) with the reported 3-sigma."""
     t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     _err_panel(axs[0], t, err.dp, err.sigma[:, 0:3], "ENU", "position, m", outages, t_end)
@@ -178,14 +191,17 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     fig.savefig(out_dir / "errors.png", dpi=110)
     plt.close(fig)
 
+
+def _attitude_png(plt, out_dir, title, tr, err, truth, nav, outages, t_end):
+    """attitude.png; (the error panel's y limits in deg, whether a truth yaw was drawn)."""
+    t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     tilt = np.sqrt(0.5 * (err.sigma[:, 6] ** 2 + err.sigma[:, 7] ** 2))
     s_att = np.stack([err.sigma[:, 8], tilt, tilt], axis=-1) * _DEG
     _err_panel(axs[0], t, err.da * _DEG, s_att, ("yaw", "pitch", "roll"), "deg", outages, t_end)
-    info["attitude_ylim"] = axs[0].get_ylim()
+    ylim_deg = axs[0].get_ylim()
     nav_t = tr.t_s[nav]
     truth_yaw, fw_yaw = yaw_for_plot(truth.t_s, truth.ypr[:, 0], nav_t, tr.ypr[nav, 0])
-    info["truth_yaw"] = truth_yaw is not None
     if truth_yaw is not None:
         axs[1].plot(truth.t_s, truth_yaw * _DEG, color="k", lw=1.0, label="truth yaw")
     axs[1].plot(nav_t, fw_yaw * _DEG, color="C0", lw=0.8, label="firmware yaw")
@@ -198,7 +214,11 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     fig.tight_layout()
     fig.savefig(out_dir / "attitude.png", dpi=110)
     plt.close(fig)
+    return ylim_deg, truth_yaw is not None
 
+
+def _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end):
+    """biases.png: gyro and accel bias estimates with 3-sigma, and the simulated biases."""
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     g_scale = _DEG * 3600.0  # rad/s -> deg/h
     a_scale = 1000.0 / 9.80665  # m/s^2 -> mg
@@ -226,7 +246,6 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     fig.tight_layout()
     fig.savefig(out_dir / "biases.png", dpi=110)
     plt.close(fig)
-    return info
 
 
 def fmt(x, digits=2, unit=""):
@@ -254,6 +273,25 @@ def screen_section(m):
 
 def markdown(m, description="", console=(), notes=()):
     """report.md text from the metrics dict."""
+    lines = _title_lines(m, description)
+    lines += _figures_table(m)
+    lines += screen_section(m)
+    lines += _outage_table(m)
+    lines += _run_lines(m)
+    lines += _gc_lines(m)
+    lines += _board_lines(m)
+    lines += [f"- {n}" for n in notes]
+    lines += ["", "## Plots", ""]
+    for p in PLOTS:
+        lines.append(f"![{p[:-4]}]({p})")
+        lines.append("")
+    if console:
+        lines += ["## Firmware console", "", "```", *console, "```", ""]
+    return "\n".join(lines)
+
+
+def _title_lines(m, description):
+    """report.md's title, the description, and a note if the run never navigated."""
     lines = [
         f"# Emulator run: {m['scenario']} ({m['duration_s']:g} s, seed {m['seed']}, "
         f"{m['runtime']})",
@@ -269,7 +307,12 @@ def markdown(m, description="", console=(), notes=()):
             "GNSS course once moving faster than the heading threshold.",
             "",
         ]
-    lines += [
+    return lines
+
+
+def _figures_table(m):
+    """report.md's paragraph on what ran and its table of errors against the truth."""
+    return [
         "The unmodified firmware loop ran on an emulated board (BMI055 registers over SPI, NMEA "
         "bytes on the GNSS UART at the receiver's baud rate, PPS interrupt, 5 ms timer on a "
         "virtual clock). Errors are those of its output frames against the simulation's truth, "
@@ -292,7 +335,11 @@ def markdown(m, description="", console=(), notes=()):
         f"| time to navigation | {fmt(m['align_time_s'], 1, unit='s')} | |",
         "",
     ]
-    lines += screen_section(m)
+
+
+def _outage_table(m):
+    """report.md's table of the horizontal error at the end of each GNSS outage, if any."""
+    lines = []
     if m["outages"]:
         lines += ["| GNSS outage | length | horizontal error at its end |", "|---|---|---|"]
         for o in m["outages"]:
@@ -301,8 +348,13 @@ def markdown(m, description="", console=(), notes=()):
                 f"{fmt(o['horiz_err_end_m'], unit='m')} |"
             )
         lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
+    return lines
+
+
+def _run_lines(m):
+    """The first lines of report.md's "The run" section: ticks, wall time, frames, GNSS input."""
     rt = m["realtime_factor"]
-    lines += [
+    return [
         "## The run",
         "",
         f"- {m['ticks']} ticks in {m['wall_s']:.1f} s of wall time: {rt:.1f}x real time "
@@ -313,6 +365,11 @@ def markdown(m, description="", console=(), notes=()):
         f"{m.get('nmea_rejected', 'n/a')} rejected by the firmware's parser; "
         f"{m.get('gnss_rx_overflow', 'n/a')} bytes lost to a full UART ring.",
     ]
+
+
+def _gc_lines(m):
+    """The run's GC blocks per tick (MicroPython VM), overall and per state; else none."""
+    lines = []
     if m.get("gc_blocks_per_tick_mean") is not None:
         lines.append(
             f"- GC blocks allocated per tick (MicroPython VM): mean "
@@ -324,6 +381,12 @@ def markdown(m, description="", console=(), notes=()):
                 f"  - {state}: {b['ticks']} ticks, min {b['min']}, mean {b['mean']:.0f}, "
                 f"p99 {b['p99']:.0f}, max {b['max']}"
             )
+    return lines
+
+
+def _board_lines(m):
+    """The run's cost and time per tick on the emulated board, where measured; else none."""
+    lines = []
     if m.get("board_cost"):
         lines.append(
             "- Cost on the board's CPU (emulated Cortex-M4F, instructions counted; "
@@ -337,11 +400,4 @@ def markdown(m, description="", console=(), notes=()):
         )
         lines += [f"  - {t.strip()}" for t in board_time.lines(m["board_time"],
                                                                m.get("board_run"))]  # fmt: skip
-    lines += [f"- {n}" for n in notes]
-    lines += ["", "## Plots", ""]
-    for p in PLOTS:
-        lines.append(f"![{p[:-4]}]({p})")
-        lines.append("")
-    if console:
-        lines += ["## Firmware console", "", "```", *console, "```", ""]
-    return "\n".join(lines)
+    return lines

@@ -310,15 +310,145 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
     before the navigator's step (tests use it to perturb the model)."""
     values = board_config.run_values(stim, config_overrides)
     cfg = config.decode(board_config.to_bytes(values))  # what the board reads from flash
-    cfg_status = config.OK if cfg.validate() is None else config.INVALID
-    model = NavModel(cfg.nav_config())
-    g = Nmea(need_speed=cfg.gnss_need_speed)  # as app.App builds its parser
     install_machine()  # the virtual clock pps_isr stamps from (time.set_us)
-    fw_app, fw_board, _, bmi055 = _firmware()
-
+    loop = _Loop(stim, cfg, _page(cfg, _firmware()[1], board))
     n = len(stim)
-    tick_us = stim.tick_us
-    t0 = first_tick_us(tick_us)
+    for k in range(n):
+        loop.interval(k)
+        loop.tick(k, tick_hook)
+        if progress and k % 2000 == 1999:
+            progress(k + 1, n)
+    frames = frame_bytes(loop.t, cfg)
+    if progress:
+        progress(n, n)
+    shown = _screen(loop.page, loop.views, frames)
+    if not loop.extra:
+        return frames.tobytes(), shown
+    return _interleave(frames, loop.frame_ticks, loop.extra, n), shown
+
+
+class _Loop:
+    """The firmware's loop over a stimulus: the app's state between ticks (the receive ring,
+    the fix, the PPS checks, the counters) and what it sent so far ("t": the frames' fields,
+    "extra": tick -> bytes sent after that tick's frame, "views": the status page's turns)."""
+
+    def __init__(self, stim, cfg, page):
+        self.cfg = cfg
+        self.cfg_status = config.OK if cfg.validate() is None else config.INVALID
+        self.model = NavModel(cfg.nav_config())
+        self.g = Nmea(need_speed=cfg.gnss_need_speed)  # as app.App builds its parser
+        self.tick_us = stim.tick_us
+        self.t0 = first_tick_us(stim.tick_us)
+        imu = _imu_inputs(stim)
+        self.gyro_l, self.accel_l = imu["gyro_l"], imu["accel_l"]
+        self.sat_l, self.fresh_l = imu["sat_l"], imu["fresh_l"]
+        self.pps_before = stim.pps_before_us.tolist()
+        self.offs = stim.uart_offsets.tolist()
+        self.ub = stim.uart_bytes
+        self.g_regs = imu["gyro_regs"].tobytes()
+        self.a_regs = imu["accel_regs"].tobytes()
+        # app.service: a stalled tick (an injected fault) runs no loop; the next one counts the
+        # ticks it missed, so the tick count stays k + 1 and only the stalled ticks' frames are
+        # lost
+        self.stalled_l = stim.stalled.tolist()
+        n = len(stim)
+        out_every = cfg.output_every_ticks
+        self.frame_ticks = np.flatnonzero(((np.arange(n) + 1) % out_every == 0) & ~stim.stalled)
+        self.t = _frame_table(imu, self.frame_ticks)
+        self.extra = {}  # tick -> bytes sent after that tick's frame (extended frame, raw record)
+        self.page = page  # the screen's status page (None: off, or no UART)
+        self.views = []  # (ticks, display.View without its frame, the last frame's index)
+        self.last_ext = None
+        self.ring = bytearray()
+        self.fix = _Fix()
+        self.counter = 0
+        # the app's PPS, late-epoch and NMEA checks
+        self.pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0,
+                    "nmea_bad": 0, "edges_ok": 0, "overdue": 0x3FFFFFFF, "step_s": 0,
+                    "step_n": 0, "step_bad": 0}  # fmt: skip
+        self.j = 0  # frames so far
+        self.lost = 0  # ticks stalled since the last one run
+        self.last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
+        self.overruns = 0  # app.overruns, and its value at the last extended frame
+        self.ext_overruns = 0
+
+    def interval(self, k):
+        """The interval before tick k: bytes arrive in the ring, the PPS edge fires."""
+        a, b = self.offs[k], self.offs[k + 1]
+        if b > a:
+            chunk = self.ub[a:b][: max(_firmware()[1].GNSS_RXBUF - len(self.ring), 0)]
+            self.ring += chunk
+        t_k = self.t0 + k * self.tick_us
+        if self.pps_before[k] >= 0:
+            time.set_us(t_k - self.pps_before[k])
+            self.g.pps_isr(None)
+        time.set_us(t_k)
+
+    def tick(self, k, tick_hook):
+        """Tick k (none if stalled): IMU read, GNSS poll, fix, navigator, then what it sends."""
+        if self.stalled_l[k]:
+            self.lost += 1
+            return
+        fw_app = _firmware()[0]
+        model, g = self.model, self.g
+        # ticks_us() during the tick (the loop takes no time)
+        now = (self.t0 + k * self.tick_us) % TICKS_PERIOD
+        if self.lost:  # app._catch_up: the navigator steps through the missed ticks on the
+            self.overruns += self.lost  # last sample read (the driver's zeros before the first)
+            for _ in range(min(self.lost, fw_app._CATCH_UP_MAX)):
+                model.imu_raw(*self.last, repeat=True)
+            self.lost = 0
+        self.last = (self.gyro_l[k], self.accel_l[k], self.sat_l[k], self.fresh_l[k])
+        # tick k: IMU read, GNSS poll, fix, navigator
+        rx = _uart_read(self.ring, g)
+        if g.epoch_take():
+            deliver_fix(g, model, self.fix, self.cfg.gnss_hdop_max, now, self.pps, k + 1)
+        if tick_hook is not None:
+            tick_hook(k, model)
+        model.imu_raw(self.gyro_l[k], self.accel_l[k], self.sat_l[k], self.fresh_l[k])
+        self._send(k, now, rx)
+
+    def _send(self, k, now, rx):
+        """What tick k sends: its frame's fields, an extended frame, a raw record; the status
+        page's view at its turn."""
+        cfg, g, ticks = self.cfg, self.g, k + 1
+        parts = []
+        if ticks % cfg.output_every_ticks == 0:
+            _frame_fields(self.t, self.j, g, self.pps, ticks, self.fix, self.model)
+            self.j += 1
+            self.counter = (self.counter + 1) & 0xFF
+        if cfg.ext_every_ticks and ticks % cfg.ext_every_ticks == 0:
+            causes = _app_causes(self.cfg_status, g, self.pps, ticks)
+            if self.overruns != self.ext_overruns:
+                self.ext_overruns = self.overruns
+                causes |= _firmware()[0].CAUSE_OVERRUN
+            self.last_ext = _ext_bytes(self.counter, self.model, self.cfg_status, causes,
+                                       self.fix, self.sat_l[k], self.overruns)  # fmt: skip
+            parts.append(self.last_ext)
+        if cfg.raw_record:
+            parts.append(
+                records.encode_raw(
+                    self.counter,
+                    now,
+                    g.pps_us,
+                    self.g_regs[6 * k : 6 * k + 6],
+                    self.a_regs[6 * k : 6 * k + 6],
+                    self.sat_l[k],
+                    rx,
+                )
+            )
+        if parts:
+            self.extra[k] = b"".join(parts)
+        if self.page is not None and ticks % display.SLOT == display.PHASE:
+            self.views.append((ticks, _view(self.model, self.fix, g, self.last_ext), self.j - 1))
+
+
+def _imu_inputs(stim):
+    """What the driver reads and decodes, vectorised over the ticks: the registers ("gyro_regs",
+    "accel_regs"), the counts ("gyro", "accel": (N, 3) int64) and, as lists per tick, the
+    counts, the driver's `saturated` and an accel new-data bit ("gyro_l", "accel_l", "sat_l",
+    "fresh_l")."""
+    bmi055 = _firmware()[3]
     # what the driver reads: the registers, or the bus' idle 0xFF where the IMU does not answer
     # (an injected fault: stimulus.imu_silent)
     gyro_regs = stim.gyro_regs.copy()
@@ -331,27 +461,26 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
     accel_sat = (accel >= bmi055.ACCEL_SAT_HI) | (accel <= bmi055.ACCEL_SAT_LO)
     sat = gyro_sat.any(axis=1) | accel_sat.any(axis=1)  # the driver's `saturated`
     fresh = (accel_regs[:, 0:6:2] & 1).any(axis=1)  # an accel new_data bit (status 6-8)
-    gyro_l = gyro.tolist()
-    accel_l = accel.tolist()
-    sat_l = sat.tolist()
-    fresh_l = fresh.tolist()
-    pps_before = stim.pps_before_us.tolist()
-    offs = stim.uart_offsets.tolist()
-    ub = stim.uart_bytes
-    g_regs = gyro_regs.tobytes()
-    a_regs = accel_regs.tobytes()
+    return {
+        "gyro_regs": gyro_regs,
+        "accel_regs": accel_regs,
+        "gyro": gyro,
+        "accel": accel,
+        "gyro_l": gyro.tolist(),
+        "accel_l": accel.tolist(),
+        "sat_l": sat.tolist(),
+        "fresh_l": fresh.tolist(),
+    }
 
-    out_every = cfg.output_every_ticks
-    ext_every = cfg.ext_every_ticks
-    # app.service: a stalled tick (an injected fault) runs no loop; the next one counts the
-    # ticks it missed, so the tick count stays k + 1 and only the stalled ticks' frames are lost
-    stalled_l = stim.stalled.tolist()
-    frame_ticks = np.flatnonzero(((np.arange(n) + 1) % out_every == 0) & ~stim.stalled)
+
+def _frame_table(imu, frame_ticks):
+    """The per-frame arrays `frame_bytes` packs, for the frames at ticks frame_ticks: the
+    sensor counts filled in, the rest zero until the loop sets them (_frame_fields)."""
     nf = len(frame_ticks)
-    t = {
+    return {
         "counter": np.arange(nf) & 0xFF,
-        "gyro": gyro[frame_ticks],
-        "accel": accel[frame_ticks],
+        "gyro": imu["gyro"][frame_ticks],
+        "accel": imu["accel"][frame_ticks],
         "pps": np.zeros(nf, np.uint8),
         "gga": np.zeros(nf, np.uint8),
         "valid": np.zeros(nf, np.uint8),
@@ -363,137 +492,95 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
         "v_n": np.zeros((nf, 3), F32),
         "p_n": np.zeros((nf, 3), F32),
     }
-    extra = {}  # tick -> bytes sent after that tick's frame (extended frame, raw record)
-    page = _page(cfg, fw_board, board)  # the screen's status page (None: off, or no UART)
-    views = []  # (ticks, display.View without its frame, the last frame's index) per turn
-    last_ext = None
-    ring = bytearray()
-    fix = _Fix()
-    counter = 0
-    # the app's PPS, late-epoch and NMEA checks
-    pps = {"last": 0, "bad": 0, "edge_us": 0, "edge_s": -1, "late_bad": 0, "nmea": 0,
-           "nmea_bad": 0, "edges_ok": 0, "overdue": 0x3FFFFFFF, "step_s": 0, "step_n": 0,
-           "step_bad": 0}  # fmt: skip
-    j = 0  # frames so far
-    lost = 0  # ticks stalled since the last one run
-    last = ([0, 0, 0], [0, 0, 0], False, False)  # the last sample read
-    overruns = 0  # app.overruns, and its value at the last extended frame
-    ext_overruns = 0
-    for k in range(n):
-        # the interval before tick k: bytes arrive in the ring, the PPS edge fires
-        a, b = offs[k], offs[k + 1]
-        if b > a:
-            chunk = ub[a:b][: max(fw_board.GNSS_RXBUF - len(ring), 0)]
-            ring += chunk
-        t_k = t0 + k * tick_us
-        if pps_before[k] >= 0:
-            time.set_us(t_k - pps_before[k])
-            g.pps_isr(None)
-        time.set_us(t_k)
-        if stalled_l[k]:
-            lost += 1
-            continue
-        now = t_k % TICKS_PERIOD  # ticks_us() during the tick (the loop takes no time)
-        if lost:  # app._catch_up: the navigator steps through the missed ticks on the last
-            overruns += lost  # sample read (the driver's zeros before the first)
-            for _ in range(min(lost, fw_app._CATCH_UP_MAX)):
-                model.imu_raw(*last, repeat=True)
-            lost = 0
-        last = (gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
-        # tick k: IMU read, GNSS poll, fix, navigator
-        rx = b""
-        if ring:
-            m = min(len(ring), fw_app._RX_LEN)
-            rx = bytes(ring[:m])
-            del ring[:m]
-            g.feed(rx, m)
-        if g.epoch_take():
-            deliver_fix(g, model, fix, cfg.gnss_hdop_max, now, pps, k + 1)
-        if tick_hook is not None:
-            tick_hook(k, model)
-        model.imu_raw(gyro_l[k], accel_l[k], sat_l[k], fresh_l[k])
-        ticks = k + 1
-        parts = []
-        if ticks % out_every == 0:
-            t["pps"][j] = g.pps_flag_take()
-            if t["pps"][j]:
-                _pps_seen(g, pps, ticks)
-            t["gga"][j] = g.gga_flag_take()
-            t["valid"][j] = fix.valid
-            t["lat_e7"][j] = fix.lat_e7
-            t["lon_e7"][j] = fix.lon_e7
-            t["height_dm"][j] = fix.height_dm
-            t["state"][j] = model.state
-            t["c_bn"][j] = model.ins.c_bn
-            t["v_n"][j] = model.ins.v_n
-            t["p_n"][j] = model.ins.p_n
-            j += 1
-            counter = (counter + 1) & 0xFF
-        if ext_every and ticks % ext_every == 0:
-            causes = 0  # app._send_ext: the app's own causes, each a warning
-            if cfg_status != config.OK:
-                causes = fw_app.CAUSE_CONFIG
-            if ticks >= pps["overdue"]:  # no epoch yet after the last edge? (app._send_ext)
-                pps["overdue"] = fw_app._NEVER
-                if g.epoch_pps_us != pps["last"]:
-                    pps["late_bad"] = ticks + fw_app._SECOND_TICKS
-                    pps["edges_ok"] = 0
-            if ticks < pps["nmea_bad"]:
-                causes |= fw_app.CAUSE_NMEA
-            if ticks < pps["bad"]:
-                causes |= fw_app.CAUSE_PPS
-            if ticks < pps["late_bad"]:
-                causes |= fw_app.CAUSE_GNSS_LATE
-            if ticks < pps["step_bad"]:
-                causes |= fw_app.CAUSE_GNSS_CLOCK
-            if overruns != ext_overruns:
-                ext_overruns = overruns
-                causes |= fw_app.CAUSE_OVERRUN
-            health = model.health
-            if causes and health == 0:
-                health = 1
-            causes |= model.causes
-            flags = fix.valid | (2 if model.still else 0) | (4 if sat_l[k] else 0)
-            last_ext = ext_frame(
-                counter, health, model.state, cfg_status, flags, model, causes, overruns
-            )
-            parts.append(last_ext)
-        if cfg.raw_record:
-            parts.append(
-                records.encode_raw(
-                    counter,
-                    now,
-                    g.pps_us,
-                    g_regs[6 * k : 6 * k + 6],
-                    a_regs[6 * k : 6 * k + 6],
-                    sat_l[k],
-                    rx,
-                )
-            )
-        if parts:
-            extra[k] = b"".join(parts)
-        if page is not None and ticks % display.SLOT == display.PHASE:
-            view = display.View(model.state, fix.valid, fix.lat_e7, fix.lon_e7, fix.height_dm,
-                                g.epoch_quality, g.epoch_nsat, g.epoch_hdop_x100, b"",
-                                last_ext, model.health, model.causes)  # fmt: skip
-            views.append((ticks, view, j - 1))
-        if progress and k % 2000 == 1999:
-            progress(k + 1, n)
-    frames = frame_bytes(t, cfg)
-    if progress:
-        progress(n, n)
-    shown = (b"", [])  # the display's bytes, and (tick, end offset) after each tick that wrote
-    if page is not None:
-        page.start()
-        marks = [(-1, len(page.out))]
-        for ticks, view, fi in views:
-            view.frame = frames[fi].tobytes() if fi >= 0 else bytes(52)
-            page.turn(ticks, view)
-            if len(page.out) > marks[-1][1]:
-                marks.append((ticks - 1, len(page.out)))
-        shown = (bytes(page.out), marks)
-    if not extra:
-        return frames.tobytes(), shown
+
+
+def _uart_read(ring, g):
+    """The loop's GNSS poll: at most app._RX_LEN bytes taken from the receive ring and fed to
+    the parser; the bytes read (b"": none)."""
+    if not ring:
+        return b""
+    m = min(len(ring), _firmware()[0]._RX_LEN)
+    rx = bytes(ring[:m])
+    del ring[:m]
+    g.feed(rx, m)
+    return rx
+
+
+def _frame_fields(t, j, g, pps, ticks, fix, model):
+    """Frame j's fields at a frame tick: the PPS and GGA flags taken (an edge's flag runs
+    app._pps_seen), the fix, the navigator's state and solution."""
+    t["pps"][j] = g.pps_flag_take()
+    if t["pps"][j]:
+        _pps_seen(g, pps, ticks)
+    t["gga"][j] = g.gga_flag_take()
+    t["valid"][j] = fix.valid
+    t["lat_e7"][j] = fix.lat_e7
+    t["lon_e7"][j] = fix.lon_e7
+    t["height_dm"][j] = fix.height_dm
+    t["state"][j] = model.state
+    t["c_bn"][j] = model.ins.c_bn
+    t["v_n"][j] = model.ins.v_n
+    t["p_n"][j] = model.ins.p_n
+
+
+def _app_causes(cfg_status, g, pps, ticks):
+    """app._send_ext: the app's own causes at an extended frame, each a warning (the overrun
+    cause aside, which the loop adds)."""
+    fw_app = _firmware()[0]
+    causes = 0
+    if cfg_status != config.OK:
+        causes = fw_app.CAUSE_CONFIG
+    if ticks >= pps["overdue"]:  # no epoch yet after the last edge? (app._send_ext)
+        pps["overdue"] = fw_app._NEVER
+        if g.epoch_pps_us != pps["last"]:
+            pps["late_bad"] = ticks + fw_app._SECOND_TICKS
+            pps["edges_ok"] = 0
+    if ticks < pps["nmea_bad"]:
+        causes |= fw_app.CAUSE_NMEA
+    if ticks < pps["bad"]:
+        causes |= fw_app.CAUSE_PPS
+    if ticks < pps["late_bad"]:
+        causes |= fw_app.CAUSE_GNSS_LATE
+    if ticks < pps["step_bad"]:
+        causes |= fw_app.CAUSE_GNSS_CLOCK
+    return causes
+
+
+def _ext_bytes(counter, model, cfg_status, causes, fix, sat, overruns):
+    """The extended frame app._send_ext sends: the app's causes make the health at least a
+    warning and join the navigator's; the flags: fix valid, still, saturated."""
+    health = model.health
+    if causes and health == 0:
+        health = 1
+    causes |= model.causes
+    flags = fix.valid | (2 if model.still else 0) | (4 if sat else 0)
+    return ext_frame(counter, health, model.state, cfg_status, flags, model, causes, overruns)
+
+
+def _view(model, fix, g, last_ext):
+    """The status page's view at a turn, without its frame (set once the frames are packed)."""
+    return display.View(model.state, fix.valid, fix.lat_e7, fix.lon_e7, fix.height_dm,
+                        g.epoch_quality, g.epoch_nsat, g.epoch_hdop_x100, b"",
+                        last_ext, model.health, model.causes)  # fmt: skip
+
+
+def _screen(page, views, frames):
+    """(bytes, marks): what the status page sends over the run's turns (views), and (tick,
+    end offset) after each tick that wrote; (b"", []) without a page."""
+    if page is None:
+        return b"", []
+    page.start()
+    marks = [(-1, len(page.out))]
+    for ticks, view, fi in views:
+        view.frame = frames[fi].tobytes() if fi >= 0 else bytes(52)
+        page.turn(ticks, view)
+        if len(page.out) > marks[-1][1]:
+            marks.append((ticks - 1, len(page.out)))
+    return bytes(page.out), marks
+
+
+def _interleave(frames, frame_ticks, extra, n):
+    """The output stream: each tick's frame (if it had one), then its extra bytes."""
     out = bytearray()
     is_frame = np.zeros(n, bool)
     is_frame[frame_ticks] = True
@@ -504,7 +591,7 @@ def run_all(stim, config_overrides=None, progress=None, *, tick_hook=None, board
             fi += 1
         if k in extra:
             out += extra[k]
-    return bytes(out), shown
+    return bytes(out)
 
 
 def _page(cfg, fw_board, board=None):

@@ -160,56 +160,75 @@ def why(rep, console=()):
             f"run is {longest}): the fixes come between outages or gaps; send more"
         )
     hs = _f(cfg.heading_speed_m_s)
-    run_end = rep.stimulus.duration_s
     if np.isfinite(g.course_deg[usable]).any():
-        fast = usable & (np.nan_to_num(g.speed_m_s) >= hs) & np.isfinite(g.course_deg)
-        if not fast.any():
-            top = float(np.nanmax(g.speed_m_s[usable]))
-            return (
-                f"the GNSS speed never reached heading_speed_m_s {hs:g} m/s (at most "
-                f"{top:.2f} m/s in the {run_end:.0f} s replayed): without a magnetometer the "
-                "heading comes from the course over ground of a moving vehicle; replay a "
-                "part of the recording where it drives"
-            )
+        no_heading = _course_too_slow(rep, usable, hs)
     else:
-        p = g.p_ant_n + g.err_n_m  # the positions sent
-        tr = _track(rep, cfg, g.t_fix_s, p, usable, tick_s)
-        if not tr.started:
-            no_course = "no course in the fixes (RMC speed and course empty), and "
-            velocity = "send the GNSS velocity (--gnss-velocity SIGMA)"
-            top = float(np.max(np.hypot(rep.truth.v_n[:, 0], rep.truth.v_n[:, 1])))
-            moves = f"the reference moves at most {top:.2f} m/s in the {run_end:.0f} s replayed"
-            if tr.windows == 0:
-                gaps = np.diff(g.t_fix_s[usable])
-                if tr.chord_m > 0.0:
-                    return (
-                        f"{no_course}their track never covered track_min_m "
-                        f"{_f(cfg.track_min_m):g} m in track_s to track_max_s "
-                        f"({_f(cfg.track_s):g} to {_f(cfg.track_max_s):g} s) "
-                        f"(at most {tr.chord_m:.1f} m; {moves}): without a magnetometer the "
-                        "heading comes from a moving vehicle's course; replay a part of the "
-                        f"recording where it moves, or {velocity}"
-                    )
-                gap = f"{float(np.median(gaps)):.3g} s" if gaps.size else "never"
-                return (
-                    f"{no_course}no track: it needs two usable fixes {tr.rule} apart, they "
-                    f"come every {gap}; send fixes more often or {velocity}"
-                )
-            if tr.best_m_s < hs:
-                return (
-                    f"{no_course}their track never reached heading_speed_m_s {hs:g} m/s (at "
-                    f"most {tr.best_m_s:.2f} m/s over {tr.rule}; {moves}): without a "
-                    "magnetometer the heading comes from a moving vehicle's course; replay a "
-                    f"part of the recording where it moves, or {velocity}"
-                )
-            return (
-                f"{no_course}every track window fast enough ({tr.turned}) turned more than "
-                f"track_turn_max {math.degrees(_f(cfg.track_turn_max)):.0f} deg: {velocity} "
-                "or replay a straighter stretch"
-            )
+        no_heading = _track_fails(rep, cfg, usable, hs, tick_s)
+    if no_heading is not None:
+        return no_heading
     said = "; ".join(console) or "nothing"
     return (
         "the data meets every condition of the alignment (levelled, "
         f"{need} usable fixes in a row, a heading at {hs:g} m/s), yet it did not start: "
         f"report this with the dataset (firmware console: {said})"
+    )
+
+
+def _course_too_slow(rep, usable, hs):
+    """Why no heading came from the receiver's course (never at heading_speed_m_s hs), or
+    None if one could."""
+    g = rep.gnss
+    run_end = rep.stimulus.duration_s
+    fast = usable & (np.nan_to_num(g.speed_m_s) >= hs) & np.isfinite(g.course_deg)
+    if fast.any():
+        return None
+    top = float(np.nanmax(g.speed_m_s[usable]))
+    return (
+        f"the GNSS speed never reached heading_speed_m_s {hs:g} m/s (at most "
+        f"{top:.2f} m/s in the {run_end:.0f} s replayed): without a magnetometer the "
+        "heading comes from the course over ground of a moving vehicle; replay a "
+        "part of the recording where it drives"
+    )
+
+
+def _track_fails(rep, cfg, usable, hs, tick_s):
+    """Why no heading came from the track of fixes without a course (no window, too slow,
+    turning), or None if navigation starts on one."""
+    g = rep.gnss
+    run_end = rep.stimulus.duration_s
+    p = g.p_ant_n + g.err_n_m  # the positions sent
+    tr = _track(rep, cfg, g.t_fix_s, p, usable, tick_s)
+    if tr.started:
+        return None
+    no_course = "no course in the fixes (RMC speed and course empty), and "
+    velocity = "send the GNSS velocity (--gnss-velocity SIGMA)"
+    top = float(np.max(np.hypot(rep.truth.v_n[:, 0], rep.truth.v_n[:, 1])))
+    moves = f"the reference moves at most {top:.2f} m/s in the {run_end:.0f} s replayed"
+    if tr.windows == 0:
+        gaps = np.diff(g.t_fix_s[usable])
+        if tr.chord_m > 0.0:
+            return (
+                f"{no_course}their track never covered track_min_m "
+                f"{_f(cfg.track_min_m):g} m in track_s to track_max_s "
+                f"({_f(cfg.track_s):g} to {_f(cfg.track_max_s):g} s) "
+                f"(at most {tr.chord_m:.1f} m; {moves}): without a magnetometer the "
+                "heading comes from a moving vehicle's course; replay a part of the "
+                f"recording where it moves, or {velocity}"
+            )
+        gap = f"{float(np.median(gaps)):.3g} s" if gaps.size else "never"
+        return (
+            f"{no_course}no track: it needs two usable fixes {tr.rule} apart, they "
+            f"come every {gap}; send fixes more often or {velocity}"
+        )
+    if tr.best_m_s < hs:
+        return (
+            f"{no_course}their track never reached heading_speed_m_s {hs:g} m/s (at "
+            f"most {tr.best_m_s:.2f} m/s over {tr.rule}; {moves}): without a "
+            "magnetometer the heading comes from a moving vehicle's course; replay a "
+            f"part of the recording where it moves, or {velocity}"
+        )
+    return (
+        f"{no_course}every track window fast enough ({tr.turned}) turned more than "
+        f"track_turn_max {math.degrees(_f(cfg.track_turn_max)):.0f} deg: {velocity} "
+        "or replay a straighter stretch"
     )

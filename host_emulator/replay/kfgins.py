@@ -539,9 +539,18 @@ def write(path, dataset, gnss=None, truth=None):
     firsts = [imu.t_s[0], truth.t_s[0]] + ([gnss.t_s[0]] if gnss is not None else [])
     week = int(math.floor(min(firsts) / WEEK_S))
     t_week = week * WEEK_S
+    rate_txt = _write_imu(out / IMU_FILE, dataset, t_week)
+    if gnss is not None:
+        _write_gnss(out / GNSS_FILE, gnss, t_week)
+    _write_truth(out / TRUTH_FILE, truth, week, t_week)
+    text = _description_text(dataset, gnss is not None, rate_txt, week)
+    (out / DESCRIPTION).write_text(text, encoding="utf-8")
+    return out
 
-    # IMU: body FRD increments over the written intervals.
-    imu_path = out / IMU_FILE
+
+def _write_imu(imu_path, dataset, t_week):
+    """The IMU file: body FRD increments over the written intervals; the rate as written."""
+    imu = dataset.imu
     sow_txt, sow = _sow_text(imu.t_s, t_week, imu_path)
     rate_txt = _rate_text(sow)
     dt = intervals(sow, float(rate_txt))[:, None]
@@ -549,25 +558,27 @@ def write(path, dataset, gnss=None, truth=None):
     c_sb[np.abs(c_sb) < 1e-12] = 0.0  # sin(180 deg) = 1.2e-16: keep exact axis swaps exact
     inc = np.hstack([imu.gyro_rad_s @ c_sb.T * dt, imu.accel_m_s2 @ c_sb.T * dt])
     _write_rows(imu_path, sow_txt, inc, _fmts((_INC, 6)))
+    return rate_txt
 
-    # GNSS
-    if gnss is not None:
-        gnss_path = out / GNSS_FILE
-        if gnss.sigma_ned_m is None:
-            raise FormatError(f"{gnss_path}: the GNSS positions have no sigma_ned_m to write")
-        sow_txt, _ = _sow_text(gnss.t_s, t_week, gnss_path)
-        pos = np.column_stack([gnss.lat_deg, gnss.lon_deg, gnss.h_m])
-        if gnss.v_ned_m_s is None:
-            cols = np.hstack([pos, gnss.sigma_ned_m])
-            fmt = _fmts((_LATLON, 2), (_H, 1), (_SD, 3))
-        else:
-            nan = np.full((len(gnss), 3), np.nan)
-            cols = np.hstack([pos, gnss.v_ned_m_s, gnss.sigma_ned_m, nan])
-            fmt = _fmts((_LATLON, 2), (_H, 1), (_VEL, 3), (_SD, 3), (_SD, 3))
-        _write_rows(gnss_path, sow_txt, cols, fmt)
 
-    # Truth (.nav)
-    truth_path = out / TRUTH_FILE
+def _write_gnss(gnss_path, gnss, t_week):
+    """The GNSS file: 7 columns, or 13 with the velocities (their sigmas NaN)."""
+    if gnss.sigma_ned_m is None:
+        raise FormatError(f"{gnss_path}: the GNSS positions have no sigma_ned_m to write")
+    sow_txt, _ = _sow_text(gnss.t_s, t_week, gnss_path)
+    pos = np.column_stack([gnss.lat_deg, gnss.lon_deg, gnss.h_m])
+    if gnss.v_ned_m_s is None:
+        cols = np.hstack([pos, gnss.sigma_ned_m])
+        fmt = _fmts((_LATLON, 2), (_H, 1), (_SD, 3))
+    else:
+        nan = np.full((len(gnss), 3), np.nan)
+        cols = np.hstack([pos, gnss.v_ned_m_s, gnss.sigma_ned_m, nan])
+        fmt = _fmts((_LATLON, 2), (_H, 1), (_VEL, 3), (_SD, 3), (_SD, 3))
+    _write_rows(gnss_path, sow_txt, cols, fmt)
+
+
+def _write_truth(truth_path, truth, week, t_week):
+    """The .nav reference: a missing velocity or attitude as NaN columns."""
     sow_txt, _ = _sow_text(truth.t_s, t_week, truth_path)
     nan = np.full((len(truth), 3), np.nan)
     cols = np.column_stack(
@@ -582,9 +593,13 @@ def write(path, dataset, gnss=None, truth=None):
     first = [f"{week} {s}" for s in sow_txt]
     _write_rows(truth_path, first, cols, _fmts((_LATLON, 2), (_H, 1), (_VEL, 3), (_ANG, 3)))
 
-    def vec(v):
-        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
 
+def _vec(v):
+    return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+
+def _description_text(dataset, has_gnss, rate_txt, week):
+    """The text of dataset.yaml for the files written."""
     lines = [
         "# Drive in KF-GINS text files (host_emulator/replay/kfgins.py, docs/formats.md)",
         f"name: {_quoted(dataset.name)}",
@@ -594,14 +609,14 @@ def write(path, dataset, gnss=None, truth=None):
     lines += [
         f"imufile: {IMU_FILE}  # sow, gyro (rad) and velocity (m/s) increments, body FRD",
     ]
-    if gnss is not None:
+    if has_gnss:
         lines.append(f"gnssfile: {GNSS_FILE}")
     lines += [
         f"truthfile: {TRUTH_FILE}",
         f"truthpoint: {dataset.truth_point}  # the point the .nav trajectory describes",
         f"imudatarate: {rate_txt}  # Hz",
         f"gpsweek: {week}  # the sow columns count from this GPS week",
-        f"antlever: {vec(dataset.lever_frd_m)}  # m, forward right down, IMU -> antenna",
+        f"antlever: {_vec(dataset.lever_frd_m)}  # m, forward right down, IMU -> antenna",
         "installangle: [0.0, 0.0, 0.0]  # deg; the IMU file is already in body axes",
     ]
     if dataset.gravity_m_s2 is not None:
@@ -614,12 +629,11 @@ def write(path, dataset, gnss=None, truth=None):
             if value is None:
                 text = "identity"
             elif isinstance(value, (list, tuple)):
-                text = vec(value)
+                text = _vec(value)
             else:
                 text = repr(value)
             lines.append(f"  {name}: {text}")
-    (out / DESCRIPTION).write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return out
+    return "\n".join(lines) + "\n"
 
 
 # --- from a simulation ---

@@ -141,6 +141,33 @@ def evaluate_replay(rep, fw, runtime):
 
 def markdown(m, rep, console=()):
     """report.md of a replay: the protocol, the figures, the reference filters' figures."""
+    lines = [f"# Replay: {m['dataset']} ({m['duration_s']:g} s, {m['runtime']})", ""]
+    lines += _protocol_lines(m, rep)
+    lines += _figures_table(m)
+    lines += _outage_table(m)
+    lines += _reference_table(m, rep.options)
+    if m["yaw_rms_deg"] is None:
+        lines += ["The reference has no attitude: attitude errors are not scored.", ""]
+    lines += [
+        "## The run",
+        "",
+        f"- {m['ticks']} ticks in {m['wall_s']:.1f} s: {m['realtime_factor']:.1f}x real time.",
+        f"- Output: {m['frames']} frames, {m['frame_errors']} frame errors; "
+        f"{m['nmea_rejected']} NMEA sentences rejected.",
+        "",
+        "## Plots",
+        "",
+    ]
+    for p in report.PLOTS:
+        lines += [f"![{p[:-4]}]({p})", ""]
+    lines += report.screen_section(m)
+    if console:
+        lines += ["## Firmware console", "", "```", *console, "```", ""]
+    return "\n".join(lines)
+
+
+def _protocol_lines(m, rep):
+    """report.md's account of what the board was fed: IMU, GNSS, outages, ranges, settings."""
     fmt = report.fmt
     opt = rep.options
     outs = ", ".join(f"t0+{s:g} s for {n:g} s" for s, n in opt.outages) or "none"
@@ -160,9 +187,7 @@ def markdown(m, rep, console=()):
     )
     timing = "with PPS" if rep.pps else f"without PPS (gnss_latency_s {rep.latency_s:.3f} s)"
     rate = f"up to {rep.stimulus.header['gnss_rate_hz']:g} Hz"
-    lines = [
-        f"# Replay: {m['dataset']} ({m['duration_s']:g} s, {m['runtime']})",
-        "",
+    return [
         "The unmodified firmware loop ran on an emulated board fed from the recording: the "
         f"IMU as BMI055 registers at 200 Hz, {made} as NMEA bytes on the GNSS UART {timing}. "
         "Errors are those of its output frames against the recording's reference, at 10 Hz.",
@@ -177,6 +202,13 @@ def markdown(m, rep, console=()):
         f"{board_settings.describe(rep.stimulus.config, rep.sources)}.",
         *[f"- {note[0].upper()}{note[1:]}." for note in rep.notes],
         "",
+    ]
+
+
+def _figures_table(m):
+    """report.md's table of the firmware's errors against the reference, and the GNSS's."""
+    fmt = report.fmt
+    return [
         "| figure | firmware | raw GNSS input |",
         "|---|---|---|",
         f"| horizontal RMS, GNSS available | {fmt(m['horiz_rms_gnss_m'], unit='m')} | "
@@ -191,15 +223,27 @@ def markdown(m, rep, console=()):
         f"| mean (error / sigma)^2, E and N (NEES) | {fmt(m.get('pos_nees_h'))} | |",
         "",
     ]
+
+
+def _outage_table(m):
+    """report.md's table of the horizontal error at the end of each GNSS outage, if any."""
+    lines = []
     if m["outages"]:
         lines += ["| GNSS outage (run clock) | length | horizontal error at its end |",
                   "|---|---|---|"]  # fmt: skip
         for o in m["outages"]:
             lines.append(
                 f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
-                f"{fmt(o['horiz_err_end_m'], unit='m')} |"
+                f"{report.fmt(o['horiz_err_end_m'], unit='m')} |"
             )
         lines.append("")
+    return lines
+
+
+def _reference_table(m, opt):
+    """The reference filters' figures, on drive_0708 replayed under the protocol's options
+    (every option at its default, the whole recording); else none."""
+    lines = []
     if m["dataset"] == "drive_0708" and opt == to_stimulus.ReplayOptions(duration_s=None):
         lines += [
             "Other filters under the same protocol (docs/requirements.md, reference figures):",
@@ -209,24 +253,7 @@ def markdown(m, rep, console=()):
         ]
         lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in REFERENCE_ROWS]
         lines.append("")
-    if m["yaw_rms_deg"] is None:
-        lines += ["The reference has no attitude: attitude errors are not scored.", ""]
-    lines += [
-        "## The run",
-        "",
-        f"- {m['ticks']} ticks in {m['wall_s']:.1f} s: {m['realtime_factor']:.1f}x real time.",
-        f"- Output: {m['frames']} frames, {m['frame_errors']} frame errors; "
-        f"{m['nmea_rejected']} NMEA sentences rejected.",
-        "",
-        "## Plots",
-        "",
-    ]
-    for p in report.PLOTS:
-        lines += [f"![{p[:-4]}]({p})", ""]
-    lines += report.screen_section(m)
-    if console:
-        lines += ["## Firmware console", "", "```", *console, "```", ""]
-    return "\n".join(lines)
+    return lines
 
 
 def write_solution_pos(path, rep, tr):

@@ -257,19 +257,42 @@ def write(
     age = np.zeros(m) if age_s is None else np.broadcast_to(np.asarray(age_s, float), (m,))
     rat = np.zeros(m) if ratio is None else np.broadcast_to(np.asarray(ratio, float), (m,))
     sd = _column(positions.sigma_ned_m, m)
-    times = [_calendar(t, time_decimals) for t in positions.t_s]
+    times = _epoch_times(path, positions.t_s, time_decimals)
+    vel = positions.v_ned_m_s is not None
+    head = _header_lines(positions.t_s, times, comment, program, vel)
+    body = _position_lines(positions, times, q, ns, sd, age, rat)
+    if vel:
+        v = np.asarray(positions.v_ned_m_s, np.float64)
+        sdv = _column(sigma_v_ned_m_s, m)
+        vfmt = " %10.5f %10.5f %10.5f %9.5f %8.5f %8.5f %8.5f %8.5f %8.5f"
+        body = [
+            line + vfmt % (vv[0], vv[1], -vv[2], s[0], s[1], s[2], 0.0, 0.0, 0.0)
+            for line, vv, s in zip(body, v.tolist(), sdv.tolist(), strict=True)
+        ]
+    with open(path, "w", encoding="ascii") as f:
+        f.write("\n".join(head + body) + "\n")
+
+
+def _epoch_times(path, t_s, time_decimals):
+    """The epochs' GPST calendar times at time_decimals; FormatError if one does not come
+    after the one before once rounded."""
+    times = [_calendar(t, time_decimals) for t in t_s]
     unit = 10**time_decimals
-    ticks = np.array([round(float(t) * unit) for t in positions.t_s])
-    if m > 1 and not (np.diff(ticks) > 0).all():
+    ticks = np.array([round(float(t) * unit) for t in t_s])
+    if len(t_s) > 1 and not (np.diff(ticks) > 0).all():
         k = int(np.flatnonzero(np.diff(ticks) <= 0)[0]) + 1
         raise FormatError(
             f"{path}: epoch {k} ({times[k]}) is not after the one before at "
             f"time_decimals={time_decimals}"
         )
-    vel = positions.v_ned_m_s is not None
+    return times
 
-    w0, s0 = _week_sow(positions.t_s[0])
-    w1, s1 = _week_sow(positions.t_s[-1])
+
+def _header_lines(t_s, times, comment, program, vel):
+    """The .pos header: program, comment lines, start/end, the legend and column labels
+    (with the velocity columns' if vel)."""
+    w0, s0 = _week_sow(t_s[0])
+    w1, s1 = _week_sow(t_s[-1])
     head = [f"% program   : {program}"]
     for text in (comment or "").splitlines():
         head.append(f"% {text}".rstrip())
@@ -283,7 +306,12 @@ def write(
     if vel:
         labels += " " + _labels(_LABELS_VEL)
     head.append("%  " + "GPST".ljust(len(times[0]) - 3) + " " + labels)
+    return head
 
+
+def _position_lines(positions, times, q, ns, sd, age, rat):
+    """One line per epoch: time, lat/lon/height, Q, ns, sdn/sde/sdu, cross terms 0, age,
+    ratio."""
     fmt = "%s %14.9f %14.9f %10.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f"
     rows = zip(
         times,
@@ -297,20 +325,10 @@ def write(
         rat.tolist(),
         strict=True,
     )
-    body = [
+    return [
         fmt % (tm, la, lo, h, qq, nn, s[0], s[1], s[2], 0.0, 0.0, 0.0, a, r)
         for tm, la, lo, h, qq, nn, s, a, r in rows
     ]
-    if vel:
-        v = np.asarray(positions.v_ned_m_s, np.float64)
-        sdv = _column(sigma_v_ned_m_s, m)
-        vfmt = " %10.5f %10.5f %10.5f %9.5f %8.5f %8.5f %8.5f %8.5f %8.5f"
-        body = [
-            line + vfmt % (vv[0], vv[1], -vv[2], s[0], s[1], s[2], 0.0, 0.0, 0.0)
-            for line, vv, s in zip(body, v.tolist(), sdv.tolist(), strict=True)
-        ]
-    with open(path, "w", encoding="ascii") as f:
-        f.write("\n".join(head + body) + "\n")
 
 
 def from_track(

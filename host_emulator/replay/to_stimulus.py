@@ -471,20 +471,93 @@ def _latency_s(epochs, gnss, baud):
 def convert(dataset, opt=None):
     """Replay of a Dataset under the options (EmulatorError when they cannot be met)."""
     opt = opt or ReplayOptions()
+    _check_options(opt)
+    notes = []
+    user, sources = _board_settings(dataset, opt)
+    _check_spans(dataset)
+    t_start, t_end, n = _replayed_span(dataset, opt, notes)
+    imu = dataset.imu
+    t_ticks = t_start + np.arange(n) * TICK_S
+    gyro = resample(imu.t_s, imu.gyro_rad_s, t_ticks)
+    accel = resample(imu.t_s, imu.accel_m_s2, t_ticks)
+    gyro_counts, accel_counts, ranges = _ranges(gyro, accel, user, sources, notes)
+
+    truth = _truth_on_ticks(dataset, t_start, n)
+    plan = _plan_gnss(dataset, opt, t_start, t_end)
+    notes += plan.notes
+    if len(plan.pos) < 10:
+        raise EmulatorError(
+            f"only {len(plan.pos)} GNSS epochs at {opt.gnss_rate_hz:g} Hz in the replayed span "
+            f"({t_end - t_start:.1f} s from {_span(np.array([t_start]))}); a replay needs 10"
+        )
+    noise = _noise(opt, len(plan.pos))
+    t0 = float(plan.t_fix_s[0])
+    outages = _run_outages(opt.outages, t0, n * TICK_S, notes)
+    gnss, sigma_h, hdop_max = _gnss_sent(dataset, opt, plan, truth, noise, outages, t_start, notes)
+    epochs, baud = _nmea(gnss, user.get("gnss_baud"), sources.get("gnss_baud"))
+    gnss = _with_baud(gnss, baud=baud)
+    offs, data = nmea.per_tick(epochs, baud, n, TICK_S)
+    config = {
+        "gyro_range_dps": int(ranges["gyro_range_dps"]),
+        "accel_range_g": int(ranges["accel_range_g"]),
+        "gnss_baud": int(baud),
+        "lever_b_m": [float(x) for x in gnss.model.lever_b_m],
+        "mount_ypr_deg": [float(x) for x in mount_ypr_deg(dataset.mount_rpy_deg)],
+        "gnss_uere_m": float(sigma_h),
+        "gnss_hdop_max": float(hdop_max),
+    }
+    latency = None
+    if not plan.pps:
+        latency = _latency_s(epochs, gnss, baud)
+        if "gnss_latency_s" not in user:
+            config["gnss_latency_s"] = latency
+    notes.append(_gnss_note(plan, len(plan.pos), baud, latency, user, sources))
+    notes.append(_profile(accel_counts, ranges, config, user, sources))
+    config.update(user)
+    run_config.check_scorable(config, sources)
+    refused = run_config.problem(config)
+    if refused:
+        raise EmulatorError(f"the firmware refuses the replay's board settings: {refused}")
+    head = _stimulus_header(dataset, opt, plan, config, outages, gnss.model, t_start, t0)
+    stim = stim_mod.from_arrays(
+        head,
+        gyro_counts,
+        accel_counts,
+        np.zeros(n, np.int8),
+        board_input.pps_per_tick(gnss.pps_s, n),
+        (offs, data),
+    )
+    return Replay(
+        dataset.name, stim, truth, gnss, t_start, t0, t0 + opt.skip_s, outages, opt, ranges,
+        notes=notes, sources=sources, pps=plan.pps, latency_s=latency,
+        gnss_recorded=dataset.gnss is not None,
+    )  # fmt: skip
+
+
+def _check_options(opt):
+    """EmulatorError for a GNSS rate, GNSS noise or --score-from out of range."""
     if opt.gnss_rate_hz not in GNSS_RATES_HZ:
         raise EmulatorError("--gnss-rate must be 1, 2, 4, 5 or 10 Hz")
     if opt.gnss_noise_m is not None and not 0.0 <= opt.gnss_noise_m <= 100.0:
         raise EmulatorError("--gnss-noise must be 0 to 100 m")
     if not opt.skip_s >= 0.0:
         raise EmulatorError("--score-from must be 0 or more")
-    notes = []
+
+
+def _board_settings(dataset, opt):
+    """(the board settings given, where each came from: run_config.DATASET / COMMAND_LINE)."""
     # board settings: the dataset's, then the options' (--set); the replay's own go first
     ds_cfg = {} if opt.sensor_defaults else dict(dataset.board_config)
     user = {**ds_cfg, **dict(opt.config)}
     sources = {name: run_config.DATASET for name in ds_cfg}
     sources.update((name, run_config.COMMAND_LINE) for name, _ in opt.config)
+    return user, sources
 
-    _check_spans(dataset)
+
+def _replayed_span(dataset, opt, notes):
+    """(t_start, t_end GPST s, ticks): the whole GPST second where both the IMU and the
+    reference have begun, to where either ends (or --duration); IMU data left out is noted.
+    EmulatorError under 20 s."""
     imu = dataset.imu
     t_start = float(np.ceil(max(imu.t_s[0], dataset.truth.t_s[0])))
     t_end = min(float(imu.t_s[-1]), float(dataset.truth.t_s[-1]))
@@ -505,34 +578,28 @@ def convert(dataset, opt=None):
             f"{_span(imu.t_s)}, {ref_part} {_span(dataset.truth.t_s)}; a replay needs 20 s "
             "of both"
         )
-    t_ticks = t_start + np.arange(n) * TICK_S
-    gyro = resample(imu.t_s, imu.gyro_rad_s, t_ticks)
-    accel = resample(imu.t_s, imu.accel_m_s2, t_ticks)
-    gyro_counts, accel_counts, ranges = _ranges(gyro, accel, user, sources, notes)
+    return t_start, t_end, n
 
-    truth = _truth_on_ticks(dataset, t_start, n)
-    plan = _plan_gnss(dataset, opt, t_start, t_end)
-    notes += plan.notes
-    pos, t_fix = plan.pos, plan.t_fix_s
-    if len(pos) < 10:
-        raise EmulatorError(
-            f"only {len(pos)} GNSS epochs at {opt.gnss_rate_hz:g} Hz in the replayed span "
-            f"({t_end - t_start:.1f} s from {_span(np.array([t_start]))}); a replay needs 10"
-        )
-    noise = _noise(opt, len(pos))
-    t0 = float(t_fix[0])
-    duration_s = n * TICK_S
+
+def _run_outages(outages_after_t0, t0, duration_s, notes):
+    """The outages (start, length) on the run clock; those beginning after the end noted."""
     outages = []
-    for s, length in opt.outages:
+    for s, length in outages_after_t0:
         if t0 + s < duration_s:
             outages.append((t0 + s, length))
         else:
             notes.append(f"outage {s:g}+{length:g} s begins after the replay's end: not applied")
+    return outages
+
+
+def _gnss_sent(dataset, opt, plan, truth, noise, outages, t_start, notes):
+    """(GnssData of the epochs sent, sigma_h = gnss_uere_m, the HDOP gate): the planned epochs
+    with the noise added, no fix inside the outages, and the source's velocity with
+    --gnss-velocity's noise if asked."""
+    pos, t_fix = plan.pos, plan.t_fix_s
     in_out = np.zeros(t_fix.size, bool)
     for s, length in outages:
         in_out |= (t_fix >= s) & (t_fix < s + length)
-
-    o = truth.origin
     lat, lon, h = pymap3d.ned2geodetic(
         noise[:, 0], noise[:, 1], noise[:, 2], pos.lat_deg, pos.lon_deg, pos.h_m
     )
@@ -540,16 +607,66 @@ def convert(dataset, opt=None):
     m = t_fix.size
     lat_e7 = np.where(fix, np.rint(np.asarray(lat) * 1e7), 0).astype(np.int64)
     lon_e7 = np.where(fix, np.rint(np.asarray(lon) * 1e7), 0).astype(np.int64)
+    p_ant, err_enu = _antenna_and_error_enu(dataset, pos, t_fix, noise, truth)
+    sigma_h, hdop, hdop_max = _gnss_sigmas(dataset, pos, opt, notes)
+    speed_m_s, course_deg, v_ant = _gnss_velocity(dataset, pos, opt)
+    lat_rng = np.random.default_rng([opt.seed, 0x4C4154])
+    t_avail = t_fix + opt.latency_s + opt.latency_jitter_s * lat_rng.uniform(-1, 1, m)
+    utc = ds.gpst_datetime(t_start) - datetime.timedelta(seconds=LEAP_S)
+    model = gnss_mod.GnssModel(
+        rate_hz=plan.rate_hz,
+        sigma_h_m=sigma_h,
+        sigma_v_m=2.0 * sigma_h,
+        corrupt_per_sentence=0.0,
+        utc_start=utc.isoformat(),
+        lever_b_m=tuple(P_FRD_RFU @ np.asarray(dataset.lever_frd_m, float)),
+    )
+    gnss = gnss_mod.GnssData(
+        t_fix_s=t_fix,
+        t_avail_s=t_avail,
+        lat_e7=lat_e7,
+        lon_e7=lon_e7,
+        h_m=np.where(fix, np.asarray(h), 0.0),
+        speed_m_s=np.where(fix, speed_m_s, np.nan),
+        course_deg=np.where(fix, course_deg, np.nan),
+        hdop=np.where(fix, hdop, np.nan),
+        quality=np.where(fix, 1, 0).astype(np.int8),
+        nsat=np.where(fix, 12, 0).astype(np.int8),
+        sigma_h_m=np.where(fix, sigma_h * hdop, np.nan),
+        sigma_v_m=np.where(fix, 2.0 * sigma_h * hdop, np.nan),
+        sigma_vel_m_s=np.where(fix, opt.gnss_velocity_sigma or np.nan, np.nan),
+        pps_s=t_fix[fix] if plan.pps else np.zeros(0),
+        p_ant_n=p_ant,
+        v_ant_n=v_ant,
+        err_n_m=err_enu,
+        outages=tuple(outages),
+        model=model,
+    )
+    return gnss, sigma_h, hdop_max
+
+
+def _antenna_and_error_enu(dataset, pos, t_fix, noise, truth):
+    """(antenna positions ENU from the truth's origin, the fixes' errors ENU): the source's
+    positions and the added noise; for a recorded GNSS input, the reference at each epoch and
+    the fix's whole error against it."""
+    o = truth.origin
     e, nn, u = pymap3d.geodetic2enu(
         pos.lat_deg, pos.lon_deg, pos.h_m, o.lat_e7 * 1e-7, o.lon_e7 * 1e-7, o.h_m
     )
     p_ant = np.stack([e, nn, u], axis=-1)
     err_enu = noise @ P_FRD_RFU.T
     if dataset.gnss is not None:  # a recorded GNSS input: its error against the reference
-        k = np.clip(np.rint(t_fix / TICK_S).astype(np.int64), 0, n)
+        k = np.clip(np.rint(t_fix / TICK_S).astype(np.int64), 0, len(truth.p_n) - 1)
         err_enu = p_ant + err_enu - truth.p_n[k]  # (includes the lever arm, if any)
         p_ant = truth.p_n[k]
-    sigma_h, hdop, hdop_max = _gnss_sigmas(dataset, pos, opt, notes)
+    return p_ant, err_enu
+
+
+def _gnss_velocity(dataset, pos, opt):
+    """(RMC speed m/s, course deg: NaN unless --gnss-velocity, and the course also below
+    0.5 m/s; the source's velocity ENU, zero without one). EmulatorError when
+    --gnss-velocity is asked of a source without velocities."""
+    m = len(pos)
     nan = np.full(m, np.nan)
     speed, course = nan.copy(), nan.copy()
     v_ant = np.zeros((m, 3))
@@ -569,63 +686,12 @@ def convert(dataset, opt=None):
         speed = np.hypot(v_meas[:, 0], v_meas[:, 1])
         course = np.degrees(np.arctan2(v_meas[:, 0], v_meas[:, 1])) % 360.0
         course[speed < 0.5] = np.nan
-    lat_rng = np.random.default_rng([opt.seed, 0x4C4154])
-    t_avail = t_fix + opt.latency_s + opt.latency_jitter_s * lat_rng.uniform(-1, 1, m)
-    utc = ds.gpst_datetime(t_start) - datetime.timedelta(seconds=LEAP_S)
-    model = gnss_mod.GnssModel(
-        rate_hz=plan.rate_hz,
-        sigma_h_m=sigma_h,
-        sigma_v_m=2.0 * sigma_h,
-        corrupt_per_sentence=0.0,
-        utc_start=utc.isoformat(),
-        lever_b_m=tuple(P_FRD_RFU @ np.asarray(dataset.lever_frd_m, float)),
-    )
-    gnss = gnss_mod.GnssData(
-        t_fix_s=t_fix,
-        t_avail_s=t_avail,
-        lat_e7=lat_e7,
-        lon_e7=lon_e7,
-        h_m=np.where(fix, np.asarray(h), 0.0),
-        speed_m_s=np.where(fix, speed, np.nan),
-        course_deg=np.where(fix, course, np.nan),
-        hdop=np.where(fix, hdop, np.nan),
-        quality=np.where(fix, 1, 0).astype(np.int8),
-        nsat=np.where(fix, 12, 0).astype(np.int8),
-        sigma_h_m=np.where(fix, sigma_h * hdop, np.nan),
-        sigma_v_m=np.where(fix, 2.0 * sigma_h * hdop, np.nan),
-        sigma_vel_m_s=np.where(fix, opt.gnss_velocity_sigma or np.nan, np.nan),
-        pps_s=t_fix[fix] if plan.pps else np.zeros(0),
-        p_ant_n=p_ant,
-        v_ant_n=v_ant,
-        err_n_m=err_enu,
-        outages=tuple(outages),
-        model=model,
-    )
-    epochs, baud = _nmea(gnss, user.get("gnss_baud"), sources.get("gnss_baud"))
-    gnss = _with_baud(gnss, baud=baud)
-    offs, data = nmea.per_tick(epochs, baud, n, TICK_S)
-    config = {
-        "gyro_range_dps": int(ranges["gyro_range_dps"]),
-        "accel_range_g": int(ranges["accel_range_g"]),
-        "gnss_baud": int(baud),
-        "lever_b_m": [float(x) for x in model.lever_b_m],
-        "mount_ypr_deg": [float(x) for x in mount_ypr_deg(dataset.mount_rpy_deg)],
-        "gnss_uere_m": float(sigma_h),
-        "gnss_hdop_max": float(hdop_max),
-    }
-    latency = None
-    if not plan.pps:
-        latency = _latency_s(epochs, gnss, baud)
-        if "gnss_latency_s" not in user:
-            config["gnss_latency_s"] = latency
-    notes.append(_gnss_note(plan, m, baud, latency, user, sources))
-    notes.append(_profile(accel_counts, ranges, config, user, sources))
-    config.update(user)
-    run_config.check_scorable(config, sources)
-    refused = run_config.problem(config)
-    if refused:
-        raise EmulatorError(f"the firmware refuses the replay's board settings: {refused}")
-    head = {
+    return speed, course, v_ant
+
+
+def _stimulus_header(dataset, opt, plan, config, outages, model, t_start, t0):
+    """The stimulus header of the replay (Stimulus.header)."""
+    return {
         "source": "replay",
         "dataset": dataset.name,
         "tick_us": TICK_US,
@@ -644,19 +710,6 @@ def convert(dataset, opt=None):
             "gnss_pps": plan.pps,
         },
     }
-    stim = stim_mod.from_arrays(
-        head,
-        gyro_counts,
-        accel_counts,
-        np.zeros(n, np.int8),
-        board_input.pps_per_tick(gnss.pps_s, n),
-        (offs, data),
-    )
-    return Replay(
-        dataset.name, stim, truth, gnss, t_start, t0, t0 + opt.skip_s, outages, opt, ranges,
-        notes=notes, sources=sources, pps=plan.pps, latency_s=latency,
-        gnss_recorded=dataset.gnss is not None,
-    )  # fmt: skip
 
 
 def _profile(accel_counts, ranges, config, user, sources):

@@ -8,12 +8,13 @@ virtual clock), loaded by install_machine() and powered on afresh for every run.
 Floats are the float32 seam's NumPy backend, so what comes out is what the board computes, bit
 for bit.
 
-Per stimulus record k (proto/stimulus.py), as emulated_board/mpy/emulate.py does in the VM: the
-BMI055 data and temperature registers take the record's values, the GNSS UART receives the record's
-bytes, the clock advances to the PPS edge (its interrupt fires) and to the tick's moment, the
-timer fires, the loop makes one pass (`App.service()`), and the output UART's transmit buffer
-is emptied. Time starts at power-on: the firmware's start-up (configuration, the BMI055
-resets and their waits) takes virtual time, and tick 0 is the first timer moment after it.
+Per stimulus record k (proto/stimulus.py), by the feed loop the VM runtimes run
+(emulated_board/mpy/feed.py, loaded here by file): the BMI055 data and temperature registers
+take the record's values, the GNSS UART receives the record's bytes, the clock advances to the
+PPS edge (its interrupt fires) and to the tick's moment, the timer fires, the loop makes one
+pass (`App.service()`), and the output UART's transmit buffer is emptied. Time starts at
+power-on: the firmware's start-up (configuration, the BMI055 resets and their waits) takes
+virtual time, and tick 0 is the first timer moment after it.
 The loop's own run time is zero on the virtual clock (the board's timing is not modelled: the
 extended frame's tick times read 0).
 
@@ -27,15 +28,16 @@ firmware when the choice changes.
 
 import gc
 import os
+import struct
 import time  # CPython's, with the board's ticks_us, now_us, set_us... (install_machine)
 import traceback
-
-import numpy as np
 
 from common import firmware_env
 from common.errors import EmulatorError, FirmwareError
 from common.proto import config as board_config
 from common.proto import stimulus as stim_mod
+from common.proto.mpy.feed_protocol import REC_LEN
+from host_emulator import emulated_board
 from host_emulator.emulated_board import install_machine
 from host_emulator.runtimes import FirmwareRun
 
@@ -78,7 +80,6 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     if isinstance(stim, (str, os.PathLike)):
         stim = stim_mod.read(stim)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
-
     machine = install_machine()
     kind = _use_kernels(kernels)
     machine.power_on()
@@ -94,7 +95,6 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     console = []
     gc_was_enabled = gc.isenabled()
     t_wall = time.perf_counter()
-    k = -1
     try:
         try:
             a = app.App(board, console=console.append)
@@ -103,62 +103,52 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
             raise _firmware_failed(e, "at start-up") from e
         screen = _Screen(machine, a, pins)
         screen.after(-1, time.now_us())  # the start page
-        gnss_uart = machine.uart(pins["gnss_uart"])
-        out_uart = machine.uart(pins["out_uart"])
-        tx = out_uart.tx  # the transmit buffer, emptied after every tick
-        pps = machine.pin(pins["pps"])
-        tick_us = stim.tick_us
-        t0_us = -(-time.now_us() // tick_us) * tick_us  # the first timer moment after start-up
-        out = bytearray()
-        regs = np.concatenate((stim.gyro_regs, stim.accel_regs), axis=1).tobytes()  # 12 B a tick
-        temp = stim.temp_raw.tolist()
-        temp_set = None
-        silent = stim.imu_silent.tolist()
-        silent_set = False
-        stalled = stim.stalled.tolist()
-        pps_before = stim.pps_before_us.tolist()
-        offs = stim.uart_offsets.tolist()
-        ub = stim.uart_bytes
-        n = len(stim)
-        for k in range(n):
-            if silent[k] != silent_set:  # an injected fault: the IMU stops answering
-                silent_set = silent[k]
-                imu.accel.responds = imu.gyro.responds = not silent_set
-            imu.set_registers(regs, 12 * k, 12 * k + 6)
-            if temp[k] != temp_set:  # the register holds it until it changes
-                temp_set = temp[k]
-                imu.set_temperature_raw(temp_set)
-            if offs[k + 1] > offs[k]:
-                gnss_uart.feed(ub[offs[k] : offs[k + 1]])
-            t_k = t0_us + k * tick_us
-            if pps_before[k] >= 0:
-                edge = t_k - pps_before[k]
-                if edge > time.now_us():  # never back in time (an edge during start-up)
-                    time.set_us(edge)
-                pps.fire()
-            time.set_us(t_k)
-            screen.answer(t_k)
-            machine.fire_timers()
-            if stalled[k]:  # an injected stall: the board busy, its loop does not run
-                continue
-            try:
-                a.service()
-            except Exception as e:
-                raise _firmware_failed(e, f"at tick {k} (t = {k * tick_us * 1e-6:.3f} s)") from e
-            if out_uart.tx_n:
-                out += tx[: out_uart.tx_n]
-                out_uart.tx_clear()
-            screen.after(k, t_k)
-            if k % 2000 == 1999 and progress:
-                progress(k + 1, n)
+        out = _feed(machine, a, pins, imu, stim, screen, progress)
     finally:
         if gc_was_enabled:
             gc.enable()  # app.start() turned the collector off (board behaviour)
     wall = time.perf_counter() - t_wall
-    if out_uart.tx_overflow:
-        raise EmulatorError(f"the firmware wrote more than {machine.TX_CAPACITY} bytes in a tick")
+    n = len(stim)
     if progress and n % 2000:
         progress(n, n)
+    run = FirmwareRun("cpython", out, console, n, wall, None, _stats(machine, a, pins, kind))
+    run.display, run.display_marks = bytes(screen.out), screen.marks
+    return run
+
+
+def _feed(machine, a, pins, imu, stim, screen, progress):
+    """The stimulus through the firmware by feed.py's loop, the one the VM runtimes run (the
+    screen's answers arrive at each tick's moment); the output UART's bytes."""
+    feed = emulated_board.feed()
+    gnss_uart = machine.uart(pins["gnss_uart"])
+    out_uart = machine.uart(pins["out_uart"])
+    tx = out_uart.tx  # the transmit buffer, emptied after every tick
+    pps = machine.pin(pins["pps"])
+    tick_us = stim.tick_us
+    t0_us = feed.first_tick_us(tick_us)  # the first timer moment after start-up
+    out = bytearray()
+    rec = bytearray(REC_LEN)
+    n = len(stim)
+    for k in feed.ticks(_Records(stim), n, imu, gnss_uart, rec, bytearray(2048)):
+        t_k = t0_us + k * tick_us
+        try:
+            feed.run_tick(a, rec, t_k, pps, screen.answer)
+        except Exception as e:
+            raise _firmware_failed(e, f"at tick {k} (t = {k * tick_us * 1e-6:.3f} s)") from e
+        if out_uart.tx_n:
+            out += tx[: out_uart.tx_n]
+            out_uart.tx_clear()
+        screen.after(k, t_k)
+        if k % 2000 == 1999 and progress:
+            progress(k + 1, n)
+    if out_uart.tx_overflow:
+        raise EmulatorError(f"the firmware wrote more than {machine.TX_CAPACITY} bytes in a tick")
+    return bytes(out)
+
+
+def _stats(machine, a, pins, kind):
+    """The run's counters: the firmware's and the emulated board's."""
+    gnss_uart = machine.uart(pins["gnss_uart"])
     wdt = machine.watchdog
     stats = {
         "overruns": a.overruns,
@@ -171,14 +161,29 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     }
     # reads that asked for more than had arrived: on the board each waits timeout_char
     stats["uart_rx_waits"] = gnss_uart.rx_waits
-    if screen.gpu is not None:
-        stats["uart_rx_waits"] += screen.uart.rx_waits
+    if a.page is not None:
+        stats["uart_rx_waits"] += machine.uart(pins["display_uart"]).rx_waits
         stats["display_batches"] = a.page.batches
         stats["display_oks"] = a.page.oks
         stats["display_missed"] = a.page.missed
-    run = FirmwareRun("cpython", bytes(out), console, n, wall, None, stats)
-    run.display, run.display_marks = bytes(screen.out), screen.marks
-    return run
+    return stats
+
+
+class _Records:
+    """A stimulus' records as feed.py reads a stimulus file: readinto(buf, n) from its first
+    record on (the file's bytes, made from the Stimulus: common/proto/stimulus.py)."""
+
+    def __init__(self, stim):
+        data = stim.to_bytes()
+        (hlen,) = struct.unpack_from("<I", data, len(stim_mod.MAGIC))
+        self._data = memoryview(data)
+        self._pos = len(stim_mod.MAGIC) + 4 + hlen
+
+    def readinto(self, buf, n):
+        got = self._data[self._pos : self._pos + n]
+        buf[: len(got)] = got
+        self._pos += len(got)
+        return len(got)
 
 
 class _Screen:

@@ -184,12 +184,7 @@ def apply(stim, faults, seed=0):
     stalled = stim.stalled.copy()
     chunks = [stim.uart_bytes[a:b] for a, b in zip(stim.uart_offsets[:-1], stim.uart_offsets[1:],
                                                     strict=True)]  # fmt: skip
-    cfg = stim.config
-    lsb_dps = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE.get(cfg.get("gyro_range_dps", 250))
-    lsb_g = imu_mod.ACCEL_LSB_PER_G_BY_RANGE.get(cfg.get("accel_range_g", 2))
-    if lsb_dps is None or lsb_g is None:
-        raise FaultError(f"the stimulus' IMU ranges ({cfg.get('gyro_range_dps')} deg/s, "
-                         f"{cfg.get('accel_range_g')} g) are not the BMI055's")  # fmt: skip
+    lsb_dps, lsb_g = _imu_lsb(stim.config)
     rng = np.random.default_rng(seed)
     n = len(stim)
     tick_s = stim.tick_us * 1e-6
@@ -213,47 +208,18 @@ def apply(stim, faults, seed=0):
             gyro_regs[s] = v
             accel_regs[s] = v
         elif kind.startswith("gyro-"):
-            g = stim_mod.gyro_counts(gyro_regs[s]).astype(np.int64)
-            if kind == "gyro-over":
-                g[:] = GYRO_MAX
-            elif kind == "gyro-vibe":
-                g[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], GYRO_MAX, GYRO_MIN)
-            else:  # gyro-bias
-                g += int(round(f.param * lsb_dps))
-            np.clip(g, GYRO_MIN, GYRO_MAX, out=g)
-            gyro_regs[s] = stim_mod.gyro_registers(g)
+            _gyro_fault(gyro_regs, k0, k1, f, lsb_dps)
         elif kind.startswith("accel-"):
-            a = stim_mod.accel_counts(accel_regs[s]).astype(np.int64)
-            new_data = accel_regs[s, 0::2] & 1  # each axis' flag, in its LSB register
-            if kind == "accel-over":
-                a[:] = ACCEL_MAX
-            elif kind == "accel-vibe":
-                a[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], ACCEL_MAX, ACCEL_MIN)
-            elif kind == "accel-bias":
-                a += int(round(f.param / imu_mod.STANDARD_GRAVITY_M_S2 * lsb_g))
-            else:  # accel-scale
-                a[:] = np.round(a * f.param).astype(np.int64)
-            np.clip(a, ACCEL_MIN, ACCEL_MAX, out=a)
-            regs = stim_mod.accel_registers(a)
-            regs[:, 0::2] = (regs[:, 0::2] & 0xFE) | new_data
-            accel_regs[s] = regs
+            _accel_fault(accel_regs, k0, k1, f, lsb_g)
         elif kind == "gnss-loss":
             for k in range(k0, k1):
                 chunks[k] = b""
         elif kind == "uart-corrupt":
-            for k in range(k0, k1):
-                if chunks[k]:
-                    b = np.frombuffer(chunks[k], np.uint8).copy()
-                    hit = rng.random(len(b)) < f.param
-                    b[hit] ^= (1 << rng.integers(0, 8, int(hit.sum()))).astype(np.uint8)
-                    chunks[k] = b.tobytes()
+            _corrupt_bytes(chunks, k0, k1, f.param, rng)
         elif kind == "pps-missing":
             pps[s] = -1
         elif kind == "pps-spurious":  # half a second after each of the receiver's edges
-            half = int(round(0.5 / tick_s))
-            for k in np.flatnonzero(stim.pps_before_us[s] >= 0) + k0:
-                if k + half < k1 and pps[k + half] < 0:
-                    pps[k + half] = stim.pps_before_us[k]
+            _spurious_pps(pps, stim.pps_before_us, k0, k1, int(round(0.5 / tick_s)))
         elif kind in _FIELD_KINDS:
             chunks = _edit_sentences(chunks, k0, k1, f)
         elif kind == "gnss-late":
@@ -264,6 +230,69 @@ def apply(stim, faults, seed=0):
     header["faults"] = list(header.get("faults", [])) + [str(f) for f in faults]
     return stim_mod.Stimulus(header, gyro_regs, accel_regs, stim.temp_raw.copy(), pps, offsets,
                              b"".join(chunks), dict(stim.extra), silent, stalled)  # fmt: skip
+
+
+def _imu_lsb(cfg):
+    """Gyro LSB per deg/s and accel LSB per g of the stimulus' ranges; FaultError if not BMI055."""
+    lsb_dps = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE.get(cfg.get("gyro_range_dps", 250))
+    lsb_g = imu_mod.ACCEL_LSB_PER_G_BY_RANGE.get(cfg.get("accel_range_g", 2))
+    if lsb_dps is None or lsb_g is None:
+        raise FaultError(f"the stimulus' IMU ranges ({cfg.get('gyro_range_dps')} deg/s, "
+                         f"{cfg.get('accel_range_g')} g) are not the BMI055's")  # fmt: skip
+    return lsb_dps, lsb_g
+
+
+def _gyro_fault(gyro_regs, k0, k1, f, lsb_dps):
+    """gyro-over, gyro-vibe or gyro-bias on ticks [k0, k1) of gyro_regs, in place."""
+    s = slice(k0, k1)
+    g = stim_mod.gyro_counts(gyro_regs[s]).astype(np.int64)
+    if f.kind == "gyro-over":
+        g[:] = GYRO_MAX
+    elif f.kind == "gyro-vibe":
+        g[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], GYRO_MAX, GYRO_MIN)
+    else:  # gyro-bias
+        g += int(round(f.param * lsb_dps))
+    np.clip(g, GYRO_MIN, GYRO_MAX, out=g)
+    gyro_regs[s] = stim_mod.gyro_registers(g)
+
+
+def _accel_fault(accel_regs, k0, k1, f, lsb_g):
+    """accel-over, -vibe, -bias or -scale on ticks [k0, k1) of accel_regs, in place; the
+    new-data flags stay as they were."""
+    s = slice(k0, k1)
+    a = stim_mod.accel_counts(accel_regs[s]).astype(np.int64)
+    new_data = accel_regs[s, 0::2] & 1  # each axis' flag, in its LSB register
+    if f.kind == "accel-over":
+        a[:] = ACCEL_MAX
+    elif f.kind == "accel-vibe":
+        a[:] = np.where((np.arange(k0, k1) % 2 == 0)[:, None], ACCEL_MAX, ACCEL_MIN)
+    elif f.kind == "accel-bias":
+        a += int(round(f.param / imu_mod.STANDARD_GRAVITY_M_S2 * lsb_g))
+    else:  # accel-scale
+        a[:] = np.round(a * f.param).astype(np.int64)
+    np.clip(a, ACCEL_MIN, ACCEL_MAX, out=a)
+    regs = stim_mod.accel_registers(a)
+    regs[:, 0::2] = (regs[:, 0::2] & 0xFE) | new_data
+    accel_regs[s] = regs
+
+
+def _corrupt_bytes(chunks, k0, k1, p, rng):
+    """Flip one random bit in each UART byte of ticks [k0, k1) with probability p, in place
+    (draws per non-empty tick: which bytes, then which bits)."""
+    for k in range(k0, k1):
+        if chunks[k]:
+            b = np.frombuffer(chunks[k], np.uint8).copy()
+            hit = rng.random(len(b)) < p
+            b[hit] ^= (1 << rng.integers(0, 8, int(hit.sum()))).astype(np.uint8)
+            chunks[k] = b.tobytes()
+
+
+def _spurious_pps(pps, pps_receiver, k0, k1, half):
+    """An extra PPS edge `half` ticks after each of the receiver's edges in [k0, k1), in place
+    (where the tick is still in the interval and has no edge)."""
+    for k in np.flatnonzero(pps_receiver[k0:k1] >= 0) + k0:
+        if k + half < k1 and pps[k + half] < 0:
+            pps[k + half] = pps_receiver[k]
 
 
 def _bytes_and_ticks(chunks):

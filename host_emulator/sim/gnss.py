@@ -166,31 +166,20 @@ def simulate(truth, model=None, seed=0, outages=None):
     if model.lever_b_m is None:
         model = dataclasses.replace(model, lever_b_m=tuple(truth.antenna_b_m))
     outages = truth.outages if outages is None else tuple(outages)
-    step = RATE_HZ / model.rate_hz
-    if abs(step - round(step)) > 1e-9 or step < 1:
-        raise ValueError(f"rate_hz must divide {RATE_HZ} Hz")
-    step = int(round(step))
+    step = _step_samples(model)
     rng = np.random.default_rng([seed, _STREAM_GNSS])
 
     idx = np.arange(0, len(truth.t_s), step)
     t = truth.t_s[idx]
     m = idx.size
-    fix = t >= model.ttff_s
-    for start, length in outages:
-        fix &= ~((t >= start) & (t < start + length))
+    fix = (t >= model.ttff_s) & _outside(t, outages)
 
     # Truth of the antenna, at the stamps and at the moments the receiver measured.
-    def antenna(i):
-        c_bn = euler_to_dcm(truth.ypr[i])
-        lever = np.asarray(model.lever_b_m, dtype=float)
-        p = truth.p_n[i] + body_to_nav(c_bn, lever)
-        return p, truth.v_n[i] + body_to_nav(c_bn, np.cross(truth.w_nb_b[i], lever))
-
-    p_ant, v_ant = antenna(idx)
+    p_ant, v_ant = _antenna_n(truth, model, idx)
     lag = int(round(model.stamp_lag_s * RATE_HZ))
     p_meas, v_true_meas = (p_ant, v_ant)
     if lag:  # the receiver measured `lag` truth samples before each stamp (after: negative)
-        p_meas, v_true_meas = antenna(np.clip(idx - lag, 0, len(truth.t_s) - 1))
+        p_meas, v_true_meas = _antenna_n(truth, model, np.clip(idx - lag, 0, len(truth.t_s) - 1))
 
     # Errors (drawn for every epoch, fix or not, so outages do not shift the random stream).
     dt = 1.0 / model.rate_hz
@@ -208,28 +197,14 @@ def simulate(truth, model=None, seed=0, outages=None):
     latency = model.latency_s + rng.uniform(-1.0, 1.0, m) * model.latency_jitter_s
 
     # DGPS segments (drawn last, so the streams above do not change with them)
-    dgps = np.zeros(m, bool)
-    duration = t[-1] - t[0] if m else 0.0
-    count = rng.poisson(duration / model.dgps_every_s) if model.dgps_every_s > 0 else 0
-    starts = rng.uniform(t[0], t[0] + duration, count) if m else []
-    lengths = rng.uniform(*model.dgps_length_s, count)
-    for start, length in zip(starts, lengths, strict=True):
-        dgps |= (t >= start) & (t < start + length)
+    dgps = _dgps_segments(rng, model, t)
 
     lat_e7, lon_e7, h_m = truth.origin.to_geodetic(p_meas + err)
     err = err + (p_meas - p_ant)  # as evaluated: against the antenna at the stamp
     speed = np.hypot(v_meas[:, 0], v_meas[:, 1])
-    course = np.degrees(np.arctan2(v_meas[:, 0], v_meas[:, 1])) % 360.0
-    course[course >= 360.0] = 0.0  # -1e-17 % 360 rounds to 360
-    course[speed < model.course_min_speed_m_s] = np.nan
+    course = _course_deg(v_meas, speed, model.course_min_speed_m_s)
     nan = np.full(m, np.nan)
-
-    pps = np.arange(np.ceil(truth.t_s[0]), truth.t_s[-1] + 1e-9, 1.0)
-    if not model.pps_without_fix:
-        has_fix = pps >= model.ttff_s
-        for start, length in outages:
-            has_fix &= ~((pps >= start) & (pps < start + length))
-        pps = pps[has_fix]
+    pps = _pps_s(truth, model, outages)
 
     return GnssData(
         t_fix_s=t,
@@ -252,3 +227,56 @@ def simulate(truth, model=None, seed=0, outages=None):
         outages=outages,
         model=model,
     )
+
+
+def _step_samples(model):
+    """Truth samples between epochs (rate_hz must divide RATE_HZ)."""
+    step = RATE_HZ / model.rate_hz
+    if abs(step - round(step)) > 1e-9 or step < 1:
+        raise ValueError(f"rate_hz must divide {RATE_HZ} Hz")
+    return int(round(step))
+
+
+def _outside(t_s, outages):
+    """True where t_s lies in none of outages ((start_s, length_s), ...), each [start, end)."""
+    keep = np.ones(np.shape(t_s), bool)
+    for start, length in outages:
+        keep &= ~((t_s >= start) & (t_s < start + length))
+    return keep
+
+
+def _antenna_n(truth, model, i):
+    """Position and velocity (n frame) of the antenna at truth samples i, from the lever arm."""
+    c_bn = euler_to_dcm(truth.ypr[i])
+    lever = np.asarray(model.lever_b_m, dtype=float)
+    p = truth.p_n[i] + body_to_nav(c_bn, lever)
+    return p, truth.v_n[i] + body_to_nav(c_bn, np.cross(truth.w_nb_b[i], lever))
+
+
+def _dgps_segments(rng, model, t_s):
+    """True at the epochs t_s inside a random DGPS segment (draws: count, starts, lengths)."""
+    m = len(t_s)
+    dgps = np.zeros(m, bool)
+    duration = t_s[-1] - t_s[0] if m else 0.0
+    count = rng.poisson(duration / model.dgps_every_s) if model.dgps_every_s > 0 else 0
+    starts = rng.uniform(t_s[0], t_s[0] + duration, count) if m else []
+    lengths = rng.uniform(*model.dgps_length_s, count)
+    for start, length in zip(starts, lengths, strict=True):
+        dgps |= (t_s >= start) & (t_s < start + length)
+    return dgps
+
+
+def _course_deg(v_n, speed_m_s, min_speed_m_s):
+    """Track angle, degrees clockwise from north in [0, 360); NaN below min_speed_m_s."""
+    course = np.degrees(np.arctan2(v_n[:, 0], v_n[:, 1])) % 360.0
+    course[course >= 360.0] = 0.0  # -1e-17 % 360 rounds to 360
+    course[speed_m_s < min_speed_m_s] = np.nan
+    return course
+
+
+def _pps_s(truth, model, outages):
+    """PPS edges: whole seconds of the run while the receiver has a fix (all if pps_without_fix)."""
+    pps = np.arange(np.ceil(truth.t_s[0]), truth.t_s[-1] + 1e-9, 1.0)
+    if not model.pps_without_fix:
+        pps = pps[(pps >= model.ttff_s) & _outside(pps, outages)]
+    return pps

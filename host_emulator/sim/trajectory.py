@@ -6,7 +6,8 @@ in 1e-7 deg, ellipsoidal height), fixed to the Earth. Body b: x right, y forward
 the nose from north towards west, so compass heading = -yaw), `q_bn` = [w, x, y, z] body to nav
 with w >= 0, exactly as `firmware/lib/rot.py` states.
 
-How a trajectory is made: a `DriveScript` holds commanded profiles as sums of smooth steps,
+How a trajectory is made: a `DriveScript` (drive_script.py) holds commanded profiles as sums
+of smooth steps,
     forward speed v(t), yaw rate r(t)        (functions of time)
     road grade g(s), road bank k(s)          (functions of distance travelled s)
 each step S(u) = u - sin(2 pi u) / (2 pi) over its length (a raised-cosine rate), so the profile,
@@ -40,6 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymap3d
 
+from .drive_script import CAR_ANTENNA_B_M, DriveScript
+from .drive_script import Ramps as Ramps  # re-exported: trajectory.Ramps as before
 from .hand import Hand
 
 RATE_HZ = 200
@@ -54,7 +57,6 @@ SOMIGLIANA_K = 1.93185265241e-3
 FREE_AIR_M_S2_PER_M = -3.086e-6
 
 TWO_PI = 2.0 * np.pi
-CAR_ANTENNA_B_M = (0.0, 0.5, 1.0)  # IMU -> GNSS antenna on a car's roof, body axes (r, f, u), m
 
 
 @dataclass(frozen=True)
@@ -177,129 +179,6 @@ def body_to_nav(c_bn, x_b):
     return np.einsum("nij,nj->ni", c_bn, np.broadcast_to(x_b, (len(c_bn), 3)))
 
 
-# --- commanded profiles ---
-
-
-class Ramps:
-    """A profile x -> base + sum_i d_i S((x - x0_i) / L_i) of smooth steps.
-
-    S(u) = u - sin(2 pi u) / (2 pi) on [0, 1] (0 before, 1 after): its rate 1 - cos(2 pi u) is a
-    raised cosine, so value, first and second derivative are continuous everywhere.
-    """
-
-    def __init__(self, base=0.0):
-        self.base = float(base)
-        self.steps = []  # (x0, length, delta)
-
-    def add(self, x0, length, delta):
-        if not length > 0.0:
-            raise ValueError("a step needs a positive length")
-        self.steps.append((float(x0), float(length), float(delta)))
-
-    def final(self):
-        """The value after every step."""
-        return self.base + sum(d for _, _, d in self.steps)
-
-    def eval(self, x):
-        """(value, d/dx, d2/dx2, integral from 0 to x) at ascending x >= 0."""
-        x = np.asarray(x, dtype=float)
-        n = x.size
-        val = np.full(n, self.base)
-        d1 = np.zeros(n)
-        d2 = np.zeros(n)
-        integ = self.base * x
-        # After a step ends it adds d to the value and d (x - x0 - L/2) to the integral:
-        # accumulate those as piecewise-constant coefficients with difference arrays.
-        tail_slope = np.zeros(n + 1)
-        tail_const = np.zeros(n + 1)
-        for x0, length, d in self.steps:
-            i0 = np.searchsorted(x, x0)
-            i1 = np.searchsorted(x, x0 + length)
-            if i1 > i0:
-                u = (x[i0:i1] - x0) / length
-                s2, c2 = np.sin(TWO_PI * u), np.cos(TWO_PI * u)
-                val[i0:i1] += d * (u - s2 / TWO_PI)
-                d1[i0:i1] += d * (1.0 - c2) / length
-                d2[i0:i1] += d * TWO_PI * s2 / length**2
-                integ[i0:i1] += d * length * (0.5 * u * u + (c2 - 1.0) / TWO_PI**2)
-            tail_slope[i1] += d
-            tail_const[i1] -= d * (x0 + 0.5 * length)
-        slope = np.cumsum(tail_slope)[:n]
-        val += slope
-        integ += slope * x + np.cumsum(tail_const)[:n]
-        return val, d1, d2, integ
-
-
-class DriveScript:
-    """Commands for a car, appended in time order with a cursor `t_s`.
-
-    speed (m/s) and yaw_rate (rad/s) are `Ramps` over time; grade and bank (rad) are `Ramps`
-    over distance travelled (m), so the road shape stays put when the car stops.
-    """
-
-    # Suspension: pitch per forward acceleration, roll per lateral acceleration (rad per m/s^2).
-    # Passenger cars pitch ~1-2 deg/g and roll ~3-7 deg/g.
-    PITCH_PER_ACCEL = np.deg2rad(0.15)
-    ROLL_PER_ACCEL = np.deg2rad(0.4)
-
-    def __init__(self, yaw0_rad=0.0, grade0_rad=0.0, bank0_rad=0.0):
-        self.yaw0_rad = float(yaw0_rad)
-        self.speed = Ramps(0.0)
-        self.yaw_rate = Ramps(0.0)
-        self.grade = Ramps(grade0_rad)
-        self.bank = Ramps(bank0_rad)
-        self.t_s = 0.0
-        self.sway = None  # a Sway or hand.Hand: the carried sensor's own motion on the path
-        # the IMU that goes with it (sim/imu.py `model_for`): "calibrated" or "uncalibrated"
-        self.sensor_grade = "calibrated"
-        self.antenna_b_m = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes
-        self.board_profile = 0  # the board's profile setting for it: 0 car, 1 handheld
-
-    @property
-    def v_m_s(self):
-        """Commanded speed once every step so far has finished."""
-        return self.speed.final()
-
-    def hold(self, duration_s):
-        self.t_s += max(0.0, float(duration_s))
-
-    def speed_to(self, v_m_s, accel_m_s2=1.2, min_s=0.0):
-        """Change speed at a mean acceleration (peak = 2x mean), over min_s at least (a small
-        change would otherwise be a jerk no body makes); advances the cursor."""
-        dv = float(v_m_s) - self.v_m_s
-        if dv != 0.0:
-            length = max(abs(dv) / accel_m_s2, min_s)
-            self.speed.add(self.t_s, length, dv)
-            self.t_s += length
-
-    def turn(self, angle_rad, rate_rad_s, ramp_s=2.0):
-        """Turn by angle_rad (> 0 left) at constant speed: yaw rate ramps to +-rate_rad_s over
-        ramp_s, holds, ramps back. The angle is exact; the rate is lowered for small angles."""
-        if angle_rad == 0.0:
-            return
-        rate = min(abs(rate_rad_s), abs(angle_rad) / ramp_s)
-        hold_s = abs(angle_rad) / rate - ramp_s
-        r = np.copysign(rate, angle_rad)
-        self.yaw_rate.add(self.t_s, ramp_s, r)
-        self.yaw_rate.add(self.t_s + ramp_s + hold_s, ramp_s, -r)
-        self.t_s += 2.0 * ramp_s + hold_s
-
-    def add_road(self, rng, length_m, grade_max_rad, bank_max_rad, spacing_m, transition_m):
-        """Random gentle road shape out to length_m: every spacing_m (range) the grade and bank
-        move to new uniform values within +-max over a transition of transition_m (range)."""
-        s = 0.0
-        grade, bank = self.grade.final(), self.bank.final()
-        while s < length_m:
-            s += rng.uniform(*spacing_m)
-            length = rng.uniform(*transition_m)
-            new_grade = rng.uniform(-grade_max_rad, grade_max_rad)
-            new_bank = rng.uniform(-bank_max_rad, bank_max_rad)
-            self.grade.add(s, length, new_grade - grade)
-            self.bank.add(s, length, new_bank - bank)
-            grade, bank = new_grade, new_bank
-            s += length
-
-
 class Sway:
     """Periodic motion of a carried sensor on top of its path (a walker's hand, a rider's
     frame), in closed form like the rest: each channel is A g(t) sin(w t + phase) with the
@@ -397,6 +276,69 @@ def _velocity_n(script, t_s):
     return speed[:, None] * _road_direction(yaw, grade)
 
 
+def _road_motion(v, dv, r, yaw, grade, dgrade):
+    """(v_n, a_n): the velocity along the road at speed v, and its exact time derivative (dv
+    the acceleration, r the yaw rate, dgrade the grade's rate)."""
+    n = v.size
+    # Velocity along the road and its exact time derivative.
+    sy, cy = np.sin(yaw), np.cos(yaw)
+    sg, cg = np.sin(grade), np.cos(grade)
+    u = np.stack([-sy * cg, cy * cg, sg], axis=-1)
+    du_dyaw = np.stack([-cy * cg, -sy * cg, np.zeros(n)], axis=-1)
+    du_dgrade = np.stack([sy * sg, -cy * sg, cg], axis=-1)
+    v_n = v[:, None] * u
+    a_n = dv[:, None] * u + v[:, None] * (r[:, None] * du_dyaw + dgrade[:, None] * du_dgrade)
+    return v_n, a_n
+
+
+def _position_n(script, t):
+    """p_n at times t (t[0] = 0, DT_S apart): 3-point Gauss-Legendre quadrature of v_n over
+    every 5 ms interval."""
+    n = t.size
+    nodes = (t[:-1, None] + DT_S * _GL_NODES).ravel()
+    v_nodes = _velocity_n(script, nodes).reshape(n - 1, 3, 3)
+    steps = DT_S * np.einsum("k,nkj->nj", _GL_WEIGHTS, v_nodes)
+    p_n = np.zeros((n, 3))
+    np.cumsum(steps, axis=0, out=p_n[1:])
+    return p_n
+
+
+def _sway_motion(sw, t, speed, rate, yaw):
+    """(dp_n, dv_n, da_n): what the sway's surge, lateral and bob channels add to the path's
+    position, velocity and acceleration; speed: (v, dv, d2v) along the path, rate: its yaw rate
+    and that rate's derivative (r, dr), yaw: the path's yaw."""
+    v, dv, d2v = speed
+    r, dr = rate
+    n = t.size
+    sy, cy = np.sin(yaw), np.cos(yaw)
+    s0, s1, s2 = sw.channel("surge", t, v, dv, d2v)
+    l0, l1, l2 = sw.channel("lateral", t, v, dv, d2v)
+    b0, b1, b2 = sw.channel("bob", t, v, dv, d2v)
+    # horizontal forward u_h and right r_h of the path: du_h/dyaw = -r_h, dr_h/dyaw = u_h
+    zero = np.zeros(n)
+    u_h = np.stack([-sy, cy, zero], axis=-1)
+    r_h = np.stack([cy, sy, zero], axis=-1)
+    up = np.stack([zero, zero, np.ones(n)], axis=-1)
+    dp_n = s0[:, None] * u_h + l0[:, None] * r_h + b0[:, None] * up
+    dv_n = (s1 + l0 * r)[:, None] * u_h + (l1 - s0 * r)[:, None] * r_h + b1[:, None] * up
+    da_n = (
+        (s2 + 2.0 * l1 * r + l0 * dr - s0 * r * r)[:, None] * u_h
+        + (l2 - 2.0 * s1 * r - s0 * dr - l0 * r * r)[:, None] * r_h
+        + b2[:, None] * up
+    )
+    return dp_n, dv_n, da_n
+
+
+def _rate_nb_b(pitch, roll, dpitch, droll, r_b):
+    """w_nb_b: the body rate w.r.t. the ENU frame, body axes, from the Euler angles' rates
+    (r_b: the body's yaw rate)."""
+    sr, cr = np.sin(roll), np.cos(roll)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    return np.stack(
+        [cr * dpitch - sr * cp * r_b, droll + sp * r_b, sr * dpitch + cr * cp * r_b], axis=-1
+    )
+
+
 def truth_from_script(
     script, duration_s, *, origin=ORIGIN_XIAN, name="", description="", seed=0, outages=()
 ):
@@ -418,40 +360,16 @@ def truth_from_script(
     roll = bank + kr * v * r
     droll = dbank + kr * (dv * r + v * dr)
 
-    # Velocity along the road and its exact time derivative.
-    sy, cy = np.sin(yaw), np.cos(yaw)
-    sg, cg = np.sin(grade), np.cos(grade)
-    u = np.stack([-sy * cg, cy * cg, sg], axis=-1)
-    du_dyaw = np.stack([-cy * cg, -sy * cg, np.zeros(n)], axis=-1)
-    du_dgrade = np.stack([sy * sg, -cy * sg, cg], axis=-1)
-    v_n = v[:, None] * u
-    a_n = dv[:, None] * u + v[:, None] * (r[:, None] * du_dyaw + dgrade[:, None] * du_dgrade)
-
-    # Position: 3-point Gauss-Legendre quadrature of v_n over every 5 ms interval.
-    nodes = (t[:-1, None] + DT_S * _GL_NODES).ravel()
-    v_nodes = _velocity_n(script, nodes).reshape(n - 1, 3, 3)
-    steps = DT_S * np.einsum("k,nkj->nj", _GL_WEIGHTS, v_nodes)
-    p_n = np.zeros((n, 3))
-    np.cumsum(steps, axis=0, out=p_n[1:])
+    v_n, a_n = _road_motion(v, dv, r, yaw, grade, dgrade)
+    p_n = _position_n(script, t)
 
     yaw_b, r_b = yaw, r  # the body's yaw and yaw rate: the path's unless the sensor sways
     if script.sway is not None:
         sw = script.sway
-        s0, s1, s2 = sw.channel("surge", t, v, dv, d2v)
-        l0, l1, l2 = sw.channel("lateral", t, v, dv, d2v)
-        b0, b1, b2 = sw.channel("bob", t, v, dv, d2v)
-        # horizontal forward u_h and right r_h of the path: du_h/dyaw = -r_h, dr_h/dyaw = u_h
-        zero = np.zeros(n)
-        u_h = np.stack([-sy, cy, zero], axis=-1)
-        r_h = np.stack([cy, sy, zero], axis=-1)
-        up = np.stack([zero, zero, np.ones(n)], axis=-1)
-        p_n += s0[:, None] * u_h + l0[:, None] * r_h + b0[:, None] * up
-        v_n = v_n + ((s1 + l0 * r)[:, None] * u_h + (l1 - s0 * r)[:, None] * r_h + b1[:, None] * up)
-        a_n = a_n + (
-            (s2 + 2.0 * l1 * r + l0 * dr - s0 * r * r)[:, None] * u_h
-            + (l2 - 2.0 * s1 * r - s0 * dr - l0 * r * r)[:, None] * r_h
-            + b2[:, None] * up
-        )
+        dp_n, dv_n, da_n = _sway_motion(sw, t, (v, dv, d2v), (r, dr), yaw)
+        p_n += dp_n
+        v_n = v_n + dv_n
+        a_n = a_n + da_n
         psi, dpsi, _ = sw.channel("yaw", t, v, dv, d2v)
         yaw_b, r_b = yaw + psi, r + dpsi
         th, dth, _ = sw.channel("pitch", t, v, dv, d2v)
@@ -461,11 +379,7 @@ def truth_from_script(
 
     ypr = np.stack([yaw_b, pitch, roll], axis=-1)
     c_bn = euler_to_dcm(ypr)
-    sr, cr = np.sin(roll), np.cos(roll)
-    sp, cp = np.sin(pitch), np.cos(pitch)
-    w_nb_b = np.stack(
-        [cr * dpitch - sr * cp * r_b, droll + sp * r_b, sr * dpitch + cr * cp * r_b], axis=-1
-    )
+    w_nb_b = _rate_nb_b(pitch, roll, dpitch, droll, r_b)
     w_ie_n = origin.w_ie_n()
     w_ib_b = w_nb_b + nav_to_body(c_bn, np.broadcast_to(w_ie_n, (n, 3)))
     g_n = origin.gravity_n(p_n)

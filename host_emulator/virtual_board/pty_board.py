@@ -625,6 +625,49 @@ class VirtualBoard:
 
 def main(argv=None):
     """`python -m host_emulator virtual-board`: serve a virtual board until Ctrl-C."""
+    args = _parser().parse_args(argv)
+    wrong = _args_error(args)
+    if wrong is not None:
+        print(f"virtual board: {wrong}", file=sys.stderr)
+        return 2
+    frozen_tmp = None
+    if args.frozen:
+        frozen_tmp = _frozen_layout()
+        if frozen_tmp is None:
+            return 1
+    board = VirtualBoard(
+        args.fs,
+        frozen_dir=frozen_tmp.name if frozen_tmp else None,
+        flash_kb=args.flash_kb,
+        corrupt_writes=args.corrupt_writes,
+        scenario=args.scenario,
+        seed=args.seed,
+        duration_s=args.duration or 120.0,
+        realtime=not args.fast,
+        boot_main=args.run,
+        loop=args.duration == 0,
+        display=args.display,
+    )
+    try:
+        board.start()
+    except (RuntimeError, OSError) as e:
+        print(f"virtual board: cannot start: {e}", file=sys.stderr)
+        return 1
+    _print_ports(board, frozen_tmp)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        board.close()
+        if frozen_tmp:
+            frozen_tmp.cleanup()
+    return 0
+
+
+def _parser():
+    """The virtual-board command line."""
     p = argparse.ArgumentParser(
         prog="python -m host_emulator virtual-board",
         description="A virtual INS board on pseudo-terminals (docs/virtual_board.md).",
@@ -651,7 +694,11 @@ def main(argv=None):
         action="store_true",
         help="an image with the firmware frozen (this checkout's firmware/ and its fwid)",
     )
-    args = p.parse_args(argv)
+    return p
+
+
+def _args_error(args):
+    """What is wrong with the parsed arguments (an EmulatorError's text), or None."""
     from common.errors import EmulatorError
     from host_emulator import args as cli_args
 
@@ -663,37 +710,27 @@ def main(argv=None):
         if args.flash_kb < 1 or args.corrupt_writes < 0:
             raise EmulatorError("--flash-kb must be 1 or more and --corrupt-writes 0 or more")
     except EmulatorError as e:
-        print(f"virtual board: {e}", file=sys.stderr)
-        return 2
-    frozen_tmp = None
-    if args.frozen:
-        from common.toolchain import ToolchainError
-        from tools.image import fwid
+        return str(e)
+    return None
 
-        frozen_tmp = tempfile.TemporaryDirectory(prefix="vboard-frozen-")
-        try:
-            fwid.frozen_layout(frozen_tmp.name)
-        except (ToolchainError, fwid.FirmwareIdError, OSError) as e:
-            print(f"virtual board: cannot lay out the frozen firmware: {e}", file=sys.stderr)
-            return 1
-    board = VirtualBoard(
-        args.fs,
-        frozen_dir=frozen_tmp.name if frozen_tmp else None,
-        flash_kb=args.flash_kb,
-        corrupt_writes=args.corrupt_writes,
-        scenario=args.scenario,
-        seed=args.seed,
-        duration_s=args.duration or 120.0,
-        realtime=not args.fast,
-        boot_main=args.run,
-        loop=args.duration == 0,
-        display=args.display,
-    )
+
+def _frozen_layout():
+    """A temporary directory holding this checkout's firmware laid out to be frozen (with its
+    fwid); None, after saying why on stderr, if it cannot be laid out."""
+    from common.toolchain import ToolchainError
+    from tools.image import fwid
+
+    frozen_tmp = tempfile.TemporaryDirectory(prefix="vboard-frozen-")
     try:
-        board.start()
-    except (RuntimeError, OSError) as e:
-        print(f"virtual board: cannot start: {e}", file=sys.stderr)
-        return 1
+        fwid.frozen_layout(frozen_tmp.name)
+    except (ToolchainError, fwid.FirmwareIdError, OSError) as e:
+        print(f"virtual board: cannot lay out the frozen firmware: {e}", file=sys.stderr)
+        return None
+    return frozen_tmp
+
+
+def _print_ports(board, frozen_tmp):
+    """Where the started board's console, RS485 output, filesystem and screen are."""
     print(f"REPL console (USB): {board.port}")
     print(f"RS485 output:       {board.rs485_port}")
     print(f"filesystem /flash:  {board.fs_dir} ({board.flash_kb} KB)")
@@ -703,13 +740,3 @@ def main(argv=None):
     if frozen_tmp:
         print(f"frozen firmware:    {frozen_tmp.name} (this checkout's firmware/, with fwid)")
     print("Ctrl-C to stop", flush=True)
-    try:
-        while True:
-            time.sleep(1.0)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        board.close()
-        if frozen_tmp:
-            frozen_tmp.cleanup()
-    return 0

@@ -186,8 +186,14 @@ def car_config(**settings):
 
 def firmware_snapshot(nav):
     """The firmware's state under the model's names (see NavModel.snapshot)."""
+    floats, ints = _firmware_floats(nav), _firmware_ints(nav)
+    return floats, {k: int(v) for k, v in ints.items()}
+
+
+def _firmware_floats(nav):
+    """The firmware's float arrays (INS, filter, aligner, watches) by the model's names."""
     ins, kf, fr = nav.ins, nav.kf, nav.frame
-    floats = {
+    return {
         "p_n": ins.p_n,
         "v_n": ins.v_n,
         "q_bn": ins.q_bn,
@@ -234,12 +240,43 @@ def firmware_snapshot(nav):
         "ypr": nav.ypr,
         "frame_coef": fr.coef,
     }
+
+
+def _firmware_ints(nav):
+    """The firmware's integer state (flags, runner controls, counters) by the model's names."""
+    kf, fr = nav.kf, nav.frame
     ints = {
         "tick": nav.tick,
         "state": nav.state,
         "health": nav.health,
         "leveled": nav.leveled,
         "still": nav.still,
+    }
+    ints.update(_runner_controls(nav))
+    ints.update(
+        {
+            "updates": nav.updates,
+            "resets": nav.resets,
+            "reanchors": nav.reanchors,
+            "kf_job": kf.job,
+            "kf_step": kf.i[eskf.I_STEP],
+            "kf_m": kf.i[eskf.I_M],
+            "kf_ready": kf.ready,
+            "kf_n_scalars": kf.n_scalars,
+            "kf_accepted": kf.accepted,
+            "kf_rejected": kf.rejected,
+            "kf_gate_mask": kf.gate_mask,
+            "origin_lat_e7": fr.lat0_e7,
+            "origin_lon_e7": geo.join_e7(fr.lon0_deg, fr.lon0_frac),
+            "frame_valid": fr.valid,
+        }
+    )
+    return ints
+
+
+def _runner_controls(nav):
+    """The navigator's control words (nav_runner.control), by the model's names."""
+    return {
         "n_level": nav_runner.control(nav, "n_level"),
         "n_still": nav_runner.control(nav, "n_still"),
         "n_stable": nav_runner.control(nav, "n_stable"),
@@ -278,22 +315,7 @@ def firmware_snapshot(nav):
         "since_zupt": nav_runner.control(nav, "since_zupt"),
         "since_nhc": nav_runner.control(nav, "since_nhc"),
         "job": nav_runner.control(nav, "job"),
-        "updates": nav.updates,
-        "resets": nav.resets,
-        "reanchors": nav.reanchors,
-        "kf_job": kf.job,
-        "kf_step": kf.i[eskf.I_STEP],
-        "kf_m": kf.i[eskf.I_M],
-        "kf_ready": kf.ready,
-        "kf_n_scalars": kf.n_scalars,
-        "kf_accepted": kf.accepted,
-        "kf_rejected": kf.rejected,
-        "kf_gate_mask": kf.gate_mask,
-        "origin_lat_e7": fr.lat0_e7,
-        "origin_lon_e7": geo.join_e7(fr.lon0_deg, fr.lon0_frac),
-        "frame_valid": fr.valid,
     }
-    return floats, {k: int(v) for k, v in ints.items()}
 
 
 def _flat(floats, names):

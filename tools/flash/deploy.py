@@ -365,119 +365,23 @@ def deploy(
     ser, repl = connect(port, baud, log=log)
     try:
         board = Board(repl)
-        said = [
-            line.strip()
-            for line in repl.console.decode(errors="replace").splitlines()
-            if line.strip() and not line.strip().startswith(">>>")
-        ]
-        if said:
-            log("board said: " + " / ".join(said))
+        _log_board_said(repl, log)
         if config_merge is not None:  # --set: the changes on --config's or the board's file
             base = config_bytes if config_bytes is not None else board.read(CONFIG_NAME)
             config_bytes = config_merge(base)
-        manifest = native_plan(manifest, board.native_arch(), log)
-        board_id = board.frozen_firmware()
-        if board_id is not None:
-            manifest = frozen_plan(manifest, board_id, log, config_bytes is not None)
-        else:
-            log(
-                f"the board's image has no frozen firmware: deploying all "
-                f"{len(manifest['files'])} files ({manifest['total_bytes'] / 1024:.1f} KB). An "
-                "image with the firmware frozen (make image, make flash-image) needs only "
-                "main.py and ins.cfg on the filesystem: the F411's 31 KB are then no limit"
-            )
-            if check_budget is not None:
-                check_budget()
+        manifest, board_id = _board_manifest(board, manifest, config_bytes, log, check_budget)
         want = [f["path"] for f in manifest["files"]] + [CONFIG_NAME]
         board_files, board_dirs = board.listing(want)
         fs = board.statvfs()
         writes, stale, new_dirs = plan(manifest, board_files, board_dirs)
-        extra = []
-        if config_bytes is not None:
-            # compared whole: the file ends with its own CRC-32, so the CRC-32 of any intact
-            # configuration file is the same residue (0x2144df1c) and cannot tell two apart
-            cur = board.read(CONFIG_NAME) if CONFIG_NAME in board_files else None
-            if cur != config_bytes:
-                extra.append((CONFIG_NAME, len(config_bytes)))
-        need = space_needed(writes, stale, new_dirs, board_files, fs["cluster"], extra)
-        total_fw = sum(build_mod.clusters(f["size"], fs["cluster"]) for f in manifest["files"])
-        log(
-            f"board filesystem: {fs['total']} bytes, {fs['free']} free "
-            f"({fs['cluster']}-byte clusters); {len(writes)} of {len(manifest['files'])} "
-            f"files differ, {len(stale)} stale"
-        )
-        if need > fs["free"]:
-            raise FlashFull(
-                f"flash full: the board's filesystem ({fs['total']} bytes, {fs['free']} free) "
-                f"cannot take this deploy: it needs {need} more bytes ({len(writes)} files to "
-                f"write; the whole firmware occupies {total_fw * fs['cluster']} bytes in "
-                f"{fs['cluster']}-byte clusters). Nothing was written. "
-                + (
-                    "The firmware is larger than this whole filesystem (the STM32F411's "
-                    "internal one holds about 31 KB of files): flash an image with the "
-                    "firmware frozen (`make image`, then `make flash-image` in DFU mode; "
-                    "docs/image.md), after which deploy sends only main.py and ins.cfg; or use "
-                    "a board with SPI flash (e.g. a WeAct BlackPill with a W25Q chip)."
-                    if total_fw * fs["cluster"] > fs["total"]
-                    else "Delete files you no longer need from the board (e.g. old logs), then "
-                    "run deploy again."
-                )
-            )
+        extra = _config_write(board, board_files, config_bytes)
+        _check_space(manifest, fs, writes, stale, new_dirs, board_files, extra, log)
         if dry_run:
-            for f in writes:
-                log(f"would write {f['path']} ({f['size']} bytes)")
-            for p in stale:
-                log(f"would delete {p}")
-            if extra:
-                log(f"would write {CONFIG_NAME} ({len(config_bytes)} bytes)")
-            # Ctrl-C stopped a running firmware to read the board: it runs again as before
-            running = b"ins: stopped" in repl.console
-            if running:
-                restart(repl, watch_s)
-                log("the firmware, stopped to read the board, runs again (a soft reset)")
-            elif repl.maintenance:
-                log("the board stays in maintenance (its firmware was not running): Ctrl-D or "
-                    "a reset starts it")  # fmt: skip
-            return {
-                "written": [],
-                "stale": stale,
-                "dry_run": True,
-                "planned": writes,
-                "frozen": board_id,
-                "restarted": running,
-            }
-        why = " (frozen in the image)" if board_id is not None else ""
-        for p in stale:
-            board.remove(p)
-            log(f"deleted stale {p}{why}")
-        if board_id is not None:
-            for d in FROZEN_PACKAGES:
-                if d in board_dirs and not board.rmdir(d):
-                    raise FlashError(
-                        f"/flash/{d} holds files that are not firmware modules; as a directory "
-                        f"on /flash it hides the frozen {d} package (sys.path puts /flash "
-                        f"first). Move those files elsewhere and run deploy again."
-                    )
-                if d in board_dirs:
-                    log(f"removed /flash/{d}/ (it would hide the frozen {d} package)")
+            return _dry_run(repl, writes, stale, extra, config_bytes, board_id, watch_s, log)
+        _clear_stale(board, stale, board_dirs, board_id, log)
         for d in new_dirs:
             board.mkdir(d)
-        sent = 0
-        t0 = time.monotonic()
-        for f in writes:
-            data = pathlib.Path(f.get("src") or pathlib.Path(build_dir) / f["path"]).read_bytes()
-            attempts = board.write_verified(f["path"], data, log)
-            sent += len(data) * attempts
-            note = "" if attempts == 1 else f" after {attempts} attempts"
-            log(f"  {f['path']}: {len(data)} bytes, CRC-32 {f['crc32']} OK{note}")
-        if extra:
-            attempts = board.write_verified(CONFIG_NAME, config_bytes, log)
-            log(f"  {CONFIG_NAME}: {len(config_bytes)} bytes, CRC-32 OK")
-        dt = time.monotonic() - t0
-        log(
-            f"{len(writes)} files written ({sent} bytes in {dt:.1f} s), "
-            f"{len(manifest['files']) - len(writes)} unchanged, {len(stale)} stale deleted"
-        )
+        _write_files(board, build_dir, manifest, writes, stale, extra, config_bytes, log)
         console = restart(repl, watch_s)
         result = {
             "written": [f["path"] for f in writes],
@@ -487,18 +391,160 @@ def deploy(
         }
         log("firmware: " + console.strip().replace("\r\n", "\n").replace("\n", "\n  "))
         if frames_port:
-            n = count_frames(frames_port, frames_baud)
-            result["frames"] = n
-            if n < 3:
-                raise FirmwareNotRunning(
-                    f"the firmware says it runs but no valid 52-byte frames arrived on "
-                    f"{frames_port} within 3 s ({n}). Check the RS485 adapter's wiring and "
-                    f"that {frames_port} is its port, and the output baud ({frames_baud})."
-                )
-            log(f"{n} valid frames on {frames_port}")
+            result["frames"] = _confirm_frames(frames_port, frames_baud, log)
         return result
     finally:
         ser.close()
+
+
+def _log_board_said(repl, log):
+    """Log what the board printed when it was stopped (its prompts left out)."""
+    said = [
+        line.strip()
+        for line in repl.console.decode(errors="replace").splitlines()
+        if line.strip() and not line.strip().startswith(">>>")
+    ]
+    if said:
+        log("board said: " + " / ".join(said))
+
+
+def _board_manifest(board, manifest, config_bytes, log, check_budget):
+    """(manifest, board_id): the manifest for the board's native architecture and, when its
+    image carries the firmware frozen (board_id: what its `fwid` says, else None), only what
+    goes next to it; check_budget() is called only when all files are deployed."""
+    manifest = native_plan(manifest, board.native_arch(), log)
+    board_id = board.frozen_firmware()
+    if board_id is not None:
+        manifest = frozen_plan(manifest, board_id, log, config_bytes is not None)
+    else:
+        log(
+            f"the board's image has no frozen firmware: deploying all "
+            f"{len(manifest['files'])} files ({manifest['total_bytes'] / 1024:.1f} KB). An "
+            "image with the firmware frozen (make image, make flash-image) needs only "
+            "main.py and ins.cfg on the filesystem: the F411's 31 KB are then no limit"
+        )
+        if check_budget is not None:
+            check_budget()
+    return manifest, board_id
+
+
+def _config_write(board, board_files, config_bytes):
+    """[(CONFIG_NAME, size)] when the configuration must be written, else []."""
+    extra = []
+    if config_bytes is not None:
+        # compared whole: the file ends with its own CRC-32, so the CRC-32 of any intact
+        # configuration file is the same residue (0x2144df1c) and cannot tell two apart
+        cur = board.read(CONFIG_NAME) if CONFIG_NAME in board_files else None
+        if cur != config_bytes:
+            extra.append((CONFIG_NAME, len(config_bytes)))
+    return extra
+
+
+def _check_space(manifest, fs, writes, stale, new_dirs, board_files, extra, log):
+    """Log the board's filesystem and the plan; FlashFull when the deploy would not fit."""
+    need = space_needed(writes, stale, new_dirs, board_files, fs["cluster"], extra)
+    total_fw = sum(build_mod.clusters(f["size"], fs["cluster"]) for f in manifest["files"])
+    log(
+        f"board filesystem: {fs['total']} bytes, {fs['free']} free "
+        f"({fs['cluster']}-byte clusters); {len(writes)} of {len(manifest['files'])} "
+        f"files differ, {len(stale)} stale"
+    )
+    if need > fs["free"]:
+        raise FlashFull(
+            f"flash full: the board's filesystem ({fs['total']} bytes, {fs['free']} free) "
+            f"cannot take this deploy: it needs {need} more bytes ({len(writes)} files to "
+            f"write; the whole firmware occupies {total_fw * fs['cluster']} bytes in "
+            f"{fs['cluster']}-byte clusters). Nothing was written. "
+            + (
+                "The firmware is larger than this whole filesystem (the STM32F411's "
+                "internal one holds about 31 KB of files): flash an image with the "
+                "firmware frozen (`make image`, then `make flash-image` in DFU mode; "
+                "docs/image.md), after which deploy sends only main.py and ins.cfg; or use "
+                "a board with SPI flash (e.g. a WeAct BlackPill with a W25Q chip)."
+                if total_fw * fs["cluster"] > fs["total"]
+                else "Delete files you no longer need from the board (e.g. old logs), then "
+                "run deploy again."
+            )
+        )
+
+
+def _dry_run(repl, writes, stale, extra, config_bytes, board_id, watch_s, log):
+    """Log what a deploy would do, restart a firmware that was running; the summary dict."""
+    for f in writes:
+        log(f"would write {f['path']} ({f['size']} bytes)")
+    for p in stale:
+        log(f"would delete {p}")
+    if extra:
+        log(f"would write {CONFIG_NAME} ({len(config_bytes)} bytes)")
+    # Ctrl-C stopped a running firmware to read the board: it runs again as before
+    running = b"ins: stopped" in repl.console
+    if running:
+        restart(repl, watch_s)
+        log("the firmware, stopped to read the board, runs again (a soft reset)")
+    elif repl.maintenance:
+        log("the board stays in maintenance (its firmware was not running): Ctrl-D or "
+            "a reset starts it")  # fmt: skip
+    return {
+        "written": [],
+        "stale": stale,
+        "dry_run": True,
+        "planned": writes,
+        "frozen": board_id,
+        "restarted": running,
+    }
+
+
+def _clear_stale(board, stale, board_dirs, board_id, log):
+    """Delete the stale firmware files and, next to a frozen image, the package directories
+    that would hide its frozen packages; FlashError when one holds other files."""
+    why = " (frozen in the image)" if board_id is not None else ""
+    for p in stale:
+        board.remove(p)
+        log(f"deleted stale {p}{why}")
+    if board_id is not None:
+        for d in FROZEN_PACKAGES:
+            if d in board_dirs and not board.rmdir(d):
+                raise FlashError(
+                    f"/flash/{d} holds files that are not firmware modules; as a directory "
+                    f"on /flash it hides the frozen {d} package (sys.path puts /flash "
+                    f"first). Move those files elsewhere and run deploy again."
+                )
+            if d in board_dirs:
+                log(f"removed /flash/{d}/ (it would hide the frozen {d} package)")
+
+
+def _write_files(board, build_dir, manifest, writes, stale, extra, config_bytes, log):
+    """Write the files that differ (and the configuration), each verified by the board's
+    CRC-32, and log what was sent."""
+    sent = 0
+    t0 = time.monotonic()
+    for f in writes:
+        data = pathlib.Path(f.get("src") or pathlib.Path(build_dir) / f["path"]).read_bytes()
+        attempts = board.write_verified(f["path"], data, log)
+        sent += len(data) * attempts
+        note = "" if attempts == 1 else f" after {attempts} attempts"
+        log(f"  {f['path']}: {len(data)} bytes, CRC-32 {f['crc32']} OK{note}")
+    if extra:
+        board.write_verified(CONFIG_NAME, config_bytes, log)
+        log(f"  {CONFIG_NAME}: {len(config_bytes)} bytes, CRC-32 OK")
+    dt = time.monotonic() - t0
+    log(
+        f"{len(writes)} files written ({sent} bytes in {dt:.1f} s), "
+        f"{len(manifest['files']) - len(writes)} unchanged, {len(stale)} stale deleted"
+    )
+
+
+def _confirm_frames(frames_port, frames_baud, log):
+    """The valid frames counted on frames_port; FirmwareNotRunning when fewer than 3."""
+    n = count_frames(frames_port, frames_baud)
+    if n < 3:
+        raise FirmwareNotRunning(
+            f"the firmware says it runs but no valid 52-byte frames arrived on "
+            f"{frames_port} within 3 s ({n}). Check the RS485 adapter's wiring and "
+            f"that {frames_port} is its port, and the output baud ({frames_baud})."
+        )
+    log(f"{n} valid frames on {frames_port}")
+    return n
 
 
 def soft_reset(repl, quiet=0.1, overall=0.5):

@@ -304,18 +304,8 @@ def run(args, out=None, err=None):
         ports = list_ports()
         out.write("\n".join(ports) + "\n" if ports else "no serial ports found\n")
         return 0
-    if not args.port and not args.file:
-        raise MonitorError("give --port PORT (a board) or --file FILE (a capture); --help")
-    if args.seconds is not None and args.seconds <= 0:
-        raise MonitorError("--seconds must be more than 0")
-    if args.baud is not None and args.baud <= 0:
-        raise MonitorError("--baud must be a positive baud rate")
-    values = None
-    if args.config:
-        try:
-            values = board_config.load(args.config)
-        except board_config.ConfigError as e:
-            raise MonitorError(str(e)) from None
+    _check_args(args)
+    values = _config_values(args.config)
     board = None
     config_file = str(args.config) if args.config else None
     if args.board_port:
@@ -323,6 +313,70 @@ def run(args, out=None, err=None):
             raise MonitorError("--board-port needs --port (the board's frames port)")
         board, values, where = _board_session(args.board_port, values, err)
         config_file = config_file or where
+    src, values, baud = _open_source(args, values, board)
+    if args.record and src.kind == "serial":
+        _note_record_config(values, err)
+    header = _session_header(src, baud, values, config_file, board)
+    try:
+        outputs, recorder, closers, files = _open_outputs(args, header)
+    except MonitorError:
+        src.close()
+        raise
+    finally:
+        if board is not None:  # the firmware starts now, with the port open and read
+            board.restart()
+    status = view.Status(src.name, baud if src.kind == "serial" else None)
+    screen = _Screen(out, args.quiet or src.kind == "file")
+    warnings = []
+    warn = _warner(warnings, screen, status, err)
+    for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
+        warn(msg)
+    mon = Monitor(status, _every(values), outputs, recorder, warn)
+    t0 = time.monotonic()
+    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, closers)
+    wall = time.monotonic() - t0
+    counts = mon.counts()
+    cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
+    if failure is None and counts["frames"] == 0 and counts["ext"] == 0:
+        failure = _nothing_decoded_error(src, counts, stopped, wall)
+    _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
+    if screen.tty and not screen.quiet:
+        for msg in warnings:
+            err.write(f"warning: {msg}\n")
+    for p in problems:
+        err.write(f"error: {p}\n")
+    if recorder is not None and recorder.failed and recorder.failed not in warnings:
+        problems.append(recorder.failed)  # failed on closing
+        err.write(f"error: {recorder.failed}\n")
+    if failure is not None:
+        raise failure
+    return 1 if problems or (recorder is not None and recorder.failed) else 0
+
+
+def _check_args(args):
+    """MonitorError for a source missing or a --seconds or --baud out of range."""
+    if not args.port and not args.file:
+        raise MonitorError("give --port PORT (a board) or --file FILE (a capture); --help")
+    if args.seconds is not None and args.seconds <= 0:
+        raise MonitorError("--seconds must be more than 0")
+    if args.baud is not None and args.baud <= 0:
+        raise MonitorError("--baud must be a positive baud rate")
+
+
+def _config_values(config):
+    """--config's configuration values, None without one; MonitorError when unreadable."""
+    if not config:
+        return None
+    try:
+        return board_config.load(config)
+    except board_config.ConfigError as e:
+        raise MonitorError(str(e)) from None
+
+
+def _open_source(args, values, board):
+    """(source, configuration values, baud): the file (its session's configuration when none
+    was given) or the port (at --baud, else the configuration's output_baud, else the board's
+    default); the board's firmware restarted when that fails."""
     try:
         if args.file:
             src = FileSource(args.file)
@@ -337,19 +391,27 @@ def run(args, out=None, err=None):
         if board is not None:
             board.restart()
         raise
-    if args.record and src.kind == "serial":
-        if values is None:
-            err.write(
-                "note: the session will hold no board configuration, which a replay needs "
-                "(give --board-port, the board's USB port, or --config; else replay --config)\n"
-            )
-        elif not values.get("raw_record"):
-            err.write(
-                "note: the configuration has raw_record = 0: the board sends no raw-input "
-                "records, so the recording shows and exports but does not replay (deploy with "
-                "SET='raw_record=1')\n"
-            )
-    header = {
+    return src, values, baud
+
+
+def _note_record_config(values, err):
+    """A note when a port recording will not replay: no configuration, or no raw records."""
+    if values is None:
+        err.write(
+            "note: the session will hold no board configuration, which a replay needs "
+            "(give --board-port, the board's USB port, or --config; else replay --config)\n"
+        )
+    elif not values.get("raw_record"):
+        err.write(
+            "note: the configuration has raw_record = 0: the board sends no raw-input "
+            "records, so the recording shows and exports but does not replay (deploy with "
+            "SET='raw_record=1')\n"
+        )
+
+
+def _session_header(src, baud, values, config_file, board):
+    """The --record session file's header."""
+    return {
         "format": session_file.FORMAT,
         "source": src.name,
         "baud": baud if src.kind == "serial" else None,
@@ -358,17 +420,10 @@ def run(args, out=None, err=None):
         "config_file": config_file,
         "board": board.facts if board is not None else None,
     }
-    try:
-        outputs, recorder, closers, files = _open_outputs(args, header)
-    except MonitorError:
-        src.close()
-        raise
-    finally:
-        if board is not None:  # the firmware starts now, with the port open and read
-            board.restart()
-    status = view.Status(src.name, baud if src.kind == "serial" else None)
-    screen = _Screen(out, args.quiet or src.kind == "file")
-    warnings = []
+
+
+def _warner(warnings, screen, status, err):
+    """warn(msg) for the Monitor: each warning also kept in warnings."""
 
     def warn(msg):
         """A warning line now on stderr, or, under the live view of a terminal (stderr is the
@@ -379,10 +434,13 @@ def run(args, out=None, err=None):
         else:
             err.write(f"warning: {msg}\n")
 
-    for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
-        warn(msg)
-    mon = Monitor(status, _every(values), outputs, recorder, warn)
-    t0 = time.monotonic()
+    return warn
+
+
+def _watch(src, mon, args, screen, t0, closers):
+    """Feed the source to the monitor until it ends, then close the source and the files:
+    (why it stopped, MonitorError or None, problems closing the files, the decoder's skipped
+    bytes before its end)."""
     stopped = "end of file"
     failure = None
     try:
@@ -402,20 +460,25 @@ def run(args, out=None, err=None):
             failure = failure or MonitorError(f"decoding the end of the stream failed: {e}")
         src.close()
         problems = _close_all(closers)
-    wall = time.monotonic() - t0
-    counts = mon.counts()
-    cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
-    if failure is None and counts["frames"] == 0 and counts["ext"] == 0:
-        if src.kind == "file":
-            if counts["bytes"] == 0:
-                failure = MonitorError(f"{src.name} is empty: nothing to decode")
-            else:
-                failure = MonitorError(
-                    f"{src.name} holds {counts['bytes']} bytes but no frames: it is not a "
-                    "capture of the board's output (or it was captured at the wrong baud)"
-                )
-        elif stopped != "interrupted (Ctrl-C)":
-            failure = _no_data_error(src, counts, wall)
+    return stopped, failure, problems, skipped_before
+
+
+def _nothing_decoded_error(src, counts, stopped, wall):
+    """The MonitorError for a source that gave no frames, None when interrupted (a port)."""
+    if src.kind == "file":
+        if counts["bytes"] == 0:
+            return MonitorError(f"{src.name} is empty: nothing to decode")
+        return MonitorError(
+            f"{src.name} holds {counts['bytes']} bytes but no frames: it is not a "
+            "capture of the board's output (or it was captured at the wrong baud)"
+        )
+    if stopped != "interrupted (Ctrl-C)":
+        return _no_data_error(src, counts, wall)
+    return None
+
+
+def _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out):
+    """The final view (a file's, the terminal's last redraw) and the summary on out."""
     if not args.quiet and src.kind == "file" and status.frame is not None:
         out.write("\n".join(view.render(status, counts, status.board_seconds(), live=False)) + "\n")
     if screen.tty and not screen.quiet:
@@ -425,17 +488,6 @@ def run(args, out=None, err=None):
         summary.insert(3, f"  ({cut} of the skipped bytes: a record cut short by the end)")
     out.write("\n".join(summary) + "\n")
     out.flush()
-    if screen.tty and not screen.quiet:
-        for msg in warnings:
-            err.write(f"warning: {msg}\n")
-    for p in problems:
-        err.write(f"error: {p}\n")
-    if recorder is not None and recorder.failed and recorder.failed not in warnings:
-        problems.append(recorder.failed)  # failed on closing
-        err.write(f"error: {recorder.failed}\n")
-    if failure is not None:
-        raise failure
-    return 1 if problems or (recorder is not None and recorder.failed) else 0
 
 
 def _run_file(src, mon, args):

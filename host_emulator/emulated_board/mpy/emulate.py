@@ -7,8 +7,7 @@ sys.path: this directory first (the VM puts the script's directory there), so `m
 `time` are the emulated ones beside this file; then FIRMWARE_DIR/lib and FIRMWARE_DIR, the
 board's layout. board.CONFIG_PATH = CONFIG, then `app.App(board, console=...)`, `start()`.
 
-Each stimulus record is fed as feed.py (beside this file) says, exactly as the cpython
-runtime feeds it, then `app.service()` runs.
+Each stimulus record is fed by feed.py's loop (beside this file), the one every runtime runs.
 
 Counting: the collector is off (the app turns it off in start()); gc.mem_alloc() is read just
 before and after service(), and the difference in GC blocks (bytes / bytes per block,
@@ -58,12 +57,11 @@ from feed import (
     app_stats,
     bytes_per_block,
     display_uart,
-    fire_inputs,
     firmware_error,
     first_tick_us,
-    next_input,
-    stalled,
+    run_tick,
     start_firmware,
+    ticks,
 )
 from feed_protocol import MAGIC, REC_LEN  # common/proto/mpy
 
@@ -102,31 +100,76 @@ def open_stimulus():
     return f, header.get("tick_us", 5000), n_ticks
 
 
+class Outputs:
+    """The run's output files (the module docstring's list), written a chunk of ticks at a
+    time from arrays made once, so that keeping the record allocates nothing per tick."""
+
+    def __init__(self, disp):
+        self.fo = open(OUT_DIR + "/out.bin", "wb")
+        self.fb = open(OUT_DIR + "/blocks.bin", "wb")
+        self.fs = open(OUT_DIR + "/state.bin", "wb")
+        self.fd = open(OUT_DIR + "/display.bin", "wb")
+        self.fdn = open(OUT_DIR + "/display_n.bin", "wb")
+        self.blocks = array("i", bytes(4 * CHUNK))
+        self.state = bytearray(CHUNK)
+        self.disp = disp  # the screen's UART, None with the status page off
+        self.disp_n = array("H", bytes(2 * CHUNK))
+        self.j = 0
+        self.disp_start = 0
+        if disp is not None and disp.tx_n:  # the start page
+            self.disp_start = disp.tx_n
+            self.fd.write(disp.tx, disp.tx_n)
+            disp.tx_clear()
+
+    def tick(self, blocks, state, out_uart):
+        """The tick's GC blocks and navigation state, what it sent to the screen; the output
+        UART's bytes once there are OUT_FLUSH of them."""
+        j = self.j
+        self.blocks[j] = blocks
+        self.state[j] = state
+        self.disp_n[j] = 0
+        disp = self.disp
+        if disp is not None and disp.tx_n:
+            self.disp_n[j] = disp.tx_n
+            self.fd.write(disp.tx, disp.tx_n)
+            disp.tx_clear()
+        self.j = j + 1
+        if self.j == CHUNK:
+            self.flush()
+        if out_uart.tx_n >= OUT_FLUSH:
+            self.output(out_uart)
+
+    def flush(self):
+        j = self.j
+        if j:
+            self.fb.write(self.blocks, 4 * j)
+            self.fs.write(self.state, j)
+            if self.disp is not None:
+                self.fdn.write(self.disp_n, 2 * j)
+        self.j = 0
+
+    def output(self, out_uart):
+        self.fo.write(out_uart.tx, out_uart.tx_n)
+        out_uart.tx_clear()
+
+    def close(self, out_uart):
+        self.flush()
+        self.output(out_uart)
+        for f in (self.fo, self.fb, self.fs, self.fd, self.fdn):
+            f.close()
+
+
 def main():
     bpb = bytes_per_block()
     f, tick_us, n_ticks = open_stimulus()
     rec = bytearray(REC_LEN)
-    ubuf = bytearray(2048)
     imu = machine.Bmi055()
     a, pins = start_firmware(imu, CONFIG_PATH, compiles=True)
     gc.disable()
     gnss = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
     pps = machine.pin(pins["pps"])
-    fo = open(OUT_DIR + "/out.bin", "wb")
-    fb = open(OUT_DIR + "/blocks.bin", "wb")
-    fs = open(OUT_DIR + "/state.bin", "wb")
-    fd = open(OUT_DIR + "/display.bin", "wb")
-    fdn = open(OUT_DIR + "/display_n.bin", "wb")
-    blocks = array("i", bytes(4 * CHUNK))
-    state = bytearray(CHUNK)
-    disp = display_uart(a, pins)  # None with the status page off
-    disp_n = array("H", bytes(2 * CHUNK))
-    disp_start = 0
-    if disp is not None and disp.tx_n:  # the start page
-        disp_start = disp.tx_n
-        fd.write(disp.tx, disp.tx_n)
-        disp.tx_clear()
+    outs = Outputs(display_uart(a, pins))
     nav = a.nav
     t0 = first_tick_us(tick_us)
     gc.collect()
@@ -137,22 +180,17 @@ def main():
     m1 = gc.mem_alloc()
     collects = 0
     negative = 0  # ticks whose count went down (a collection inside the tick)
-    j = 0
-    for k in range(n_ticks):
-        ubuf = next_input(f, rec, ubuf, imu, gnss)
-        t_k = t0 + k * tick_us
+    for k in ticks(f, n_ticks, imu, gnss, rec, bytearray(2048)):
         if total - m1 < margin:  # free heap (m1: after the last tick; little since)
             gc.collect()
             collects += 1
         try:  # the firmware's code: its interrupt handlers and one pass of its loop
-            fire_inputs(rec, t_k, pps)
             m0 = gc.mem_alloc()
-            if not stalled(rec):
-                a.service()
+            run_tick(a, rec, t0 + k * tick_us, pps)
             m1 = gc.mem_alloc()
         except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
-            fo.write(out_uart.tx, out_uart.tx_n)
-            fo.close()
+            outs.output(out_uart)
+            outs.fo.close()
             firmware_error(k, e)
         d = m1 - m0
         if d > worst:
@@ -161,44 +199,17 @@ def main():
                 margin = 4 * d + 16384
         if d < 0:
             negative += 1
-        blocks[j] = d // bpb
-        state[j] = nav.state
-        disp_n[j] = 0
-        if disp is not None and disp.tx_n:  # what the tick sent to the screen
-            disp_n[j] = disp.tx_n
-            fd.write(disp.tx, disp.tx_n)
-            disp.tx_clear()
-        j += 1
-        if j == CHUNK:
-            fb.write(blocks, 4 * j)
-            fs.write(state, j)
-            if disp is not None:
-                fdn.write(disp_n, 2 * j)
-            j = 0
-        if out_uart.tx_n >= OUT_FLUSH:
-            fo.write(out_uart.tx, out_uart.tx_n)
-            out_uart.tx_clear()
+        outs.tick(d // bpb, nav.state, out_uart)
         if (k + 1) % PROGRESS_EVERY == 0:
             print("P", k + 1, n_ticks)
-    if j:
-        fb.write(blocks, 4 * j)
-        fs.write(state, j)
-        if disp is not None:
-            fdn.write(disp_n, 2 * j)
-    fo.write(out_uart.tx, out_uart.tx_n)
-    out_uart.tx_clear()
-    fo.close()
-    fb.close()
-    fs.close()
-    fd.close()
-    fdn.close()
+    outs.close(out_uart)
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
     stats = app_stats(a, n_ticks, t0, pins)
     stats.update(
         {
-            "display_start_bytes": disp_start,
+            "display_start_bytes": outs.disp_start,
             "gc_collects": collects,
             "negative_ticks": negative,
             "bytes_per_block": bpb,
@@ -221,7 +232,6 @@ def stream_main(realtime):
 
     f, tick_us, n_ticks = open_stimulus()
     rec = bytearray(REC_LEN)
-    ubuf = bytearray(2048)
     imu = machine.Bmi055()
     a = None
     k = -1
@@ -241,13 +251,9 @@ def stream_main(realtime):
         disp = display_uart(a, pins)
         t0 = first_tick_us(tick_us)
         wall0 = utime.ticks_us()
-        for k in range(n_ticks):
-            ubuf = next_input(f, rec, ubuf, imu, gnss)
-            t_k = t0 + k * tick_us
+        for k in ticks(f, n_ticks, imu, gnss, rec, bytearray(2048)):
             try:
-                fire_inputs(rec, t_k, pps)
-                if not stalled(rec):
-                    a.service()
+                run_tick(a, rec, t0 + k * tick_us, pps)
             except Exception as e:  # noqa: BLE001
                 firmware_error(k, e)
             if out_uart.tx_n:

@@ -152,6 +152,11 @@ def exit_firmware_error(code):
 
 def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, build_heap,
          navk_path=None, setup=None):  # fmt: skip
+    """The run, as the module docstring says. One piece on purpose: its steps are measured in
+    order against the heap (MicroPython's own bytes, then the emulator's, then the ballast that
+    gives the firmware exactly the board's free heap), and helper functions would be objects
+    of the emulator's taking that heap, and calls inside the counted window would count as
+    the firmware's instructions."""
     m4f.init()
     icount = m4f.icount
     emu_total = m4f.emu_total

@@ -1,14 +1,21 @@
-"""Feeding the unmodified firmware from a stimulus, shared by the board's two drivers:
-emulate.py (the MicroPython unix VM, mpy_unix runtime) and emulate_m4f.py (the emulated
-Cortex-M4F, m4f runtime). Plain MicroPython on the emulated `machine` and `time` beside it.
+"""The feed loop: the unmodified firmware fed from a stimulus, the one way every runtime feeds
+it: emulate.py (the MicroPython unix VM, mpy_unix runtime, both its modes), emulate_m4f.py
+(the emulated Cortex-M4F, m4f runtime) and runtimes/cpython.py (on CPython, which loads this
+file as `feed` with the emulated board: host_emulator.emulated_board.install_machine). Plain
+MicroPython on the emulated `machine` and `time` beside it.
 
-Per stimulus record k (common/proto/stimulus.py; the host has checked the CRC), exactly
-as the cpython runtime: the BMI055 data and temperature registers take the record's bytes, the
-GNSS UART receives its bytes (`next_input`), the clock moves to t_k - pps_before_us and the
-PPS pin fires (if the record has an edge), the clock moves to t_k, the timer fires
-(`fire_inputs`), and then the driver calls `app.service()`. t_k = t0 + k * tick_us (virtual us
-since power-on), t0 = `first_tick_us(tick_us)`, the first multiple of tick_us at or after the
-clock when start-up ended.
+Per stimulus record k (common/proto/stimulus.py; the host has checked the CRC), in `ticks`:
+the BMI055 data and temperature registers take the record's bytes, the GNSS UART receives its
+bytes (`next_input`); then the runtime runs the tick, `run_tick`: the clock moves to
+t_k - pps_before_us and the PPS pin fires (if the record has an edge), the clock moves to t_k,
+the timer fires (`fire_inputs`), and unless the board is stalled (`stalled`) the loop makes
+one pass, `app.service()`. t_k = t0 + k * tick_us (virtual us since power-on), t0 =
+`first_tick_us(tick_us)`, the first multiple of tick_us at or after the clock when start-up
+ended. Each runtime keeps what it measures around that (GC blocks, output, progress).
+emulate_m4f.py writes the loop out, the same calls in the same order: `ticks`' generator
+would come out of the board's heap there (the firmware gets exactly the board's), and
+run_tick's own call and return would count as the firmware's instructions between its
+counters.
 
 Reports on stdout, one line each, parsed by host_emulator/runtimes/guest_output.py:
     C <text>        a line the firmware printed on its console
@@ -123,21 +130,43 @@ def next_input(f, rec, ubuf, imu, gnss):
     return ubuf
 
 
+def ticks(f, n_ticks, imu, gnss, rec, ubuf):
+    """The feed loop: for k in range(n_ticks), the next record of f (positioned at the first
+    record; anything with readinto(buf, n)) into rec, the BMI055's registers and the GNSS UART
+    (next_input, through the byte buffer ubuf, replaced by a larger one if a record carries
+    more); yields k, for the runtime to run the tick (run_tick). Resuming allocates nothing."""
+    for k in range(n_ticks):
+        ubuf = next_input(f, rec, ubuf, imu, gnss)
+        yield k
+
+
+def run_tick(a, rec, t_k, pps, at=None):
+    """One tick of the board: the record's interrupts at t_k (fire_inputs; at(t_k) once the
+    clock reads t_k, before the timer fires), then one pass of the app's loop unless the
+    board is stalled over it."""
+    fire_inputs(rec, t_k, pps, at)
+    if not stalled(rec):
+        a.service()
+
+
 def stalled(rec):
     """True if the board is busy over this record's tick (an injected stall): the interrupt
     handlers run (fire_inputs), the loop does not."""
     return rec[REC_FLAGS] & FLAG_STALL
 
 
-def fire_inputs(rec, t_k, pps):
+def fire_inputs(rec, t_k, pps, at=None):
     """The record's PPS edge (never back in time: an edge during start-up), then the clock to
-    t_k and the tick timer: the firmware's interrupt handlers run."""
+    t_k (and at(t_k): what else reaches the board then, e.g. the screen's answers) and the
+    tick timer: the firmware's interrupt handlers run."""
     if rec[REC_FLAGS] & FLAG_PPS:
         edge = t_k - (rec[REC_PPS_BEFORE_US] | (rec[REC_PPS_BEFORE_US + 1] << 8))
         if edge > time.now_us():
             time.set_us(edge)
         pps.fire()
     time.set_us(t_k)
+    if at is not None:
+        at(t_k)
     machine.fire_timers()
 
 

@@ -2,9 +2,9 @@
 drivers use, backed by emulated peripherals on a virtual clock. Plain Python that runs in the
 MicroPython VM and on CPython alike, the one emulated board of every runtime:
 
-- in the VM, host_emulator/emulated_board/mpy/emulate.py puts this directory first on sys.path, so
-the
-  firmware's `import machine` (and `import time`) find these files instead of the built-ins;
+- in the VM, host_emulator/emulated_board/mpy/emulate.py puts this directory first on
+  sys.path, so the firmware's `import machine` (and `import time`) find these files instead of
+  the built-ins;
 - on CPython, host_emulator.emulated_board.install_machine() loads bmi055_model.py and this file
   as the modules `bmi055_model` and `machine`, and puts emulated_board/mpy/time.py's
   MicroPython-only functions on CPython's `time`; several boards run one after another in one
@@ -19,6 +19,11 @@ port refuses raise its ValueError (pin modes, pulls and alternate functions, UAR
 parity, Timer ids, WDT ids and timeouts, SPI pins); constants are the port's (the F4 HAL's).
 tests/firmware/test_machine_api.py derives the port's argument tables from its C source and
 checks these against them, and the firmware's calls too.
+
+One module, as the port's `machine` is one module (the firmware imports it whole), and the
+only one of its size here on purpose: split into files, its parts would become modules the
+firmware does not know, and on the emulated Cortex-M4F each module's globals come out of the
+reserve the emulated board has beside the board's heap (runtimes/m4f/build.py).
 
 The parts:
 

@@ -155,18 +155,8 @@ def run(
     for name in ("out.bin", "ticks.bin", "display.bin"):
         (out_dir / name).unlink(missing_ok=True)
     n = len(stim)
-    source, setup = guest_setup or ("", "None")
-    # The guest opens its files relative to QEMU's working directory (workdir), by names that
-    # do not depend on where the host keeps them: the command it compiles, and so its heap,
-    # are the same for the same stimulus wherever the run happens (counts are comparable).
-    stim_rel = _in_workdir(workdir, stim_path, "stim.bin")
-    navk_rel = _in_workdir(workdir, navk, "navk.mpy") if navk else None
-    call = (
-        f"{source}import emulate_m4f\r\nemulate_m4f.main({stim_rel!r}, "
-        f"{_data_offset(stim_path)}, {n}, {stim.tick_us}, "
-        f"{cfg_path.resolve().relative_to(workdir).as_posix()!r}, {out_dir.name!r}, "
-        f"{m4f_build.BOARD_HEAP_BYTES}, {build_heap}, {navk_rel!r}, {setup})\r\n"
-    )
+    call = _guest_call(workdir, stim, stim_path, navk, cfg_path, out_dir, build_heap,
+                       guest_setup)  # fmt: skip
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out, rc, wall = _execute(elf, call, workdir, progress, timeout_s, n)
     if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
@@ -180,8 +170,39 @@ def run(
             f"the emulated Cortex-M4F reported {len(per_tick)} ticks of {n}: its output is "
             "incomplete"
         )
+    stats = _stats(out, stim.duration_s / wall if wall > 0 else None, kind, guest_setup)
+    result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
+                         stats)  # fmt: skip
+    result.per_tick = per_tick
+    result.display = (out_dir / "display.bin").read_bytes()
+    result.display_marks = display_marks(
+        result.display, per_tick["display_bytes"], stats.get("display_start_bytes", 0),
+        "the emulated Cortex-M4F",
+    )  # fmt: skip
+    return result
+
+
+def _guest_call(workdir, stim, stim_path, navk, cfg_path, out_dir, build_heap, guest_setup):
+    """The MicroPython source the guest runs: guest_setup's, then emulate_m4f.main(...).
+    The guest opens its files relative to QEMU's working directory (workdir), by names that
+    do not depend on where the host keeps them: the command it compiles, and so its heap, are
+    the same for the same stimulus wherever the run happens (counts are comparable)."""
+    source, setup = guest_setup or ("", "None")
+    stim_rel = _in_workdir(workdir, stim_path, "stim.bin")
+    navk_rel = _in_workdir(workdir, navk, "navk.mpy") if navk else None
+    return (
+        f"{source}import emulate_m4f\r\nemulate_m4f.main({stim_rel!r}, "
+        f"{_data_offset(stim_path)}, {len(stim)}, {stim.tick_us}, "
+        f"{cfg_path.resolve().relative_to(workdir).as_posix()!r}, {out_dir.name!r}, "
+        f"{m4f_build.BOARD_HEAP_BYTES}, {build_heap}, {navk_rel!r}, {setup})\r\n"
+    )
+
+
+def _stats(out, realtime_factor, kind, guest_setup):
+    """The guest's statistics with the run's; EmulatorError for a run whose counts cannot be
+    the board's (a UART that dropped bytes, a driver that allocated, floats not float32)."""
     stats = dict(out.stats)
-    stats["realtime_factor"] = stim.duration_s / wall if wall > 0 else None
+    stats["realtime_factor"] = realtime_factor
     stats["kernels"] = kind
     if guest_setup:
         stats["report"] = out.reports
@@ -196,15 +217,7 @@ def run(
             raise EmulatorError(f"{what}: {problem} = {stats[problem]}")
     if not stats.get("float32"):
         raise EmulatorError("the emulated Cortex-M4F's floats are not float32: wrong build")
-    result = FirmwareRun("m4f", (out_dir / "out.bin").read_bytes(), out.console, n, wall, None,
-                         stats)  # fmt: skip
-    result.per_tick = per_tick
-    result.display = (out_dir / "display.bin").read_bytes()
-    result.display_marks = display_marks(
-        result.display, per_tick["display_bytes"], stats.get("display_start_bytes", 0),
-        "the emulated Cortex-M4F",
-    )  # fmt: skip
-    return result
+    return stats
 
 
 def _execute(elf, call, workdir, progress, timeout_s, n):

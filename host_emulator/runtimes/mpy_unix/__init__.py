@@ -103,12 +103,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     EmulatorError if the VM cannot start, fails otherwise, or times out."""
     workdir = pathlib.Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    if isinstance(stim, (str, os.PathLike)):
-        stim_path = pathlib.Path(stim)
-        stim = stim_mod.read(stim_path)
-    else:
-        stim_path = workdir / "stimulus.bin"
-        stim.write(stim_path)
+    stim, stim_path = _stimulus_file(stim, workdir)
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     out_dir = workdir / "vm"
     out_dir.mkdir(exist_ok=True)
@@ -119,21 +114,12 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
     except RuntimeError as e:
         raise EmulatorError(f"cannot run the MicroPython VM: {e}") from None
     kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
-    vm_env = vm.env(kind)
-    cmd = [
-        exe,
-        "-X",
-        f"heapsize={int(heap_kb)}K",
-        str(EMULATE),
-        str(FIRMWARE_DIR),
-        str(stim_path.resolve()),
-        str(cfg_path.resolve()),
-        str(out_dir.resolve()),
-    ]
+    cmd = [exe, "-X", f"heapsize={int(heap_kb)}K", str(EMULATE), str(FIRMWARE_DIR),
+           str(stim_path.resolve()), str(cfg_path.resolve()), str(out_dir.resolve())]  # fmt: skip
     timeout_s = _default_timeout_s(stim) if timeout_s is None else timeout_s
     out = GuestOutput(progress)
     n = len(stim)
-    rc, wall = run_guest(cmd, out, timeout_s, "the MicroPython VM", n, env=vm_env)
+    rc, wall = run_guest(cmd, out, timeout_s, "the MicroPython VM", n, env=vm.env(kind))
     if out.error_tick is not None and rc == EXIT_FIRMWARE_ERROR:
         raise firmware_error(out, stim, "the MicroPython VM", _memory_hint(heap_kb))
     if rc != 0 or out.stats is None:
@@ -145,7 +131,29 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         raise EmulatorError(
             f"the MicroPython VM reported {len(blocks)} ticks of {n}: its output is incomplete"
         )
-    reported = out.stats
+    stats = _stats(out.stats, blocks, state, stim.duration_s / wall if wall > 0 else None, kind)
+    display, marks = _display(out_dir, stats, n)
+    result = FirmwareRun(
+        "mpy_unix", (out_dir / "out.bin").read_bytes(), out.console, n, wall, blocks, stats
+    )
+    result.nav_state = state  # per tick, after it (1 aligning, 2 navigating)
+    result.display, result.display_marks = display, marks
+    return result
+
+
+def _stimulus_file(stim, workdir):
+    """(the Stimulus, the path of its file for the VM): a path is read here, which checks its
+    CRC, and given to the VM as it is; a Stimulus is written to workdir/stimulus.bin."""
+    if isinstance(stim, (str, os.PathLike)):
+        return stim_mod.read(stim), pathlib.Path(stim)
+    path = workdir / "stimulus.bin"
+    stim.write(path)
+    return stim, path
+
+
+def _stats(reported, blocks, state, realtime_factor, kind):
+    """The FirmwareRun's stats from the VM's S line and the per-tick blocks; EmulatorError if
+    a UART's transmit buffer overflowed (the counts would be wrong)."""
     stats = {
         "overruns": reported["overruns"],
         "gnss_rx_overflow": reported["gnss_rx_overflow"],
@@ -164,7 +172,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         "live_bytes_at_start": reported["live_bytes_at_start"],
         "tx_overflow": reported["tx_overflow"],
         **{k: v for k, v in reported.items() if k.startswith("display_")},
-        "realtime_factor": stim.duration_s / wall if wall > 0 else None,
+        "realtime_factor": realtime_factor,
         "kernels": kind,
     }
     if stats["tx_overflow"]:
@@ -177,6 +185,12 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
             f"the emulated display UART dropped {stats['display_tx_overflow']} bytes (its "
             "buffer is emptied after every tick): a tick wrote more than it holds"
         )
+    return stats
+
+
+def _display(out_dir, stats, n):
+    """(what the firmware sent to the screen, its per-tick marks) from display.bin and
+    display_n.bin."""
     display = (out_dir / "display.bin").read_bytes()
     per_tick = np.fromfile(out_dir / "display_n.bin", dtype="<u2")
     if "display_batches" not in stats:
@@ -186,19 +200,7 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
             f"the MicroPython VM reported the display bytes of {len(per_tick)} ticks of {n}"
         )
     start = stats.get("display_start_bytes", 0)
-    marks = display_marks(display, per_tick, start, "the MicroPython VM")
-    result = FirmwareRun(
-        "mpy_unix",
-        (out_dir / "out.bin").read_bytes(),
-        out.console,
-        n,
-        wall,
-        blocks,
-        stats,
-    )
-    result.nav_state = state  # per tick, after it (1 aligning, 2 navigating)
-    result.display, result.display_marks = display, marks
-    return result
+    return display, display_marks(display, per_tick, start, "the MicroPython VM")
 
 
 def block_stats(blocks, state):
