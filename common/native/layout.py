@@ -210,7 +210,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="python -m common.native.layout",
         description="Write firmware/native/layout.h and tuning.h from the firmware's Python, "
-        "and the consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py.",
+        "and the consts firmware modules repeat from the module that owns them "
+        "(common/native/const_copies.py).",
     )
     ap.add_argument("--check", action="store_true", help="only say whether they are stale")
     args = ap.parse_args(argv)

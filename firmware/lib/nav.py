@@ -18,7 +18,7 @@ and nav_kern.py holds the Python kernels, the reference of the native ones (navk
 calls: the sample check, the watches, the receiver's unseen error, the lag search...
 nav.py stays over 800 lines: its methods share the Navigator's buffers and counters, and a
 further module costs the image's code region, which has a few hundred bytes left
-(docs/benchmarks/board.md, "Firmware image"; nav_kern.py and gnss_kern.py took 108 net).
+(`make image` prints what is left: docs/image.md, "The budget").
 Frames and units: ENU navigation frame at the integer origin (geo.py), body x right, y forward,
 z up (rot.py), the error state of eskf.py; rad, m, m/s, s, ticks of `dt_s`.
 

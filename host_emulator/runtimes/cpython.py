@@ -103,7 +103,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
             raise _firmware_failed(e, "at start-up") from e
         screen = _Screen(machine, a, pins)
         screen.after(-1, time.now_us())  # the start page
-        out = _feed(machine, a, pins, imu, stim, screen, progress)
+        out, t0_us = _feed(machine, a, pins, imu, stim, screen, progress)
     finally:
         if gc_was_enabled:
             gc.enable()  # app.start() turned the collector off (board behaviour)
@@ -111,14 +111,15 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     n = len(stim)
     if progress and n % 2000:
         progress(n, n)
-    run = FirmwareRun("cpython", out, console, n, wall, None, _stats(machine, a, pins, kind))
+    stats = _stats(machine, a, pins, n, t0_us, kind)
+    run = FirmwareRun("cpython", out, console, n, wall, None, stats)
     run.display, run.display_marks = bytes(screen.out), screen.marks
     return run
 
 
 def _feed(machine, a, pins, imu, stim, screen, progress):
     """The stimulus through the firmware by feed.py's loop, the one the VM runtimes run (the
-    screen's answers arrive at each tick's moment); the output UART's bytes."""
+    screen's answers arrive at each tick's moment); (the output UART's bytes, t0 in us)."""
     feed = emulated_board.feed()
     gnss_uart = machine.uart(pins["gnss_uart"])
     out_uart = machine.uart(pins["out_uart"])
@@ -143,29 +144,17 @@ def _feed(machine, a, pins, imu, stim, screen, progress):
             progress(k + 1, n)
     if out_uart.tx_overflow:
         raise EmulatorError(f"the firmware wrote more than {machine.TX_CAPACITY} bytes in a tick")
-    return bytes(out)
+    return bytes(out), t0_us
 
 
-def _stats(machine, a, pins, kind):
-    """The run's counters: the firmware's and the emulated board's."""
-    gnss_uart = machine.uart(pins["gnss_uart"])
-    wdt = machine.watchdog
-    stats = {
-        "overruns": a.overruns,
-        "gnss_rx_overflow": gnss_uart.overflow,
-        "nmea_rejected": a.gnss.rejected(),
-        "wdt_feeds": wdt.feeds if wdt else 0,
-        "imu_error": a.imu_error,
-        "config_status": a.config_status,
-        "kernels": kind,
-    }
-    # reads that asked for more than had arrived: on the board each waits timeout_char
-    stats["uart_rx_waits"] = gnss_uart.rx_waits
+def _stats(machine, a, pins, n, t0_us, kind):
+    """The run's counters: feed.py's, as every runtime reports them, with the kernels and the
+    reads that asked for more than had arrived (on the board each waits timeout_char)."""
+    stats = emulated_board.feed().app_stats(a, n, t0_us, pins)
+    stats["kernels"] = kind
+    stats["uart_rx_waits"] = machine.uart(pins["gnss_uart"]).rx_waits
     if a.page is not None:
         stats["uart_rx_waits"] += machine.uart(pins["display_uart"]).rx_waits
-        stats["display_batches"] = a.page.batches
-        stats["display_oks"] = a.page.oks
-        stats["display_missed"] = a.page.missed
     return stats
 
 

@@ -1,5 +1,6 @@
-"""The private consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py are generated
-(common/native/const_copies.py): fresh, equal to nav.py's values, and only what each uses."""
+"""The private consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py, and
+gnss_kern.py from gnss.py, are generated (common/native/const_copies.py): fresh, equal to the
+owner's values, and only what each uses."""
 
 import pytest
 
@@ -12,18 +13,18 @@ def test_the_copies_are_what_the_generator_writes():
         assert path.read_text() == text, f"{path.name}: run `python -m common.native.layout`"
 
 
-@pytest.mark.parametrize("module", ["nav_kern", "nav_aid", "nav_align"])
-def test_every_copied_const_has_the_owners_value(module):
+@pytest.mark.parametrize("module, owner", const_copies.COPIES)
+def test_every_copied_const_has_the_owners_value(module, owner):
     """Read through CPython (a const is a plain attribute there), not through the generator."""
-    nav = import_module("nav")
+    own = import_module(owner)
     mod = import_module(module)
     copied = 0
     for name in vars(mod):
         if not name.startswith("_") or name.startswith("__"):
             continue
         for owner_name in (name, name[1:]):
-            if owner_name in vars(nav) and isinstance(getattr(nav, owner_name), int):
-                assert getattr(mod, name) == getattr(nav, owner_name), (module, name)
+            if owner_name in vars(own) and isinstance(getattr(own, owner_name), int):
+                assert getattr(mod, name) == getattr(own, owner_name), (module, name)
                 copied += 1
                 break
     assert copied >= 10, module

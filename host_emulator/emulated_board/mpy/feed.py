@@ -194,9 +194,9 @@ def bytes_per_block():
 
 
 def app_stats(a, n_ticks, t0, pins):
-    """The run's counters both drivers report in their "S" line (the firmware's own and the
-    emulated board's; with the status page, its batches, OKs and misses, and the bytes its
-    UART's transmit buffer dropped)."""
+    """The run's counters every runtime reports (the drivers in their "S" line): the
+    firmware's own and the emulated board's; with the status page, its batches, OKs and
+    misses, and the bytes its UART's transmit buffer dropped."""
     wdt = machine.watchdog
     out_uart = machine.uart(pins["out_uart"])
     stats = {
