@@ -42,7 +42,6 @@ _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
 # loop feeds the watchdog once a tick, so a board that missed more has been reset by it
 _CATCH_UP_MAX = const(10)
 _PPS_TOL_US = const(20000)  # how far from whole seconds apart two PPS edges may be
-_IMU_REPEAT = const(0x200)  # nav.IMU_REPEAT: a missed tick's repeat of the last sample
 _EDGE_REF_MAX_US = const(300000000)  # an older reference edge is dropped (ticks_us wraps 2^30)
 _DAY_S = const(86400)
 _LATE = const(-0x40000000)  # _fix_tick: the epoch is late (no tick - age can be this low)
@@ -64,7 +63,6 @@ _STEP_EPOCHS = const(3)  # a clock step's lateness seen this many epochs in a ro
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
-_E7 = const(10000000)  # geo._E7: 1e-7 degrees per degree
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 # gc.mem_free() scans the heap: ~160,000 instructions on the board, 4 ms at 96 MHz (the image
 # on the emulated STM32F411), so a tick that checks runs past the next tick's moment. With the
@@ -81,12 +79,11 @@ _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
 _FIX_BYTES = const(1024)
 _FIX_MARGIN = const(4)
 _FIX_MIN = const(64)
-_PAGE_SLOT = const(8)  # status_page._SLOT: a turn of the screen's page every 8 ticks,
-_PAGE_PHASE = const(3)  # at ticks 3 mod 8, odd: never the extended frame's (every 20)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
-# Indices the tick uses, as frame.py and nav.py define them (an underscore const is inlined and
-# exists only in its own module; tests/test_app.py checks that the copies agree)
-_F_COUNTER = const(0)  # frame.F_*: the frame's int fields
+# The indices and offsets of other modules' buffers the tick uses, written from their owners
+# (an underscore const is inlined and exists only in its own module: it cannot be imported)
+# ---- frame.py's consts used here: `python -m common.native.layout` writes them ----
+_F_COUNTER = const(0)
 _F_GYRO_LSB_X10 = const(1)
 _F_ACCEL_LSB = const(2)
 _F_PPS = const(3)
@@ -94,11 +91,13 @@ _F_GGA = const(4)
 _F_VALID = const(5)
 _F_HEIGHT_DM = const(6)
 _F_STATE = const(7)
-_F_LAT_DEG = const(8)  # the last fix's latitude and longitude, (degrees, 1e-7 deg fraction)
+_F_LAT_DEG = const(8)
 _F_LAT_FRAC = const(9)
 _F_LON_DEG = const(10)
 _F_LON_FRAC = const(11)
-_EF_COUNTER = const(0)  # records.EF_*: the extended frame's int fields
+# ---- end of frame.py's consts ----
+# ---- records.py's consts used here: `python -m common.native.layout` writes them ----
+_EF_COUNTER = const(0)
 _EF_HEALTH = const(1)
 _EF_STATE = const(2)
 _EF_CONFIG = const(3)
@@ -112,12 +111,15 @@ _EF_LON0_DEG = const(10)
 _EF_LON0_FRAC = const(11)
 _EF_TICK = const(12)
 _EF_CAUSES = const(13)
-_RF_COUNTER = const(0)  # records.RF_*: the raw-input record's int fields
+_RF_COUNTER = const(0)
 _RF_T0_US = const(1)
 _RF_PPS_US = const(2)
 _RF_SATURATED = const(3)
 _RF_N = const(4)
-_FI_LAT_E7 = const(0)  # nav.FI_*: a fix in ints, Navigator.fix_in
+# ---- end of records.py's consts ----
+# ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
+_IMU_REPEAT = const(0x200)
+_FI_LAT_E7 = const(0)
 _FI_LON_DEG = const(1)
 _FI_LON_FRAC = const(2)
 _FI_ALT_MM = const(3)
@@ -127,13 +129,21 @@ _FI_SPEED_MM_S = const(6)
 _FI_COURSE_CDEG = const(7)
 _FI_TICK = const(8)
 _NFI = const(9)
-_FI_NO_HEIGHT = const(0x3FFFFFFF)  # _FI_ALT_MM of a receiver that never gave a height
-_C_TICK = const(0)  # nav._C_*: the navigator's control state, Navigator.ctl
+_FI_NO_HEIGHT = const(0x3FFFFFFF)
+_C_TICK = const(0)
 _C_STATE = const(1)
 _C_HEALTH = const(2)
 _C_STILL = const(3)
 _C_LAST_FIX_TICK = const(26)
 _C_CAUSES = const(48)
+# ---- end of nav.py's consts ----
+# ---- geo.py's consts used here: `python -m common.native.layout` writes them ----
+_E7 = const(10000000)
+# ---- end of geo.py's consts ----
+# ---- status_page.py's consts used here: `python -m common.native.layout` writes them ----
+_PAGE_SLOT = const(8)
+_PAGE_PHASE = const(3)
+# ---- end of status_page.py's consts ----
 # The app's own causes in the extended frame (nav.CAUSE_* are the navigator's)
 CAUSE_NMEA = const(0x1000)  # a GNSS sentence rejected (checksum, framing, fields), seen at the
 # next PPS edge or epoch: 1, 1 s

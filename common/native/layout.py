@@ -56,8 +56,8 @@ LAYOUT = (
     ("nav", "the navigator's float buffers in one, Navigator.mem, and the parts of it with "
      "indices of their own (the aiding watch, the receiver's unseen error, the lag search)",
      "", ("_M_*", "_NM", "_BW_N", "_AW_*", "_INFLATE_*", "_CN_*", "_NCN", "_LS_*", "_NLS")),
-    ("frame", "the int fields of App._frame_ints and the frame's scales", "",
-     ("FRAME_LEN", "F_*", "NF", "_GYRO_FRAME_X100", "_ACCEL_FRAME")),
+    ("frame", "the frame's length and byte offsets, the int fields of App._fields and the "
+     "frame's scales", "", ("FRAME_LEN", "_FB_*", "F_*", "NF", "_GYRO_FRAME_X100", "_ACCEL_FRAME")),
     ("records", "the extended frame and the raw-input record: lengths and int fields", "",
      ("EXT_*", "RAW_*", "EF_*", "NEF", "RF_*", "NRF")),
     ("geo", "the origin's coefficients LocalFrame.coef", "GEO_", ("*",)),

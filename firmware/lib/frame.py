@@ -1,21 +1,29 @@
 """The 52-byte output frame (docs/requirements.md: output frame, frame encoding rules), packed
 without allocating.
 
-| bytes | field | scale |
-|---|---|---|
-| 0-1 | header 0xEB 0x90 | |
-| 2 | counter, u8 wrapping | |
-| 3-8 | gyro x, y, z, int16 | 131.07 per deg/s |
-| 9-14 | accel x, y, z, int16 | 16383 per g |
-| 15 / 16 / 17 | PPS flag / GGA flag / GNSS valid, u8 | |
-| 18-21 / 22-25 | latitude / longitude, int32 | 1e7 per deg (the GNSS fix) |
-| 26-27 | height, int16 | 10 per m (the GNSS fix) |
-| 28 | navigation state, u8 | 1 aligning, 2 navigating |
-| 29-34 | yaw, pitch, roll, int16 | 100 per deg |
-| 35-40 | velocity E, N, U, int16 | 100 per m/s |
-| 41-48 | position E, N, int32 | 100 per m |
-| 49-50 | position U, int16 | 10 per m |
-| 51 | checksum, u8 | sum of bytes 2..50 mod 256 |
+| bytes | field | scale | filled by |
+|---|---|---|---|
+| 0-1 | header 0xEB 0x90 | | `finish` |
+| 2 | counter, u8 wrapping | | app `_send_frame` (F_COUNTER) |
+| 3-8 | gyro x, y, z, int16 | 131.07 per deg/s | the tick's sample, F_GYRO_LSB_X10 (`_start_imu`) |
+| 9-14 | accel x, y, z, int16 | 16383 per g | the tick's sample, F_ACCEL_LSB (`_start_imu`) |
+| 15 / 16 | PPS flag / GGA flag, u8 | | app `_send_frame` (F_PPS, F_GGA) |
+| 17 | GNSS valid, u8 | | app `_deliver_fix` (F_VALID) |
+| 18-21 / 22-25 | latitude / longitude, int32 | 1e7 per deg (the GNSS fix) | app `_fix_fields` |
+| 26-27 | height, int16 | 10 per m (the GNSS fix) | app `_fix_fields` (F_HEIGHT_DM) |
+| 28 | navigation state, u8 | 1 aligning, 2 navigating | app `_send_frame` (F_STATE) |
+| 29-34 | yaw, pitch, roll, int16 | 100 per deg | `nav_frame`, from Navigator.mem |
+| 35-40 | velocity E, N, U, int16 | 100 per m/s | `nav_frame` |
+| 41-48 | position E, N, int32 | 100 per m | `nav_frame` |
+| 49-50 | position U, int16 | 10 per m | `nav_frame` |
+| 51 | checksum, u8 | sum of bytes 2..50 mod 256 | `finish` |
+
+This module owns the frame: its length, the byte offset of each field (_FB_*) and the int
+fields (F_*) that the app fills where the value is known, in App._fields; one call of
+`pack_fields` (natively frame.c, from the generated layout.h) writes every byte of the frame
+from them and the navigator's float buffers. frame.c, the app and the status page take the
+offsets and fields from here (common/native/layout.py, const_copies.py: generated, never
+written by hand).
 
 Little-endian, signed unless noted; every value is physical x scale, rounded half away from
 zero and clamped to the field's range (a clamped value is the field's limit, never a wrap).
@@ -35,6 +43,27 @@ from micropython import const
 import kern
 
 FRAME_LEN = const(52)
+# Each field's first byte (the table above)
+_FB_COUNTER = const(2)
+_FB_GYRO = const(3)
+_FB_ACCEL = const(9)
+_FB_PPS = const(15)
+_FB_GGA = const(16)
+_FB_VALID = const(17)
+_FB_LAT = const(18)
+_FB_LON = const(22)
+_FB_HEIGHT = const(26)
+_FB_STATE = const(28)
+_FB_YAW = const(29)
+_FB_PITCH = const(31)
+_FB_ROLL = const(33)
+_FB_VE = const(35)
+_FB_VN = const(37)
+_FB_VU = const(39)
+_FB_PE = const(41)
+_FB_PN = const(45)
+_FB_PU = const(49)
+_FB_SUM = const(51)
 # The int fields of `pack_fields` (firmware/native/layout.h is generated from them)
 F_COUNTER = const(0)
 F_GYRO_LSB_X10 = const(1)
@@ -144,7 +173,7 @@ def put_scaled32(buf, off, x, scale):
 
 def checksum(buf):
     s = 0
-    for i in range(2, FRAME_LEN - 1):
+    for i in range(_FB_COUNTER, _FB_SUM):
         s += buf[i]
     return s & 0xFF
 
@@ -153,8 +182,8 @@ def finish(buf, counter):
     """Header, counter and checksum; the fields must already be in place."""
     buf[0] = 0xEB
     buf[1] = 0x90
-    buf[2] = counter & 0xFF
-    buf[FRAME_LEN - 1] = checksum(buf)
+    buf[_FB_COUNTER] = counter & 0xFF
+    buf[_FB_SUM] = checksum(buf)
 
 
 def pack(
@@ -181,20 +210,20 @@ def pack(
     fix height in decimetres (int); ypr (rad), v_n (m/s), p_n (m): float32 buffers;
     ypr_cdeg_scale: centidegrees per radian (18000/pi, float32)."""
     for i in range(3):
-        put_i16(buf, 3 + 2 * i, gyro_to_frame(gyro[i], gyro_lsb_x10))
-        put_i16(buf, 9 + 2 * i, accel_to_frame(accel[i], accel_lsb_per_g))
-        put_scaled16(buf, 29 + 2 * i, ypr[i], ypr_cdeg_scale)
-        put_scaled16(buf, 35 + 2 * i, v_n[i], 100)
-    buf[15] = 1 if pps else 0
-    buf[16] = 1 if gga else 0
-    buf[17] = 1 if gnss_valid else 0
-    put_e7(buf, 18, lat[0], lat[1])
-    put_e7(buf, 22, lon[0], lon[1])
-    put_i16(buf, 26, height_dm)
-    buf[28] = nav_state & 0xFF
-    put_scaled32(buf, 41, p_n[0], 100)
-    put_scaled32(buf, 45, p_n[1], 100)
-    put_scaled16(buf, 49, p_n[2], 10)
+        put_i16(buf, _FB_GYRO + 2 * i, gyro_to_frame(gyro[i], gyro_lsb_x10))
+        put_i16(buf, _FB_ACCEL + 2 * i, accel_to_frame(accel[i], accel_lsb_per_g))
+        put_scaled16(buf, _FB_YAW + 2 * i, ypr[i], ypr_cdeg_scale)
+        put_scaled16(buf, _FB_VE + 2 * i, v_n[i], 100)
+    buf[_FB_PPS] = 1 if pps else 0
+    buf[_FB_GGA] = 1 if gga else 0
+    buf[_FB_VALID] = 1 if gnss_valid else 0
+    put_e7(buf, _FB_LAT, lat[0], lat[1])
+    put_e7(buf, _FB_LON, lon[0], lon[1])
+    put_i16(buf, _FB_HEIGHT, height_dm)
+    buf[_FB_STATE] = nav_state & 0xFF
+    put_scaled32(buf, _FB_PE, p_n[0], 100)
+    put_scaled32(buf, _FB_PN, p_n[1], 100)
+    put_scaled16(buf, _FB_PU, p_n[2], 10)
     finish(buf, counter)
 
 

@@ -100,8 +100,9 @@ _JOB_NONE = const(0)
 _JOB_GNSS = const(1)
 _JOB_AID = const(2)  # zero-velocity update or non-holonomic constraint
 
-# Buffer layouts. nav_align.py and nav_aid.py repeat the indices they use (an underscore const
-# exists only in its own module); tests/lib/test_nav.py checks that the copies agree.
+# Buffer layouts. nav_kern.py, nav_align.py, nav_aid.py, app.py and status_page.py repeat the
+# indices they use (an underscore const exists only in its own module), generated from here
+# (common/native/const_copies.py).
 # self._fx: floats of the pending GNSS fix
 _FX_H = const(0)  # height above the ellipsoid, m
 _FX_HDOP = const(1)

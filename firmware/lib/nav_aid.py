@@ -29,7 +29,6 @@ from fmath import cos, sin
 
 # The Navigator's buffers, as nav.py lays them out (an underscore const is inlined and exists
 # only in its own module, so a module that indexes them repeats what it uses)
-_X_V = const(3)  # ins.X_V: the velocity in Ins.x (tests/lib/test_nav.py checks this one)
 # ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
 _FX_HDOP = const(1)
 _FX_SPEED = const(2)
@@ -49,6 +48,9 @@ _M_E = const(52)
 _M_US = const(1595)
 _M_LAST = const(1654)
 # ---- end of nav.py's consts ----
+# ---- ins.py's consts used here: `python -m common.native.layout` writes them ----
+_X_V = const(3)
+# ---- end of ins.py's consts ----
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);

@@ -3,9 +3,9 @@
 The screen takes ASCII commands, each ending in `;`, and draws a batch when `\\r\\n` comes;
 it then answers `OK\\r\\n`. At start (`start`, before the loop's timer: the screen starts a
 demo loop if nothing comes within ~10 s of power-up) the page is cleared and its labels drawn.
-Then one field's turn comes every _SLOT ticks (`turn`, called by the loop when ticks is 3
-mod _SLOT, with the navigator's state): the field's text is made and, only if it or
-its colour differs from what the screen shows, sent as one `DSn(x,y,'text',c);` command.
+Then one field's turn comes every _PAGE_SLOT ticks (`turn`, called by the loop when ticks is
+_PAGE_PHASE mod _PAGE_SLOT, with the navigator's state): the field's text is made and, only if
+it or its colour differs from what the screen shows, sent as one `DSn(x,y,'text',c);` command.
 After the last field, a batch that sent anything is ended with `\\r\\n`. A round of _TURNS
 turns is 0.64 s.
 
@@ -41,8 +41,9 @@ from micropython import const
 import kern
 from frame import bytes_copy
 
-_SLOT = const(8)  # ticks between two turns (the loop calls `turn` when ticks % _SLOT is 3:
-# odd, so a turn never shares its tick with an extended frame's, every 20 ticks)
+_PAGE_SLOT = const(8)  # ticks between two turns: the loop calls `turn` when ticks % _PAGE_SLOT
+_PAGE_PHASE = const(3)  # is this, odd, so a turn never shares its tick with an extended frame's
+# (every 20 ticks)
 _TURNS = const(16)  # turns in a round: the 13 fields, the batch's end, two idle
 _END = const(13)  # the turn that ends the batch
 _NFIELD = const(13)
@@ -52,29 +53,21 @@ _ROWS = const(13)
 _TICKS_S = const(200)
 _WMAX = const(25)
 # the fields, one per row, in turn order
-_F_UP = const(0)
-_F_STATE = const(1)
-_F_FIX = const(2)
-_F_LAT = const(3)
-_F_LON = const(4)
-_F_HEIGHT = const(5)
-_F_POS = const(6)
-_F_SPEED = const(7)
-_F_HEAD = const(8)
-_F_ATT = const(9)
-_F_SIGMA = const(10)
-_F_HEALTH = const(11)
-_F_CAUSE = const(12)
+_P_UP = const(0)
+_P_STATE = const(1)
+_P_FIX = const(2)
+_P_LAT = const(3)
+_P_LON = const(4)
+_P_HEIGHT = const(5)
+_P_POS = const(6)
+_P_SPEED = const(7)
+_P_HEAD = const(8)
+_P_ATT = const(9)
+_P_SIGMA = const(10)
+_P_HEALTH = const(11)
+_P_CAUSE = const(12)
 WIDTH = b"\x0a\x0a\x16\x10\x10\x0b\x19\x16\x0a\x16\x09\x09\x0f"  # each value's characters
 LABELS = b"UP    STATE FIX   LAT   LON   HEIGHTPOS   SPEED HEAD  ATT   SIGMA HEALTHCAUSE "
-# the 52-byte frame's fields read here (frame.py's table)
-_FR_YAW = const(29)
-_FR_PITCH = const(31)
-_FR_ROLL = const(33)
-_FR_VE = const(35)
-_FR_VN = const(37)
-_FR_PE = const(41)
-_FR_PN = const(45)
 _X_PEE = const(16)  # the extended frame's P[0][0] + cv, f32 (records.py); P[1][1] + cv next
 _V_MAX = const(23170)  # |velocity| clamp, cm/s: the sum of two squares stays a small int
 _VAR_MAX = const(0x1FFFFFFF)  # a variance's clamp, cm^2: the sum of two stays a small int
@@ -87,18 +80,32 @@ TN_SIGNED = const(0x1000)  # ... the sign before the digits
 TN_ZEROS = const(0x2000)  # ... zeros before them, not spaces
 _D1 = const(1 << 8)  # text_num's form: 1 decimal, 2 decimals
 _D2 = const(2 << 8)
-# copies of frame.F_*, records.EF_* and nav._C_* (tests/lib/test_status_page.py checks them)
-_FF_VALID = const(5)
-_FF_HEIGHT_DM = const(6)
-_FF_LAT_DEG = const(8)
-_FF_LAT_FRAC = const(9)
-_FF_LON_DEG = const(10)
-_FF_LON_FRAC = const(11)
+# The frame's, the extended frame's and the navigator's indices read here
+# ---- frame.py's consts used here: `python -m common.native.layout` writes them ----
+_FB_YAW = const(29)
+_FB_PITCH = const(31)
+_FB_ROLL = const(33)
+_FB_VE = const(35)
+_FB_VN = const(37)
+_FB_PE = const(41)
+_FB_PN = const(45)
+_F_VALID = const(5)
+_F_HEIGHT_DM = const(6)
+_F_LAT_DEG = const(8)
+_F_LAT_FRAC = const(9)
+_F_LON_DEG = const(10)
+_F_LON_FRAC = const(11)
+# ---- end of frame.py's consts ----
+# ---- records.py's consts used here: `python -m common.native.layout` writes them ----
 _EF_HEALTH = const(1)
 _EF_CAUSES = const(13)
+# ---- end of records.py's consts ----
+# ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
+_NAVIGATING = const(2)
+_CAUSE_FAULTS = const(0x2074C)
 _C_HEALTH = const(2)
 _C_CAUSES = const(48)
-_NAVIGATING = const(2)  # nav.NAVIGATING: the 1-sigma is shown only then (P is 0 before)
+# ---- end of nav.py's consts ----
 STATES = b"no IMU    starting  aligning  navigating"  # state -1 .. 2, 10 characters each
 QUALITY = b"none  GPS   DGPS  PPS   RTK   float DR    manualsim   "  # GGA quality, 6 each
 HEALTHS = b"0 ok     1 warning2 FAULT  "  # 9 each
@@ -110,7 +117,6 @@ CAUSES = (
     b"display     aligning    "
 )
 NCAUSE = const(20)
-_FAULTS = const(0x2074C)  # nav.CAUSE_FAULTS: the causes of health 2, named first
 
 _T = bytearray(_WMAX)  # the text being made (one page per board: module-level buffers)
 _C = bytearray(_CMD_MAX)  # the command being made
@@ -259,7 +265,7 @@ def first_cause(c):
     if not c:
         return -1
     for k in range(NCAUSE):
-        if (c & _FAULTS) >> k & 1:
+        if (c & _CAUSE_FAULTS) >> k & 1:
             return k
     for k in range(NCAUSE):
         if c >> k & 1:
@@ -346,10 +352,10 @@ class StatusPage:
     # ---- per turn ------------------------------------------------------------------------
 
     def turn(self, ticks, state):
-        """The turn of tick `ticks` (3 mod _SLOT): one field, or the batch's end.
+        """The turn of tick `ticks` (_PAGE_PHASE mod _PAGE_SLOT): one field, or the batch's end.
         state: the navigator's, or -1 without an IMU."""
         self.state = state
-        k = (ticks // _SLOT) % _TURNS
+        k = (ticks // _PAGE_SLOT) % _TURNS
         if k < _NFIELD:
             c = self._make(k, ticks)
             if c >= 0:
@@ -372,23 +378,23 @@ class StatusPage:
         """Whether the inputs of field f, one that changes seldom, are those its text was last
         made from (the text is then the same: not made again)."""
         _K[0] = 0
-        if f == _F_STATE:
+        if f == _P_STATE:
             return self._same(f, self.state, 0)
-        if f == _F_FIX:
+        if f == _P_FIX:
             g = self._gnss
             _K[0] = g.epoch_hdop_x100
-            return self._same(f, g.epoch_quality if self._ff[_FF_VALID] else 0, g.epoch_nsat)
-        if f == _F_LAT or f == _F_LON:
-            g = _FF_LAT_DEG if f == _F_LAT else _FF_LON_DEG
+            return self._same(f, g.epoch_quality if self._ff[_F_VALID] else 0, g.epoch_nsat)
+        if f == _P_LAT or f == _P_LON:
+            g = _F_LAT_DEG if f == _P_LAT else _F_LON_DEG
             return self._same(f, self._ff[g], self._ff[g + 1])
-        if f == _F_HEIGHT:
-            return self._same(f, self._ff[_FF_HEIGHT_DM], 0)
-        if f < _F_HEALTH:
+        if f == _P_HEIGHT:
+            return self._same(f, self._ff[_F_HEIGHT_DM], 0)
+        if f < _P_HEALTH:
             return False
         if self._ext is not None:
-            _K[0] = self._ef[_EF_CAUSES] if f == _F_CAUSE else 0
+            _K[0] = self._ef[_EF_CAUSES] if f == _P_CAUSE else 0
             return self._same(f, self._ef[_EF_HEALTH], 0)
-        _K[0] = self._ctl[_C_CAUSES] if f == _F_CAUSE else 0
+        _K[0] = self._ctl[_C_CAUSES] if f == _P_CAUSE else 0
         return self._same(f, self._ctl[_C_HEALTH], 0)
 
     def _make(self, f, ticks):
@@ -396,7 +402,7 @@ class StatusPage:
         inputs are those of its last text (_unchanged)."""
         if self._unchanged(f):
             return -1
-        if f == _F_UP:
+        if f == _P_UP:
             ticks //= _TICKS_S
             p = _text_num(_T, 0, ticks // 3600, 4)
             _T[p] = 58  # :
@@ -404,23 +410,23 @@ class StatusPage:
             _T[p] = 58
             _two(p + 1, ticks % 60)
             return self._fg
-        if f == _F_STATE:
+        if f == _P_STATE:
             _put(0, STATES, 10 * (self.state + 1), 10)
             return self._fg
-        if f == _F_FIX:
+        if f == _P_FIX:
             return self._fix()
-        if f == _F_LAT or f == _F_LON:
+        if f == _P_LAT or f == _P_LON:
             return self._angle(f)
-        if f == _F_SPEED:
+        if f == _P_SPEED:
             return self._speed()
-        if f <= _F_ATT:
+        if f <= _P_ATT:
             return self._motion(f)
         return self._health(f)
 
     def _fix(self):
         """Quality (of a valid fix, else none), satellites, HDOP."""
         g = self._gnss
-        q = g.epoch_quality if self._ff[_FF_VALID] else 0
+        q = g.epoch_quality if self._ff[_F_VALID] else 0
         p = _put(0, QUALITY, 6 * (q if 0 <= q <= 8 else 0), 6)
         q = g.epoch_nsat
         if q >= 0:
@@ -437,8 +443,8 @@ class StatusPage:
 
     def _angle(self, f):
         """The fix's latitude or longitude: sign, degrees, 7 decimals, " deg"."""
-        d = self._ff[_FF_LAT_DEG if f == _F_LAT else _FF_LON_DEG]
-        r = self._ff[_FF_LAT_FRAC if f == _F_LAT else _FF_LON_FRAC]
+        d = self._ff[_F_LAT_DEG if f == _P_LAT else _F_LON_DEG]
+        r = self._ff[_F_LAT_FRAC if f == _P_LAT else _F_LON_FRAC]
         p = _text_num(_T, 0, abs(d), 4)
         _T[p] = 46
         _text_num(_T, p + 1, abs(r), 7 | TN_ZEROS)
@@ -449,8 +455,8 @@ class StatusPage:
     def _speed(self):
         """Horizontal speed in m/s and km/h."""
         b = self._out
-        e = _clamp(_i16(b, _FR_VE), _V_MAX)
-        b = _clamp(_i16(b, _FR_VN), _V_MAX)
+        e = _clamp(_i16(b, _FB_VE), _V_MAX)
+        b = _clamp(_i16(b, _FB_VN), _V_MAX)
         e = isqrt(e * e + b * b)
         p = _text_num(_T, 0, e, 6 | _D2)
         p = _put(p, b" m/s", 0, 4)
@@ -461,26 +467,26 @@ class StatusPage:
     def _motion(self, f):
         """Height (the fix's), position from the origin, heading, attitude (the frame's)."""
         b = self._out
-        if f == _F_HEIGHT:
-            p = _text_num(_T, 0, self._ff[_FF_HEIGHT_DM], 9 | _D1 | TN_SIGNED)
+        if f == _P_HEIGHT:
+            p = _text_num(_T, 0, self._ff[_F_HEIGHT_DM], 9 | _D1 | TN_SIGNED)
             _put(p, b" m", 0, 2)
-        elif f == _F_POS:
+        elif f == _P_POS:
             _T[0] = 69  # E
-            p = _text_num(_T, 1, _clamp(_i32(b, _FR_PE), _POS_MAX), 10 | _D2 | TN_SIGNED)
+            p = _text_num(_T, 1, _clamp(_i32(b, _FB_PE), _POS_MAX), 10 | _D2 | TN_SIGNED)
             _T[p] = 32
             _T[p + 1] = 78  # N
-            p = _text_num(_T, p + 2, _clamp(_i32(b, _FR_PN), _POS_MAX), 10 | _D2 | TN_SIGNED)
+            p = _text_num(_T, p + 2, _clamp(_i32(b, _FB_PN), _POS_MAX), 10 | _D2 | TN_SIGNED)
             _put(p, b" m", 0, 2)
-        elif f == _F_HEAD:
-            f = _i16(b, _FR_YAW)
+        elif f == _P_HEAD:
+            f = _i16(b, _FB_YAW)
             p = _text_num(_T, 0, f + 36000 if f < 0 else f, 6 | _D2)
             _put(p, b" deg", 0, 4)
         else:
             _T[0] = 82  # R
-            p = _text_num(_T, 1, _i16(b, _FR_ROLL), 8 | _D2 | TN_SIGNED)
+            p = _text_num(_T, 1, _i16(b, _FB_ROLL), 8 | _D2 | TN_SIGNED)
             _T[p] = 32
             _T[p + 1] = 80  # P
-            p = _text_num(_T, p + 2, _i16(b, _FR_PITCH), 7 | _D2 | TN_SIGNED)
+            p = _text_num(_T, p + 2, _i16(b, _FB_PITCH), 7 | _D2 | TN_SIGNED)
             _put(p, b" deg", 0, 4)
         return self._fg
 
@@ -488,7 +494,8 @@ class StatusPage:
         """The horizontal 1-sigma; the health; its first cause and how many more. The colour
         of the health for these two."""
         x = self._ext
-        if f == _F_SIGMA:
+        if f == _P_SIGMA:
+            # only while navigating: P is 0 before
             if x is not None and x[0] == 0xEB and self.state == _NAVIGATING:
                 f = var_cm2(x, _X_PEE)
                 x = var_cm2(x, _X_PEE + 4)
@@ -498,7 +505,7 @@ class StatusPage:
             _put(0, b"     --  ", 0, 9)
             return self._fg
         h = self._ef[_EF_HEALTH] if x is not None else self._ctl[_C_HEALTH]
-        if f == _F_HEALTH:
+        if f == _P_HEALTH:
             _put(0, HEALTHS, 9 * (h if 0 <= h <= 2 else 2), 9)
         else:
             self._cause(self._ef[_EF_CAUSES] if x is not None else self._ctl[_C_CAUSES])

@@ -64,31 +64,31 @@ void navk_frame_pack(uint8_t *buf, const int32_t *fields, const int16_t *gyro,
     const int16_t *accel, const int32_t *lat, const int32_t *lon, const float *ypr,
     const float *v_n, const float *p_n, float ypr_cdeg_scale) {
     for (int i = 0; i < 3; i++) {
-        put_u16(buf, 3 + 2 * i,
+        put_u16(buf, FB_GYRO + 2 * i,
             clamp16(round_div((int64_t)gyro[i] * GYRO_FRAME_X100, 10 * (int64_t)fields[F_GYRO_LSB_X10])));
-        put_u16(buf, 9 + 2 * i,
+        put_u16(buf, FB_ACCEL + 2 * i,
             clamp16(round_div((int64_t)accel[i] * ACCEL_FRAME, fields[F_ACCEL_LSB])));
-        put_u16(buf, 29 + 2 * i, round_clamp(ypr[i] * ypr_cdeg_scale, -32768, 32767));
-        put_u16(buf, 35 + 2 * i, round_clamp(v_n[i] * 100.0f, -32768, 32767));
+        put_u16(buf, FB_YAW + 2 * i, round_clamp(ypr[i] * ypr_cdeg_scale, -32768, 32767));
+        put_u16(buf, FB_VE + 2 * i, round_clamp(v_n[i] * 100.0f, -32768, 32767));
     }
-    buf[15] = fields[F_PPS] ? 1 : 0;
-    buf[16] = fields[F_GGA] ? 1 : 0;
-    buf[17] = fields[F_VALID] ? 1 : 0;
-    put_e7(buf, 18, lat[0], lat[1]);
-    put_e7(buf, 22, lon[0], lon[1]);
-    put_u16(buf, 26, clamp16(fields[F_HEIGHT_DM]));
-    buf[28] = (uint8_t)(fields[F_STATE] & 0xFF);
-    put_i32(buf, 41, round_clamp(p_n[0] * 100.0f, -1073741823, 1073741823));
-    put_i32(buf, 45, round_clamp(p_n[1] * 100.0f, -1073741823, 1073741823));
-    put_u16(buf, 49, round_clamp(p_n[2] * 10.0f, -32768, 32767));
+    buf[FB_PPS] = fields[F_PPS] ? 1 : 0;
+    buf[FB_GGA] = fields[F_GGA] ? 1 : 0;
+    buf[FB_VALID] = fields[F_VALID] ? 1 : 0;
+    put_e7(buf, FB_LAT, lat[0], lat[1]);
+    put_e7(buf, FB_LON, lon[0], lon[1]);
+    put_u16(buf, FB_HEIGHT, clamp16(fields[F_HEIGHT_DM]));
+    buf[FB_STATE] = (uint8_t)(fields[F_STATE] & 0xFF);
+    put_i32(buf, FB_PE, round_clamp(p_n[0] * 100.0f, -1073741823, 1073741823));
+    put_i32(buf, FB_PN, round_clamp(p_n[1] * 100.0f, -1073741823, 1073741823));
+    put_u16(buf, FB_PU, round_clamp(p_n[2] * 10.0f, -32768, 32767));
     buf[0] = 0xEB;
     buf[1] = 0x90;
-    buf[2] = (uint8_t)(fields[F_COUNTER] & 0xFF);
+    buf[FB_COUNTER] = (uint8_t)(fields[F_COUNTER] & 0xFF);
     int32_t sum = 0;
-    for (int i = 2; i < 51; i++) {
+    for (int i = FB_COUNTER; i < FB_SUM; i++) {
         sum += buf[i];
     }
-    buf[51] = (uint8_t)(sum & 0xFF);
+    buf[FB_SUM] = (uint8_t)(sum & 0xFF);
 }
 
 /* binascii.crc32 (reflected 0xEDB88320, initial and final complement), a nibble at a time:

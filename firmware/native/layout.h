@@ -306,8 +306,29 @@
 #define LS_M 32
 #define NLS 48
 
-/* frame.py: the int fields of App._frame_ints and the frame's scales */
+/* frame.py: the frame's length and byte offsets, the int fields of App._fields and the frame's
+ * scales */
 #define FRAME_LEN 52
+#define FB_COUNTER 2
+#define FB_GYRO 3
+#define FB_ACCEL 9
+#define FB_PPS 15
+#define FB_GGA 16
+#define FB_VALID 17
+#define FB_LAT 18
+#define FB_LON 22
+#define FB_HEIGHT 26
+#define FB_STATE 28
+#define FB_YAW 29
+#define FB_PITCH 31
+#define FB_ROLL 33
+#define FB_VE 35
+#define FB_VN 37
+#define FB_VU 39
+#define FB_PE 41
+#define FB_PN 45
+#define FB_PU 49
+#define FB_SUM 51
 #define F_COUNTER 0
 #define F_GYRO_LSB_X10 1
 #define F_ACCEL_LSB 2

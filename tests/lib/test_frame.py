@@ -230,3 +230,34 @@ frame.pack(out, 7, [1312, -1312, 0], [0, 512, 1024], 1312, 1024, True, False, Tr
 print(json.dumps(list(out)))
 """)
     assert bytes(got) == f_desk
+
+
+def test_the_byte_offsets_are_the_contract_tables():
+    """frame.py's _FB_* (which frame.c, the app and the status page take, generated) start
+    the fields of the host's own table of the frame (common/proto/frame.py)."""
+    first = {
+        "_FB_COUNTER": "counter",
+        "_FB_GYRO": "gyro_x",
+        "_FB_ACCEL": "accel_x",
+        "_FB_PPS": "pps",
+        "_FB_GGA": "gga",
+        "_FB_VALID": "gnss_valid",
+        "_FB_LAT": "lat_e7",
+        "_FB_LON": "lon_e7",
+        "_FB_HEIGHT": "height_dm",
+        "_FB_STATE": "nav_state",
+        "_FB_YAW": "yaw_cdeg",
+        "_FB_PITCH": "pitch_cdeg",
+        "_FB_ROLL": "roll_cdeg",
+        "_FB_VE": "vel_e_cm_s",
+        "_FB_VN": "vel_n_cm_s",
+        "_FB_VU": "vel_u_cm_s",
+        "_FB_PE": "pos_e_cm",
+        "_FB_PN": "pos_n_cm",
+        "_FB_PU": "pos_u_dm",
+        "_FB_SUM": "checksum",
+    }
+    assert {n for n in vars(frame) if n.startswith("_FB_")} == set(first)
+    for name, field in first.items():
+        assert getattr(frame, name) == frame_schema.OFFSETS[field], name
+    assert frame.FRAME_LEN == frame_schema.FRAME_LEN

@@ -24,18 +24,11 @@ import records  # noqa: E402
 import status_page as sp  # noqa: E402
 
 
-def test_the_copies_of_the_frame_record_and_navigator_indices_agree():
-    for name in ("VALID", "HEIGHT_DM", "LAT_DEG", "LAT_FRAC", "LON_DEG", "LON_FRAC"):
-        assert getattr(sp, "_FF_" + name) == getattr(frame, "F_" + name)
-    assert (sp._EF_HEALTH, sp._EF_CAUSES) == (records.EF_HEALTH, records.EF_CAUSES)
-    assert (sp._C_HEALTH, sp._C_CAUSES) == (nav._C_HEALTH, nav._C_CAUSES)
-    assert sp._NAVIGATING == nav.NAVIGATING and sp._FAULTS == nav.CAUSE_FAULTS
-    assert app._PAGE_SLOT == sp._SLOT == model_display.SLOT
+def test_the_page_turns_where_the_model_says():
+    """The app's copies of the turn's slot and phase are generated from here
+    (tests/native/test_const_copies.py); the model of the screen has its own."""
+    assert app._PAGE_SLOT == sp._PAGE_SLOT == model_display.SLOT
     assert app._PAGE_PHASE == model_display.PHASE and app._PAGE_PHASE % 2  # odd: no ext frame
-    # the 52-byte frame's offsets (proto/frame.py's table: yaw, pitch, roll, velocity, position)
-    offs = {"yaw": 29, "pitch": 31, "roll": 33, "ve": 35, "vn": 37, "pe": 41, "pn": 45}
-    assert (sp._FR_YAW, sp._FR_PITCH, sp._FR_ROLL) == (offs["yaw"], offs["pitch"], offs["roll"])
-    assert (sp._FR_VE, sp._FR_VN, sp._FR_PE, sp._FR_PN) == (35, 37, 41, 45)
 
 
 def test_every_cause_bit_has_its_word():
@@ -259,13 +252,13 @@ def test_a_field_whose_inputs_did_not_change_is_not_made_again():
             page.turn(ticks, 2)
 
     round_(0)
-    assert made == [sp._F_LAT, sp._F_LON]
+    assert made == [sp._P_LAT, sp._P_LON]
     round_(128)
-    assert made == [sp._F_LAT, sp._F_LON]  # nothing changed: neither made again
+    assert made == [sp._P_LAT, sp._P_LON]  # nothing changed: neither made again
     a._fields[frame.F_LON_FRAC] = 1
     tx.out.clear()
     round_(256)
-    assert made[2:] == [sp._F_LON] and b"'  +0.0000001 deg'" in bytes(tx.out)
+    assert made[2:] == [sp._P_LON] and b"'  +0.0000001 deg'" in bytes(tx.out)
     a.gnss.epoch_hdop_x100 = 120  # the third input of the fix's field
     tx.out.clear()
     round_(384)

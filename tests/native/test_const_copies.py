@@ -1,5 +1,6 @@
-"""The private consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py, and
-gnss_kern.py from gnss.py, are generated (common/native/const_copies.py): fresh, equal to the
+"""The private consts nav_kern.py, nav_aid.py and nav_align.py repeat from nav.py,
+gnss_kern.py from gnss.py, and app.py and status_page.py from frame.py, records.py, nav.py,
+geo.py and status_page.py, are generated (common/native/const_copies.py): fresh, equal to the
 owner's values, and only what each uses."""
 
 import pytest
@@ -27,14 +28,13 @@ def test_every_copied_const_has_the_owners_value(module, owner):
                 assert getattr(mod, name) == getattr(own, owner_name), (module, name)
                 copied += 1
                 break
-    assert copied >= 10, module
+    assert copied >= 1, (module, owner)
 
 
-def test_the_mixins_hand_written_indices_agree():
-    """The two indices taken from elsewhere than nav.py, written by hand with their reason."""
+def test_the_hand_written_index_agrees():
+    """The one index taken from another module that is not a copy (a sum), written by hand
+    with its reason."""
     eskf = import_module("eskf")
-    ins = import_module("ins")
-    assert import_module("nav_aid")._X_V == ins.X_V
     assert import_module("nav_align")._IX_YAW == eskf.IX_ATT + 2
 
 
@@ -68,3 +68,20 @@ def test_a_hand_copy_a_missing_marker_and_a_split_const_are_errors(tmp_path, mon
     _lib(tmp_path, monkeypatch, "_LONG = const(\n    1\n)\n", BEGIN + END + "y = _LONG\n")
     with pytest.raises(const_copies.CopyError, match="on one line"):
         const_copies.generate("use", "own")
+
+
+def test_several_owners_a_block_each_and_a_name_from_one_only(tmp_path, monkeypatch):
+    (tmp_path / "own.py").write_text(OWNER)
+    (tmp_path / "two.py").write_text("_HEX = const(0x1F)\nTWO = const(2)\n")
+    begin2 = BEGIN.replace("own.py", "two.py")
+    end2 = END.replace("own.py", "two.py")
+    (tmp_path / "use.py").write_text(BEGIN + END + begin2 + end2 + "y = _PUB + _TWO\n")
+    monkeypatch.setattr(const_copies, "_path", lambda m: tmp_path / (m + ".py"))
+    monkeypatch.setattr(const_copies, "COPIES", (("use", "own"), ("use", "two")))
+    (text,) = const_copies.generated().values()
+    assert text == BEGIN + "_PUB = const(1)\n" + END + begin2 + "_TWO = const(2)\n" + end2 + (
+        "y = _PUB + _TWO\n"
+    )
+    (tmp_path / "use.py").write_text(BEGIN + END + begin2 + end2 + "y = _HEX\n")
+    with pytest.raises(const_copies.CopyError, match="_HEX is defined twice"):
+        const_copies.generated()
