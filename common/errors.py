@@ -32,6 +32,18 @@ def quiet_broken_pipe():
     return 141
 
 
+def _write_through(path, data):
+    """Write to a device or a pipe; its OSError names the file (the one close raises, as on
+    /dev/full, carries no name)."""
+    try:
+        with open(path, "w" if isinstance(data, str) else "wb") as f:
+            f.write(data)
+    except OSError as e:
+        if e.filename is None:
+            e.filename = str(path)
+        raise
+
+
 def write_atomic(path, data):
     """Write bytes or text to `path` whole or not at all: a full disk or a Ctrl-C leaves the
     previous file (or none), never a part of the new one."""
@@ -40,8 +52,7 @@ def write_atomic(path, data):
 
     path = Path(path)
     if path.exists() and not path.is_file():  # a device or a pipe: written as it is
-        with open(path, "w" if isinstance(data, str) else "wb") as f:
-            f.write(data)
+        _write_through(path, data)
         return
     part = path.with_name(f".{path.name}.part")
     try:

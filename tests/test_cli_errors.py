@@ -167,3 +167,36 @@ def test_session_replay_and_repair_into_a_broken_directory(broken_dir, tmp_path,
     session_file.write_session(tmp_path / "s.ins", b"\x00" * 100)
     rc = main(["repair", str(tmp_path / "s.ins"), "--out", str(bad / "fixed.ins")])
     _check(capsys, rc, code)
+
+
+def _flash(*argv, timeout=30):
+    """`python -m tools.flash argv` in a process of its own: (status, stdout, stderr)."""
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.flash", *argv], capture_output=True, text=True, cwd=ROOT,
+        timeout=timeout, env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )  # fmt: skip
+    return p.returncode, p.stdout, p.stderr
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero")
+def test_a_config_file_without_end_is_refused_after_a_bounded_read():
+    """/dev/zero as a configuration: refused by size, at once, not read into memory."""
+    from common.proto import config as board_config
+
+    rc, out, err = _flash("config", "get", "--file", "/dev/zero", timeout=15)
+    assert rc == 1 and err.count("\n") == 1, (rc, err)
+    assert err.startswith("error: /dev/zero is not a configuration file: it holds more than 64 KB")
+    assert out == ""
+    with pytest.raises(board_config.ConfigError, match="/dev/zero is not a configuration"):
+        board_config.load("/dev/zero")  # the monitor's and replay's --config
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_config_written_to_a_full_device_fails_at_once_naming_it(tmp_path):
+    rc, out, err = _flash("config", "set", "--file", "/dev/full", "gnss_hdop_max=2.5", timeout=15)
+    assert rc == 1, (rc, out, err)
+    assert err == "error: /dev/full: No space left on device (the disk is full)\n"
+    assert "wrote" not in out
+    cfg = _config_file(tmp_path)
+    rc, out, err = _flash("config", "get", "--file", str(cfg), "--out", "/dev/full")
+    assert rc == 1 and err == "error: /dev/full: No space left on device (the disk is full)\n"

@@ -146,13 +146,32 @@ def decode(data):
     return cfg
 
 
+# The board's file is 386 bytes with this schema (6-byte header, 40 records, CRC-32:
+# firmware/lib/config.py `encode`); a JSON file of settings is about 1 KB. The bound only keeps
+# /dev/zero or a capture given by mistake out of memory.
+MAX_FILE_BYTES = 64 * 1024
+
+
+def read_file(path):
+    """A configuration file's bytes, at most MAX_FILE_BYTES; ConfigError naming the file (one
+    that cannot be read, or one far larger than any configuration) otherwise."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
+    except OSError as e:
+        raise ConfigError(f"cannot read configuration {path}: {e.strerror}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise ConfigError(
+            f"{path} is not a configuration file: it holds more than {MAX_FILE_BYTES // 1024} KB "
+            "(the board's is under 1 KB)"
+        )
+    return data
+
+
 def load(path):
     """The configuration values in a user's file: a JSON object of settings (missing ones keep
     their defaults), or else the board's own file (binary, as on its flash)."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise ConfigError(f"cannot read configuration {path}: {e.strerror}") from None
+    data = read_file(path)
     if data.lstrip()[:1] != b"{":
         try:
             return values_of(decode(data))

@@ -48,10 +48,12 @@ def _decode_config(data, what, advice):
 
 def _read_config_file(path):
     """(bytes, BoardConfig) of a local configuration file."""
+    from common.proto import config as board_config
+
     try:
-        data = pathlib.Path(path).read_bytes()
-    except OSError as e:
-        raise FlashError(f"cannot read configuration file {path}: {e.strerror}.") from None
+        data = board_config.read_file(path)
+    except board_config.ConfigError as e:
+        raise FlashError(f"{e}.") from None
     cfg = _decode_config(
         data, path, "Create one with `python -m tools.flash config set --file FILE NAME=VALUE ...`."
     )
@@ -223,8 +225,9 @@ def _config(args):
         raise FlashError("config set needs at least one NAME=VALUE.")
     changes = [_parse_setting(s, config) for s in args.settings]
     if args.file:
+        # a device or a pipe (/dev/full) is written, not read: it holds no configuration
         path = pathlib.Path(args.file)
-        cfg = _read_config_file(path)[1] if path.exists() else config.BoardConfig()
+        cfg = _read_config_file(path)[1] if path.is_file() else config.BoardConfig()
     else:
         data = deploy.read_config(args.port, args.baud)
         cfg = config.BoardConfig()
