@@ -217,13 +217,9 @@ def _add_replay_options(p):
 
 def _settings_help():
     """`--set help`: every ins.cfg setting with its default (and range, for the floats)."""
-    from host_emulator.replay import run_config
+    from common.proto import config as board_config
 
-    print("--set NAME=VALUE, the board settings (firmware/lib/config.py) and their defaults; the "
-          "float ranges are what still navigates within the board spec "
-          "(docs/benchmarks/settings.md):")  # fmt: skip
-    for name, value, limits in run_config.catalogue():
-        print(f"  {name} = {value}" + (f"   ({limits})" if limits else ""))
+    board_config.print_catalogue("--set")
 
 
 def _load(args):
@@ -330,7 +326,7 @@ def main(argv=None):
     for name, (_, text) in DELEGATED.items():
         sub.add_parser(name, help=text, add_help=False)
     args, rest = parser.parse_known_args(argv)
-    return cli_args.run_reporting(lambda: _command(parser, args, rest), bad_input_status=1)
+    return cli_args.run_reporting(lambda: _command(parser, args, rest))
 
 
 def _command(parser, args, rest):

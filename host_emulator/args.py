@@ -17,22 +17,28 @@ class UsageError(Exception):
 
 class Parser(argparse.ArgumentParser):
     def error(self, message):
-        raise UsageError(message)
+        # the command's name, as argparse's own line has it: "error: the following arguments
+        # are required: --out" alone does not say which of a command's subcommands wants it
+        raise UsageError(f"{self.prog}: {message}")
 
 
-def run_reporting(command, bad_input_status=2):
+USAGE_STATUS = 2  # a command line that cannot be run, as argparse's own errors exit
+
+
+def run_reporting(command):
     """command()'s exit status, with what a user must not see as a traceback said in one
-    paragraph on stderr: the firmware raised (1), bad input or a failed run (bad_input_status),
-    a file that cannot be written or read (a full disk, a read-only directory:
-    bad_input_status), Ctrl-C (130); a closed output pipe (`| head`) ends it quietly (141)."""
+    paragraph on stderr: a command line found wrong late (UsageError: 2, as argparse's), the
+    firmware raised, bad input or a failed run, a file that cannot be written or read (a full
+    disk, a read-only directory): 1, as tools.flash and tools.monitor; Ctrl-C (130); a closed
+    output pipe (`| head`) ends it quietly (141)."""
     try:
         return command()
-    except FirmwareError as e:
+    except UsageError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return USAGE_STATUS
+    except (FirmwareError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
-    except EmulatorError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return bad_input_status
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
@@ -40,7 +46,7 @@ def run_reporting(command, bad_input_status=2):
         return quiet_broken_pipe()
     except OSError as e:  # a full disk, a read-only directory: the file and the reason
         print(f"error: {os_error_text(e)}", file=sys.stderr)
-        return bad_input_status
+        return 1
 
 
 KERNELS_HELP = (

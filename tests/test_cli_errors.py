@@ -200,3 +200,53 @@ def test_a_config_written_to_a_full_device_fails_at_once_naming_it(tmp_path):
     cfg = _config_file(tmp_path)
     rc, out, err = _flash("config", "get", "--file", str(cfg), "--out", "/dev/full")
     assert rc == 1 and err == "error: /dev/full: No space left on device (the disk is full)\n"
+
+
+@pytest.mark.parametrize(
+    "argv, command",
+    [
+        (["session"], "session"), (["session", "record"], "session record"),
+        (["session", "replay"], "session replay"), (["session", "repair", "x"], "session repair"),
+        (["parity"], "parity"), (["bench-faults", "--nope"], "bench-faults"),
+        (["cpi", "--nope"], "cpi"), (["bench-settings", "--nope"], "bench-settings"),
+    ],
+)  # fmt: skip
+def test_a_command_line_error_names_its_command(argv, command, capsys):
+    """Not a bare "error: the following arguments are required: ...": which command wants it."""
+    from host_emulator.__main__ import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: python -m host_emulator {command}: ") and err.count("\n") == 1
+
+
+def test_config_set_without_a_setting_is_a_command_line_error(tmp_path, capsys):
+    from tools.flash.__main__ import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["config", "set", "--file", str(tmp_path / "x.cfg")])
+    assert e.value.code == 2 and not (tmp_path / "x.cfg").exists()
+    assert "config set: error: give at least one NAME=VALUE" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["config", "get"])
+    assert e.value.code == 2
+    assert "one of the arguments --port --file is required" in capsys.readouterr().err
+
+
+def test_a_failure_exits_1_in_every_command(tmp_path, capsys):
+    """A file that is not there: status 1 in session as in tools.flash and tools.monitor (2 is
+    for a command line argparse refuses)."""
+    from host_emulator.__main__ import main as emulator_main
+    from tools.flash.__main__ import main as flash_main
+    from tools.monitor.cli import main as monitor_main
+
+    missing = str(tmp_path / "missing")
+    for run in (
+        lambda: emulator_main(["session", "replay", missing]),
+        lambda: emulator_main(["session", "repair", missing, "--out", str(tmp_path / "o")]),
+        lambda: flash_main(["config", "get", "--file", missing]),
+        lambda: monitor_main(["--file", missing]),
+    ):
+        assert run() == 1
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and missing in err and err.count("\n") == 1, err

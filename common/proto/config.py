@@ -114,6 +114,42 @@ def from_values(values):
     return back
 
 
+def catalogue():
+    """(name, default, allowed) texts of every ins.cfg setting in the file's order: what
+    `replay --set help` and `config set help` print (allowed: the firmware's own ranges, where
+    it has a table of them)."""
+    config = _firmware_config()
+
+    ranges = {
+        name: f"{config._dec(lo, den)}..{config._dec(hi, den)}" + (f" {unit}" if unit else "")
+        + (", above 0" if open_low else "")
+        for name, lo, hi, den, unit, open_low in config._RANGES
+    }  # fmt: skip
+    ranges["profile"] = "0 car, 1 handheld"
+    ranges["gyro_range_dps"] = "one of " + ", ".join(map(str, config._GYRO_RANGES))
+    ranges["accel_range_g"] = "one of " + ", ".join(map(str, config._ACCEL_RANGES))
+    for name in ("output_baud", "gnss_baud"):
+        ranges[name] = "one of " + ", ".join(map(str, config._BAUDS))
+    ranges["display"] = "0 off, 1 the status page on the UsartGPU screen"
+    ranges["display_baud"] = "one of " + ", ".join(str(b) for b in config._BAUDS if b >= 38400)
+    ranges["display_w"], ranges["display_h"] = "220..480 px", "176..320 px"
+    for name in ("display_fg", "display_bg", "display_warn", "display_fault"):
+        ranges[name] = "0..255, a palette index"
+    base = values_of(from_values({}))
+    return [
+        (row[1], format_setting(base[row[1]], 6), ranges.get(row[1], "")) for row in config._SCHEMA
+    ]
+
+
+def print_catalogue(option):
+    """`OPTION help`: every ins.cfg setting with its default (and range, for the floats)."""
+    print(f"{option} NAME=VALUE, the board settings (firmware/lib/config.py) and their "
+          "defaults; the float ranges are what still navigates within the board spec "
+          "(docs/benchmarks/settings.md):")  # fmt: skip
+    for name, value, limits in catalogue():
+        print(f"  {name} = {value}" + (f"   ({limits})" if limits else ""))
+
+
 def _plain(v):
     if v is None or isinstance(v, (bool, int, str)):
         return v

@@ -495,9 +495,8 @@ def _worst(rs, key):
 
 
 def main(argv=None):
-    p = cli_args.Parser(
-        prog="python -m host_emulator bench-faults", description=__doc__.split("\n\n")[1]
-    )
+    what = __doc__.split("\n\n")[1].rstrip(":") + "."  # the paragraph's list is not for --help
+    p = cli_args.Parser(prog="python -m host_emulator bench-faults", description=what)
     p.add_argument("--out", default=str(DEFAULT_OUT), help="markdown file (default %(default)s)")
     cli_args.add_jobs_option(p)
     p.add_argument("--quick", action="store_true", help="one seed, a shorter drive")

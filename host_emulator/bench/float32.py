@@ -277,7 +277,7 @@ def print_fits():
 
 def main(argv=None):
     ap = argparse.ArgumentParser(
-        prog="python -m host_emulator float32", description=__doc__.split("\n")[0]
+        prog="python -m host_emulator float32", description=__doc__.split("\n\n")[0]
     )
     ap.add_argument("--quick", action="store_true", help="random samples instead of sweeps")
     ap.add_argument("--fit", action="store_true", help="re-derive the polynomial coefficients")

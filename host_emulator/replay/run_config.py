@@ -94,27 +94,5 @@ def describe(values, sources):
 
 
 def catalogue():
-    """(name, default, allowed) texts of every ins.cfg setting in the file's order: what
-    `--set help` prints (allowed: the firmware's own ranges, where it has a table of them)."""
-    from common import firmware_env
-
-    firmware_env.install()
-    import config  # the firmware's (firmware/lib/config.py)
-
-    ranges = {
-        name: f"{config._dec(lo, den)}..{config._dec(hi, den)}" + (f" {unit}" if unit else "")
-        + (", above 0" if open_low else "")
-        for name, lo, hi, den, unit, open_low in config._RANGES
-    }  # fmt: skip
-    ranges["profile"] = "0 car, 1 handheld"
-    ranges["gyro_range_dps"] = "one of " + ", ".join(map(str, config._GYRO_RANGES))
-    ranges["accel_range_g"] = "one of " + ", ".join(map(str, config._ACCEL_RANGES))
-    for name in ("output_baud", "gnss_baud"):
-        ranges[name] = "one of " + ", ".join(map(str, config._BAUDS))
-    ranges["display"] = "0 off, 1 the status page on the UsartGPU screen"
-    ranges["display_baud"] = "one of " + ", ".join(str(b) for b in config._BAUDS if b >= 38400)
-    ranges["display_w"], ranges["display_h"] = "220..480 px", "176..320 px"
-    for name in ("display_fg", "display_bg", "display_warn", "display_fault"):
-        ranges[name] = "0..255, a palette index"
-    base = defaults()
-    return [(row[1], _text(base[row[1]]), ranges.get(row[1], "")) for row in config._SCHEMA]
+    """(name, default, allowed) texts of every ins.cfg setting: proto/config.py's."""
+    return board_config.catalogue()

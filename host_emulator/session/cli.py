@@ -1,11 +1,13 @@
 """`python -m host_emulator session record|replay|repair`: exit status 0 (done, identical), 1
-(the replay differs, or the firmware raised), 2 (bad input, or a recording the disk cut
-short)."""
+(the replay differs, the firmware raised, a file or port that cannot be read or written, a
+recording the disk cut short), 2 (a bad command line), as tools.flash and tools.monitor."""
 
+import argparse
 import sys
 import tempfile
 from pathlib import Path
 
+from common.errors import EmulatorError
 from common.proto import config as board_config
 from common.proto import session_file
 from host_emulator import args as cli_args
@@ -23,7 +25,7 @@ def _progress_printer():
 
 def main(argv=None):
     """`session record SOURCE --out FILE ...` / `session replay FILE ...`: exit status 0 (done,
-    identical), 1 (replay differs, or the firmware raised), 2 (bad input)."""
+    identical), 1 (replay differs, the firmware raised, a failure), 2 (a bad command line)."""
     p = cli_args.Parser(
         prog="python -m host_emulator session",
         description="record a board's output; replay it through the emulator, byte for byte",
@@ -32,7 +34,10 @@ def main(argv=None):
     r = sub.add_parser("record", help="capture a board's output into a session file")
     r.add_argument("source", help="serial port (/dev/ttyUSB0, COM3), named pipe, '-' or file")
     r.add_argument("--out", required=True, help="session file to write")
-    r.add_argument("--seconds", help="stop after this long (default: Ctrl-C or end of input)")
+    r.add_argument(
+        "--duration", help="stop after this many seconds (default: Ctrl-C or end of input)"
+    )
+    r.add_argument("--seconds", dest="duration", help=argparse.SUPPRESS)  # its old name
     r.add_argument("--baud", help="serial baud rate (default: the configuration's, else 460800)")
     r.add_argument("--config", help="the board's configuration file (or JSON), kept in the file")
     s = sub.add_parser("replay", help="replay a session through the emulator and compare")
@@ -66,9 +71,14 @@ def main(argv=None):
         if args.command == "replay" and args.runtime != "auto":
             cli_args.check_board(args.runtime, args.board)
         if args.command == "record":
-            seconds = None if args.seconds is None else cli_args.positive(args.seconds, "--seconds")
+            seconds = args.duration
+            seconds = None if seconds is None else cli_args.positive(seconds, "--duration")
             baud = None if args.baud is None else int(cli_args.positive(args.baud, "--baud"))
-    except cli_args.UsageError as e:
+        if args.command == "replay" and args.display is not None:
+            pictures.check_path(args.display)
+        if args.command == "repair" and Path(args.out).resolve() == Path(args.session).resolve():
+            raise cli_args.UsageError("--out must be another file: the damaged one is kept")
+    except (cli_args.UsageError, EmulatorError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     if args.command == "record":
@@ -79,9 +89,6 @@ def main(argv=None):
 
 
 def _main_repair(args):
-    if Path(args.out).resolve() == Path(args.session).resolve():
-        print("error: --out must be another file: the damaged one is kept as it is")
-        return 2
     s = session_file.repair(args.session, args.out)
     for line in s.problems(args.session) or [f"{args.session}: intact, nothing was lost"]:
         print(line)
@@ -113,8 +120,6 @@ def _main_record(args, seconds, baud):
 def _main_replay(args):
     progress = _progress_printer()
     display = args.display is not None
-    if display:
-        pictures.check_path(args.display)
     if args.out:
         work = Path(args.out)
         res = replay(args.session, work, args.runtime, args.config, args.until_gap, progress,

@@ -28,7 +28,7 @@ def test_deploy_record_and_replay_gives_equal(tmp_path, capsys):
             assert c.leave() == 0, bytes(c.seen)
         out, err = io.StringIO(), io.StringIO()
         argv = ["--port", vb.rs485_port, "--board-port", vb.port, "--record",
-                str(tmp_path / "run.ins"), "--seconds", "6", "--quiet"]  # fmt: skip
+                str(tmp_path / "run.ins"), "--duration", "6", "--quiet"]  # fmt: skip
         assert monitor_cli.main(argv, out=out, err=err) == 0, err.getvalue()
         assert "its firmware restarts now" in err.getvalue()
     header = session_file.load(tmp_path / "run.ins").header

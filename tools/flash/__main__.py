@@ -195,6 +195,11 @@ def _config(args):
     config = _config_module()
     from tools.flash import deploy
 
+    if args.action == "set" and _asks_help(args.settings):
+        from common.proto import config as board_config
+
+        board_config.print_catalogue("config set")
+        return 0
     if args.action == "get":
         if args.file:
             data, cfg = _read_config_file(args.file)
@@ -221,8 +226,6 @@ def _config(args):
         _print_config(cfg, config)
         return 0
     # set
-    if not args.settings:
-        raise FlashError("config set needs at least one NAME=VALUE.")
     changes = [_parse_setting(s, config) for s in args.settings]
     if args.file:
         # a device or a pipe (/dev/full) is written, not read: it holds no configuration
@@ -309,7 +312,7 @@ def _parser():
     }
     for name in ("get", "set"):
         a = csub.add_parser(name, help=helps[name], description=helps[name])
-        where = a.add_mutually_exclusive_group(required=True)
+        where = a.add_mutually_exclusive_group()  # required, but not by `set help`: main
         where.add_argument("--port", help=PORT_HELP)
         where.add_argument("--file", help="a local configuration file instead of a board")
         a.add_argument("--baud", type=_positive, default=115200, help=BAUD_HELP)
@@ -318,9 +321,9 @@ def _parser():
         else:
             a.add_argument(
                 "settings", nargs="*", metavar="NAME=VALUE",
-                help="settings to change (firmware/lib/config.py lists them)",
+                help="settings to change; `help` lists them with their defaults and ranges",
             )  # fmt: skip
-        a.set_defaults(func=_config)
+        a.set_defaults(func=_config, parser=a)
     return p
 
 
@@ -338,8 +341,24 @@ def _positive(text):
     return value
 
 
+def _asks_help(settings):
+    return any(s.strip().lower() == "help" for s in settings)
+
+
+def _check_config_args(args):
+    """argparse's error (status 2) for a `config` command line it cannot check itself: a
+    board or a file is required, except by `config set help`; `set` needs a setting."""
+    asks_help = args.action == "set" and _asks_help(args.settings)
+    if not (args.port or args.file or asks_help):
+        args.parser.error("one of the arguments --port --file is required")
+    if args.action == "set" and not args.settings:
+        args.parser.error("give at least one NAME=VALUE (`config set help` lists them)")
+
+
 def main(argv=None):
     args = _parser().parse_args(argv)
+    if args.command == "config":
+        _check_config_args(args)
     try:
         return args.func(args)
     except FlashError as e:

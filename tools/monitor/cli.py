@@ -4,7 +4,7 @@
     python -m tools.monitor --file frames.bin --csv s.csv --mdf s.mf4 --quiet
     python -m tools.monitor --list-ports
 
-See docs/monitor.md. Exit status: 0 done (end of file, --seconds reached, Ctrl-C), 1 a problem
+See docs/monitor.md. Exit status: 0 done (end of file, --duration reached, Ctrl-C), 1 a problem
 the message explains (no such port, nothing decodable, ...), 2 bad command line.
 """
 
@@ -186,8 +186,10 @@ def _parser():
     p.add_argument("--csv", metavar="FILE", help="frames as CSV (+ FILE_ext.csv: extended frames)")
     p.add_argument("--mdf", metavar="FILE", help="frames and extended frames as MDF4 (.mf4)")
     p.add_argument(
-        "--seconds", type=float, help="stop after N s (port: wall time; file: board time)"
-    )
+        "--duration", dest="seconds", type=float,
+        help="stop after N s (port: wall time; file: board time)",
+    )  # fmt: skip
+    p.add_argument("--seconds", type=float, help=argparse.SUPPRESS)  # --duration's old name
     p.add_argument("--quiet", action="store_true", help="no live view, only the summary")
     p.add_argument(
         "--timeout",
@@ -358,7 +360,7 @@ def _check_args(args):
     if not args.port and not args.file:
         raise MonitorError("give --port PORT (a board) or --file FILE (a capture); --help")
     if args.seconds is not None and args.seconds <= 0:
-        raise MonitorError("--seconds must be more than 0")
+        raise MonitorError("--duration must be more than 0")
     if args.baud is not None and args.baud <= 0:
         raise MonitorError("--baud must be a positive baud rate")
 
