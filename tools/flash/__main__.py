@@ -98,8 +98,12 @@ def _deploy(args):
         config = _config_module()
         changes = [_parse_setting(x, config) for x in args.set]
         merge = _merged_config(changes, config)
+        # checked here, before the board is touched: on --config's file, else on the defaults
+        checked = config.decode(merge(config_bytes))
         if cfg is not None:  # the output baud the frames check listens at
-            cfg = config.decode(merge(config_bytes))
+            cfg = checked
+    if args.dry_run:
+        print(_STOPS_NOTE.format(port=args.port, what="compare its files"), flush=True)
     with tempfile.TemporaryDirectory(prefix="ins-build-") as tmp:
         manifest = build.build(tmp, args.flash_kb or build.DEFAULT_FLASH_KB, args.strip_lines)
         print(
@@ -205,12 +209,9 @@ def _config(args):
             data, cfg = _read_config_file(args.file)
             print(f"# {args.file}")
         else:
+            note = _STOPS_NOTE.format(port=args.port, what="read /flash/ins.cfg")
+            print(note, file=sys.stderr, flush=True)
             data = deploy.read_config(args.port, args.baud)
-            print(
-                f"note: the firmware on {args.port} was stopped to read its configuration and "
-                "restarted (a soft reset: it aligns again)",
-                file=sys.stderr,
-            )
             source = f"{args.port}:/flash/ins.cfg"
             if data is None:
                 print(f"# {source}: no configuration file; the firmware uses these defaults")
@@ -326,6 +327,13 @@ def _parser():
         a.set_defaults(func=_config, parser=a)
     return p
 
+
+# A file on the board is read through its raw REPL, which a running firmware does not serve:
+# the REPL reads the port only once main.py has ended, and Ctrl-C is what ends it (docs/deploy.md)
+_STOPS_NOTE = (
+    "note: to {what}, the firmware on {port} stops (Ctrl-C: the raw REPL) and is restarted "
+    "after (it aligns again)"
+)
 
 PORT_HELP = "the board's USB serial port (its REPL): /dev/ttyACM0, COM4, ..."
 BAUD_HELP = "the REPL's baud rate (115200; a USB CDC port ignores it)"

@@ -527,6 +527,9 @@ def main(argv=None, out=None, err=None):
     args = parser.parse_args(argv)
     if not (args.port or args.file or args.list_ports):
         parser.error("give --port PORT (a board) or --file FILE (a capture)")
+    if args.board_port and not args.record:  # it would only stop and restart the board
+        parser.error("--board-port is for --record (it restarts the board so that the session "
+                     "holds its start); to watch, give --config FILE or --baud")  # fmt: skip
     try:
         return run(args, out, err)
     except MonitorError as e:
