@@ -1,8 +1,8 @@
 # The freeze list: what a MicroPython image built with this manifest carries in flash
 # (MicroPython's manifest format, tools/makemanifest.py; e.g. make -C ports/stm32
 # BOARD=WEACT_F411_BLACKPILL FROZEN_MANIFEST=<this file>). Frozen modules need no room on the
-# board's small filesystem, which then holds only main.py (run at boot, so it stays a file)
-# and ins.cfg.
+# board's small filesystem, which then holds only main.py (run at boot, so it stays a file),
+# the native kernels lib/navk.mpy (a native module cannot be frozen) and ins.cfg.
 #
 # The layout is the board's: lib/ is on sys.path and its modules are imported flat
 # (`import nav`), so they are frozen as top-level modules; drivers/ is a package. The port's

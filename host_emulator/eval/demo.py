@@ -5,7 +5,7 @@ Same as `python -m host_emulator run --scenario urban_drive --out out/demo`.
 """
 
 from host_emulator.eval import board_cost, board_time, scenario_run
-from host_emulator.eval.report import fmt
+from host_emulator.eval.report import fmt, gc_verdict
 
 
 def summary(m, out_dir):
@@ -20,8 +20,9 @@ def summary(m, out_dir):
                    ("roll_rms_deg", "pitch_rms_deg", "yaw_rms_deg"))  # fmt: skip
     rows = [
         ("", "firmware", "GNSS alone", "board spec"),
-        ("horizontal position error (RMS)", fmt(m["horiz_rms_m"], unit="m"),
+        ("horizontal error with GNSS (RMS)", fmt(m.get("horiz_rms_gnss_m"), unit="m"),
          fmt(m["gnss_horiz_rms_m"], unit="m"), "3 m"),
+        ("horizontal error, whole run (RMS)", fmt(m["horiz_rms_m"], unit="m"), "", ""),
         ("vertical position error (RMS)", fmt(m["vert_rms_m"], unit="m"), "", ""),
         ("velocity error (RMS)", fmt(m["vel_rms_m_s"], 3, "m/s"), "", "0.05 m/s"),
         ("roll / pitch / yaw error (RMS)", att + " deg", "", "0.5/0.5/3 deg"),
@@ -64,13 +65,12 @@ def summary(m, out_dir):
     )
     if m.get("gc_blocks_per_tick_mean") is not None:
         mean, mx = m["gc_blocks_per_tick_mean"], m["gc_blocks_per_tick_max"]
-        missed = [t for t, ok in (("mean", mean <= 300), ("max", mx <= 2 * mean)) if not ok]
-        lines.append(
-            f"GC blocks per tick     mean {mean:.0f}, max {mx} (design: mean <= 300, max <= 2x "
-            f"mean: {'met' if not missed else 'NOT met (' + ', '.join(missed) + ')'})"
-        )
+        lines.append(f"GC blocks per tick     mean {mean:.4g}, max {mx}")
         for state, b in (m.get("gc_blocks_by_state") or {}).items():
-            lines.append(f"  {state:<20} mean {b['mean']:.0f}, max {b['max']}")
+            lines.append(f"  {state:<20} mean {b['mean']:.4g}, max {b['max']}")
+        verdict = gc_verdict(m)
+        if verdict:
+            lines.append(f"  {verdict}")
     if m.get("board_cost"):
         lines.append("board CPU cost         (emulated Cortex-M4F, firmware instructions per tick)")
         lines += [f"  {t}" for t in board_cost.lines(m["board_cost"])]

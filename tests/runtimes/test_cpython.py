@@ -135,7 +135,14 @@ def test_cli_run_writes_every_output(tmp_path, capsys):
     assert "highway_outage" in (out / "report.md").read_text()
     assert (out / "frames.bin").read_bytes()[:2] == b"\xeb\x90"
     summary = capsys.readouterr().out  # the newcomer's table
-    assert "horizontal position error (RMS)" in summary and f"{m['horiz_rms_m']:.2f} m" in summary
+    # the firmware's error with GNSS beside GNSS alone over the same periods; the whole run apart
+    gnss_row = next(r for r in summary.splitlines() if r.startswith("horizontal error with GNSS"))
+    assert (
+        f"{m['horiz_rms_gnss_m']:.2f} m" in gnss_row
+        and f"{m['gnss_horiz_rms_m']:.2f} m" in gnss_row
+    )
+    whole_row = next(r for r in summary.splitlines() if r.startswith("horizontal error, whole"))
+    assert f"{m['horiz_rms_m']:.2f} m" in whole_row
     assert "GNSS outage" not in summary and "report:" in summary
 
 

@@ -29,7 +29,8 @@ def _build(args):
     print(f"built {args.out}: {build.summary(manifest)}")
     print(
         "with an image that carries the firmware frozen (make image, make flash-image) only "
-        "main.py and ins.cfg go to the filesystem: its size is then no limit (docs/image.md)"
+        "main.py, lib/navk.mpy and ins.cfg go to the filesystem: its size is then no limit "
+        "(docs/image.md)"
     )
     build.check_budget(manifest)
     print(f"fits the {args.flash_kb} KB budget: {args.out}/manifest.json")
