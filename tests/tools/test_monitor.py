@@ -6,9 +6,11 @@ message, no traceback."""
 
 import _thread
 import csv
+import datetime
 import io
 import os
 import random
+import re
 import signal
 import termios
 import threading
@@ -95,9 +97,17 @@ def _read_csv(path):
 def _check_exports(tmp_path, d, prefix):
     head, rows = _read_csv(tmp_path / f"{prefix}.csv")
     assert head == [c[0] for c in export.FRAME_COLUMNS] and len(rows) == len(d.frames)
-    a = np.array(rows, dtype=float)
-    col = {name: a[:, k] for k, name in enumerate(head)}
-    assert np.allclose(col["time_s"], 0.005 * np.arange(1, len(d.frames) + 1))
+    utc = [datetime.datetime.fromisoformat(r[head.index("utc")]) for r in rows]
+    a = np.array([[x for k, x in enumerate(r) if head[k] != "utc"] for r in rows], dtype=float)
+    col = {name: a[:, k] for k, name in enumerate(h for h in head if h != "utc")}
+    # a board started under the monitor: capture time from its first frame, board time from
+    # its start, the host's UTC the first row's plus the capture time
+    assert np.allclose(col["time_s"], 0.005 * np.arange(len(d.frames)))
+    assert np.allclose(col["board_time_s"], 0.005 * np.arange(1, len(d.frames) + 1))
+    assert not col["restart"].any()
+    assert utc[0].tzinfo == datetime.UTC
+    assert abs(utc[0] - datetime.datetime.now(datetime.UTC)) < datetime.timedelta(seconds=60)
+    assert [round((u - utc[0]).total_seconds(), 3) for u in utc] == list(np.round(col["time_s"], 3))
     assert np.array_equal(col["counter"], [f["counter"] for f in d.frames])
     np.testing.assert_allclose(col["lat_deg"], [f["lat_e7"] / 1e7 for f in d.frames], atol=1e-9)
     np.testing.assert_allclose(col["lon_deg"], [f["lon_e7"] / 1e7 for f in d.frames], atol=1e-9)
@@ -107,7 +117,7 @@ def _check_exports(tmp_path, d, prefix):
     assert float(rows[fix][head.index("lat_deg")]) == d.frames[fix]["lat_e7"] / 1e7 != 0
     ehead, erows = _read_csv(tmp_path / f"{prefix}_ext.csv")
     assert ehead == [c[0] for c in export.EXT_COLUMNS] and len(erows) == len(d.ext)
-    assert [int(r[1]) for r in erows] == [e["tick"] for e in d.ext]
+    assert [int(r[ehead.index("tick")]) for r in erows] == [e["tick"] for e in d.ext]
     assert [int(r[ehead.index("causes")]) for r in erows] == [e["causes"] for e in d.ext]
 
     from asammdf import MDF
@@ -119,12 +129,13 @@ def _check_exports(tmp_path, d, prefix):
         lat = mdf.get("lat_deg")
         assert lat.unit == "deg" and len(lat.samples) == len(d.frames)
         assert lat.samples[fix] == d.frames[fix]["lat_e7"] / 1e7
-        assert lat.timestamps[0] == pytest.approx(0.005) and lat.timestamps[-1] == pytest.approx(
-            0.005 * len(d.frames)
+        assert lat.timestamps[0] == 0 and lat.timestamps[-1] == pytest.approx(
+            0.005 * (len(d.frames) - 1)
         )
+        assert abs(mdf.header.start_time - utc[0]) < datetime.timedelta(milliseconds=1)
         sp = mdf.get("sigma_pos_e_m")
         assert sp.unit == "m" and len(sp.samples) == len(d.ext)
-        assert sp.timestamps[-1] == pytest.approx(d.ext[-1]["tick"] * 0.005)
+        assert sp.timestamps[-1] == pytest.approx(d.ext[-1]["tick"] * 0.005 - 0.005)
 
 
 def test_a_capture_file_to_csv_mdf_and_session(board, tmp_path):
@@ -247,7 +258,7 @@ def test_a_full_disk_stops_the_recording_not_the_monitor(board, tmp_path, monkey
     assert cli.main([*argv, "--quiet"], out=out, err=err) == 1
     e = err.getvalue()
     assert e.count("No space left on device") == 1 and "Traceback" not in e, e
-    assert "800 frames" in out.getvalue() and "stopped early" in out.getvalue()
+    assert "800 frames" in out.getvalue() and "r.ins" not in out.getvalue()  # no "wrote"
     s = session_file.load(tmp_path / "r.ins")
     assert s.cut and data.startswith(s.data) and len(s.data) > 0
 
@@ -361,6 +372,44 @@ def test_a_board_restart_is_a_restart_not_dropped_frames(board, tmp_path):
     assert "board restarts 1" in text and "the board restarted" in err.getvalue()
     # the first run from its first frame (3.995 s), the second from the board's start (4 s)
     assert "board time 8.00 s (200.0 frames/s)" in text, text
+
+
+def test_joining_a_running_board_and_its_restarts_give_the_capture_time(board, tmp_path):
+    """Joined 1.5 s into a run (2.5 s of it captured), then two whole 4 s runs: the board time
+    is the 10.5 s captured, each restart reports its run's own span, and the exported time
+    goes on across the restarts (a restart flag, not a jump back), so a time cut works."""
+    data = board[0]
+    frames = [r[0] for r in _records(data) if r[2] == frame_schema.FRAME_TYPE]
+    capture = data[frames[300] :] + data + data
+    started = "2026-05-01T09:30:00+00:00"
+    session_file.write_session(tmp_path / "j.ins", capture, config=None, started_utc=started)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["--file", str(tmp_path / "j.ins"), "--quiet", "--csv", str(tmp_path / "j.csv")]
+    assert cli.main([*argv, "--mdf", str(tmp_path / "j.mf4")], out=out, err=err) == 0
+    assert "board time 10.50 s (200.0 frames/s)" in out.getvalue(), out.getvalue()
+    runs = re.findall(r"board time (\S+) s in the run before the restart", err.getvalue())
+    assert runs == ["2.5", "4.0"], err.getvalue()
+    head, rows = _read_csv(tmp_path / "j.csv")
+    t = np.array([float(r[0]) for r in rows])
+    assert len(rows) == 2100 and (np.diff(t) > 0).all()
+    restarts = [k for k, r in enumerate(rows) if r[head.index("restart")] == "1"]
+    assert restarts == [500, 1300]
+    assert [rows[k][:3] for k in restarts] == [["2.500", "0.005", "1"], ["6.500", "0.005", "1"]]
+    assert rows[0][:4] == ["0.000", "1.505", "0", "2026-05-01T09:30:00.000Z"]
+    assert rows[-1][head.index("utc")] == "2026-05-01T09:30:10.495Z"
+    ehead, erows = _read_csv(tmp_path / "j_ext.csv")
+    assert (np.diff([float(r[0]) for r in erows]) > 0).all()
+    from asammdf import MDF
+
+    with MDF(tmp_path / "j.mf4") as mdf:
+        start = datetime.datetime.fromisoformat(started)
+        assert mdf.header.start_time == start
+        assert list(mdf.get("restart").timestamps[mdf.get("restart").samples == 1]) == [2.5, 6.5]
+        with mdf.cut(3, 5, include_ends=False) as part:  # 3.000 .. 5.000 s: 401 frames, 20 ext
+            assert len(part.get("yaw_deg").samples) == 401
+            assert len(part.get("sigma_pos_e_m").samples) == 20
+        utc = mdf.get("utc_unix_s")
+        assert utc.samples[-1] == pytest.approx(start.timestamp() + 10.495)
 
 
 def _err(argv):
