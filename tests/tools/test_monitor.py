@@ -7,6 +7,7 @@ message, no traceback."""
 import _thread
 import csv
 import datetime
+import errno
 import io
 import os
 import random
@@ -410,6 +411,71 @@ def test_joining_a_running_board_and_its_restarts_give_the_capture_time(board, t
             assert len(part.get("sigma_pos_e_m").samples) == 20
         utc = mdf.get("utc_unix_s")
         assert utc.samples[-1] == pytest.approx(start.timestamp() + 10.495)
+
+
+def _no_space(path):
+    """The one error line naming `path` for a full disk."""
+    return f"error: writing {path} failed: No space left on device (the disk is full); nothing of it is kept"  # noqa: E501
+
+
+@pytest.mark.parametrize("option", ["--csv", "--mdf", "--record"])
+def test_an_output_on_a_full_device_is_an_error_not_wrote(board, option):
+    """/dev/full takes the open and refuses every write: exit 1, one line naming it and the
+    OS reason, and no "wrote" line for it."""
+    _data, path, _cfg = board
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(path), "--quiet", option, "/dev/full"], out=out, err=err) == 1
+    lines = [x for x in err.getvalue().splitlines() if "/dev/full" in x]
+    assert len(lines) == 1 and "No space left on device" in lines[0], err.getvalue()
+    assert "wrote /dev/full" not in out.getvalue() and "Traceback" not in err.getvalue()
+    if option == "--csv":  # the extended frames' CSV beside it is not kept either
+        assert lines[0] == _no_space("/dev/full")
+        assert not os.path.exists("/dev/full_ext.csv") and not os.path.exists(
+            "/dev/.full_ext.csv.part"
+        )
+
+
+class _FillsUp(io.FileIO):
+    """A file on a disk that takes `room` bytes more, then fails as a full disk does (the
+    buffered file above it meets the error when it flushes, as on a real disk)."""
+
+    room = 20000
+
+    def write(self, b):
+        self.room -= len(b)
+        if self.room < 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return super().write(b)
+
+
+def _open_filling_up(name, mode="r", newline=None, **_kw):
+    raw = _FillsUp(name, mode.replace("+", "").replace("b", "") + ("+" if "+" in mode else ""))
+    buffered = io.BufferedRandom(raw) if "+" in mode else io.BufferedWriter(raw)
+    return buffered if "b" in mode else io.TextIOWrapper(buffered, newline=newline)
+
+
+def test_a_disk_that_fills_up_keeps_no_half_written_export(board, tmp_path, monkeypatch):
+    """ENOSPC in the middle of the CSV (while the capture runs) and of the MDF4 (saved at the
+    end): one line each naming the file, exit 1, neither file nor its part left, and the
+    session recorded beside them complete."""
+    data, path, cfg = board
+    real_open = open
+
+    def opener(name, mode="r", **kw):
+        if str(name).endswith((".c.csv.part", ".m.mf4.part")):
+            return _open_filling_up(name, mode, **kw)
+        return real_open(name, mode, **kw)
+
+    monkeypatch.setattr(export, "open", opener, raising=False)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["--file", str(path), "--quiet", "--csv", str(tmp_path / "c.csv"), "--mdf"]
+    argv += [str(tmp_path / "m.mf4"), "--record", str(tmp_path / "r.ins"), "--config", str(cfg)]
+    assert cli.main(argv, out=out, err=err) == 1
+    e = err.getvalue().splitlines()
+    assert e == [_no_space(tmp_path / "c.csv"), _no_space(tmp_path / "m.mf4")], e
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.ins"]
+    assert "wrote" not in out.getvalue().replace(f"wrote {tmp_path / 'r.ins'}", "")
+    assert session_file.read_session(tmp_path / "r.ins")[1] == data
 
 
 def _err(argv):

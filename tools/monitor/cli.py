@@ -34,7 +34,7 @@ class Monitor:
     shows as one, and the extended frame's tick then times them in the new run)."""
 
     def __init__(self, status, every=1, outputs=(), recorder=None, warn=None, start_unix_s=None):
-        self.warn = warn or (lambda _msg: None)  # a one-line warning to the user
+        self.warn = warn or (lambda _msg, _kind="warning": None)  # a line to the user
         self.decoder = StreamDecoder()
         self.clock = TickClock(every)
         self.capture = CaptureClock()
@@ -142,7 +142,7 @@ class Monitor:
             except export.WriteFailed as e:
                 self.outputs.remove(o)
                 self.failures.append(str(e))
-                self.warn(str(e))
+                self.warn(str(e), "error")
 
     def _flush(self):
         for u, f in self._pending:
@@ -361,11 +361,11 @@ def run(args, out=None, err=None):
         failure = _nothing_decoded_error(src, counts, stopped, wall)
     _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
     if screen.tty and not screen.quiet:
-        for msg in warnings:
-            err.write(f"warning: {msg}\n")
+        for kind, msg in warnings:
+            err.write(f"{kind}: {msg}\n")
     for p in problems:
         err.write(f"error: {p}\n")
-    if recorder is not None and recorder.failed and recorder.failed not in warnings:
+    if recorder is not None and recorder.failed and ("warning", recorder.failed) not in warnings:
         problems.append(recorder.failed)  # failed on closing
         err.write(f"error: {recorder.failed}\n")
     if failure is not None:
@@ -456,14 +456,14 @@ def _session_header(src, baud, values, config_file, board):
 def _warner(warnings, screen, status, err):
     """warn(msg) for the Monitor: each warning also kept in warnings."""
 
-    def warn(msg):
-        """A warning line now on stderr, or, under the live view of a terminal (stderr is the
-        same screen), in the view and after the summary."""
-        warnings.append(msg)
+    def warn(msg, kind="warning"):
+        """A warning (or error) line now on stderr, or, under the live view of a terminal
+        (stderr is the same screen), in the view and after the summary."""
+        warnings.append((kind, msg))
         if screen.tty and not screen.quiet:
             status.note = msg
         else:
-            err.write(f"warning: {msg}\n")
+            err.write(f"{kind}: {msg}\n")
 
     return warn
 

@@ -384,6 +384,10 @@ class MdfExport:
             self.abandon()
             self.failed = failed_text(self.path, e)
             raise WriteFailed(self.failed) from None
+        except BaseException:  # Ctrl-C, or asammdf failing: no part file left either
+            self.abandon()
+            self.failed = f"writing {self.path} was interrupted; nothing of it is kept"
+            raise
 
     def describe(self):
         g, x = self.frame_group, self.ext_group
