@@ -308,6 +308,89 @@ def _board_then_ctrl_c(board, tmp_path, port_opened):
     assert rec == data and header["baud"] == BAUD and header["source"] == name
 
 
+def _opened_by(pid, path):
+    """True once process `pid` has `path` open (Linux /proc)."""
+    fds = f"/proc/{pid}/fd"
+    try:
+        return any(os.readlink(f"{fds}/{fd}") == path for fd in os.listdir(fds))
+    except OSError:
+        return False
+
+
+def _feed_until(proc, master, data, done, baud=BAUD):
+    """Write `data` (again and again) into the pty at the baud's pace until done() or `proc`
+    has ended."""
+    rate = baud / 10
+    t0 = time.monotonic()
+    sent = 0
+    while not done() and proc.poll() is None:
+        k = sent % len(data)
+        try:
+            sent += os.write(master, data[k : k + int(rate / 100)])
+        except BlockingIOError:
+            pass
+        time.sleep(max(0.0, t0 + sent / rate - time.monotonic()))
+
+
+def _after(seconds):
+    end = time.monotonic() + seconds
+    return lambda: time.monotonic() >= end
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_or_sighup_ends_the_capture_as_ctrl_c_does(board, tmp_path, sig):
+    """The real monitor in a subprocess, reading a board on a pty, gets a real SIGTERM or
+    SIGHUP in the middle of the stream: it exits 128 + the signal with every file complete
+    (the session file with its end marker, the MDF4 with its samples, whole CSV rows)."""
+    import subprocess
+    import sys
+
+    data, _path, cfg = board
+    master, slave, name = _pty(BAUD)
+    os.set_blocking(master, False)
+    files = {"record": tmp_path / "s.ins", "csv": tmp_path / "s.csv", "mdf": tmp_path / "s.mf4"}
+    argv = [sys.executable, "-m", "tools.monitor", "--port", name, "--baud", str(BAUD)]
+    argv += ["--config", str(cfg), "--quiet"]
+    for option, path in files.items():
+        argv += [f"--{option}", str(path)]
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = {**os.environ, "PYTHONPATH": root}
+    proc = subprocess.Popen(argv, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30
+        while not _opened_by(proc.pid, name) and proc.poll() is None:
+            assert time.monotonic() < deadline, "the monitor never opened its port"
+            time.sleep(0.02)
+        # until the recorder has written two chunks (4096 bytes each: the monitor reads)
+        rec = files["record"]
+        _feed_until(proc, master, data, lambda: rec.exists() and rec.stat().st_size > 8192)
+        _feed_until(proc, master, data, _after(0.3))
+        proc.send_signal(sig)
+        _feed_until(proc, master, data, _after(10.0))  # the board goes on sending
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+        os.close(slave)
+    assert proc.returncode == 128 + sig, err.decode()
+    text = out.decode()
+    assert f"stopped by {signal.Signals(sig).name}" in text, text
+    assert b"error" not in err and b"Traceback" not in err, err.decode()  # (the data repeats:
+    # the board restarts after it, a warning)
+    header, rec = session_file.read_session(files["record"])  # refuses a file without its end
+    assert header["source"] == name and len(rec) > 20000, text
+    frames = stream.decode(rec).frames
+    head, rows = _read_csv(files["csv"])
+    assert len(rows) == len(frames) > 100 and all(len(r) == len(head) for r in rows)
+    assert [int(r[head.index("counter")]) for r in rows] == [f["counter"] for f in frames]
+    from asammdf import MDF
+
+    with MDF(files["mdf"]) as mdf:
+        assert len(mdf.get("yaw_deg").samples) == len(frames)
+    assert f"wrote {files['mdf']} (MDF4: {len(frames)} frames" in text
+
+
 def test_the_live_view_on_a_terminal(board):
     d = stream.decode(board[0])
     st = view.Status("/dev/ttyX", BAUD)

@@ -5,12 +5,16 @@
     python -m tools.monitor --list-ports
 
 See docs/monitor.md. Exit status: 0 done (end of file, --seconds reached, Ctrl-C), 1 a problem
-the message explains (no such port, nothing decodable, ...), 2 bad command line.
+the message explains (no such port, nothing decodable, a failed write, ...), 2 bad command
+line, 128 + N ended by signal N (SIGTERM 143, SIGHUP 129: the files completed first).
 """
 
 import argparse
 import datetime
+import os
+import signal
 import sys
+import threading
 import time
 
 from common.errors import os_error_text, quiet_broken_pipe
@@ -23,6 +27,8 @@ from tools.monitor.source import FileSource, MonitorError, PortSource, list_port
 
 DRAW_EVERY_S = 0.25  # live view redraws (terminal)
 LINE_EVERY_S = 1.0  # one line per second (not a terminal)
+CTRL_C = "interrupted (Ctrl-C)"
+STOP_SIGNALS = ("SIGTERM", "SIGHUP")  # `timeout`, kill; a closed terminal, a dropped ssh
 PENDING_MAX = 400  # frames held for the first extended frame's tick (2 s at 200 Hz)
 
 
@@ -150,6 +156,40 @@ class Monitor:
                 break
             self._out(u, f)
         self._pending = []
+
+
+class StopSignals:
+    """SIGTERM and SIGHUP end the capture as Ctrl-C does: the handler only notes the signal
+    (a write is never cut), the read loop stops at its next turn (within 50 ms), the files are
+    completed, and the exit status is 128 + the signal. A second one acts at once (the
+    default). Installed from the main thread only (Python's rule for signal handlers)."""
+
+    def __init__(self):
+        self.signum = None
+        self._old = {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for name in STOP_SIGNALS:
+                sig = getattr(signal, name, None)  # Windows has no SIGHUP
+                if sig is not None:
+                    self._old[sig] = signal.signal(sig, self._note)
+        return self
+
+    def __exit__(self, *_exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old = {}
+
+    def _note(self, signum, _frame):
+        if self.signum is not None:  # asked twice: do not wait for the files
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+        self.signum = signum
+
+    def stopped(self):
+        """Why the capture stopped, or None while no signal came."""
+        return None if self.signum is None else f"stopped by {signal.Signals(self.signum).name}"
 
 
 class _Screen:
@@ -317,7 +357,9 @@ def _written(files):
     return [describe() for writer, describe in files if not writer.failed]
 
 
-def run(args, out=None, err=None):
+def run(args, out=None, err=None, stop=None):
+    """The monitor's work; stop: the StopSignals in force (main installs them)."""
+    stop = stop or StopSignals()
     out = out or sys.stdout
     err = err or sys.stderr
     if args.list_ports:
@@ -353,12 +395,13 @@ def run(args, out=None, err=None):
         warn(msg)
     mon = Monitor(status, _every(values), outputs, recorder, warn, _start_unix_s(src))
     t0 = time.monotonic()
-    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, files)
+    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, files, stop)
     wall = time.monotonic() - t0
     counts = mon.counts()
     cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
     if failure is None and counts["frames"] == 0 and counts["ext"] == 0:
-        failure = _nothing_decoded_error(src, counts, stopped, wall)
+        interrupted = stopped == CTRL_C or stop.signum is not None
+        failure = _nothing_decoded_error(src, counts, interrupted, wall)
     _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
     if screen.tty and not screen.quiet:
         for kind, msg in warnings:
@@ -370,6 +413,8 @@ def run(args, out=None, err=None):
         err.write(f"error: {recorder.failed}\n")
     if failure is not None:
         raise failure
+    if stop.signum is not None:  # the conventional status of a process ended by a signal
+        return 128 + stop.signum
     failed = problems or mon.failures or (recorder is not None and recorder.failed)
     return 1 if failed else 0
 
@@ -468,7 +513,7 @@ def _warner(warnings, screen, status, err):
     return warn
 
 
-def _watch(src, mon, args, screen, t0, files):
+def _watch(src, mon, args, screen, t0, files, stop):
     """Feed the source to the monitor until it ends, then close the source and the files:
     (why it stopped, MonitorError or None, problems closing the files, the decoder's skipped
     bytes before its end)."""
@@ -476,11 +521,11 @@ def _watch(src, mon, args, screen, t0, files):
     failure = None
     try:
         if src.kind == "file":
-            stopped = _run_file(src, mon, args)
+            stopped = _run_file(src, mon, args, stop)
         else:
-            stopped = _run_port(src, mon, args, screen, t0)
+            stopped = _run_port(src, mon, args, screen, t0, stop)
     except KeyboardInterrupt:
-        stopped = "interrupted (Ctrl-C)"
+        stopped = CTRL_C
     except MonitorError as e:
         failure = e
     finally:
@@ -494,7 +539,7 @@ def _watch(src, mon, args, screen, t0, files):
     return stopped, failure, problems, skipped_before
 
 
-def _nothing_decoded_error(src, counts, stopped, wall):
+def _nothing_decoded_error(src, counts, interrupted, wall):
     """The MonitorError for a source that gave no frames, None when interrupted (a port)."""
     if src.kind == "file":
         if counts["bytes"] == 0:
@@ -503,7 +548,7 @@ def _nothing_decoded_error(src, counts, stopped, wall):
             f"{src.name} holds {counts['bytes']} bytes but no frames: it is not a "
             "capture of the board's output (or it was captured at the wrong baud)"
         )
-    if stopped != "interrupted (Ctrl-C)":
+    if not interrupted:
         return _no_data_error(src, counts, wall)
     return None
 
@@ -521,10 +566,12 @@ def _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
     out.flush()
 
 
-def _run_file(src, mon, args):
+def _run_file(src, mon, args, stop):
     mon.board_limit_s = args.seconds
     size = 1 << 16 if args.seconds is None else 512  # stop near the limit: counts stay close
     while True:
+        if stop.signum is not None:
+            return stop.stopped()
         chunk = src.read(size=size)
         if not chunk:
             return "end of file"
@@ -533,8 +580,10 @@ def _run_file(src, mon, args):
             return f"{args.seconds:g} s of board time"
 
 
-def _run_port(src, mon, args, screen, t0):
+def _run_port(src, mon, args, screen, t0, stop):
     while True:
+        if stop.signum is not None:
+            return stop.stopped()
         now = time.monotonic()
         elapsed = now - t0
         if args.seconds is not None and elapsed >= args.seconds:
@@ -557,7 +606,8 @@ def main(argv=None, out=None, err=None):
     if not (args.port or args.file or args.list_ports):
         parser.error("give --port PORT (a board) or --file FILE (a capture)")
     try:
-        return run(args, out, err)
+        with StopSignals() as stop:
+            return run(args, out, err, stop)
     except MonitorError as e:
         err.write(f"error: {e}\n")
         return 1
