@@ -301,13 +301,18 @@ class CsvExport:
 
     def close(self):
         """Both files complete under their names; WriteFailed (and neither kept) otherwise."""
-        for k, f in enumerate(self._files):
+        if not self._files:  # closed, or failed before
+            return
+        for k, f in enumerate(self._files):  # both whole before either gets its name
             try:
                 f.close()
             except OSError as e:
                 self._fail(k, e)
-        for part, target in zip(self._parts, self._targets, strict=True) if self._files else ():
-            _publish(part, target)
+        for k, part in enumerate(self._parts):
+            try:
+                _publish(part, self._targets[k])
+            except OSError as e:
+                self._fail(k, e)
         self._files = []
 
 
@@ -406,7 +411,6 @@ class MdfExport:
         self._guarded(self._save)
         self.mdf.close()
         self.mdf = None
-        _publish(self._part, self.path)
 
     def _save(self):
         self._flush(self.frame_group)
@@ -416,3 +420,4 @@ class MdfExport:
             self.mdf.header.start_time = start
         self.mdf.save(self._file)  # a file object: asammdf keeps its name and raises
         self._file.close()
+        _publish(self._part, self.path)
