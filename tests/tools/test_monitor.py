@@ -6,9 +6,12 @@ message, no traceback."""
 
 import _thread
 import csv
+import datetime
+import errno
 import io
 import os
 import random
+import re
 import signal
 import termios
 import threading
@@ -95,9 +98,17 @@ def _read_csv(path):
 def _check_exports(tmp_path, d, prefix):
     head, rows = _read_csv(tmp_path / f"{prefix}.csv")
     assert head == [c[0] for c in export.FRAME_COLUMNS] and len(rows) == len(d.frames)
-    a = np.array(rows, dtype=float)
-    col = {name: a[:, k] for k, name in enumerate(head)}
-    assert np.allclose(col["time_s"], 0.005 * np.arange(1, len(d.frames) + 1))
+    utc = [datetime.datetime.fromisoformat(r[head.index("utc")]) for r in rows]
+    a = np.array([[x for k, x in enumerate(r) if head[k] != "utc"] for r in rows], dtype=float)
+    col = {name: a[:, k] for k, name in enumerate(h for h in head if h != "utc")}
+    # a board started under the monitor: capture time from its first frame, board time from
+    # its start, the host's UTC the first row's plus the capture time
+    assert np.allclose(col["time_s"], 0.005 * np.arange(len(d.frames)))
+    assert np.allclose(col["board_time_s"], 0.005 * np.arange(1, len(d.frames) + 1))
+    assert not col["restart"].any()
+    assert utc[0].tzinfo == datetime.UTC
+    assert abs(utc[0] - datetime.datetime.now(datetime.UTC)) < datetime.timedelta(seconds=60)
+    assert [round((u - utc[0]).total_seconds(), 3) for u in utc] == list(np.round(col["time_s"], 3))
     assert np.array_equal(col["counter"], [f["counter"] for f in d.frames])
     np.testing.assert_allclose(col["lat_deg"], [f["lat_e7"] / 1e7 for f in d.frames], atol=1e-9)
     np.testing.assert_allclose(col["lon_deg"], [f["lon_e7"] / 1e7 for f in d.frames], atol=1e-9)
@@ -107,7 +118,7 @@ def _check_exports(tmp_path, d, prefix):
     assert float(rows[fix][head.index("lat_deg")]) == d.frames[fix]["lat_e7"] / 1e7 != 0
     ehead, erows = _read_csv(tmp_path / f"{prefix}_ext.csv")
     assert ehead == [c[0] for c in export.EXT_COLUMNS] and len(erows) == len(d.ext)
-    assert [int(r[1]) for r in erows] == [e["tick"] for e in d.ext]
+    assert [int(r[ehead.index("tick")]) for r in erows] == [e["tick"] for e in d.ext]
     assert [int(r[ehead.index("causes")]) for r in erows] == [e["causes"] for e in d.ext]
 
     from asammdf import MDF
@@ -119,12 +130,13 @@ def _check_exports(tmp_path, d, prefix):
         lat = mdf.get("lat_deg")
         assert lat.unit == "deg" and len(lat.samples) == len(d.frames)
         assert lat.samples[fix] == d.frames[fix]["lat_e7"] / 1e7
-        assert lat.timestamps[0] == pytest.approx(0.005) and lat.timestamps[-1] == pytest.approx(
-            0.005 * len(d.frames)
+        assert lat.timestamps[0] == 0 and lat.timestamps[-1] == pytest.approx(
+            0.005 * (len(d.frames) - 1)
         )
+        assert abs(mdf.header.start_time - utc[0]) < datetime.timedelta(milliseconds=1)
         sp = mdf.get("sigma_pos_e_m")
         assert sp.unit == "m" and len(sp.samples) == len(d.ext)
-        assert sp.timestamps[-1] == pytest.approx(d.ext[-1]["tick"] * 0.005)
+        assert sp.timestamps[-1] == pytest.approx(d.ext[-1]["tick"] * 0.005 - 0.005)
 
 
 def test_a_capture_file_to_csv_mdf_and_session(board, tmp_path):
@@ -247,7 +259,7 @@ def test_a_full_disk_stops_the_recording_not_the_monitor(board, tmp_path, monkey
     assert cli.main([*argv, "--quiet"], out=out, err=err) == 1
     e = err.getvalue()
     assert e.count("No space left on device") == 1 and "Traceback" not in e, e
-    assert "800 frames" in out.getvalue() and "stopped early" in out.getvalue()
+    assert "800 frames" in out.getvalue() and "r.ins" not in out.getvalue()  # no "wrote"
     s = session_file.load(tmp_path / "r.ins")
     assert s.cut and data.startswith(s.data) and len(s.data) > 0
 
@@ -294,6 +306,89 @@ def _board_then_ctrl_c(board, tmp_path, port_opened):
     _check_exports(tmp_path, d, "p")
     header, rec = session_file.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
     assert rec == data and header["baud"] == BAUD and header["source"] == name
+
+
+def _opened_by(pid, path):
+    """True once process `pid` has `path` open (Linux /proc)."""
+    fds = f"/proc/{pid}/fd"
+    try:
+        return any(os.readlink(f"{fds}/{fd}") == path for fd in os.listdir(fds))
+    except OSError:
+        return False
+
+
+def _feed_until(proc, master, data, done, baud=BAUD):
+    """Write `data` (again and again) into the pty at the baud's pace until done() or `proc`
+    has ended."""
+    rate = baud / 10
+    t0 = time.monotonic()
+    sent = 0
+    while not done() and proc.poll() is None:
+        k = sent % len(data)
+        try:
+            sent += os.write(master, data[k : k + int(rate / 100)])
+        except BlockingIOError:
+            pass
+        time.sleep(max(0.0, t0 + sent / rate - time.monotonic()))
+
+
+def _after(seconds):
+    end = time.monotonic() + seconds
+    return lambda: time.monotonic() >= end
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_or_sighup_ends_the_capture_as_ctrl_c_does(board, tmp_path, sig):
+    """The real monitor in a subprocess, reading a board on a pty, gets a real SIGTERM or
+    SIGHUP in the middle of the stream: it exits 128 + the signal with every file complete
+    (the session file with its end marker, the MDF4 with its samples, whole CSV rows)."""
+    import subprocess
+    import sys
+
+    data, _path, cfg = board
+    master, slave, name = _pty(BAUD)
+    os.set_blocking(master, False)
+    files = {"record": tmp_path / "s.ins", "csv": tmp_path / "s.csv", "mdf": tmp_path / "s.mf4"}
+    argv = [sys.executable, "-m", "tools.monitor", "--port", name, "--baud", str(BAUD)]
+    argv += ["--config", str(cfg), "--quiet"]
+    for option, path in files.items():
+        argv += [f"--{option}", str(path)]
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = {**os.environ, "PYTHONPATH": root}
+    proc = subprocess.Popen(argv, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30
+        while not _opened_by(proc.pid, name) and proc.poll() is None:
+            assert time.monotonic() < deadline, "the monitor never opened its port"
+            time.sleep(0.02)
+        # until the recorder has written two chunks (4096 bytes each: the monitor reads)
+        rec = files["record"]
+        _feed_until(proc, master, data, lambda: rec.exists() and rec.stat().st_size > 8192)
+        _feed_until(proc, master, data, _after(0.3))
+        proc.send_signal(sig)
+        _feed_until(proc, master, data, _after(10.0))  # the board goes on sending
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+        os.close(slave)
+    assert proc.returncode == 128 + sig, err.decode()
+    text = out.decode()
+    assert f"stopped by {signal.Signals(sig).name}" in text, text
+    assert b"error" not in err and b"Traceback" not in err, err.decode()  # (the data repeats:
+    # the board restarts after it, a warning)
+    header, rec = session_file.read_session(files["record"])  # refuses a file without its end
+    assert header["source"] == name and len(rec) > 20000, text
+    frames = stream.decode(rec).frames
+    head, rows = _read_csv(files["csv"])
+    assert len(rows) == len(frames) > 100 and all(len(r) == len(head) for r in rows)
+    assert [int(r[head.index("counter")]) for r in rows] == [f["counter"] for f in frames]
+    from asammdf import MDF
+
+    with MDF(files["mdf"]) as mdf:
+        assert len(mdf.get("yaw_deg").samples) == len(frames)
+    assert f"wrote {files['mdf']} (MDF4: {len(frames)} frames" in text
 
 
 def test_the_live_view_on_a_terminal(board):
@@ -361,6 +456,109 @@ def test_a_board_restart_is_a_restart_not_dropped_frames(board, tmp_path):
     assert "board restarts 1" in text and "the board restarted" in err.getvalue()
     # the first run from its first frame (3.995 s), the second from the board's start (4 s)
     assert "board time 8.00 s (200.0 frames/s)" in text, text
+
+
+def test_joining_a_running_board_and_its_restarts_give_the_capture_time(board, tmp_path):
+    """Joined 1.5 s into a run (2.5 s of it captured), then two whole 4 s runs: the board time
+    is the 10.5 s captured, each restart reports its run's own span, and the exported time
+    goes on across the restarts (a restart flag, not a jump back), so a time cut works."""
+    data = board[0]
+    frames = [r[0] for r in _records(data) if r[2] == frame_schema.FRAME_TYPE]
+    capture = data[frames[300] :] + data + data
+    started = "2026-05-01T09:30:00+00:00"
+    session_file.write_session(tmp_path / "j.ins", capture, config=None, started_utc=started)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["--file", str(tmp_path / "j.ins"), "--quiet", "--csv", str(tmp_path / "j.csv")]
+    assert cli.main([*argv, "--mdf", str(tmp_path / "j.mf4")], out=out, err=err) == 0
+    assert "board time 10.50 s (200.0 frames/s)" in out.getvalue(), out.getvalue()
+    runs = re.findall(r"board time (\S+) s in the run before the restart", err.getvalue())
+    assert runs == ["2.5", "4.0"], err.getvalue()
+    head, rows = _read_csv(tmp_path / "j.csv")
+    t = np.array([float(r[0]) for r in rows])
+    assert len(rows) == 2100 and (np.diff(t) > 0).all()
+    restarts = [k for k, r in enumerate(rows) if r[head.index("restart")] == "1"]
+    assert restarts == [500, 1300]
+    assert [rows[k][:3] for k in restarts] == [["2.500", "0.005", "1"], ["6.500", "0.005", "1"]]
+    assert rows[0][:4] == ["0.000", "1.505", "0", "2026-05-01T09:30:00.000Z"]
+    assert rows[-1][head.index("utc")] == "2026-05-01T09:30:10.495Z"
+    ehead, erows = _read_csv(tmp_path / "j_ext.csv")
+    assert (np.diff([float(r[0]) for r in erows]) > 0).all()
+    from asammdf import MDF
+
+    with MDF(tmp_path / "j.mf4") as mdf:
+        start = datetime.datetime.fromisoformat(started)
+        assert mdf.header.start_time == start
+        assert list(mdf.get("restart").timestamps[mdf.get("restart").samples == 1]) == [2.5, 6.5]
+        with mdf.cut(3, 5, include_ends=False) as part:  # 3.000 .. 5.000 s: 401 frames, 20 ext
+            assert len(part.get("yaw_deg").samples) == 401
+            assert len(part.get("sigma_pos_e_m").samples) == 20
+        utc = mdf.get("utc_unix_s")
+        assert utc.samples[-1] == pytest.approx(start.timestamp() + 10.495)
+
+
+def _no_space(path):
+    """The one error line naming `path` for a full disk."""
+    return f"error: writing {path} failed: No space left on device (the disk is full); nothing of it is kept"  # noqa: E501
+
+
+@pytest.mark.parametrize("option", ["--csv", "--mdf", "--record"])
+def test_an_output_on_a_full_device_is_an_error_not_wrote(board, option):
+    """/dev/full takes the open and refuses every write: exit 1, one line naming it and the
+    OS reason, and no "wrote" line for it."""
+    _data, path, _cfg = board
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(path), "--quiet", option, "/dev/full"], out=out, err=err) == 1
+    lines = [x for x in err.getvalue().splitlines() if "/dev/full" in x]
+    assert len(lines) == 1 and "No space left on device" in lines[0], err.getvalue()
+    assert "wrote /dev/full" not in out.getvalue() and "Traceback" not in err.getvalue()
+    if option == "--csv":  # the extended frames' CSV beside it is not kept either
+        assert lines[0] == _no_space("/dev/full")
+        assert not os.path.exists("/dev/full_ext.csv") and not os.path.exists(
+            "/dev/.full_ext.csv.part"
+        )
+
+
+class _FillsUp(io.FileIO):
+    """A file on a disk that takes `room` bytes more, then fails as a full disk does (the
+    buffered file above it meets the error when it flushes, as on a real disk)."""
+
+    room = 20000
+
+    def write(self, b):
+        self.room -= len(b)
+        if self.room < 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return super().write(b)
+
+
+def _open_filling_up(name, mode="r", newline=None, **_kw):
+    raw = _FillsUp(name, mode.replace("+", "").replace("b", "") + ("+" if "+" in mode else ""))
+    buffered = io.BufferedRandom(raw) if "+" in mode else io.BufferedWriter(raw)
+    return buffered if "b" in mode else io.TextIOWrapper(buffered, newline=newline)
+
+
+def test_a_disk_that_fills_up_keeps_no_half_written_export(board, tmp_path, monkeypatch):
+    """ENOSPC in the middle of the CSV (while the capture runs) and of the MDF4 (saved at the
+    end): one line each naming the file, exit 1, neither file nor its part left, and the
+    session recorded beside them complete."""
+    data, path, cfg = board
+    real_open = open
+
+    def opener(name, mode="r", **kw):
+        if str(name).endswith((".c.csv.part", ".m.mf4.part")):
+            return _open_filling_up(name, mode, **kw)
+        return real_open(name, mode, **kw)
+
+    monkeypatch.setattr(export, "open", opener, raising=False)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["--file", str(path), "--quiet", "--csv", str(tmp_path / "c.csv"), "--mdf"]
+    argv += [str(tmp_path / "m.mf4"), "--record", str(tmp_path / "r.ins"), "--config", str(cfg)]
+    assert cli.main(argv, out=out, err=err) == 1
+    e = err.getvalue().splitlines()
+    assert e == [_no_space(tmp_path / "c.csv"), _no_space(tmp_path / "m.mf4")], e
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.ins"]
+    assert "wrote" not in out.getvalue().replace(f"wrote {tmp_path / 'r.ins'}", "")
+    assert session_file.read_session(tmp_path / "r.ins")[1] == data
 
 
 def _err(argv):

@@ -245,6 +245,19 @@ def test_firmware_runs_to_the_end_of_its_input(deployed):
         s.close()
 
 
+class _Rows:
+    """A monitor output keeping the times of each row."""
+
+    def __init__(self):
+        self.frames = []
+
+    def frame(self, stamp, _f):
+        self.frames.append(stamp)
+
+    def ext(self, _stamp, _e):
+        pass
+
+
 def test_endless_input_starts_the_firmware_again(deployed):
     """--duration 0 (loop=True): at the end of its input the board starts the firmware again,
     as after a reset, instead of going silent; the monitor sees the restarts as restarts."""
@@ -263,11 +276,18 @@ def test_endless_input_starts_the_firmware_again(deployed):
         read_until(s, b">>> ", timeout=10)
         got = rs.stop()
         assert out.count(b"ins: running") >= 3, out
-        mon = monitor_cli.Monitor(view.Status("rs485"), 1)
+        rows = _Rows()
+        mon = monitor_cli.Monitor(view.Status("rs485"), 1, [rows])
         mon.feed(got)
         mon.finish()
         c = mon.counts()
         assert c["restarts"] >= 2 and c["frames"] >= 3 * 300, c
+        # the capture's time goes on across the restarts, each one marked on its first frame
+        t = [stamp["time_s"] for stamp in rows.frames]
+        assert len(t) == c["frames"] and (np.diff(t) > 0).all(), t
+        firsts = [s for s in rows.frames if s["restart"]]
+        assert len(firsts) == c["restarts"] and all(s["board_time_s"] == 0.005 for s in firsts)
+        assert mon.status.board_seconds() == pytest.approx(t[-1] - t[0])
         s.close()
 
 

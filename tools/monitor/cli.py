@@ -5,12 +5,16 @@
     python -m tools.monitor --list-ports
 
 See docs/monitor.md. Exit status: 0 done (end of file, --duration reached, Ctrl-C), 1 a problem
-the message explains (no such port, nothing decodable, ...), 2 bad command line.
+the message explains (no such port, nothing decodable, a failed write, ...), 2 bad command
+line, 128 + N ended by signal N (SIGTERM 143, SIGHUP 129: the files completed first).
 """
 
 import argparse
 import datetime
+import os
+import signal
 import sys
+import threading
 import time
 
 from common.errors import os_error_text, quiet_broken_pipe
@@ -18,33 +22,41 @@ from common.proto import config as board_config
 from common.proto import session_file
 from common.proto.stream import EXT, FRAME, StreamDecoder
 from tools.monitor import export, view
-from tools.monitor.clock import TickClock
+from tools.monitor.clock import TICK_S, CaptureClock, TickClock
 from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports
 
 DRAW_EVERY_S = 0.25  # live view redraws (terminal)
 LINE_EVERY_S = 1.0  # one line per second (not a terminal)
+CTRL_C = "interrupted (Ctrl-C)"
+STOP_SIGNALS = ("SIGTERM", "SIGHUP")  # `timeout`, kill; a closed terminal, a dropped ssh
 PENDING_MAX = 400  # frames held for the first extended frame's tick (2 s at 200 Hz)
 
 
 class Monitor:
-    """The decoded stream to the view and the files: frames get their board time from
-    TickClock; frames before the first extended frame wait (up to PENDING_MAX) so that their
-    time is anchored on its tick too."""
+    """The decoded stream to the view and the files. TickClock gives each frame its board
+    time, CaptureClock the capture's time (0 at the first frame, monotonic across restarts).
+    Frames wait (up to PENDING_MAX) for the next extended frame when their time is not sure
+    yet: before the first one (joining a running board) and after a counter gap (a restart
+    shows as one, and the extended frame's tick then times them in the new run)."""
 
-    def __init__(self, status, every=1, outputs=(), recorder=None, warn=None):
-        self.warn = warn or (lambda _msg: None)  # a one-line warning to the user
+    def __init__(self, status, every=1, outputs=(), recorder=None, warn=None, start_unix_s=None):
+        self.warn = warn or (lambda _msg, _kind="warning": None)  # a line to the user
         self.decoder = StreamDecoder()
         self.clock = TickClock(every)
+        self.capture = CaptureClock()
         self.status = status
-        self.outputs = list(outputs)  # objects with frame(t, f) and ext(e)
+        self.outputs = list(outputs)  # exports: frame(stamp, f), ext(stamp, e), close()
+        self.failures = []  # why an export stopped (export.WriteFailed)
         self.recorder = recorder
+        self.start_unix_s = start_unix_s  # host UTC of capture time 0; None: at the first frame
         self._pending = []
+        self._hold = False  # a counter gap: wait for the next extended frame's tick
+        self._restarted = False  # the next frame given out is a restarted run's first
         self.board_limit_s = None  # a file with --seconds: ignore what comes after this
         self.done = False
         self.restarts = 0  # board restarts seen (an extended frame's tick went back)
         self._restart_gaps = 0  # the counter gaps they made: not dropped frames
-        self._gap = (0, None)  # the newest counter gap since the last extended frame, and
-        # the board time of the frame before it
+        self._gap = 0  # the newest counter gap since the last extended frame
 
     def counts(self):
         c = self.decoder.counts()
@@ -66,68 +78,118 @@ class Monitor:
             if self.done:
                 return
             if kind == FRAME:
-                t_before = self.status.frame_t
-                u = self.clock.frame(rec["counter"])
-                if self.clock.gap:
-                    self._gap = (self.clock.gap, t_before)
-                st = self.status
-                if (
-                    self.board_limit_s is not None
-                    and st.first_t is not None
-                    and self.clock.time_s(u) - st.first_t >= self.board_limit_s
-                ):
-                    self.done = True
-                    return
-                self.status.on_frame(self.clock.time_s(u), rec)
-                if self.clock.anchored and not self._pending:
-                    self._out(u, rec)
-                else:
-                    self._pending.append((u, rec))
-                    if len(self._pending) >= PENDING_MAX:
-                        self._flush()
+                self._frame(rec)
             elif kind == EXT:
-                if self.clock.ext(rec):
-                    self._restart()
-                self._gap = (0, None)
+                self._ext(rec)
+
+    def _frame(self, rec):
+        if self.start_unix_s is None:
+            self.start_unix_s = time.time()  # the host's clock at the first frame
+        u = self.clock.frame(rec["counter"])
+        if self.clock.gap:
+            self._gap = self.clock.gap
+            self._hold = self.clock.anchored
+        if self.clock.anchored and not self._hold and not self._pending:
+            self._out(u, rec)
+        else:
+            self._pending.append((u, rec))
+            if len(self._pending) >= PENDING_MAX:
                 self._flush()
-                self.status.on_ext(rec)
-                for o in self.outputs:
-                    o.ext(rec)
+
+    def _ext(self, rec):
+        if self.clock.ext(rec):
+            self._restart()
+        self._gap = 0
+        self._hold = False
+        self._flush()
+        if self.done:
+            return
+        self.status.on_ext(rec)
+        stamp = self._stamp(self.capture.at(rec["tick"] * TICK_S), rec["tick"] * TICK_S, 0)
+        self._each_output(lambda o: o.ext(stamp, rec))
 
     def _restart(self):
         """The board restarted since the last extended frame: the counter gap it made is no
-        loss, and the board time starts again (the runs before it stay in the total)."""
-        gap, t_before = self._gap
+        loss, and its new run is timed on from the last frame's capture time."""
         self.restarts += 1
-        self._restart_gaps += gap
-        st = self.status
-        if t_before is not None and st.first_t is not None:
-            st.frame_t = t_before
-        st.on_restart()
-        if self.clock.u is not None:
-            st.frame_t = self.clock.time_s(self.clock.u)
-        self.warn(f"the board restarted (board time {st.span_before:.1f} s before the restart)")
+        self._restart_gaps += self._gap
+        run_s = self.status.on_restart(self.capture.last_s)
+        self.capture.restart()
+        self._restarted = True
+        self.warn(f"the board restarted (board time {run_s:.1f} s in the run before the restart)")
+
+    def _stamp(self, t_s, board_s, restart):
+        """The times of a row: capture time, the run's board time, the restart flag and the
+        host's UTC (Unix s: the start plus the capture time)."""
+        return {
+            "time_s": t_s,
+            "board_time_s": board_s,
+            "restart": restart,
+            "utc_unix_s": self.start_unix_s + t_s,
+        }
 
     def _out(self, u, f):
-        t = self.clock.time_s(u)
-        for o in self.outputs:
-            o.frame(t, f)
+        board_s = self.clock.time_s(u)
+        t = self.capture.frame(board_s)
+        if self.board_limit_s is not None and t >= self.board_limit_s:
+            self.done = True
+            return
+        self.status.on_frame(t, f)
+        stamp = self._stamp(t, board_s, int(self._restarted))
+        self._restarted = False
+        self._each_output(lambda o: o.frame(stamp, f))
+
+    def _each_output(self, write):
+        """write(output) for each output; one that fails (a full disk) is dropped with a
+        warning naming its file, and the capture goes on."""
+        for o in list(self.outputs):
+            try:
+                write(o)
+            except export.WriteFailed as e:
+                self.outputs.remove(o)
+                self.failures.append(str(e))
+                self.warn(str(e), "error")
 
     def _flush(self):
         for u, f in self._pending:
+            if self.done:
+                break
             self._out(u, f)
         self._pending = []
 
 
-class _MdfOut:
-    def __init__(self, mdf):
-        self.mdf = mdf
+class StopSignals:
+    """SIGTERM and SIGHUP end the capture as Ctrl-C does: the handler only notes the signal
+    (a write is never cut), the read loop stops at its next turn (within 50 ms), the files are
+    completed, and the exit status is 128 + the signal. A second one acts at once (the
+    default). Installed from the main thread only (Python's rule for signal handlers)."""
 
-    def frame(self, t, f):
-        self.mdf.frame(t, f)
+    def __init__(self):
+        self.signum = None
+        self._old = {}
 
-    def ext(self, e):
-        self.mdf.ext_frame(e)
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for name in STOP_SIGNALS:
+                sig = getattr(signal, name, None)  # Windows has no SIGHUP
+                if sig is not None:
+                    self._old[sig] = signal.signal(sig, self._note)
+        return self
+
+    def __exit__(self, *_exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old = {}
+
+    def _note(self, signum, _frame):
+        if self.signum is not None:  # asked twice: do not wait for the files
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+        self.signum = signum
+
+    def stopped(self):
+        """Why the capture stopped, or None while no signal came."""
+        return None if self.signum is None else f"stopped by {signal.Signals(self.signum).name}"
 
 
 class _Screen:
@@ -255,51 +317,51 @@ def _board_session(port, values, err):
 
 
 def _open_outputs(args, header_info):
-    """(outputs, recorder, closers, descriptions) for --csv, --mdf and --record."""
-    outputs, closers, files = [], [], []
+    """(outputs, recorder, files) for --csv, --mdf and --record: files are (writer, its
+    description for the summary); writers have close() and `failed`."""
+    outputs, files = [], []
     recorder = None
     try:
         if args.csv:
             c = export.CsvExport(args.csv)
-            closers.append(c.close)
             outputs.append(c)
-            files.append(lambda c=c: f"{c.path} ({c.rows} rows), {c.ext_path} ({c.ext_rows} rows)")
+            files.append((c, c.describe))
         if args.mdf:
             m = export.MdfExport(args.mdf)
-            closers.append(m.close)
-            outputs.append(_MdfOut(m))
-            files.append(
-                lambda m=m: f"{m.path} (MDF4: {m.frames.samples} frames, {m.ext.samples} ext)"
-            )
+            outputs.append(m)
+            files.append((m, m.describe))
         if args.record:
             try:
                 recorder = session_file.SessionWriter(args.record, header_info)
             except OSError as e:
                 raise OSError(f"cannot write {args.record}: {e.strerror}") from None
-            closers.append(recorder.close)
-            files.append(
-                lambda r=recorder: (
-                    f"{r.path} (session file, {r.n} bytes"
-                    + (", stopped early: see the warning)" if r.failed else ")")
-                )
-            )
+            files.append((recorder, lambda r=recorder: f"{r.path} (session file, {r.n} bytes)"))
     except OSError as e:
-        _close_all(closers)
+        for o in outputs:
+            o.abandon()
         raise MonitorError(str(e)) from None
-    return outputs, recorder, closers, files
+    return outputs, recorder, files
 
 
-def _close_all(closers):
+def _close_all(files):
+    """Close every file; the one-line problems of those that failed."""
     problems = []
-    for close in closers:
+    for writer, _describe in files:
         try:
-            close()
+            writer.close()
         except Exception as e:  # noqa: BLE001 (report, keep closing the others)
             problems.append(str(e))
     return problems
 
 
-def run(args, out=None, err=None):
+def _written(files):
+    """The summary's descriptions of the files written whole."""
+    return [describe() for writer, describe in files if not writer.failed]
+
+
+def run(args, out=None, err=None, stop=None):
+    """The monitor's work; stop: the StopSignals in force (main installs them)."""
+    stop = stop or StopSignals()
     out = out or sys.stdout
     err = err or sys.stderr
     if args.list_ports:
@@ -320,7 +382,7 @@ def run(args, out=None, err=None):
         _note_record_config(values, err)
     header = _session_header(src, baud, values, config_file, board)
     try:
-        outputs, recorder, closers, files = _open_outputs(args, header)
+        outputs, recorder, files = _open_outputs(args, header)
     except MonitorError:
         src.close()
         raise
@@ -333,26 +395,40 @@ def run(args, out=None, err=None):
     warn = _warner(warnings, screen, status, err)
     for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
         warn(msg)
-    mon = Monitor(status, _every(values), outputs, recorder, warn)
+    mon = Monitor(status, _every(values), outputs, recorder, warn, _start_unix_s(src))
     t0 = time.monotonic()
-    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, closers)
+    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, files, stop)
     wall = time.monotonic() - t0
     counts = mon.counts()
     cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
     if failure is None and counts["frames"] == 0 and counts["ext"] == 0:
-        failure = _nothing_decoded_error(src, counts, stopped, wall)
+        interrupted = stopped == CTRL_C or stop.signum is not None
+        failure = _nothing_decoded_error(src, counts, interrupted, wall)
     _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
     if screen.tty and not screen.quiet:
-        for msg in warnings:
-            err.write(f"warning: {msg}\n")
+        for kind, msg in warnings:
+            err.write(f"{kind}: {msg}\n")
     for p in problems:
         err.write(f"error: {p}\n")
-    if recorder is not None and recorder.failed and recorder.failed not in warnings:
+    if recorder is not None and recorder.failed and ("warning", recorder.failed) not in warnings:
         problems.append(recorder.failed)  # failed on closing
         err.write(f"error: {recorder.failed}\n")
     if failure is not None:
         raise failure
-    return 1 if problems or (recorder is not None and recorder.failed) else 0
+    if stop.signum is not None:  # the conventional status of a process ended by a signal
+        return 128 + stop.signum
+    failed = problems or mon.failures or (recorder is not None and recorder.failed)
+    return 1 if failed else 0
+
+
+def _start_unix_s(src):
+    """The host's UTC (Unix s) of a session file's start (its header's started_utc); None for
+    a port or a raw capture: the host's clock at the first frame."""
+    started = (getattr(src, "header", None) or {}).get("started_utc")
+    try:
+        return datetime.datetime.fromisoformat(started).timestamp() if started else None
+    except (TypeError, ValueError):
+        return None
 
 
 def _check_args(args):
@@ -427,19 +503,19 @@ def _session_header(src, baud, values, config_file, board):
 def _warner(warnings, screen, status, err):
     """warn(msg) for the Monitor: each warning also kept in warnings."""
 
-    def warn(msg):
-        """A warning line now on stderr, or, under the live view of a terminal (stderr is the
-        same screen), in the view and after the summary."""
-        warnings.append(msg)
+    def warn(msg, kind="warning"):
+        """A warning (or error) line now on stderr, or, under the live view of a terminal
+        (stderr is the same screen), in the view and after the summary."""
+        warnings.append((kind, msg))
         if screen.tty and not screen.quiet:
             status.note = msg
         else:
-            err.write(f"warning: {msg}\n")
+            err.write(f"{kind}: {msg}\n")
 
     return warn
 
 
-def _watch(src, mon, args, screen, t0, closers):
+def _watch(src, mon, args, screen, t0, files, stop):
     """Feed the source to the monitor until it ends, then close the source and the files:
     (why it stopped, MonitorError or None, problems closing the files, the decoder's skipped
     bytes before its end)."""
@@ -447,11 +523,11 @@ def _watch(src, mon, args, screen, t0, closers):
     failure = None
     try:
         if src.kind == "file":
-            stopped = _run_file(src, mon, args)
+            stopped = _run_file(src, mon, args, stop)
         else:
-            stopped = _run_port(src, mon, args, screen, t0)
+            stopped = _run_port(src, mon, args, screen, t0, stop)
     except KeyboardInterrupt:
-        stopped = "interrupted (Ctrl-C)"
+        stopped = CTRL_C
     except MonitorError as e:
         failure = e
     finally:
@@ -461,11 +537,11 @@ def _watch(src, mon, args, screen, t0, closers):
         except Exception as e:  # noqa: BLE001 (still close the files)
             failure = failure or MonitorError(f"decoding the end of the stream failed: {e}")
         src.close()
-        problems = _close_all(closers)
+        problems = _close_all(files)
     return stopped, failure, problems, skipped_before
 
 
-def _nothing_decoded_error(src, counts, stopped, wall):
+def _nothing_decoded_error(src, counts, interrupted, wall):
     """The MonitorError for a source that gave no frames, None when interrupted (a port)."""
     if src.kind == "file":
         if counts["bytes"] == 0:
@@ -474,7 +550,7 @@ def _nothing_decoded_error(src, counts, stopped, wall):
             f"{src.name} holds {counts['bytes']} bytes but no frames: it is not a "
             "capture of the board's output (or it was captured at the wrong baud)"
         )
-    if stopped != "interrupted (Ctrl-C)":
+    if not interrupted:
         return _no_data_error(src, counts, wall)
     return None
 
@@ -485,17 +561,19 @@ def _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
         out.write("\n".join(view.render(status, counts, status.board_seconds(), live=False)) + "\n")
     if screen.tty and not screen.quiet:
         screen.draw(status, counts, wall, time.monotonic())
-    summary = view.summary(status, counts, wall, stopped, [d() for d in files])
+    summary = view.summary(status, counts, wall, stopped, _written(files))
     if cut:
         summary.insert(3, f"  ({cut} of the skipped bytes: a record cut short by the end)")
     out.write("\n".join(summary) + "\n")
     out.flush()
 
 
-def _run_file(src, mon, args):
+def _run_file(src, mon, args, stop):
     mon.board_limit_s = args.seconds
     size = 1 << 16 if args.seconds is None else 512  # stop near the limit: counts stay close
     while True:
+        if stop.signum is not None:
+            return stop.stopped()
         chunk = src.read(size=size)
         if not chunk:
             return "end of file"
@@ -504,8 +582,10 @@ def _run_file(src, mon, args):
             return f"{args.seconds:g} s of board time"
 
 
-def _run_port(src, mon, args, screen, t0):
+def _run_port(src, mon, args, screen, t0, stop):
     while True:
+        if stop.signum is not None:
+            return stop.stopped()
         now = time.monotonic()
         elapsed = now - t0
         if args.seconds is not None and elapsed >= args.seconds:
@@ -531,7 +611,8 @@ def main(argv=None, out=None, err=None):
         parser.error("--board-port is for --record (it restarts the board so that the session "
                      "holds its start); to watch, give --config FILE or --baud")  # fmt: skip
     try:
-        return run(args, out, err)
+        with StopSignals() as stop:
+            return run(args, out, err, stop)
     except MonitorError as e:
         err.write(f"error: {e}\n")
         return 1

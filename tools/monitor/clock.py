@@ -56,3 +56,33 @@ class TickClock:
 
     def time_s(self, u):
         return self.tick(u) * TICK_S
+
+
+class CaptureClock:
+    """The capture's time (s) from a run's board time: 0 at the first record seen (joining a
+    running board counts from there, not from the board's start) and monotonic across board
+    restarts: a restarted run's tick 0 is placed at the last time handed out, since the
+    board's tick count starts again from 0 and the pause while it rebooted is not in the
+    stream."""
+
+    def __init__(self):
+        self.zero_s = None  # board time that is capture time 0 (of the current run)
+        self.base_s = 0.0  # capture time of the current run's zero_s
+        self.last_s = 0.0  # the latest capture time handed out for a frame
+
+    def at(self, board_s):
+        """Capture time of board time `board_s` of the current run, without advancing."""
+        if self.zero_s is None:
+            self.zero_s = board_s
+        return self.base_s + board_s - self.zero_s
+
+    def frame(self, board_s):
+        """Capture time of a frame at board time `board_s`; never before an earlier frame's
+        (a restart the stream showed late must not send the time back)."""
+        self.last_s = max(self.last_s, self.at(board_s))
+        return self.last_s
+
+    def restart(self):
+        """The board restarted: its new run's tick 0 is the last frame's capture time."""
+        self.base_s = self.last_s
+        self.zero_s = 0.0

@@ -3,15 +3,24 @@ and MDF4 (asammdf). The channels and their units are the tables below; docs/moni
 them too."""
 
 import csv
+import datetime
 import math
+import os
 from pathlib import Path
 
 G = 9.80665  # m/s^2 per g (for accelerometer biases in mg)
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 
-# (name, unit, decimals in the CSV, MDF dtype); the CSV column is `name`, the MDF channel too.
+# (name, unit, decimals in the CSV (UTC: ISO 8601 text), MDF dtype); the CSV column is
+# `name`, the MDF channel too (UTC: utc_unix_s, seconds since 1970 UTC).
+UTC = "utc"
+# the times of every row (Monitor._stamp): the capture's time, monotonic across board restarts;
+# the board's own time in its run; 1 on a restarted run's first frame; the host's UTC
 FRAME_COLUMNS = [
     ("time_s", "s", 3, "f8"),
+    ("board_time_s", "s", 3, "f8"),
+    ("restart", "", None, "u1"),
+    ("utc", "", UTC, "f8"),
     ("counter", "", None, "u1"),
     ("nav_state", "", None, "u1"),
     ("gnss_valid", "", None, "u1"),
@@ -42,6 +51,7 @@ _ENU = ("e", "n", "u")
 EXT_COLUMNS = (
     [
         ("time_s", "s", 3, "f8"),
+        ("utc", "", UTC, "f8"),
         ("tick", "", None, "u4"),
         ("counter", "", None, "u1"),
         ("health", "", None, "u1"),
@@ -71,16 +81,34 @@ EXT_COLUMNS = (
     ]
 )
 
+
 # MDF4 channel names: the CSV names; the extended frames' ones that a frame channel also has
 # get an "ext_" prefix, so every channel name is unique in the file.
-MDF_FRAME_NAMES = [c[0] for c in FRAME_COLUMNS]
-MDF_EXT_NAMES = ["ext_" + c[0] if c[0] in MDF_FRAME_NAMES[1:] else c[0] for c in EXT_COLUMNS]
+def _mdf_name(column):
+    name, _unit, dec, _dt = column
+    return name + "_unix_s" if dec == UTC else name
 
 
-def frame_values(t, f):
-    """The FRAME_COLUMNS values of frame fields `f` (frames.frame_fields) at board time t."""
+MDF_FRAME_NAMES = [_mdf_name(c) for c in FRAME_COLUMNS]
+MDF_EXT_NAMES = [
+    "ext_" + n if n in MDF_FRAME_NAMES[1:] else n for n in (_mdf_name(c) for c in EXT_COLUMNS)
+]
+
+
+def utc_text(unix_s):
+    """ISO 8601 UTC to the millisecond: 2026-05-01T09:30:00.005Z."""
+    t = datetime.datetime.fromtimestamp(unix_s, datetime.UTC)
+    return t.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def frame_values(stamp, f):
+    """The FRAME_COLUMNS values of frame fields `f` (frames.frame_fields) with its times
+    `stamp` (time_s, board_time_s, restart, utc_unix_s)."""
     return [
-        t,
+        stamp["time_s"],
+        stamp["board_time_s"],
+        stamp["restart"],
+        stamp["utc_unix_s"],
         f["counter"],
         f["nav_state"],
         f["gnss_valid"],
@@ -118,12 +146,14 @@ def sigmas(e):
     }
 
 
-def ext_values(e):
-    """The EXT_COLUMNS values of an extended frame's fields (frames.ext_fields)."""
+def ext_values(stamp, e):
+    """The EXT_COLUMNS values of an extended frame's fields (frames.ext_fields) with its times
+    `stamp` (time_s, utc_unix_s)."""
     s = sigmas(e)
     fl = e["flags"]
     return [
-        e["tick"] * 0.005,
+        stamp["time_s"],
+        stamp["utc_unix_s"],
         e["tick"],
         e["counter"],
         e["health"],
@@ -160,45 +190,129 @@ def ext_csv_path(path):
 def _fmt(columns):
     out = []
     for _name, _unit, dec, _dt in columns:
-        out.append(str if dec is None else (lambda x, d=dec: f"{x:.{d}f}"))
+        if dec == UTC:
+            out.append(utc_text)
+        else:
+            out.append(str if dec is None else (lambda x, d=dec: f"{x:.{d}f}"))
     return out
 
 
+class WriteFailed(Exception):
+    """An export could not be written (a full disk, a device that refuses): the message names
+    the file and the OS reason; what was written of it is removed."""
+
+
+def part_path(path):
+    """Where an export is written until it is complete: `.NAME.part` beside NAME, renamed to
+    NAME once closed whole. A device or a pipe (/dev/stdout) is written to directly."""
+    p = Path(path)
+    if p.exists() and not p.is_file():
+        return p
+    return p.with_name(f".{p.name}.part")
+
+
+def _publish(part, path):
+    if part != Path(path):
+        os.replace(part, path)
+
+
+def _discard(f, part, path):
+    """Close f without a word and remove the part file (never the device written to)."""
+    try:
+        f.close()
+    except OSError:
+        pass
+    if part != Path(path):
+        part.unlink(missing_ok=True)
+
+
+def failed_text(path, e):
+    why = e.strerror or str(e)
+    hint = " (the disk is full)" if e.errno == 28 else ""
+    return f"writing {path} failed: {why}{hint}; nothing of it is kept"
+
+
+def _open_part(part, path, mode, **kw):
+    try:
+        return open(part, mode, **kw)  # noqa: SIM115 (closed by the export's close)
+    except OSError as e:
+        raise OSError(f"cannot write {path}: {e.strerror}") from None
+
+
 class CsvExport:
-    """One row per 52-byte frame in `path`, one per extended frame in ext_csv_path(path)."""
+    """One row per 52-byte frame in `path`, one per extended frame in ext_csv_path(path); both
+    written under their part_path names and renamed at close, or removed when a write fails
+    (WriteFailed)."""
 
     def __init__(self, path):
         self.path = Path(path)
         self.ext_path = ext_csv_path(path)
         self.rows = 0
         self.ext_rows = 0
+        self.failed = None  # why it was not written (WriteFailed), or None
+        self._targets = [self.path, self.ext_path]
+        self._parts = [part_path(p) for p in self._targets]
         self._files = []
         try:
-            self._f = open(self.path, "w", newline="")  # noqa: SIM115 (closed in close())
-            self._files.append(self._f)
-            self._fe = open(self.ext_path, "w", newline="")  # noqa: SIM115
-            self._files.append(self._fe)
-        except OSError as e:
-            self.close()
-            raise OSError(f"cannot write {e.filename}: {e.strerror}") from None
-        self._w = csv.writer(self._f)
-        self._we = csv.writer(self._fe)
-        self._w.writerow([c[0] for c in FRAME_COLUMNS])
-        self._we.writerow([c[0] for c in EXT_COLUMNS])
+            for part, target in zip(self._parts, self._targets, strict=True):
+                self._files.append(_open_part(part, target, "w", newline=""))
+        except OSError:
+            self._discard_all()
+            raise
+        self._w = csv.writer(self._files[0])
+        self._we = csv.writer(self._files[1])
         self._ff = _fmt(FRAME_COLUMNS)
         self._fx = _fmt(EXT_COLUMNS)
+        self._write(0, [c[0] for c in FRAME_COLUMNS])
+        self._write(1, [c[0] for c in EXT_COLUMNS])
 
-    def frame(self, t, f):
-        self._w.writerow([fmt(v) for fmt, v in zip(self._ff, frame_values(t, f), strict=True)])
+    def frame(self, stamp, f):
+        values = frame_values(stamp, f)
+        self._write(0, [fmt(v) for fmt, v in zip(self._ff, values, strict=True)])
         self.rows += 1
 
-    def ext(self, e):
-        self._we.writerow([fmt(v) for fmt, v in zip(self._fx, ext_values(e), strict=True)])
+    def ext(self, stamp, e):
+        values = ext_values(stamp, e)
+        self._write(1, [fmt(v) for fmt, v in zip(self._fx, values, strict=True)])
         self.ext_rows += 1
 
+    def _write(self, k, row):
+        try:
+            (self._w if k == 0 else self._we).writerow(row)
+        except OSError as e:
+            self._fail(k, e)
+
+    def _fail(self, k, e):
+        self._discard_all()
+        self.failed = failed_text(self._targets[k], e)
+        raise WriteFailed(self.failed) from None
+
+    def describe(self):
+        return f"{self.path} ({self.rows} rows), {self.ext_path} ({self.ext_rows} rows)"
+
+    def abandon(self):
+        """Remove what was written (another output could not be opened)."""
+        self._discard_all()
+
+    def _discard_all(self):
+        for f, part, target in zip(self._files, self._parts, self._targets, strict=False):
+            _discard(f, part, target)
+        self._files = []
+
     def close(self):
-        for f in self._files:
-            f.close()
+        """Both files complete under their names; WriteFailed (and neither kept) otherwise."""
+        if not self._files:  # closed, or failed before
+            return
+        for k, f in enumerate(self._files):  # both whole before either gets its name
+            try:
+                f.close()
+            except OSError as e:
+                self._fail(k, e)
+        for k, part in enumerate(self._parts):
+            try:
+                _publish(part, self._targets[k])
+            except OSError as e:
+                self._fail(k, e)
         self._files = []
 
 
@@ -213,9 +327,10 @@ class _MdfGroup:
 
 
 class MdfExport:
-    """MDF4 (asammdf): a channel group for the frames (master: time_s, the board time from
-    the tick) and one for the extended frames. Written in blocks of CHUNK samples as they come
-    (memory stays bounded), saved at close."""
+    """MDF4 (asammdf): a channel group for the frames (master: time_s, the capture's time)
+    and one for the extended frames; the header's start time is the host's UTC at capture
+    time 0. Written in blocks of CHUNK samples as they come (memory stays bounded), saved at
+    close under part_path(path) and renamed; WriteFailed (and nothing kept) when that fails."""
 
     CHUNK = 2000
 
@@ -225,24 +340,26 @@ class MdfExport:
         except ImportError:
             raise OSError("writing MDF4 needs asammdf (pip install asammdf==8.8.28)") from None
         self.path = Path(path)
-        try:  # fail now, not after the session, if the file cannot be written
-            self.path.open("ab").close()
-        except OSError as e:
-            raise OSError(f"cannot write {self.path}: {e.strerror}") from None
+        self._part = part_path(self.path)
+        self._file = _open_part(self._part, self.path, "w+b")  # fails now, not at the end
+        self.start_unix_s = None
+        self.failed = None  # why it was not written (WriteFailed), or None
         self.mdf = MDF(version="4.10")
-        self.frames = _MdfGroup(FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES)
-        self.ext = _MdfGroup(EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES)
+        self.frame_group = _MdfGroup(FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES)
+        self.ext_group = _MdfGroup(EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES)
 
-    def frame(self, t, f):
-        self._add(self.frames, frame_values(t, f))
+    def frame(self, stamp, f):
+        self._add(self.frame_group, stamp, frame_values(stamp, f))
 
-    def ext_frame(self, e):
-        self._add(self.ext, ext_values(e))
+    def ext(self, stamp, e):
+        self._add(self.ext_group, stamp, ext_values(stamp, e))
 
-    def _add(self, g, values):
+    def _add(self, g, stamp, values):
+        if self.start_unix_s is None:
+            self.start_unix_s = stamp["utc_unix_s"] - stamp["time_s"]
         g.rows.append(values)
         if len(g.rows) >= self.CHUNK:
-            self._flush(g)
+            self._guarded(lambda: self._flush(g))
 
     def _flush(self, g):
         if not g.rows:
@@ -264,13 +381,43 @@ class MdfExport:
             self.mdf.extend(g.index, [(t, None)] + [(a, None) for a in arrays[1:]])
         g.samples += len(t)
 
+    def _guarded(self, write):
+        """write(); on an OSError the file removed and WriteFailed naming it."""
+        try:
+            write()
+        except OSError as e:
+            self.abandon()
+            self.failed = failed_text(self.path, e)
+            raise WriteFailed(self.failed) from None
+        except BaseException:  # Ctrl-C, or asammdf failing: no part file left either
+            self.abandon()
+            self.failed = f"writing {self.path} was interrupted; nothing of it is kept"
+            raise
+
+    def describe(self):
+        g, x = self.frame_group, self.ext_group
+        return f"{self.path} (MDF4: {g.samples} frames, {x.samples} ext)"
+
+    def abandon(self):
+        """Remove what was written (a failed write, or another output not opened)."""
+        _discard(self._file, self._part, self.path)
+        if self.mdf is not None:
+            self.mdf.close()
+            self.mdf = None
+
     def close(self):
         if self.mdf is None:
             return
-        self._flush(self.frames)
-        self._flush(self.ext)
-        try:
-            self.mdf.save(self.path, overwrite=True)
-        finally:
-            self.mdf.close()
-            self.mdf = None
+        self._guarded(self._save)
+        self.mdf.close()
+        self.mdf = None
+
+    def _save(self):
+        self._flush(self.frame_group)
+        self._flush(self.ext_group)
+        if self.start_unix_s is not None:
+            start = datetime.datetime.fromtimestamp(self.start_unix_s, datetime.UTC)
+            self.mdf.header.start_time = start
+        self.mdf.save(self._file)  # a file object: asammdf keeps its name and raises
+        self._file.close()
+        _publish(self._part, self.path)

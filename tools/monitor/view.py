@@ -34,7 +34,8 @@ class Status:
         self.n_frames = 0  # frames shown (a file with --seconds: those before the limit)
         self._samples = collections.deque()  # (wall s, frames, ext, bytes)
         self.last_frame_wall = None  # wall time (s) when the frame count last grew
-        self.span_before = 0.0  # board time of the runs before the last restart
+        self.run_start_t = None  # capture time the board's current run began (its first
+        # frame seen, or the last frame before its restart)
         self.note = None  # the newest warning, shown in the live view
 
     def on_frame(self, t, f):
@@ -42,7 +43,7 @@ class Status:
         self.frame = f
         self.frame_t = t
         if self.first_t is None:
-            self.first_t = t
+            self.first_t = self.run_start_t = t
         if f["gnss_valid"] and f["gga"]:
             self.fix = f
             self.fix_t = t
@@ -50,12 +51,14 @@ class Status:
     def on_ext(self, e):
         self.ext = e
 
-    def on_restart(self):
-        """The board restarted: its time starts again from 0; the runs before are kept in
-        the board time (span_before)."""
-        self.span_before += self.board_seconds()
-        self.first_t = 0.0
+    def on_restart(self, t_s):
+        """The board restarted after the frame at capture time t_s: the board time its run
+        before lasted (s; from the first frame seen or from the board's start), and a new run
+        from there."""
+        run_s = t_s - (self.run_start_t if self.run_start_t is not None else t_s)
+        self.run_start_t = t_s
         self.fix = None
+        return run_s
 
     def silent_s(self, now):
         """Seconds since a frame last arrived (None before the first or without `now`)."""
@@ -88,11 +91,11 @@ class Status:
         return ((self.n_frames - 1) / span, counts["ext"] / span, counts["bytes"] / span)
 
     def board_seconds(self):
-        """Board time seen: the span of frames since the first (or the last restart), plus
-        the runs before a restart."""
+        """Board time captured: the span from the first frame seen to the last, restarts
+        included (the capture's time is monotonic: CaptureClock)."""
         if self.first_t is None:
-            return self.span_before
-        return self.span_before + self.frame_t - self.first_t
+            return 0.0
+        return self.frame_t - self.first_t
 
 
 def _f(x, fmt):
