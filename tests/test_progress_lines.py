@@ -1,0 +1,96 @@
+"""Progress lines on a terminal (common/progress.py): the real commands, run on an 80-column
+pseudo-terminal, draw no line wider than it, redraw their bars in place with \\r, and name each
+wait after the run (the evaluation, the plots) instead of going silent."""
+
+import io
+import os
+import re
+import sys
+
+import tty_timing
+
+from common import progress
+from common.firmware_env import REPO_DIR
+
+PY = sys.executable
+
+
+def _env():
+    return {**os.environ, "PYTHONPATH": str(REPO_DIR)}
+
+
+def _bar_rows(r, label):
+    """The rows (between newlines) that hold `label`'s bar, each split at its \\r redraws."""
+    text = tty_timing.ANSI.sub(b"", r.data).decode()
+    return [row.split("\r") for row in re.split(r"\r?\n", text) if f"  {label} [" in row]
+
+
+def test_run_draws_within_80_columns_and_redraws_its_bar_on_one_row(tmp_path):
+    # in tmp_path, out/ beside: the summary's paths are short, as a user's are
+    r = tty_timing.run([PY, "-m", "host_emulator", "run", "--scenario", "quick_start",
+                        "--duration", "20", "--out", "out"], cols=80, timeout=120,
+                       env=_env(), cwd=tmp_path)  # fmt: skip
+    assert r.status == 0, r.data.decode(errors="replace")[-2000:]
+    assert r.widest() <= 80, max(r.segments(), key=len)
+    rows = _bar_rows(r, "cpython")
+    assert len(rows) == 1, rows  # every redraw on the row of the first: no wrap left behind
+    draws = [d for d in rows[0] if d]
+    assert len(draws) >= 2 and "100%" in draws[-1]
+    text = r.data.decode()
+    assert text.index("evaluating the output") < text.index("4/4 written") < text.index("report:")
+
+
+def test_parity_shows_the_firmware_and_the_model_running(tmp_path):
+    r = tty_timing.run([PY, "-m", "host_emulator", "parity", "--scenario", "quick_start",
+                        "--duration", "10"], cols=80, timeout=120, cwd=REPO_DIR)  # fmt: skip
+    assert r.status == 0, r.data.decode(errors="replace")[-2000:]
+    assert r.widest() <= 80, max(r.segments(), key=len)
+    assert len(_bar_rows(r, "cpython")) == 1
+    assert len(_bar_rows(r, "model")) == 1
+    assert "PARITY: identical" in r.data.decode()
+
+
+def _bar_on_pty(cols, label, detail):
+    """What a Bar of 100 steps draws in a child process whose stderr is a pty `cols` wide."""
+    code = (
+        "import sys, time\nfrom common import progress\n"
+        f"b = progress.Bar({label!r}, lambda k, n, w: {detail!r})\n"
+        "for k in range(0, 101, 5):\n    b(k, 100)\n    time.sleep(0.05)\n"
+    )
+    return tty_timing.run([PY, "-c", code], cols=cols, timeout=30, cwd=REPO_DIR)
+
+
+def test_a_bar_fits_narrow_terminals_and_cuts_a_long_detail():
+    for cols in (40, 60, 80, 132):
+        r = _bar_on_pty(cols, "firmware", "300/600 s  140.2x real time, and a long tail " * 3)
+        assert r.status == 0
+        assert r.widest() <= cols - 1, (cols, r.segments())
+        rows = [row for row in re.split(r"\r?\n", r.data.decode()) if row.strip()]
+        assert len(rows) == 1 and rows[0].count("\r") >= 5  # redrawn in place
+        assert "…" in r.data.decode()
+
+
+def test_bar_line_keeps_label_and_percentage_and_shrinks_the_bar():
+    line = progress.bar_line("cpython", 0.5, "300/600 s  140.2x real time", 80)
+    assert line == "  cpython [###############---------------]  50%  300/600 s  140.2x real time"
+    narrow = progress.bar_line("cpython", 0.5, "300/600 s  140.2x real time", 60)
+    assert len(narrow) == 59 and narrow.startswith("  cpython [####") and "50%  300/600" in narrow
+    assert progress.bar_line("cpython", 0.5, "x" * 70, 40) == "  cpython  50%  " + "x" * 22 + "…"
+
+
+def test_without_a_terminal_a_bar_writes_a_line_per_tenth():
+    out = io.StringIO()
+    b = progress.Bar("model", lambda k, n, _w: f"{k}/{n}", stream=out)
+    for k in range(0, 1001):
+        b(k, 1000)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "  model:   0%  0/1000" and lines[-1] == "  model: 100%  1000/1000"
+    assert len(lines) == 11
+
+
+def test_columns_falls_back_to_80_when_nothing_is_a_terminal(monkeypatch):
+    monkeypatch.delenv("COLUMNS", raising=False)
+    monkeypatch.setattr(progress.shutil, "get_terminal_size", os.terminal_size)
+    assert progress.columns(io.StringIO()) == 80
+    monkeypatch.setenv("COLUMNS", "100")
+    assert progress.columns(io.StringIO()) == 100
