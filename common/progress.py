@@ -102,3 +102,18 @@ class Bar:
             self.stream.write(f"  {self.label}: {100 * frac:3.0f}%  {text}\n")
         self.ended = k >= n
         self.stream.flush()
+
+    def clear(self):
+        """Blank the bar's row (a message is about to be written there); the next call
+        redraws it below the message."""
+        if self.tty and self.last_draw is not None and not self.ended:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+            self.last_draw = None
+
+    def end(self):
+        """Leave the row as drawn (a bar stopped before 100 %): the next line starts below."""
+        if self.tty and self.last_draw is not None and not self.ended:
+            self.stream.write("\n")
+            self.stream.flush()
+        self.ended = True

@@ -94,3 +94,29 @@ def test_columns_falls_back_to_80_when_nothing_is_a_terminal(monkeypatch):
     assert progress.columns(io.StringIO()) == 80
     monkeypatch.setenv("COLUMNS", "100")
     assert progress.columns(io.StringIO()) == 100
+
+
+def _capture(path, seconds, times):
+    """A capture of `seconds` of quick_start, the board restarting `times` times."""
+    from host_emulator.runtimes import cpython
+    from host_emulator.sim import board_input
+
+    stim = board_input.simulate("quick_start", seconds, seed=0).stimulus
+    out = cpython.run(stim, path.parent / "board").out
+    path.write_bytes(out * times)
+
+
+def test_monitor_shows_how_much_of_a_file_it_read_between_its_warnings(tmp_path):
+    _capture(tmp_path / "cap.bin", 20, 12)  # 2.8 MB: a second or two to read
+    r = tty_timing.run([PY, "-m", "tools.monitor", "--file", "cap.bin"], cols=80, timeout=120,
+                       env=_env(), cwd=tmp_path)  # fmt: skip
+    assert r.status == 0, r.data.decode(errors="replace")[-2000:]
+    text = tty_timing.ANSI.sub(b"", r.data).decode()
+    rows = [row for row in re.split(r"\r?\n", text) if "  reading [" in row]
+    draws = [d for row in rows for d in row.split("\r") if d]
+    assert draws and all(len(d) <= 79 for d in draws), draws
+    mb = (tmp_path / "cap.bin").stat().st_size / 1e6
+    assert len(draws) >= 2 and f"100%  {mb:.1f}/{mb:.1f} MB" in draws[-1]
+    warnings = [w for w in re.split(r"\r?\n", text) if "the board restarted" in w]
+    assert len(warnings) == 11  # each on a row of its own, the bar's row blanked first
+    assert all(w.split("\r")[-1].startswith("warning: the board restarted") for w in warnings)
