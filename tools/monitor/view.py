@@ -53,7 +53,7 @@ class Status:
     def on_restart(self):
         """The board restarted: its time starts again from 0; the runs before are kept in
         the board time (span_before)."""
-        self.span_before += self.board_seconds()
+        self.span_before = self.board_seconds()  # which holds the runs before already
         self.first_t = 0.0
         self.fix = None
 
