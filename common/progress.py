@@ -16,6 +16,7 @@ import time
 
 DEFAULT_COLUMNS = 80
 REDRAW_S = 0.2
+LINE_EVERY_S = 5.0  # a counter off a terminal: a line this often, no more
 BAR_COLUMNS = 30
 ELLIPSIS = "…"
 
@@ -117,3 +118,33 @@ class Bar:
             self.stream.write("\n")
             self.stream.flush()
         self.ended = True
+
+
+class Counter:
+    """counter(text): how far a wait of unknown length got (e.g. "120 C files compiled"),
+    with the seconds it has taken. On a terminal one row redrawn with \\r; else a line
+    every LINE_EVERY_S. end() closes the row."""
+
+    def __init__(self, label, stream=None, enabled=True):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = is_tty(self.stream)
+        self.t0 = time.perf_counter()
+        self.last_draw = None
+
+    def __call__(self, text):
+        now = time.perf_counter()
+        every = REDRAW_S if self.tty else LINE_EVERY_S
+        if not self.enabled or (self.last_draw is not None and now - self.last_draw < every):
+            return
+        self.last_draw = now
+        line = fit(f"  {self.label}: {text}, {now - self.t0:.0f} s", columns(self.stream))
+        self.stream.write(("\r" + line + "\x1b[K") if self.tty else (line + "\n"))
+        self.stream.flush()
+
+    def end(self):
+        if self.enabled and self.tty and self.last_draw is not None:
+            self.stream.write("\n")
+            self.stream.flush()
+        self.last_draw = None

@@ -120,3 +120,38 @@ def test_monitor_shows_how_much_of_a_file_it_read_between_its_warnings(tmp_path)
     warnings = [w for w in re.split(r"\r?\n", text) if "the board restarted" in w]
     assert len(warnings) == 11  # each on a row of its own, the bar's row blanked first
     assert all(w.split("\r")[-1].startswith("warning: the board restarted") for w in warnings)
+
+
+class _Tty(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_make_hands_each_line_to_the_build_and_keeps_the_log(tmp_path):
+    from common import toolchain
+
+    (tmp_path / "Makefile").write_text("all:\n\t@echo CC a.c\n\t@echo CC b.c\n\t@echo LINK x.elf\n")
+    seen = []
+    toolchain.make(["-C", str(tmp_path)], "a test", tmp_path / "make.log", seen.append)
+    assert [s.strip() for s in seen if not s.startswith("make")] == ["CC a.c", "CC b.c",
+                                                                     "LINK x.elf"]  # fmt: skip
+    assert "CC b.c" in (tmp_path / "make.log").read_text()
+
+
+def test_the_m4f_build_counts_what_make_compiled_and_promises_no_time(monkeypatch):
+    from host_emulator.runtimes.m4f import build
+
+    err = _Tty()
+    monkeypatch.setattr(sys, "stderr", err)
+    monkeypatch.setattr(progress, "REDRAW_S", 0.0)
+    on_line, counter = build._compile_counter(True)
+    for line in ("mkdir -p x/py/", "GEN x/genhdr/qstr.i.last", "CC ../../py/a.c", "MPY app.py",
+                 "CC ../../py/b.c", "LINK x/firmware.elf", "text data bss"):  # fmt: skip
+        on_line(line + "\n")
+    counter.end()
+    draws = [d for d in re.sub(r"\x1b\[K", "", err.getvalue()).split("\r") if d]
+    assert [d.split(", ")[0] for d in draws[:2]] == ["  m4f build: generating qstr.i.last",
+                                                      "  m4f build: 1 C files"]  # fmt: skip
+    assert draws[3].startswith("  m4f build: 2 C files, 1 frozen modules compiled, 0 s")
+    assert draws[4].startswith("  m4f build: linking firmware.elf") and draws[-1].endswith("\n")
+    assert "~30 s" not in build.ANNOUNCE and len(build.ANNOUNCE.format(jobs=64)) < 80
