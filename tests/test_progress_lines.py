@@ -155,3 +155,15 @@ def test_the_m4f_build_counts_what_make_compiled_and_promises_no_time(monkeypatc
     assert draws[3].startswith("  m4f build: 2 C files, 1 frozen modules compiled, 0 s")
     assert draws[4].startswith("  m4f build: linking firmware.elf") and draws[-1].endswith("\n")
     assert "~30 s" not in build.ANNOUNCE and len(build.ANNOUNCE.format(jobs=64)) < 80
+
+
+def test_the_first_make_says_it_installs_and_lets_pip_show_its_progress(tmp_path):
+    import subprocess
+
+    venv = tmp_path / "venv"
+    proc = subprocess.run(["make", "-n", f"VENV={venv}", "demo"], cwd=REPO_DIR,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    lines = proc.stdout.splitlines()
+    install = next(x for x in lines if "pip install" in x)
+    assert lines[0].startswith("echo ") and "installing the pinned dependencies" in lines[0]
+    assert "--quiet" not in install and " -q" not in install
