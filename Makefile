@@ -8,9 +8,11 @@ STAMP  := $(VENV)/.installed
 	cpi accuracy-report \
 	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
+# pip's own progress shown (no --quiet): the first install takes minutes
 $(STAMP): requirements.txt
+	@echo "installing the pinned dependencies into $(VENV) (first time: a few minutes)"
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	$(BIN)/python -m pip install --disable-pip-version-check --progress-bar on -r requirements.txt
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -18,6 +18,7 @@ from common.firmware_env import REPO_DIR
 LAYERS = {
     "common.errors": 0,
     "common.toolchain": 0,
+    "common.progress": 0,  # progress lines that fit the terminal
     "common.native": 1,  # the kernels' builds and their bindings
     "common.firmware_env": 2,  # navk on CPython is the cffi build
     "common.proto": 3,  # the configuration codec is the firmware's own

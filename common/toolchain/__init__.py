@@ -125,14 +125,21 @@ def locked(path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def make(args, what, log_path):
-    """Run make with args; its output goes to log_path. ToolchainError with the log's tail."""
+def make(args, what, log_path, on_line=None):
+    """Run make with args; its output goes to log_path and, line by line, to on_line (a
+    build's progress). ToolchainError with the log's tail."""
     log_path = pathlib.Path(log_path)
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, "w") as log:
-        proc = subprocess.run(["make", "-j", jobs(), *args], stdout=log, stderr=subprocess.STDOUT,
-                              env=version_env())  # fmt: skip
-    if proc.returncode != 0:
+        proc = subprocess.Popen(["make", "-j", jobs(), *args], stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, errors="replace",
+                                env=version_env())  # fmt: skip
+        for line in proc.stdout:
+            log.write(line)
+            if on_line is not None:
+                on_line(line)
+        returncode = proc.wait()
+    if returncode != 0:
         tail = "\n".join(log_path.read_text(errors="replace").splitlines()[-25:])
         raise ToolchainError(f"building {what} failed (full log: {log_path}):\n{tail}")
 

@@ -137,11 +137,12 @@ def bit_exact_runtimes():
 
 
 def compare(stim, config_overrides=None, progress=None, runtime="cpython", kernels=None,
-            board=None):  # fmt: skip
+            board=None, model_progress=None):  # fmt: skip
     """Run the firmware (on `runtime` with `kernels`, "native" or "python", None: the default,
     native; in a temporary flash directory) and the model over `stim` with the same board
     configuration; a ParityResult. progress(k, n) is passed to each side in turn (firmware
-    first). FirmwareError if the firmware raises."""
+    first), model_progress, when given, to the model instead. FirmwareError if the firmware
+    raises."""
     if runtime not in bit_exact_runtimes():
         raise EmulatorError(
             f"parity needs a bit-exact runtime ({', '.join(bit_exact_runtimes())}), not "
@@ -154,7 +155,8 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
         # refuses --board for the model on the command line)
         from host_emulator.runtimes import model as model_runtime
 
-        model = model_runtime.run(stim, Path(d), config_overrides, progress, board=board)
+        model = model_runtime.run(stim, Path(d), config_overrides, model_progress or progress,
+                                  board=board)  # fmt: skip
     cfg = board_config.from_values(board_config.run_values(stim, config_overrides))
     zeroed = runtimes.get(runtime).own_run_time
     fw_out, model_out = fw.out, model.out
@@ -183,6 +185,7 @@ def compare(stim, config_overrides=None, progress=None, runtime="cpython", kerne
 
 def main(argv=None):
     """`parity --scenario NAME --duration S [--seed N]`: 0 identical, 1 different, 2 usage."""
+    from host_emulator.eval.scenario_run import firmware_bar
     from host_emulator.sim import board_input
 
     p = cli_args.Parser(
@@ -216,9 +219,11 @@ def main(argv=None):
         stim = board_input.simulate(args.scenario, duration_s=duration, seed=args.seed).stimulus
         print(
             f"parity: {args.scenario}, {stim.duration_s:g} s ({len(stim)} ticks), seed "
-            f"{args.seed}, firmware on {args.runtime}, {args.kernels} kernels"
+            f"{args.seed}, {args.runtime}, {args.kernels} kernels"
         )
-        r = compare(stim, runtime=args.runtime, kernels=args.kernels, board=args.board)
+        r = compare(stim, runtime=args.runtime, kernels=args.kernels, board=args.board,
+                    progress=firmware_bar(args.runtime, stim.duration_s),
+                    model_progress=firmware_bar("model", stim.duration_s))  # fmt: skip
         print(r.summary())
         return 0 if r.identical else 1
 

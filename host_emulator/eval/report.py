@@ -124,21 +124,40 @@ def _zoom_panel(ax, truth, tr, nav, start, length, window):
     ax.grid(alpha=0.3)
 
 
-def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=None):
+def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=None,
+          progress=None):  # fmt: skip
     """Write the PNGs of PLOTS into out_dir. truth: object with t_s, p_n, ypr (truth frame;
     ypr NaN where there is no truth attitude); gnss_fixes: (K, 3) valid fix positions in the
-    truth frame (optional); bias_truth: (t_s, bg (N, 3) rad/s, ba (N, 3) m/s^2) or None.
-    Returns what was drawn: {"insets", "attitude_ylim", "truth_yaw"}."""
+    truth frame (optional); bias_truth: (t_s, bg (N, 3) rad/s, ba (N, 3) m/s^2) or None;
+    progress(k, n): k of the n PLOTS written (seconds each). Returns what was drawn:
+    {"insets", "attitude_ylim", "truth_yaw"}."""
+    done = _counter(progress or (lambda _k, _n: None), len(PLOTS))
     plt = _plt()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
     info = {"insets": _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes)}
+    done()
     _errors_png(plt, out_dir, title, err, outages, t_end)
+    done()
     info["attitude_ylim"], info["truth_yaw"] = _attitude_png(
         plt, out_dir, title, tr, err, truth, nav, outages, t_end
     )
+    done()
     _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end)
+    done()
     return info
+
+
+def _counter(progress, n):
+    """done(): one more of n steps, told to progress(k, n); progress(0, n) at once."""
+    k = [0]
+    progress(0, n)
+
+    def done():
+        k[0] += 1
+        progress(k[0], n)
+
+    return done
 
 
 def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):

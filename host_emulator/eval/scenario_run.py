@@ -14,13 +14,13 @@ when everything succeeded (a failed run leaves no report that could be mistaken 
 import json
 import pathlib
 import shutil
-import sys
 import tempfile
 import time
 
 import numpy as np
 
 from common.errors import EmulatorError, write_atomic
+from common.progress import Bar, stage
 from common.proto import config as board_config
 from common.proto import stimulus as stim_mod
 from common.proto import stream
@@ -35,45 +35,30 @@ SCREEN = "screen.png"  # the board's screen at the end of the run (with --displa
 OUTPUTS = ("frames.bin", "metrics.json", "report.md", *report.PLOTS)
 
 
-class Progress:
-    """A one-line progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+def firmware_bar(label, duration_s, stream=None, enabled=True):
+    """The firmware run's progress bar (common/progress.py), in simulated seconds and times
+    real time."""
 
-    def __init__(self, label, duration_s, stream=None, enabled=True):
-        self.label = label
-        self.duration_s = duration_s
-        self.stream = stream or sys.stderr
-        self.enabled = enabled
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self.t0 = time.perf_counter()
-        self.last_decile = -1
-        self.last_draw = 0.0
+    def detail(k, n, wall):
+        sim_s = k / n * duration_s
+        rate = f"  {sim_s / wall:.1f}x real time" if wall > 0 else ""
+        return f"{sim_s:.0f}/{duration_s:.0f} s{rate}"
 
-    def __call__(self, k, n):
-        if not self.enabled or n <= 0:
-            return
-        frac = k / n
-        now = time.perf_counter()
-        wall = now - self.t0
-        sim_s = frac * self.duration_s
-        rate = f"{sim_s / wall:5.1f}x real time" if wall > 0 else ""
-        if self.tty:
-            if now - self.last_draw < 0.2 and k < n:
-                return
-            self.last_draw = now
-            bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
-            self.stream.write(
-                f"\r  {self.label:<10} [{bar}] {100 * frac:3.0f}%  {sim_s:6.0f}/"
-                f"{self.duration_s:.0f} s  {rate}"
-            )
-            if k >= n:
-                self.stream.write("\n")
-            self.stream.flush()
-        else:
-            decile = int(10 * frac)
-            if decile > self.last_decile:
-                self.last_decile = decile
-                self.stream.write(f"  {self.label}: {100 * frac:3.0f}%  {rate}\n")
-                self.stream.flush()
+    return Bar(label, detail, stream, enabled)
+
+
+def plots_bar(enabled=True):
+    """The plots' progress (seconds each): which PNG is being drawn."""
+
+    def detail(k, n, _wall):
+        return f"{k}/{n}, drawing {report.PLOTS[k]}" if k < n else f"{n}/{n} written"
+
+    return Bar("plots", detail, enabled=enabled)
+
+
+def evaluating(enabled=True):
+    """The stage line before the evaluation (seconds on a long run)."""
+    stage("  evaluating the output against truth…", enabled=enabled)
 
 
 def run_firmware(runtime, stim_path, progress=None, kernels=None, board=None, overrides=None):
@@ -177,7 +162,7 @@ def evaluate_run(sim, fw, stim, out_dir, runtime, extra=None):
     return metrics, tr, err
 
 
-def write_outputs(out_dir, sim, metrics, tr, err, console):
+def write_outputs(out_dir, sim, metrics, tr, err, console, progress=None):
     truth = sim.truth
     g = sim.gnss
     fixes = (g.p_ant_n + g.err_n_m)[g.valid]
@@ -192,6 +177,7 @@ def write_outputs(out_dir, sim, metrics, tr, err, console):
         outages,
         fixes,
         (sim.imu.t_s, sim.imu.bg_rad_s, sim.imu.ba_m_s2),
+        progress,
     )
     desc = trajectory.SCENARIOS[sim.name].description
     notes = [profile_note(sim.stimulus.config, sim.name)]
@@ -241,14 +227,15 @@ def run(scenario, duration_s, seed, runtime, out_dir, show_progress=True, log=pr
     )
     log("  " + profile_note(sim.stimulus.config, scenario))
     _log_faults(sim.stimulus, log)
-    prog = Progress(runtime, sim.stimulus.duration_s, enabled=show_progress)
+    prog = firmware_bar(runtime, sim.stimulus.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, stim_path, prog, kernels, board, screen_overrides(display))
     write_atomic(out_dir / "frames.bin", fw.out)
+    evaluating(show_progress)
     metrics, tr, err = evaluate_run(sim, fw, sim.stimulus, out_dir, runtime)
     if not tr.t_s.size:
         raise EmulatorError("the firmware sent no extended frames: nothing to evaluate")
     write_screen(fw, sim.stimulus, display, out_dir, metrics, log)
-    write_outputs(out_dir, sim, metrics, tr, err, fw.console)
+    write_outputs(out_dir, sim, metrics, tr, err, fw.console, plots_bar(show_progress))
     return metrics
 
 
@@ -295,10 +282,11 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         _log_faults(stim, log)
     elif src.resolve() != local.resolve():
         shutil.copyfile(src, local)
-    prog = Progress(runtime, stim.duration_s, enabled=show_progress)
+    prog = firmware_bar(runtime, stim.duration_s, enabled=show_progress)
     fw = run_firmware(runtime, local, prog, kernels, board, screen_overrides(display))
     write_atomic(out_dir / "frames.bin", fw.out)
     if h.get("source") == "simulation" and h.get("scenario") in trajectory.SCENARIOS:
+        evaluating(show_progress)
         sim = board_input.simulate(h["scenario"], h.get("duration_s"), h.get("seed", 0))
         if not faults and sim.stimulus.to_bytes() != stim.to_bytes():
             log("note: the file differs from a fresh simulation of its scenario; evaluating "
@@ -306,7 +294,7 @@ def run_stimulus(path, runtime, out_dir, show_progress=True, log=print, kernels=
         sim.stimulus = stim
         metrics, tr, err = evaluate_run(sim, fw, stim, out_dir, runtime)
         write_screen(fw, stim, display, out_dir, metrics, log)
-        write_outputs(out_dir, sim, metrics, tr, err, fw.console)
+        write_outputs(out_dir, sim, metrics, tr, err, fw.console, plots_bar(show_progress))
         return metrics
     decoded = stream.decode(fw.out)
     tr = evaluate.track(decoded, stim.tick_us * 1e-6, (0, 0, 0.0))

@@ -317,10 +317,11 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
     log(f"  board settings: {board_settings.describe(rep.stimulus.config, rep.sources)}")
     for f in rep.stimulus.header.get("faults", []):
         log(f"fault injected: {f}")
-    prog = scenario_run.Progress(runtime, rep.stimulus.duration_s, enabled=show_progress)
+    prog = scenario_run.firmware_bar(runtime, rep.stimulus.duration_s, enabled=show_progress)
     overrides = scenario_run.screen_overrides(display)
     fw = scenario_run.run_firmware(runtime, stim_path, prog, kernels, board, overrides)
     (out_dir / "frames.bin").write_bytes(fw.out)
+    scenario_run.evaluating(show_progress)
     metrics, tr, err = evaluate_replay(rep, fw, runtime)
     if not err.t_s.size:
         if metrics["align_time_s"] is None:
@@ -347,6 +348,7 @@ def replay(ds, options=None, runtime="cpython", out_dir="out/replay", show_progr
         rep.truth,
         rep.outages,
         (g.p_ant_n + g.err_n_m)[g.valid],
+        progress=scenario_run.plots_bar(show_progress),
     )
     write_solution_pos(out_dir / "solution.pos", rep, tr)
     scenario_run.write_screen(fw, rep.stimulus, display, out_dir, metrics, log)

@@ -653,3 +653,16 @@ def test_recording_without_a_configuration_or_raw_records_is_noted(tmp_path):
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_board_time_adds_up_over_several_restarts(board, tmp_path):
+    """Three runs of the board in one file: the board time is the three runs', each counted
+    once (a restart adds the time since the last one, not all the time again), and each
+    restart's warning gives the run before it alone."""
+    (tmp_path / "thrice.bin").write_bytes(board[0] * 3)
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["--file", str(tmp_path / "thrice.bin"), "--quiet"], out=out, err=err) == 0
+    text = out.getvalue()
+    assert "board restarts 2" in text and "board time 12.00 s (200.0 frames/s)" in text, text
+    said = err.getvalue().count("(board time 4.0 s in the run before the restart)")
+    assert said == 2, err.getvalue()

@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 
+from common import progress
 from common.errors import os_error_text, quiet_broken_pipe
 from common.proto import config as board_config
 from common.proto import session_file
@@ -391,13 +392,15 @@ def run(args, out=None, err=None, stop=None):
             board.restart()
     status = view.Status(src.name, baud if src.kind == "serial" else None)
     screen = _Screen(out, args.quiet or src.kind == "file")
+    bar = _file_bar(args, src, status, err)
     warnings = []
-    warn = _warner(warnings, screen, status, err)
+    warn = _warner(warnings, screen, status, err, bar.clear)
     for msg in getattr(src, "problems", ()):  # what a cut or damaged session file lost
         warn(msg)
     mon = Monitor(status, _every(values), outputs, recorder, warn, _start_unix_s(src))
     t0 = time.monotonic()
-    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, files, stop)
+    stopped, failure, problems, skipped_before = _watch(src, mon, args, screen, t0, files, stop,
+                                                        bar)  # fmt: skip
     wall = time.monotonic() - t0
     counts = mon.counts()
     cut = counts["skipped_bytes"] - skipped_before  # a record cut by the end of the input
@@ -500,8 +503,20 @@ def _session_header(src, baud, values, config_file, board):
     }
 
 
-def _warner(warnings, screen, status, err):
-    """warn(msg) for the Monitor: each warning also kept in warnings."""
+def _file_bar(args, src, status, err):
+    """A file's progress on a terminal (a long capture takes a minute to read and export):
+    the share read and the board time it held; silent with --quiet or off a terminal."""
+
+    def detail(k, n, _wall):
+        return f"{k / 1e6:.1f}/{n / 1e6:.1f} MB, board time {status.board_seconds():.0f} s"
+
+    on = src.kind == "file" and not args.quiet and progress.is_tty(err)
+    return progress.Bar("reading", detail, err, enabled=on)
+
+
+def _warner(warnings, screen, status, err, clear=lambda: None):
+    """warn(msg) for the Monitor: each warning also kept in warnings; clear() blanks a
+    progress bar's row first."""
 
     def warn(msg, kind="warning"):
         """A warning (or error) line now on stderr, or, under the live view of a terminal
@@ -510,12 +525,13 @@ def _warner(warnings, screen, status, err):
         if screen.tty and not screen.quiet:
             status.note = msg
         else:
+            clear()
             err.write(f"{kind}: {msg}\n")
 
     return warn
 
 
-def _watch(src, mon, args, screen, t0, files, stop):
+def _watch(src, mon, args, screen, t0, files, stop, bar):
     """Feed the source to the monitor until it ends, then close the source and the files:
     (why it stopped, MonitorError or None, problems closing the files, the decoder's skipped
     bytes before its end)."""
@@ -523,7 +539,7 @@ def _watch(src, mon, args, screen, t0, files, stop):
     failure = None
     try:
         if src.kind == "file":
-            stopped = _run_file(src, mon, args, stop)
+            stopped = _run_file(src, mon, args, stop, bar)
         else:
             stopped = _run_port(src, mon, args, screen, t0, stop)
     except KeyboardInterrupt:
@@ -538,6 +554,7 @@ def _watch(src, mon, args, screen, t0, files, stop):
             failure = failure or MonitorError(f"decoding the end of the stream failed: {e}")
         src.close()
         problems = _close_all(files)
+        bar.end()
     return stopped, failure, problems, skipped_before
 
 
@@ -568,7 +585,7 @@ def _show_end(args, src, status, screen, counts, wall, stopped, files, cut, out)
     out.flush()
 
 
-def _run_file(src, mon, args, stop):
+def _run_file(src, mon, args, stop, bar):
     mon.board_limit_s = args.seconds
     size = 1 << 16 if args.seconds is None else 512  # stop near the limit: counts stay close
     while True:
@@ -578,6 +595,7 @@ def _run_file(src, mon, args, stop):
         if not chunk:
             return "end of file"
         mon.feed(chunk)
+        bar(src.position, src.size)
         if mon.done:
             return f"{args.seconds:g} s of board time"
 

@@ -76,6 +76,15 @@ class FileSource:
         self.baud = self.header.get("baud") if self.header else None
         self._pos = 0
 
+    @property
+    def position(self):
+        """Bytes read so far."""
+        return self._pos
+
+    @property
+    def size(self):
+        return len(self.data)
+
     def config_values(self):
         return (self.header or {}).get("config") or None
 
