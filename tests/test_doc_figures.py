@@ -51,6 +51,11 @@ def test_the_flash_figures_are_make_build_flash_s(flash_builds):
     assert (
         f"compiles to {_kb(size)} (`make build-flash`: {n} files, {clusters} FAT clusters" in readme
     )
+    image = _flat(_text("docs/image.md"))
+    assert (
+        f"({_kb(size)} of `.mpy` in {n} files, {clusters * 512 / 1024:.1f} KB in FAT clusters"
+        in image
+    )
 
 
 def test_the_session_format_named_is_the_one_written():
@@ -76,3 +81,14 @@ def test_the_readmes_replay_figures_are_the_accuracy_reports():
     assert f"measures {protocol[1]} horizontal RMS with GNSS" in readme
     assert f"and {protocol[4]} at the end of three 15 s outages" in readme
     assert f"(with a receiver's velocity as well: {with_speed[1]})" in readme
+
+
+def test_the_docs_index_lists_every_document():
+    """docs/README.md names every document under docs/ (and the README points to it)."""
+    index = _text("docs/README.md")
+    docs = ROOT / "docs"
+    for path in sorted(docs.rglob("*.md")):
+        rel = path.relative_to(docs).as_posix()
+        if rel != "README.md":
+            assert f"]({rel})" in index, f"docs/README.md does not list {rel}"
+    assert "(docs/README.md)" in _text("README.md")

@@ -105,7 +105,8 @@ def markdown(results):
     lines += [f"| {a} | {b} | {c} | {e} |" for a, b, c, e in replay_run.REFERENCE_ROWS]
     lines += [
         "",
-        "Targets of the real-data issue for the protocol run: horizontal RMS with GNSS <= 1.0 m "
+        "Targets for the protocol run (docs/requirements.md, targets): horizontal RMS with GNSS "
+        "<= 1.0 m "
         f"(**measured {fmt(p['horiz_rms_gnss_m'], unit='m')}: not met**), horizontal error at "
         f"the end of each outage <= 3 m (**measured {_outs(p)} m**). Both other filters are "
         "beaten on every figure.",
@@ -139,8 +140,8 @@ LIMITS = """## What limits accuracy (drive_0708)
   settings of the first row (gyro ARW 0.1 deg/s/sqrt(Hz), accel VRW 1 mg/sqrt(Hz), standstill
   below 3 deg/s and 0.3 m/s^2) come from the parked vibration and a sweep on this drive, so
   the first row is tuned on the data it is scored on, as the KF-GINS figures are. A sweep
-  around them (each noise and bias setting halved and doubled; a one-off study whose figures
-  are in the notes of the real-data issue, not a command here) found none better.
+  around them (each noise and bias setting halved and doubled: a one-off study, not kept as a
+  command here, so its figures are not in this repository) found none better.
 - **Along-track velocity.** What remains is mostly along the track: the forward velocity
   error wanders by a few tenths of a m/s over tens of seconds (it grows while the car
   accelerates and with speed), and the 1 Hz fixes of 1.5 m pull the position back only

@@ -10,9 +10,9 @@ seed's run without the fault:
 - detection: the first extended frame at or after the fault's start whose health is >= 1 with
   one of the kind's expected causes (proto/records.py CAUSES), and its delay from when the
   board first meets the fault (the first tick whose input differs: an edited sentence arrives
-  with its epoch, up to a second after the start); the deadline is the issue's (1 s for IMU
-  and GNSS data, 10 s for a 1 deg/s gyro bias step; a GNSS loss can only be noticed once fixes
-  are overdue: gnss_timeout_s + 1 s);
+  with its epoch, up to a second after the start); the deadline is the health target's
+  (docs/requirements.md, targets: 1 s for IMU and GNSS data, 10 s for a 1 deg/s gyro bias
+  step; a GNSS loss can only be noticed once fixes are overdue: gnss_timeout_s + 1 s);
 - trust: frames whose horizontal or vertical error is above 10 m, and above 3x the no-fault
   run's RMS, that do not say health 2 (the target: none);
 - peak errors after the fault's start; recovery: the first time after its end from which the
@@ -46,7 +46,7 @@ FAULT_T0_S = 250.0  # after the drive's 10 s outage at 200 s, before its 30 s on
 RUN_S = 320.0  # the fault, 30 s after it and the recovery window
 SEEDS = (0, 1, 2)
 RECOVERED_S = 5.0  # errors within 2x the no-fault RMS this long: recovered
-TRUST_M = 10.0  # above this error the health must be 2 (the target)
+TRUST_M = 10.0  # above this error the health must be 2 (docs/requirements.md, targets)
 
 _IMU_HELD = ("imu_sample_held", "imu_dead")
 _SAT = ("imu_saturated",)

@@ -1,7 +1,7 @@
 """The f411 runtime: the image `make image` builds, on the emulated STM32F411 (host_emulator/
 f411), fed as a board is. Both images are built (cached in build/image: a minute each on a
 fresh checkout) and booted; the Black Pill's frames are compared with the model's byte for byte
-over 30 s (the issue's bar: what a user flashes is what the tests ran)."""
+over 30 s (what a user flashes is what the tests ran)."""
 
 import pytest
 
