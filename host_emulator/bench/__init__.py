@@ -13,4 +13,6 @@ settings.py         `bench-settings`: every board setting swept, what still navi
 board.py            `bench-board`: the image's tick time and the board's RAM on the emulated
                     STM32F411 and Cortex-M4F -> docs/benchmarks/board.md (what a tick costs:
                     eval/board_cost.py, eval/board_time.py)
+outputs.py          what a benchmark will write, said before it starts (most overwrite a
+                    document the repository tracks)
 """

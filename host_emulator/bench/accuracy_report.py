@@ -16,6 +16,7 @@ import sys
 import tempfile
 import time
 
+from host_emulator.bench import outputs
 from host_emulator.eval import scenario_run
 from host_emulator.eval.report import fmt
 from host_emulator.replay import drive_0708, replay_run
@@ -172,6 +173,7 @@ def main(argv=None):
         description="drive_0708 under the protocol and the simulated scenarios through the "
         f"firmware; writes {DOC.relative_to(REPO)} and {JSON.relative_to(REPO)} (~3 min)",
     ).parse_args(argv)
+    outputs.announce("accuracy-report", [DOC, JSON], out_option=None, stream=sys.stderr)
     t0 = time.perf_counter()
     ds = drive_0708.load()
     results = {"date": time.strftime("%Y-%m-%d"), "drive_0708": {}, "simulated": {}}

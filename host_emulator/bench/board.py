@@ -35,6 +35,7 @@ import numpy as np
 from common.errors import EmulatorError
 from common.firmware_env import REPO_DIR
 from host_emulator import args as cli_args
+from host_emulator.bench import outputs
 from host_emulator.eval import board_cost
 from host_emulator.runtimes.m4f import build as m4f_build
 
@@ -639,6 +640,9 @@ def main(argv=None):
         return 2
 
     def command():
+        out = pathlib.Path(args.out)
+        outputs.announce("bench-board", [out, out.with_suffix(".json"),
+                                         out.with_name("board_ticks.png")])  # fmt: skip
         from host_emulator.runtimes import f411
         from host_emulator.runtimes.m4f import build as m4f_build
         from host_emulator.sim import trajectory

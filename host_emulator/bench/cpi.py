@@ -74,6 +74,7 @@ import time
 from common import toolchain
 from common.errors import EmulatorError
 from host_emulator import args as cli_args
+from host_emulator.bench import outputs
 from host_emulator.runtimes.m4f import build as m4f_build
 from host_emulator.runtimes.m4f import guest
 
@@ -626,6 +627,9 @@ def main(argv=None):
                 print(f"{message} ({time.perf_counter() - t0:.0f} s)", file=sys.stderr,
                       flush=True)  # fmt: skip
 
+        if not args.no_write:
+            out = pathlib.Path(args.out)
+            outputs.announce("cpi", [out / "cpi.md", out / "cpi.json"], stream=sys.stderr)
         result = calibrate(progress, published=args.published)
         print(table(result))
         if not args.no_write:

@@ -36,6 +36,7 @@ import numpy as np
 from common.errors import EmulatorError
 from common.proto import records, stream
 from host_emulator import args as cli_args
+from host_emulator.bench import outputs
 from host_emulator.eval import evaluate
 from host_emulator.sim import board_input
 from host_emulator.sim import faults as faults_mod
@@ -507,6 +508,8 @@ def main(argv=None):
         return 2
 
     def command():
+        out = pathlib.Path(args.out)
+        outputs.announce("bench-faults", [out, out.with_suffix(".json")])
         seeds = SEEDS[:1] if args.quick else SEEDS
         run_s = RUN_S
         t0 = FAULT_T0_S

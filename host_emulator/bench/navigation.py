@@ -32,6 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from host_emulator import args as cli_args
+from host_emulator.bench import outputs
 
 # docs/requirements.md, project targets: urban_drive, white GNSS 2/2/4 m, mean over 5 seeds
 TARGETS = {
@@ -784,6 +785,8 @@ def main(argv=None):
             or args.receiver != "GGA + RMC"):  # fmt: skip
         ap.error("--nav, --imu, --gnss, --realistic, --rate, --receiver and --profile go with "
                  "--trial")  # fmt: skip
+    out = pathlib.Path(args.out)
+    outputs.announce("bench-nav", [out, out.with_suffix(".json")], stream=sys.stderr)
     t0 = time.perf_counter()
     results = _run_tasks(_tasks(args.seeds), args.jobs)
     vm, footprint = _vm_figures()

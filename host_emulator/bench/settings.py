@@ -56,6 +56,7 @@ import numpy as np
 
 from common.errors import EmulatorError
 from host_emulator import args as cli_args
+from host_emulator.bench import outputs
 from host_emulator.bench.faults import TRUST_M
 from host_emulator.bench.navigation import SCENARIO_PROFILES
 
@@ -604,6 +605,8 @@ def main(argv=None):
         return 2
 
     def command():
+        out = pathlib.Path(args.out)
+        outputs.announce("bench-settings", [out, out.with_suffix(".json")])
         t0 = time.perf_counter()
         plan = Plan(args.quick, set(args.only), tuple(range(args.seeds)))
         print(f"bench-settings: {len(plan.sweeps)} float and {len(plan.ints)} int settings on "
