@@ -24,10 +24,12 @@ import pytest
 from common.proto import frame as frame_schema
 from common.proto import session_file, stream
 from common.proto.stream import StreamDecoder
+from host_emulator.eval import gnss_dump
 from host_emulator.runtimes import cpython
 from host_emulator.session import replay
 from host_emulator.sim import board_input
-from tools.monitor import cli, export, view
+from host_emulator.sim.nmea import sentence
+from tools.monitor import cli, export, nmea, view
 from tools.monitor.clock import TickClock
 
 BAUD = 460800
@@ -666,3 +668,95 @@ def test_board_time_adds_up_over_several_restarts(board, tmp_path):
     assert "board restarts 2" in text and "board time 12.00 s (200.0 frames/s)" in text, text
     said = err.getvalue().count("(board time 4.0 s in the run before the restart)")
     assert said == 2, err.getvalue()
+
+
+def _gnss_bytes(board):
+    return b"".join(r["gnss_bytes"] for r in stream.decode(board[0]).raw)
+
+
+def test_every_gga_agrees_with_the_firmware_driver(board):
+    data = _gnss_bytes(board)
+    rows, _driver = gnss_dump.dump(data)
+    want = [
+        (round(float(r["utc_s"]) * 1000), r["quality"], r["nsat"], float(r["hdop"]))
+        for r in rows
+        if r["type"] == "GGA"
+    ]
+    got = []
+    rx = nmea.Receiver()
+    for k in range(0, len(data), 7):  # any chunking: sentences span records
+        rx.feed(data[k : k + 7])
+        if rx.gga is not None and (not got or rx.n_gga != len(got)):
+            g = rx.gga
+            got.append((g.utc_ms, g.quality, g.n_sats, g.hdop))
+    assert len(want) >= 3 and got == want
+    assert rx.rmc.date_iso == "2026-11-22" and rx.rmc.utc_ms == want[-1][0]
+    assert rx.bad_checksums == 0
+
+
+def test_a_damaged_or_empty_sentence_is_not_used():
+    rx = nmea.Receiver()
+    good = sentence("GNGGA,123519.50,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,,")
+    rx.feed(good)
+    assert rx.gga == nmea.Gga(utc_ms=45319500, quality=4, n_sats=12, hdop=0.9)
+    assert rx.last_fix == rx.gga and nmea.fix_type(4) == "RTK fixed"
+    bad = bytearray(sentence("GNGGA,123520.50,4807.038,N,01131.000,E,5,11,1.0,545.4,M,,M,,"))
+    bad[20] ^= 1  # a flipped bit: the checksum fails
+    rx.feed(bytes(bad))
+    assert rx.gga.utc_ms == 45319500 and rx.bad_checksums == 1
+    rx.feed(sentence("GPGGA,,,,,,0,,,,,,,,"))  # a receiver without a fix
+    assert rx.gga == nmea.Gga(utc_ms=None, quality=0, n_sats=None, hdop=None)
+    assert rx.last_fix.utc_ms == 45319500  # the last fix stays
+    rx.feed(b"$GNGGA,1235x9.50,,,,,1,05,2.1,,,,,,*00\r\n")  # bad checksum and bad field
+    rx.feed(sentence("GNGGA,12x519.50,,,,,1,05,2.1,,,,,,"))  # bad field: not used
+    assert rx.gga.quality == 0 and rx.bad_fields == 1
+
+
+def _hms(utc_ms):
+    s, ms = divmod(utc_ms, 1000)
+    return f"{s // 3600:02d}:{s // 60 % 60:02d}:{s % 60:02d}.{ms // 10:02d}"
+
+
+def test_the_live_view_shows_the_receiver_and_the_recording(board, tmp_path):
+    """What gpsmon shows: fix type, satellites, HDOP and the UTC of the last fix, read from the
+    raw-input records' GNSS bytes (the firmware's driver reads the same values), and REC with
+    the session file's size; '-' with the setting that gives them when no raw record came."""
+    d = stream.decode(board[0])
+    rec = session_file.SessionWriter(tmp_path / "run.ins", {"format": session_file.FORMAT})
+    rec.write(b"\0" * 1_234_567)
+    st = view.Status("/dev/ttyX", BAUD, recorder=rec)
+    for k, f in enumerate(d.frames):
+        st.on_frame((k + 1) * 0.005, f)
+    st.on_ext(d.ext[-1])
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 4.0)
+    assert lines[1].startswith("REC        ") and lines[1].endswith("/run.ins  1.2 MB")
+    assert "receiver   fix -  sats -  HDOP -  UTC -  (needs raw_record = 1)" in lines
+    for r in d.raw:
+        st.on_raw(r)
+    gga = [r for r in gnss_dump.dump(_gnss_bytes(board))[0] if r["type"] == "GGA"][-1]
+    want = (
+        f"receiver   fix GPS  sats {gga['nsat']}  HDOP {gga['hdop']}  "
+        f"UTC 2026-11-22 {_hms(round(float(gga['utc_s']) * 1000))}"
+    )
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 4.0)
+    assert want in lines, lines
+    assert f"fix GPS sats {gga['nsat']} hdop {gga['hdop']}" in view.one_line(
+        st, {**StreamDecoder().counts(), "bytes": 0}, 4.0
+    )
+    rec.close()
+
+
+def test_the_receiver_and_recording_lines_fit_80_columns(board, tmp_path):
+    d = stream.decode(board[0])
+    rec = session_file.SessionWriter(tmp_path / ("x" * 90 + ".ins"), {})
+    rec.n = 12_345_678_901  # 12.3 GB recorded
+    st = view.Status("/dev/serial/by-id/usb-FTDI_FT232R_USB_UART_A50285BI-if00-port0", 921600,
+                     recorder=rec)  # fmt: skip
+    st.on_frame(1.0, d.frames[-1])
+    st.on_raw({"gnss_bytes": sentence("GNGGA,235959.99,,,,,6,99,99.99,,,,,,")})
+    st.on_raw({"gnss_bytes": sentence("GNRMC,235959.99,A,,,,,,,311299,,,A")})
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 99999.9)
+    assert all(len(x) <= view.WIDTH for x in lines), [x for x in lines if len(x) > 80]
+    assert lines[1].startswith("REC        ...") and lines[1].endswith("x.ins  12345.7 MB")
+    assert "receiver   fix dead reckoning  sats 99  HDOP 99.99  UTC 1999-12-31 23:59:59.99" in lines
+    rec.close()

@@ -21,7 +21,7 @@ from common import progress
 from common.errors import os_error_text, quiet_broken_pipe
 from common.proto import config as board_config
 from common.proto import session_file
-from common.proto.stream import EXT, FRAME, StreamDecoder
+from common.proto.stream import EXT, FRAME, RAW, StreamDecoder
 from tools.monitor import export, view
 from tools.monitor.clock import TICK_S, CaptureClock, TickClock
 from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports
@@ -82,6 +82,8 @@ class Monitor:
                 self._frame(rec)
             elif kind == EXT:
                 self._ext(rec)
+            elif kind == RAW:
+                self.status.on_raw(rec)  # the receiver's sentences, for the view
 
     def _frame(self, rec):
         if self.start_unix_s is None:
@@ -390,7 +392,7 @@ def run(args, out=None, err=None, stop=None):
     finally:
         if board is not None:  # the firmware starts now, with the port open and read
             board.restart()
-    status = view.Status(src.name, baud if src.kind == "serial" else None)
+    status = view.Status(src.name, baud if src.kind == "serial" else None, recorder)
     screen = _Screen(out, args.quiet or src.kind == "file")
     bar = _file_bar(args, src, status, err)
     warnings = []
