@@ -101,7 +101,8 @@ def _check_exports(tmp_path, d, prefix):
     head, rows = _read_csv(tmp_path / f"{prefix}.csv")
     assert head == [c[0] for c in export.FRAME_COLUMNS] and len(rows) == len(d.frames)
     utc = [datetime.datetime.fromisoformat(r[head.index("utc")]) for r in rows]
-    a = np.array([[x for k, x in enumerate(r) if head[k] != "utc"] for r in rows], dtype=float)
+    cells = [[x or "nan" for k, x in enumerate(r) if head[k] != "utc"] for r in rows]
+    a = np.array(cells, dtype=float)  # an empty fix cell: no valid fix (NaN)
     col = {name: a[:, k] for k, name in enumerate(h for h in head if h != "utc")}
     # a board started under the monitor: capture time from its first frame, board time from
     # its start, the host's UTC the first row's plus the capture time
@@ -112,8 +113,11 @@ def _check_exports(tmp_path, d, prefix):
     assert abs(utc[0] - datetime.datetime.now(datetime.UTC)) < datetime.timedelta(seconds=60)
     assert [round((u - utc[0]).total_seconds(), 3) for u in utc] == list(np.round(col["time_s"], 3))
     assert np.array_equal(col["counter"], [f["counter"] for f in d.frames])
-    np.testing.assert_allclose(col["lat_deg"], [f["lat_e7"] / 1e7 for f in d.frames], atol=1e-9)
-    np.testing.assert_allclose(col["lon_deg"], [f["lon_e7"] / 1e7 for f in d.frames], atol=1e-9)
+    valid = np.array([f["gnss_valid"] for f in d.frames]) == 1
+    lat = np.where(valid, [f["lat_e7"] / 1e7 for f in d.frames], np.nan)
+    lon = np.where(valid, [f["lon_e7"] / 1e7 for f in d.frames], np.nan)
+    np.testing.assert_allclose(col["lat_deg"], lat, atol=1e-9)  # NaN where not valid
+    np.testing.assert_allclose(col["lon_deg"], lon, atol=1e-9)
     np.testing.assert_allclose(col["yaw_deg"], [f["yaw_deg"] for f in d.frames], atol=1e-9)
     np.testing.assert_allclose(col["accel_z_g"], [f["accel_g"][2] for f in d.frames], atol=1e-6)
     fix = next(k for k, f in enumerate(d.frames) if f["gnss_valid"])
@@ -760,3 +764,25 @@ def test_the_receiver_and_recording_lines_fit_80_columns(board, tmp_path):
     assert lines[1].startswith("REC        ...") and lines[1].endswith("x.ins  12345.7 MB")
     assert "receiver   fix dead reckoning  sats 99  HDOP 99.99  UTC 1999-12-31 23:59:59.99" in lines
     rec.close()
+
+
+def test_frames_without_a_valid_fix_have_no_position_in_the_exports(board, tmp_path):
+    """gnss_valid 0: empty lat/lon/height cells in the CSV (NaN in the MDF4), not 0,0."""
+    d = stream.decode(board[0])
+    argv = ["--file", str(board[1]), "--quiet", "--csv", str(tmp_path / "g.csv"),
+            "--mdf", str(tmp_path / "g.mf4")]  # fmt: skip
+    assert cli.main(argv, out=io.StringIO()) == 0
+    head, rows = _read_csv(tmp_path / "g.csv")
+    cells = [[r[head.index(c)] for c in ("lat_deg", "lon_deg", "height_m")] for r in rows]
+    valid = [f["gnss_valid"] for f in d.frames]
+    assert 0 in valid and 1 in valid
+    for f, c in zip(d.frames, cells, strict=True):
+        if f["gnss_valid"]:
+            assert float(c[0]) == f["lat_e7"] / 1e7 and float(c[2]) == pytest.approx(f["height_m"])
+        else:
+            assert c == ["", "", ""]
+    from asammdf import MDF
+
+    with MDF(tmp_path / "g.mf4") as mdf:
+        lat = mdf.get("lat_deg").samples
+    assert np.array_equal(np.isnan(lat), np.array(valid) == 0)

@@ -101,6 +101,18 @@ def utc_text(unix_s):
     return t.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
+# the frame's GNSS fix: no value (an empty CSV cell, NaN in MDF4) while gnss_valid is 0, where
+# the board sends 0, 0 before its first fix (a point in the Gulf of Guinea, not a position)
+FIX_COLUMNS = ("lat_deg", "lon_deg", "height_m")
+
+
+def fix_values(f):
+    """(lat deg, lon deg, height m) of the frame's GNSS fix; NaN without a valid one."""
+    if not f["gnss_valid"]:
+        return (math.nan,) * len(FIX_COLUMNS)
+    return f["lat_e7"] / 1e7, f["lon_e7"] / 1e7, f["height_m"]
+
+
 def frame_values(stamp, f):
     """The FRAME_COLUMNS values of frame fields `f` (frames.frame_fields) with its times
     `stamp` (time_s, board_time_s, restart, utc_unix_s)."""
@@ -114,9 +126,7 @@ def frame_values(stamp, f):
         f["gnss_valid"],
         f["pps"],
         f["gga"],
-        f["lat_e7"] / 1e7,
-        f["lon_e7"] / 1e7,
-        f["height_m"],
+        *fix_values(f),
         f["yaw_deg"],
         f["pitch_deg"],
         f["roll_deg"],
@@ -187,11 +197,18 @@ def ext_csv_path(path):
     return p.with_name(p.stem + "_ext" + (p.suffix or ".csv"))
 
 
+def _fix_cell(decimals):
+    """A fix column's formatter: an empty cell for NaN (no valid fix)."""
+    return lambda x: "" if math.isnan(x) else f"{x:.{decimals}f}"
+
+
 def _fmt(columns):
     out = []
-    for _name, _unit, dec, _dt in columns:
+    for name, _unit, dec, _dt in columns:
         if dec == UTC:
             out.append(utc_text)
+        elif name in FIX_COLUMNS and columns is FRAME_COLUMNS:
+            out.append(_fix_cell(dec))
         else:
             out.append(str if dec is None else (lambda x, d=dec: f"{x:.{d}f}"))
     return out
