@@ -312,6 +312,13 @@ def _board_then_ctrl_c(board, tmp_path, port_opened):
     _check_exports(tmp_path, d, "p")
     header, rec = session_file.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
     assert rec == data and header["baud"] == BAUD and header["source"] == name
+    import xml.etree.ElementTree as ET
+
+    from asammdf import MDF
+
+    with MDF(tmp_path / "p.mf4") as mdf:  # the port and its baud in the MDF4 header
+        props = {e.get("name"): e.text for e in ET.fromstring(mdf.header.comment).iter("e")}
+    assert props["source"] == name and props["baud"] == str(BAUD) and "capture_file" not in props
 
 
 def _opened_by(pid, path):
@@ -786,3 +793,55 @@ def test_frames_without_a_valid_fix_have_no_position_in_the_exports(board, tmp_p
     with MDF(tmp_path / "g.mf4") as mdf:
         lat = mdf.get("lat_deg").samples
     assert np.array_equal(np.isnan(lat), np.array(valid) == 0)
+
+
+def test_the_mdf4_file_says_what_it_holds(board, tmp_path):
+    """Header: source, baud, the board's configuration, the start time, the tool and its
+    version; every channel a unit (where it has one) and a comment naming its field; the
+    navigation state and the health as names."""
+    import tomllib
+    import xml.etree.ElementTree as ET
+
+    from asammdf import MDF
+
+    data, _path, cfg = board
+    src = tmp_path / "s.ins"
+    recorded = {
+        "format": session_file.FORMAT,
+        "source": "/dev/ttyUSB7",
+        "baud": 921600,
+        "started_utc": "2026-05-01T09:30:00+00:00",
+        "config": {"raw_record": 1, "output_every_ticks": 1},
+    }
+    w = session_file.SessionWriter(src, recorded)
+    w.write(data)
+    w.close()
+    assert cli.main(["--file", str(src), "--quiet", "--mdf", str(tmp_path / "m.mf4")],
+                    out=io.StringIO()) == 0  # fmt: skip
+    version = tomllib.loads(open("pyproject.toml").read())["project"]["version"]
+    with MDF(tmp_path / "m.mf4") as mdf:
+        root = ET.fromstring(mdf.header.comment)
+        props = {e.get("name"): e.text for e in root.iter("e")}
+        assert "INS board output" in root.find("TX").text
+        assert props["source"] == "/dev/ttyUSB7" and props["baud"] == "921600"
+        assert props["capture_file"] == str(src)
+        assert props["start_utc"] == "2026-05-01T09:30:00.000Z"
+        assert mdf.header.start_time == datetime.datetime(2026, 5, 1, 9, 30, tzinfo=datetime.UTC)
+        assert props["tool"] == "python -m tools.monitor" and props["tool_version"] == version
+        tree = {t.get("name"): t for t in root.iter("tree")}
+        config = {e.get("name"): e.text for e in tree["config"].iter("e")}
+        assert config == {"raw_record": "1", "output_every_ticks": "1"}
+        yaw = mdf.get("yaw_deg")
+        assert yaw.unit == "deg" and "yaw_cdeg" in yaw.comment and "byte 29" in yaw.comment
+        assert mdf.get("sigma_pos_e_m").comment.startswith("1-sigma")
+        for name in export.MDF_FRAME_NAMES[1:] + export.MDF_EXT_NAMES[1:]:
+            assert mdf.get(name).comment, name
+        nav = mdf.get("nav_state")
+        assert set(nav.samples) == {b"aligning"}  # 4 s into the drive: still aligning
+        assert set(mdf.get("nav_state", raw=True).samples) == {1}
+        health = mdf.get("health")
+        assert set(health.samples) <= {b"ok", b"warning", b"fault"} and b"warning" in set(
+            health.samples
+        )
+        conv = mdf.get("ext_nav_state", raw=True).conversion
+        assert conv.convert(np.array([1, 2])).tolist() == [b"aligning", b"navigating"]

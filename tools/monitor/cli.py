@@ -319,9 +319,10 @@ def _board_session(port, values, err):
     return board, values, where
 
 
-def _open_outputs(args, header_info):
+def _open_outputs(args, header_info, mdf_info):
     """(outputs, recorder, files) for --csv, --mdf and --record: files are (writer, its
-    description for the summary); writers have close() and `failed`."""
+    description for the summary); writers have close() and `failed`. header_info: the
+    session file's header; mdf_info: the MDF4 header's items (_mdf_info)."""
     outputs, files = [], []
     recorder = None
     try:
@@ -330,7 +331,7 @@ def _open_outputs(args, header_info):
             outputs.append(c)
             files.append((c, c.describe))
         if args.mdf:
-            m = export.MdfExport(args.mdf)
+            m = export.MdfExport(args.mdf, mdf_info)
             outputs.append(m)
             files.append((m, m.describe))
         if args.record:
@@ -385,7 +386,7 @@ def run(args, out=None, err=None, stop=None):
         _note_record_config(values, err)
     header = _session_header(src, baud, values, config_file, board)
     try:
-        outputs, recorder, files = _open_outputs(args, header)
+        outputs, recorder, files = _open_outputs(args, header, _mdf_info(src, header))
     except MonitorError:
         src.close()
         raise
@@ -503,6 +504,19 @@ def _session_header(src, baud, values, config_file, board):
         "config_file": config_file,
         "board": board.facts if board is not None else None,
     }
+
+
+def _mdf_info(src, header):
+    """The MDF4 header's items: the session header's, where a session file read gives the
+    port and baud it was recorded from (and the file itself as capture_file)."""
+    info = dict(header)
+    if src.kind == "file":
+        info["capture_file"] = src.name
+        recorded = getattr(src, "header", None) or {}
+        info["source"] = recorded.get("source", src.name)
+        info["baud"] = recorded.get("baud")
+        info["board"] = info.get("board") or recorded.get("board")
+    return info
 
 
 def _file_bar(args, src, status, err):

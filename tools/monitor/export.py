@@ -8,6 +8,8 @@ import math
 import os
 from pathlib import Path
 
+from tools.monitor import mdf_meta
+
 G = 9.80665  # m/s^2 per g (for accelerometer biases in mg)
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 
@@ -334,10 +336,11 @@ class CsvExport:
 
 
 class _MdfGroup:
-    def __init__(self, columns, comment, names):
+    def __init__(self, columns, comment, names, channel_comment):
         self.columns = columns
         self.names = names
         self.comment = comment
+        self.channel_comment = channel_comment  # column name -> the channel's comment
         self.rows = []
         self.index = None
         self.samples = 0
@@ -351,7 +354,7 @@ class MdfExport:
 
     CHUNK = 2000
 
-    def __init__(self, path):
+    def __init__(self, path, info=None):
         try:
             from asammdf import MDF
         except ImportError:
@@ -360,10 +363,15 @@ class MdfExport:
         self._part = part_path(self.path)
         self._file = _open_part(self._part, self.path, "w+b")  # fails now, not at the end
         self.start_unix_s = None
+        self.info = info or {}  # for the header: source, baud, config, ... (mdf_meta)
         self.failed = None  # why it was not written (WriteFailed), or None
         self.mdf = MDF(version="4.10")
-        self.frame_group = _MdfGroup(FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES)
-        self.ext_group = _MdfGroup(EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES)
+        self.frame_group = _MdfGroup(
+            FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES, mdf_meta.frame_comment
+        )
+        self.ext_group = _MdfGroup(
+            EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES, mdf_meta.ext_comment
+        )
 
     def frame(self, stamp, f):
         self._add(self.frame_group, stamp, frame_values(stamp, f))
@@ -390,9 +398,12 @@ class MdfExport:
         arrays = [np.asarray(c, dtype=spec[3]) for c, spec in zip(cols, g.columns, strict=True)]
         if g.index is None:
             sigs = [
-                Signal(a, t, name=name, unit=spec[1])
+                Signal(
+                    a, t, name=name, unit=spec[1], comment=g.channel_comment(spec[0]),
+                    conversion=mdf_meta.conversion(spec[0]),
+                )
                 for a, name, spec in zip(arrays[1:], g.names[1:], g.columns[1:], strict=True)
-            ]
+            ]  # fmt: skip
             g.index = self.mdf.append(sigs, comment=g.comment)
         else:
             self.mdf.extend(g.index, [(t, None)] + [(a, None) for a in arrays[1:]])
@@ -432,9 +443,12 @@ class MdfExport:
     def _save(self):
         self._flush(self.frame_group)
         self._flush(self.ext_group)
+        start_text = None
         if self.start_unix_s is not None:
             start = datetime.datetime.fromtimestamp(self.start_unix_s, datetime.UTC)
             self.mdf.header.start_time = start
+            start_text = utc_text(self.start_unix_s)
+        self.mdf.header.comment = mdf_meta.header_comment(self.info, start_text)
         self.mdf.save(self._file)  # a file object: asammdf keeps its name and raises
         self._file.close()
         _publish(self._part, self.path)
