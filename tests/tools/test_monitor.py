@@ -24,10 +24,12 @@ import pytest
 from common.proto import frame as frame_schema
 from common.proto import session_file, stream
 from common.proto.stream import StreamDecoder
+from host_emulator.eval import gnss_dump
 from host_emulator.runtimes import cpython
 from host_emulator.session import replay
 from host_emulator.sim import board_input
-from tools.monitor import cli, export, view
+from host_emulator.sim.nmea import sentence
+from tools.monitor import cli, export, nmea, view
 from tools.monitor.clock import TickClock
 
 BAUD = 460800
@@ -99,7 +101,8 @@ def _check_exports(tmp_path, d, prefix):
     head, rows = _read_csv(tmp_path / f"{prefix}.csv")
     assert head == [c[0] for c in export.FRAME_COLUMNS] and len(rows) == len(d.frames)
     utc = [datetime.datetime.fromisoformat(r[head.index("utc")]) for r in rows]
-    a = np.array([[x for k, x in enumerate(r) if head[k] != "utc"] for r in rows], dtype=float)
+    cells = [[x or "nan" for k, x in enumerate(r) if head[k] != "utc"] for r in rows]
+    a = np.array(cells, dtype=float)  # an empty fix cell: no valid fix (NaN)
     col = {name: a[:, k] for k, name in enumerate(h for h in head if h != "utc")}
     # a board started under the monitor: capture time from its first frame, board time from
     # its start, the host's UTC the first row's plus the capture time
@@ -110,8 +113,11 @@ def _check_exports(tmp_path, d, prefix):
     assert abs(utc[0] - datetime.datetime.now(datetime.UTC)) < datetime.timedelta(seconds=60)
     assert [round((u - utc[0]).total_seconds(), 3) for u in utc] == list(np.round(col["time_s"], 3))
     assert np.array_equal(col["counter"], [f["counter"] for f in d.frames])
-    np.testing.assert_allclose(col["lat_deg"], [f["lat_e7"] / 1e7 for f in d.frames], atol=1e-9)
-    np.testing.assert_allclose(col["lon_deg"], [f["lon_e7"] / 1e7 for f in d.frames], atol=1e-9)
+    valid = np.array([f["gnss_valid"] for f in d.frames]) == 1
+    lat = np.where(valid, [f["lat_e7"] / 1e7 for f in d.frames], np.nan)
+    lon = np.where(valid, [f["lon_e7"] / 1e7 for f in d.frames], np.nan)
+    np.testing.assert_allclose(col["lat_deg"], lat, atol=1e-9)  # NaN where not valid
+    np.testing.assert_allclose(col["lon_deg"], lon, atol=1e-9)
     np.testing.assert_allclose(col["yaw_deg"], [f["yaw_deg"] for f in d.frames], atol=1e-9)
     np.testing.assert_allclose(col["accel_z_g"], [f["accel_g"][2] for f in d.frames], atol=1e-6)
     fix = next(k for k, f in enumerate(d.frames) if f["gnss_valid"])
@@ -306,6 +312,13 @@ def _board_then_ctrl_c(board, tmp_path, port_opened):
     _check_exports(tmp_path, d, "p")
     header, rec = session_file.read_session(tmp_path / "p.ins")  # closed properly on Ctrl-C
     assert rec == data and header["baud"] == BAUD and header["source"] == name
+    import xml.etree.ElementTree as ET
+
+    from asammdf import MDF
+
+    with MDF(tmp_path / "p.mf4") as mdf:  # the port and its baud in the MDF4 header
+        props = {e.get("name"): e.text for e in ET.fromstring(mdf.header.comment).iter("e")}
+    assert props["source"] == name and props["baud"] == str(BAUD) and "capture_file" not in props
 
 
 def _opened_by(pid, path):
@@ -666,3 +679,169 @@ def test_board_time_adds_up_over_several_restarts(board, tmp_path):
     assert "board restarts 2" in text and "board time 12.00 s (200.0 frames/s)" in text, text
     said = err.getvalue().count("(board time 4.0 s in the run before the restart)")
     assert said == 2, err.getvalue()
+
+
+def _gnss_bytes(board):
+    return b"".join(r["gnss_bytes"] for r in stream.decode(board[0]).raw)
+
+
+def test_every_gga_agrees_with_the_firmware_driver(board):
+    data = _gnss_bytes(board)
+    rows, _driver = gnss_dump.dump(data)
+    want = [
+        (round(float(r["utc_s"]) * 1000), r["quality"], r["nsat"], float(r["hdop"]))
+        for r in rows
+        if r["type"] == "GGA"
+    ]
+    got = []
+    rx = nmea.Receiver()
+    for k in range(0, len(data), 7):  # any chunking: sentences span records
+        rx.feed(data[k : k + 7])
+        if rx.gga is not None and (not got or rx.n_gga != len(got)):
+            g = rx.gga
+            got.append((g.utc_ms, g.quality, g.n_sats, g.hdop))
+    assert len(want) >= 3 and got == want
+    assert rx.rmc.date_iso == "2026-11-22" and rx.rmc.utc_ms == want[-1][0]
+    assert rx.bad_checksums == 0
+
+
+def test_a_damaged_or_empty_sentence_is_not_used():
+    rx = nmea.Receiver()
+    good = sentence("GNGGA,123519.50,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,,")
+    rx.feed(good)
+    assert rx.gga == nmea.Gga(utc_ms=45319500, quality=4, n_sats=12, hdop=0.9)
+    assert rx.last_fix == rx.gga and nmea.fix_type(4) == "RTK fixed"
+    bad = bytearray(sentence("GNGGA,123520.50,4807.038,N,01131.000,E,5,11,1.0,545.4,M,,M,,"))
+    bad[20] ^= 1  # a flipped bit: the checksum fails
+    rx.feed(bytes(bad))
+    assert rx.gga.utc_ms == 45319500 and rx.bad_checksums == 1
+    rx.feed(sentence("GPGGA,,,,,,0,,,,,,,,"))  # a receiver without a fix
+    assert rx.gga == nmea.Gga(utc_ms=None, quality=0, n_sats=None, hdop=None)
+    assert rx.last_fix.utc_ms == 45319500  # the last fix stays
+    rx.feed(b"$GNGGA,1235x9.50,,,,,1,05,2.1,,,,,,*00\r\n")  # bad checksum and bad field
+    rx.feed(sentence("GNGGA,12x519.50,,,,,1,05,2.1,,,,,,"))  # bad field: not used
+    assert rx.gga.quality == 0 and rx.bad_fields == 1
+
+
+def _hms(utc_ms):
+    s, ms = divmod(utc_ms, 1000)
+    return f"{s // 3600:02d}:{s // 60 % 60:02d}:{s % 60:02d}.{ms // 10:02d}"
+
+
+def test_the_live_view_shows_the_receiver_and_the_recording(board, tmp_path):
+    """What gpsmon shows: fix type, satellites, HDOP and the UTC of the last fix, read from the
+    raw-input records' GNSS bytes (the firmware's driver reads the same values), and REC with
+    the session file's size; '-' with the setting that gives them when no raw record came."""
+    d = stream.decode(board[0])
+    rec = session_file.SessionWriter(tmp_path / "run.ins", {"format": session_file.FORMAT})
+    rec.write(b"\0" * 1_234_567)
+    st = view.Status("/dev/ttyX", BAUD, recorder=rec)
+    for k, f in enumerate(d.frames):
+        st.on_frame((k + 1) * 0.005, f)
+    st.on_ext(d.ext[-1])
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 4.0)
+    assert lines[1].startswith("REC        ") and lines[1].endswith("/run.ins  1.2 MB")
+    assert "receiver   fix -  sats -  HDOP -  UTC -  (needs raw_record = 1)" in lines
+    for r in d.raw:
+        st.on_raw(r)
+    gga = [r for r in gnss_dump.dump(_gnss_bytes(board))[0] if r["type"] == "GGA"][-1]
+    want = (
+        f"receiver   fix GPS  sats {gga['nsat']}  HDOP {gga['hdop']}  "
+        f"UTC 2026-11-22 {_hms(round(float(gga['utc_s']) * 1000))}"
+    )
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 4.0)
+    assert want in lines, lines
+    assert f"fix GPS sats {gga['nsat']} hdop {gga['hdop']}" in view.one_line(
+        st, {**StreamDecoder().counts(), "bytes": 0}, 4.0
+    )
+    rec.close()
+
+
+def test_the_receiver_and_recording_lines_fit_80_columns(board, tmp_path):
+    d = stream.decode(board[0])
+    rec = session_file.SessionWriter(tmp_path / ("x" * 90 + ".ins"), {})
+    rec.n = 12_345_678_901  # 12.3 GB recorded
+    st = view.Status("/dev/serial/by-id/usb-FTDI_FT232R_USB_UART_A50285BI-if00-port0", 921600,
+                     recorder=rec)  # fmt: skip
+    st.on_frame(1.0, d.frames[-1])
+    st.on_raw({"gnss_bytes": sentence("GNGGA,235959.99,,,,,6,99,99.99,,,,,,")})
+    st.on_raw({"gnss_bytes": sentence("GNRMC,235959.99,A,,,,,,,311299,,,A")})
+    lines = view.render(st, {**StreamDecoder().counts(), "bytes": 0}, 99999.9)
+    assert all(len(x) <= view.WIDTH for x in lines), [x for x in lines if len(x) > 80]
+    assert lines[1].startswith("REC        ...") and lines[1].endswith("x.ins  12345.7 MB")
+    assert "receiver   fix dead reckoning  sats 99  HDOP 99.99  UTC 1999-12-31 23:59:59.99" in lines
+    rec.close()
+
+
+def test_frames_without_a_valid_fix_have_no_position_in_the_exports(board, tmp_path):
+    """gnss_valid 0: empty lat/lon/height cells in the CSV (NaN in the MDF4), not 0,0."""
+    d = stream.decode(board[0])
+    argv = ["--file", str(board[1]), "--quiet", "--csv", str(tmp_path / "g.csv"),
+            "--mdf", str(tmp_path / "g.mf4")]  # fmt: skip
+    assert cli.main(argv, out=io.StringIO()) == 0
+    head, rows = _read_csv(tmp_path / "g.csv")
+    cells = [[r[head.index(c)] for c in ("lat_deg", "lon_deg", "height_m")] for r in rows]
+    valid = [f["gnss_valid"] for f in d.frames]
+    assert 0 in valid and 1 in valid
+    for f, c in zip(d.frames, cells, strict=True):
+        if f["gnss_valid"]:
+            assert float(c[0]) == f["lat_e7"] / 1e7 and float(c[2]) == pytest.approx(f["height_m"])
+        else:
+            assert c == ["", "", ""]
+    from asammdf import MDF
+
+    with MDF(tmp_path / "g.mf4") as mdf:
+        lat = mdf.get("lat_deg").samples
+    assert np.array_equal(np.isnan(lat), np.array(valid) == 0)
+
+
+def test_the_mdf4_file_says_what_it_holds(board, tmp_path):
+    """Header: source, baud, the board's configuration, the start time, the tool and its
+    version; every channel a unit (where it has one) and a comment naming its field; the
+    navigation state and the health as names."""
+    import tomllib
+    import xml.etree.ElementTree as ET
+
+    from asammdf import MDF
+
+    data, _path, cfg = board
+    src = tmp_path / "s.ins"
+    recorded = {
+        "format": session_file.FORMAT,
+        "source": "/dev/ttyUSB7",
+        "baud": 921600,
+        "started_utc": "2026-05-01T09:30:00+00:00",
+        "config": {"raw_record": 1, "output_every_ticks": 1},
+    }
+    w = session_file.SessionWriter(src, recorded)
+    w.write(data)
+    w.close()
+    assert cli.main(["--file", str(src), "--quiet", "--mdf", str(tmp_path / "m.mf4")],
+                    out=io.StringIO()) == 0  # fmt: skip
+    version = tomllib.loads(open("pyproject.toml").read())["project"]["version"]
+    with MDF(tmp_path / "m.mf4") as mdf:
+        root = ET.fromstring(mdf.header.comment)
+        props = {e.get("name"): e.text for e in root.iter("e")}
+        assert "INS board output" in root.find("TX").text
+        assert props["source"] == "/dev/ttyUSB7" and props["baud"] == "921600"
+        assert props["capture_file"] == str(src)
+        assert props["start_utc"] == "2026-05-01T09:30:00.000Z"
+        assert mdf.header.start_time == datetime.datetime(2026, 5, 1, 9, 30, tzinfo=datetime.UTC)
+        assert props["tool"] == "python -m tools.monitor" and props["tool_version"] == version
+        tree = {t.get("name"): t for t in root.iter("tree")}
+        config = {e.get("name"): e.text for e in tree["config"].iter("e")}
+        assert config == {"raw_record": "1", "output_every_ticks": "1"}
+        yaw = mdf.get("yaw_deg")
+        assert yaw.unit == "deg" and "yaw_cdeg" in yaw.comment and "byte 29" in yaw.comment
+        assert mdf.get("sigma_pos_e_m").comment.startswith("1-sigma")
+        for name in export.MDF_FRAME_NAMES[1:] + export.MDF_EXT_NAMES[1:]:
+            assert mdf.get(name).comment, name
+        nav = mdf.get("nav_state")
+        assert set(nav.samples) == {b"aligning"}  # 4 s into the drive: still aligning
+        assert set(mdf.get("nav_state", raw=True).samples) == {1}
+        health = mdf.get("health")
+        assert set(health.samples) <= {b"ok", b"warning", b"fault"} and b"warning" in set(
+            health.samples
+        )
+        conv = mdf.get("ext_nav_state", raw=True).conversion
+        assert conv.convert(np.array([1, 2])).tolist() == [b"aligning", b"navigating"]

@@ -21,7 +21,7 @@ from common import progress
 from common.errors import os_error_text, quiet_broken_pipe
 from common.proto import config as board_config
 from common.proto import session_file
-from common.proto.stream import EXT, FRAME, StreamDecoder
+from common.proto.stream import EXT, FRAME, RAW, StreamDecoder
 from tools.monitor import export, view
 from tools.monitor.clock import TICK_S, CaptureClock, TickClock
 from tools.monitor.source import FileSource, MonitorError, PortSource, list_ports
@@ -82,6 +82,8 @@ class Monitor:
                 self._frame(rec)
             elif kind == EXT:
                 self._ext(rec)
+            elif kind == RAW:
+                self.status.on_raw(rec)  # the receiver's sentences, for the view
 
     def _frame(self, rec):
         if self.start_unix_s is None:
@@ -317,9 +319,10 @@ def _board_session(port, values, err):
     return board, values, where
 
 
-def _open_outputs(args, header_info):
+def _open_outputs(args, header_info, mdf_info):
     """(outputs, recorder, files) for --csv, --mdf and --record: files are (writer, its
-    description for the summary); writers have close() and `failed`."""
+    description for the summary); writers have close() and `failed`. header_info: the
+    session file's header; mdf_info: the MDF4 header's items (_mdf_info)."""
     outputs, files = [], []
     recorder = None
     try:
@@ -328,7 +331,7 @@ def _open_outputs(args, header_info):
             outputs.append(c)
             files.append((c, c.describe))
         if args.mdf:
-            m = export.MdfExport(args.mdf)
+            m = export.MdfExport(args.mdf, mdf_info)
             outputs.append(m)
             files.append((m, m.describe))
         if args.record:
@@ -383,14 +386,14 @@ def run(args, out=None, err=None, stop=None):
         _note_record_config(values, err)
     header = _session_header(src, baud, values, config_file, board)
     try:
-        outputs, recorder, files = _open_outputs(args, header)
+        outputs, recorder, files = _open_outputs(args, header, _mdf_info(src, header))
     except MonitorError:
         src.close()
         raise
     finally:
         if board is not None:  # the firmware starts now, with the port open and read
             board.restart()
-    status = view.Status(src.name, baud if src.kind == "serial" else None)
+    status = view.Status(src.name, baud if src.kind == "serial" else None, recorder)
     screen = _Screen(out, args.quiet or src.kind == "file")
     bar = _file_bar(args, src, status, err)
     warnings = []
@@ -501,6 +504,19 @@ def _session_header(src, baud, values, config_file, board):
         "config_file": config_file,
         "board": board.facts if board is not None else None,
     }
+
+
+def _mdf_info(src, header):
+    """The MDF4 header's items: the session header's, where a session file read gives the
+    port and baud it was recorded from (and the file itself as capture_file)."""
+    info = dict(header)
+    if src.kind == "file":
+        info["capture_file"] = src.name
+        recorded = getattr(src, "header", None) or {}
+        info["source"] = recorded.get("source", src.name)
+        info["baud"] = recorded.get("baud")
+        info["board"] = info.get("board") or recorded.get("board")
+    return info
 
 
 def _file_bar(args, src, status, err):

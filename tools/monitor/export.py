@@ -8,6 +8,8 @@ import math
 import os
 from pathlib import Path
 
+from tools.monitor import mdf_meta
+
 G = 9.80665  # m/s^2 per g (for accelerometer biases in mg)
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 
@@ -101,6 +103,18 @@ def utc_text(unix_s):
     return t.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
+# the frame's GNSS fix: no value (an empty CSV cell, NaN in MDF4) while gnss_valid is 0, where
+# the board sends 0, 0 before its first fix (a point in the Gulf of Guinea, not a position)
+FIX_COLUMNS = ("lat_deg", "lon_deg", "height_m")
+
+
+def fix_values(f):
+    """(lat deg, lon deg, height m) of the frame's GNSS fix; NaN without a valid one."""
+    if not f["gnss_valid"]:
+        return (math.nan,) * len(FIX_COLUMNS)
+    return f["lat_e7"] / 1e7, f["lon_e7"] / 1e7, f["height_m"]
+
+
 def frame_values(stamp, f):
     """The FRAME_COLUMNS values of frame fields `f` (frames.frame_fields) with its times
     `stamp` (time_s, board_time_s, restart, utc_unix_s)."""
@@ -114,9 +128,7 @@ def frame_values(stamp, f):
         f["gnss_valid"],
         f["pps"],
         f["gga"],
-        f["lat_e7"] / 1e7,
-        f["lon_e7"] / 1e7,
-        f["height_m"],
+        *fix_values(f),
         f["yaw_deg"],
         f["pitch_deg"],
         f["roll_deg"],
@@ -187,11 +199,18 @@ def ext_csv_path(path):
     return p.with_name(p.stem + "_ext" + (p.suffix or ".csv"))
 
 
+def _fix_cell(decimals):
+    """A fix column's formatter: an empty cell for NaN (no valid fix)."""
+    return lambda x: "" if math.isnan(x) else f"{x:.{decimals}f}"
+
+
 def _fmt(columns):
     out = []
-    for _name, _unit, dec, _dt in columns:
+    for name, _unit, dec, _dt in columns:
         if dec == UTC:
             out.append(utc_text)
+        elif name in FIX_COLUMNS and columns is FRAME_COLUMNS:
+            out.append(_fix_cell(dec))
         else:
             out.append(str if dec is None else (lambda x, d=dec: f"{x:.{d}f}"))
     return out
@@ -317,10 +336,11 @@ class CsvExport:
 
 
 class _MdfGroup:
-    def __init__(self, columns, comment, names):
+    def __init__(self, columns, comment, names, channel_comment):
         self.columns = columns
         self.names = names
         self.comment = comment
+        self.channel_comment = channel_comment  # column name -> the channel's comment
         self.rows = []
         self.index = None
         self.samples = 0
@@ -334,7 +354,7 @@ class MdfExport:
 
     CHUNK = 2000
 
-    def __init__(self, path):
+    def __init__(self, path, info=None):
         try:
             from asammdf import MDF
         except ImportError:
@@ -343,10 +363,15 @@ class MdfExport:
         self._part = part_path(self.path)
         self._file = _open_part(self._part, self.path, "w+b")  # fails now, not at the end
         self.start_unix_s = None
+        self.info = info or {}  # for the header: source, baud, config, ... (mdf_meta)
         self.failed = None  # why it was not written (WriteFailed), or None
         self.mdf = MDF(version="4.10")
-        self.frame_group = _MdfGroup(FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES)
-        self.ext_group = _MdfGroup(EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES)
+        self.frame_group = _MdfGroup(
+            FRAME_COLUMNS, "INS 52-byte frames", MDF_FRAME_NAMES, mdf_meta.frame_comment
+        )
+        self.ext_group = _MdfGroup(
+            EXT_COLUMNS, "INS extended frames", MDF_EXT_NAMES, mdf_meta.ext_comment
+        )
 
     def frame(self, stamp, f):
         self._add(self.frame_group, stamp, frame_values(stamp, f))
@@ -373,9 +398,12 @@ class MdfExport:
         arrays = [np.asarray(c, dtype=spec[3]) for c, spec in zip(cols, g.columns, strict=True)]
         if g.index is None:
             sigs = [
-                Signal(a, t, name=name, unit=spec[1])
+                Signal(
+                    a, t, name=name, unit=spec[1], comment=g.channel_comment(spec[0]),
+                    conversion=mdf_meta.conversion(spec[0]),
+                )
                 for a, name, spec in zip(arrays[1:], g.names[1:], g.columns[1:], strict=True)
-            ]
+            ]  # fmt: skip
             g.index = self.mdf.append(sigs, comment=g.comment)
         else:
             self.mdf.extend(g.index, [(t, None)] + [(a, None) for a in arrays[1:]])
@@ -415,9 +443,12 @@ class MdfExport:
     def _save(self):
         self._flush(self.frame_group)
         self._flush(self.ext_group)
+        start_text = None
         if self.start_unix_s is not None:
             start = datetime.datetime.fromtimestamp(self.start_unix_s, datetime.UTC)
             self.mdf.header.start_time = start
+            start_text = utc_text(self.start_unix_s)
+        self.mdf.header.comment = mdf_meta.header_comment(self.info, start_text)
         self.mdf.save(self._file)  # a file object: asammdf keeps its name and raises
         self._file.close()
         _publish(self._part, self.path)

@@ -6,6 +6,7 @@ import collections
 import math
 
 from common.proto import records
+from tools.monitor import nmea
 from tools.monitor.export import sigmas
 
 NAV_STATES = {1: "ALIGNING", 2: "NAVIGATING"}
@@ -22,9 +23,12 @@ class Status:
 
     WINDOW_S = 2.0  # rates over the last 2 s
 
-    def __init__(self, source, baud=None):
+    def __init__(self, source, baud=None, recorder=None):
         self.source = source
         self.baud = baud
+        self.recorder = recorder  # the --record session file (.path, .n bytes, .failed)
+        self.receiver = nmea.Receiver()  # GGA/RMC from the raw-input records' GNSS bytes
+        self.n_raw = 0
         self.frame = None  # last frame's fields
         self.frame_t = None  # its board time (s)
         self.first_t = None
@@ -50,6 +54,10 @@ class Status:
 
     def on_ext(self, e):
         self.ext = e
+
+    def on_raw(self, r):
+        self.n_raw += 1
+        self.receiver.feed(r["gnss_bytes"])
 
     def on_restart(self, t_s):
         """The board restarted after the frame at capture time t_s: the board time its run
@@ -122,6 +130,48 @@ def _ins_latlon(e, f):
     return f"{_latlon(round(lat * 1e7), round(lon * 1e7))}  {h:.1f} m"
 
 
+def _hms(utc_ms):
+    s, ms = divmod(utc_ms, 1000)
+    return f"{s // 3600:02d}:{s // 60 % 60:02d}:{s % 60:02d}.{ms // 10:02d}"
+
+
+def fix_utc_text(rx):
+    """The receiver's UTC of its last fix ("2026-11-22 02:00:03.00"; no date without an RMC
+    of that time; "-" before a fix)."""
+    fx = rx.last_fix
+    if fx is None or fx.utc_ms is None:
+        return "-"
+    date = rx.fix_date()
+    return f"{date} {_hms(fx.utc_ms)}" if date else _hms(fx.utc_ms)
+
+
+def receiver_line(st):
+    """gpsmon's items: fix type, satellites used and HDOP of the latest GGA, the UTC of the
+    last fix; "-" for what the stream does not carry, and why."""
+    rx = st.receiver
+    g = rx.gga
+    text = (
+        f"receiver   fix {nmea.fix_type(g and g.quality)}  sats {_f(g and g.n_sats, '{}')}  "
+        f"HDOP {_f(g and g.hdop, '{:.2f}')}  UTC {fix_utc_text(rx)}"
+    )
+    if not st.n_raw:
+        text += "  (needs raw_record = 1)"
+    elif g is None:
+        text += "  (no GGA yet)"
+    return text
+
+
+def recording_line(rec):
+    """REC, the session file and its size in MB (1e6 bytes); a long name cut at its start so
+    that the size stays on screen."""
+    size = f"{rec.n / 1e6:.1f} MB" + (" STOPPED (see note)" if rec.failed else "")
+    room = WIDTH - len("REC        ") - len(size) - 2
+    name = str(rec.path)
+    if len(name) > room:
+        name = "..." + name[len(name) - room + 3 :]
+    return f"REC        {name}  {size}"
+
+
 def error_line(c, short=False):
     """The error counts (short: the live view's 80 columns)."""
     if short:
@@ -162,6 +212,8 @@ def render(st, counts, elapsed_s, live=True, now=None):
         quiet = st.silent_s(now)
         if quiet is not None and quiet >= STALE_S:
             lines.append(f"STALE      no frames for {quiet:.1f} s: the values below are old")
+        if st.recorder is not None:
+            lines.append(recording_line(st.recorder))
     else:
         lines = [f"INS monitor  {src}  {elapsed_s:.2f} s of board time (end of the file)"]
         fr, er, br = st.mean_rates(counts)
@@ -193,6 +245,7 @@ def render(st, counts, elapsed_s, live=True, now=None):
             lines.append(
                 f"GNSS       {'valid' if f['gnss_valid'] else 'NO FIX'}  no fix received yet"
             )
+        lines.append(receiver_line(st))
         pe, pn, pu = f["pos_enu_m"]
         lines.append(f"position   E {pe:10.2f}  N {pn:10.2f}  U {pu:8.1f} m (ENU)")
         ins = _ins_latlon(e, f)
@@ -250,6 +303,11 @@ def one_line(st, counts, elapsed_s, now=None):
             f"ENU {f['pos_enu_m'][0]:.2f},{f['pos_enu_m'][1]:.2f},{f['pos_enu_m'][2]:.1f} m "
             f"speed {math.hypot(ve, vn):.2f} m/s yaw {f['yaw_deg']:.2f}"
         )
+        g = st.receiver.gga
+        body += (
+            f" fix {nmea.fix_type(g and g.quality)} sats {_f(g and g.n_sats, '{}')}"
+            f" hdop {_f(g and g.hdop, '{:.2f}')} utc {fix_utc_text(st.receiver)}"
+        )
         if st.ext is not None:
             body += f" health={st.ext['health']}"
             if st.ext.get("causes"):
@@ -259,6 +317,8 @@ def one_line(st, counts, elapsed_s, now=None):
         f"checksum={c['bad_checksum']} crc={c['bad_crc']} skipped={c['skipped_bytes']} "
         f"dropped={c['dropped_frames']} restarts={c.get('restarts', 0)}"
     )
+    if st.recorder is not None:
+        errs += f"  REC {st.recorder.n / 1e6:.1f} MB" + (" STOPPED" if st.recorder.failed else "")
     return f"{head}  {body}  {errs}"
 
 
