@@ -135,17 +135,26 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     plt = _plt()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
-    info = {"insets": _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes)}
+    fig, insets = trajectory_figure(plt, title, tr, truth, nav, outages, gnss_fixes)
+    _save(plt, fig, out_dir / "trajectory.png")
     done()
-    _errors_png(plt, out_dir, title, err, outages, t_end)
+    _save(plt, errors_figure(plt, title, err, outages, t_end), out_dir / "errors.png")
     done()
-    info["attitude_ylim"], info["truth_yaw"] = _attitude_png(
-        plt, out_dir, title, tr, err, truth, nav, outages, t_end
-    )
+    fig = attitude_figure(plt, title, tr, err, truth, nav, outages, t_end)
+    truth_yaw = any(ln.get_label() == "truth yaw" for ln in fig.axes[1].lines)
+    info = {"insets": insets, "attitude_ylim": fig.axes[0].get_ylim(), "truth_yaw": truth_yaw}
+    _save(plt, fig, out_dir / "attitude.png")
     done()
-    _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end)
+    fig = biases_figure(plt, title, tr, nav, bias_truth, outages, t_end)
+    _save(plt, fig, out_dir / "biases.png")
     done()
     return info
+
+
+def _save(plt, fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def _counter(progress, n):
@@ -160,8 +169,8 @@ def _counter(progress, n):
     return done
 
 
-def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):
-    """trajectory.png; the number of zoomed insets drawn."""
+def trajectory_figure(plt, title, tr, truth, nav, outages, gnss_fixes):
+    """trajectory.png's figure and the number of zoomed insets drawn."""
     zooms = _zooms(truth, tr, nav, list(outages))
     if zooms:  # the drive on the left, the end of each outage zoomed on the right
         fig = plt.figure(figsize=(11, 7))
@@ -192,33 +201,27 @@ def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):
     ax.set_title(f"{title}: trajectory")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / "trajectory.png", dpi=110)
-    plt.close(fig)
-    return len(zooms)
+    return fig, len(zooms)
 
 
-def _errors_png(plt, out_dir, title, err, outages, t_end):
-    """errors.png: position and velocity errors (E, N, U) with the reported 3-sigma."""
+def errors_figure(plt, title, err, outages, t_end):
+    """errors.png's figure: position and velocity errors (E, N, U) with the reported 3-sigma."""
     t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     _err_panel(axs[0], t, err.dp, err.sigma[:, 0:3], "ENU", "position, m", outages, t_end)
     _err_panel(axs[1], t, err.dv, err.sigma[:, 3:6], "ENU", "velocity, m/s", outages, t_end)
     axs[0].set_title(f"{title}: errors (dashed: the reported 3-sigma)")
     axs[1].set_xlabel("time, s")
-    fig.tight_layout()
-    fig.savefig(out_dir / "errors.png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def _attitude_png(plt, out_dir, title, tr, err, truth, nav, outages, t_end):
-    """attitude.png; (the error panel's y limits in deg, whether a truth yaw was drawn)."""
+def attitude_figure(plt, title, tr, err, truth, nav, outages, t_end):
+    """attitude.png's figure: attitude errors with 3-sigma above, yaw below."""
     t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     tilt = np.sqrt(0.5 * (err.sigma[:, 6] ** 2 + err.sigma[:, 7] ** 2))
     s_att = np.stack([err.sigma[:, 8], tilt, tilt], axis=-1) * _DEG
     _err_panel(axs[0], t, err.da * _DEG, s_att, ("yaw", "pitch", "roll"), "deg", outages, t_end)
-    ylim_deg = axs[0].get_ylim()
     nav_t = tr.t_s[nav]
     truth_yaw, fw_yaw = yaw_for_plot(truth.t_s, truth.ypr[:, 0], nav_t, tr.ypr[nav, 0])
     if truth_yaw is not None:
@@ -230,14 +233,11 @@ def _attitude_png(plt, out_dir, title, tr, err, truth, nav, outages, t_end):
     axs[1].grid(alpha=0.3)
     axs[1].legend(fontsize=7)
     axs[0].set_title(f"{title}: attitude errors (dashed: 3-sigma; tilt sigma for roll/pitch)")
-    fig.tight_layout()
-    fig.savefig(out_dir / "attitude.png", dpi=110)
-    plt.close(fig)
-    return ylim_deg, truth_yaw is not None
+    return fig
 
 
-def _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end):
-    """biases.png: gyro and accel bias estimates with 3-sigma, and the simulated biases."""
+def biases_figure(plt, title, tr, nav, bias_truth, outages, t_end):
+    """biases.png's figure: gyro and accel bias estimates with 3-sigma, and the simulated biases."""
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     g_scale = _DEG * 3600.0  # rad/s -> deg/h
     a_scale = 1000.0 / 9.80665  # m/s^2 -> mg
@@ -262,9 +262,7 @@ def _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end):
         ax.legend(fontsize=7, ncol=3)
     axs[0].set_title(f"{title}: bias estimates (band: 3-sigma)")
     axs[1].set_xlabel("time, s")
-    fig.tight_layout()
-    fig.savefig(out_dir / "biases.png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def fmt(x, digits=2, unit=""):
