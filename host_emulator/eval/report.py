@@ -19,7 +19,7 @@ _DEG = 180.0 / np.pi
 PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")
 
 
-def _plt():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -84,7 +84,7 @@ def _bands(s, names):
     return out
 
 
-def _mark_startup(ax, t, k):
+def mark_startup(ax, t, k):
     """Grey span over the start-up (rows before k), whose values run off the panel."""
     if 0 < k < len(t):
         ax.axvspan(t[0], t[k], color="0.5", alpha=0.15, lw=0, label="start-up (off scale)")
@@ -101,7 +101,7 @@ def _err_panel(ax, t, e, s, label, unit, outages, t_end, colors=("C0", "C1", "C2
         b = np.minimum(3 * s[:, j], lim)
         ax.fill_between(t, -b, b, color=colors[j], alpha=0.08, lw=0, label=band)
     if len(t) and np.nanmax(3 * s) > lim:
-        _mark_startup(ax, t, settled_from(s))
+        mark_startup(ax, t, settled_from(s))
     _shade(ax, outages, t_end)
     ax.set_ylim(-lim, lim)
     ax.set_ylabel(unit)
@@ -173,26 +173,26 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     progress(k, n): k of the n PLOTS written (seconds each). Returns what was drawn:
     {"insets", "attitude_ylim", "truth_yaw"}."""
     done = _counter(progress or (lambda _k, _n: None), len(PLOTS))
-    plt = _plt()
+    plt = pyplot()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
     fig, insets = trajectory_figure(plt, title, tr, truth, nav, outages, gnss_fixes)
-    _save(plt, fig, out_dir / "trajectory.png")
+    save_figure(plt, fig, out_dir / "trajectory.png")
     done()
-    _save(plt, errors_figure(plt, title, err, outages, t_end), out_dir / "errors.png")
+    save_figure(plt, errors_figure(plt, title, err, outages, t_end), out_dir / "errors.png")
     done()
     fig = attitude_figure(plt, title, tr, err, truth, nav, outages, t_end)
     truth_yaw = any(ln.get_label() == "truth yaw" for ln in fig.axes[1].lines)
     info = {"insets": insets, "attitude_ylim": fig.axes[0].get_ylim(), "truth_yaw": truth_yaw}
-    _save(plt, fig, out_dir / "attitude.png")
+    save_figure(plt, fig, out_dir / "attitude.png")
     done()
     fig = biases_figure(plt, title, tr, nav, bias_truth, outages, t_end)
-    _save(plt, fig, out_dir / "biases.png")
+    save_figure(plt, fig, out_dir / "biases.png")
     done()
     return info
 
 
-def _save(plt, fig, path):
+def save_figure(plt, fig, path):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -327,7 +327,7 @@ def _bias_panel(ax, t, est, sig, sim):
         if sim is not None:
             ax.plot(sim[0], sim[1][:, j], color=c, ls=":", lw=1.0, label=f"{name} simulated")
     if len(t) and (np.nanmax(est + 3 * sig) > hi or np.nanmin(est - 3 * sig) < lo):
-        _mark_startup(ax, t, k)
+        mark_startup(ax, t, k)
     ax.set_ylim(lo, hi)
 
 

@@ -95,7 +95,7 @@ def _drawn(ax):
 
 def test_attitude_without_a_reference_draws_and_names_only_the_sigma():
     tr, err, truth = _synthetic(attitude_truth=False)
-    plt = report._plt()
+    plt = report.pyplot()
     fig = report.attitude_figure(plt, "t", tr, err, truth, tr.state == 2, (), 100.0)
     ax = fig.axes[0]
     assert not any("error" in label for label in _drawn(ax))
@@ -107,7 +107,7 @@ def test_attitude_without_a_reference_draws_and_names_only_the_sigma():
 
 def test_attitude_with_a_reference_draws_its_errors():
     tr, err, truth = _synthetic(attitude_truth=True)
-    plt = report._plt()
+    plt = report.pyplot()
     fig = report.attitude_figure(plt, "t", tr, err, truth, tr.state == 2, (), 100.0)
     ax = fig.axes[0]
     assert {"yaw error", "pitch error", "roll error"} <= set(_legend(ax)) <= _drawn(ax)
@@ -119,7 +119,7 @@ def test_velocity_panel_is_scaled_to_the_settled_errors_and_clips_the_bands():
     """Sigma 100x the errors in the start-up: the panel is the settled errors' (~0.05 m/s,
     3-sigma 0.06), and no band runs off it."""
     tr, err, _ = _synthetic()
-    plt = report._plt()
+    plt = report.pyplot()
     fig = report.errors_figure(plt, "t", err, (), 100.0)
     ax = fig.axes[1]
     lo, hi = ax.get_ylim()
@@ -135,7 +135,7 @@ def test_bias_panel_is_scaled_to_the_settled_part_and_marks_the_transient():
     """A gyro bias transient of +-5000 deg/h in the start-up, 100 deg/h after: the panel
     shows the settled 100 deg/h and its 3-sigma, and the transient is marked."""
     tr, _, _ = _synthetic()
-    plt = report._plt()
+    plt = report.pyplot()
     fig = report.biases_figure(plt, "t", tr, tr.state == 2, None, (), 100.0)
     ax = fig.axes[0]
     lo, hi = ax.get_ylim()
