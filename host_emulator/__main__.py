@@ -9,7 +9,7 @@
     replay --kf-gins DIR --out DIR  the same for a dataset in the KF-GINS text layout (your own
                                     recording: docs/formats.md; no outages, scored from t0)
     export --scenario NAME | --dataset drive_0708 --out DIR   KF-GINS files + RTKLIB .pos
-    session record|replay ...       record a board's output; replay it bit for bit
+    session record|replay|report    record a board's output; replay it bit for bit; report it
     virtual-board --fs DIR          a board on pseudo-terminals (raw REPL, RS485 frames)
     demo                            urban_drive on CPython, with a short summary
     gnss-dump FILE                  what the firmware's NMEA parser makes of a receiver log

@@ -3,11 +3,12 @@
     trajectory.png  truth, the firmware's track and the GNSS fixes; outages in red, and the
                     end of each of the first three zoomed beside it
     errors.png      position and velocity errors (E, N, U) with the reported 3-sigma
-    attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw (unwrapped) against truth
-Error panels are scaled to the errors and the typical 3-sigma (error_limit), so a large
-sigma at the start runs off the panel instead of flattening the errors.
+    attitude.png    roll, pitch, yaw errors with 3-sigma, and yaw (unwrapped) against truth;
+                    without an attitude reference (a real drive) the 3-sigma alone, said so
     biases.png      gyro and accel bias estimates with 3-sigma against the simulated biases
-GNSS outages are shaded in every time plot.
+GNSS outages are shaded in every time plot. Panels are scaled to what follows the start-up
+(settled_from): the errors and the typical 3-sigma (error_limit), the settled biases; the
+start-up, whose sigma is up to hundreds of times larger, is shaded grey and clipped.
 """
 
 import numpy as np
@@ -18,7 +19,7 @@ _DEG = 180.0 / np.pi
 PLOTS = ("trajectory.png", "errors.png", "attitude.png", "biases.png")
 
 
-def _plt():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -40,29 +41,69 @@ def _shade(ax, outages, t_end):
             )
 
 
+def settled_from(s, factor=2.0):
+    """Index of the first row after the start-up: where every column of the sigma s (N, k)
+    is within `factor` of its median over the run's second half (0 if none is)."""
+    s = np.abs(np.asarray(s, float)).reshape(len(s), -1)
+    if not len(s):
+        return 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ref = np.nanmedian(s[len(s) // 2 :], axis=0)
+        ratio = np.nanmax(np.where(ref > 0, s / ref, 1.0), axis=1)
+    ok = np.flatnonzero(ratio <= factor)
+    return int(ok[0]) if ok.size else 0
+
+
 def error_limit(e, s):
-    """The y half-range of an error panel: from the errors and the typical 3-sigma, not from
-    the largest sigma (the start's heading sigma, +-30 deg, would flatten 0.1 deg errors);
-    what is larger runs off the panel."""
-    e = np.abs(np.asarray(e, float))
-    s3 = 3 * np.abs(np.asarray(s, float))
-    fin_e, fin_s = e[np.isfinite(e)], s3[np.isfinite(s3)]
-    lim = max(
-        np.percentile(fin_e, 99.5) if fin_e.size else 0.0,
-        np.percentile(fin_s, 50) if fin_s.size else 0.0,
-    )
+    """The y half-range of an error panel: from the errors and the typical 3-sigma of each
+    axis after the start-up (settled_from), not from the start-up's sigma (+-30 deg of
+    heading, 100x the settled velocity sigma) nor its errors; what is larger is clipped."""
+    k = settled_from(s)
+    e = np.abs(np.asarray(e, float))[k:]
+    s3 = 3 * np.abs(np.asarray(s, float))[k:]
+    fin_e = e[np.isfinite(e)]
+    lim = np.percentile(fin_e, 99.5) if fin_e.size else 0.0
+    q = 50 if fin_e.size else 99  # without errors the panel is the sigma's: show it whole
+    for col in s3.reshape(len(s3), -1).T:
+        if np.isfinite(col).any():
+            lim = max(lim, float(np.nanpercentile(col, q)))
     return 1.2 * lim if lim > 0 else 1.0
 
 
+def _bands(s, names):
+    """[(column, label)] of the 3-sigma bands to draw: a column equal to an earlier one
+    (roll and pitch share the tilt sigma) is drawn once, under both names."""
+    out = []
+    for j, name in enumerate(names):
+        same = [i for i, (c, _) in enumerate(out) if np.array_equal(s[:, c], s[:, j])]
+        if same:
+            c, label = out[same[0]]
+            out[same[0]] = (c, label.replace(" 3-sigma", f"/{name} 3-sigma"))
+        else:
+            out.append((j, f"{name} 3-sigma"))
+    return out
+
+
+def mark_startup(ax, t, k):
+    """Grey span over the start-up (rows before k), whose values run off the panel."""
+    if 0 < k < len(t):
+        ax.axvspan(t[0], t[k], color="0.5", alpha=0.15, lw=0, label="start-up (off scale)")
+
+
 def _err_panel(ax, t, e, s, label, unit, outages, t_end, colors=("C0", "C1", "C2")):
+    """Errors drawn where they exist (a recording may have no attitude reference) over their
+    3-sigma bands clipped to the panel; the legend names only what is drawn."""
+    lim = error_limit(e, s) if len(t) else 1.0
     for j, name in enumerate(label):
-        ax.plot(t, e[:, j], color=colors[j], lw=0.8, label=f"{name} error")
-        ax.plot(t, 3 * s[:, j], color=colors[j], lw=0.6, ls="--")
-        ax.plot(t, -3 * s[:, j], color=colors[j], lw=0.6, ls="--")
+        if np.isfinite(e[:, j]).any():
+            ax.plot(t, e[:, j], color=colors[j], lw=0.8, label=f"{name} error")
+    for j, band in _bands(s, label):  # light bands: the errors stay readable over them
+        b = np.minimum(3 * s[:, j], lim)
+        ax.fill_between(t, -b, b, color=colors[j], alpha=0.08, lw=0, label=band)
+    if len(t) and np.nanmax(3 * s) > lim:
+        mark_startup(ax, t, settled_from(s))
     _shade(ax, outages, t_end)
-    if len(t):
-        lim = error_limit(e, s)
-        ax.set_ylim(-lim, lim)
+    ax.set_ylim(-lim, lim)
     ax.set_ylabel(unit)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=7, ncol=4)
@@ -132,20 +173,29 @@ def plots(out_dir, title, tr, err, truth, outages, gnss_fixes=None, bias_truth=N
     progress(k, n): k of the n PLOTS written (seconds each). Returns what was drawn:
     {"insets", "attitude_ylim", "truth_yaw"}."""
     done = _counter(progress or (lambda _k, _n: None), len(PLOTS))
-    plt = _plt()
+    plt = pyplot()
     t_end = float(truth.t_s[-1])
     nav = tr.state == 2
-    info = {"insets": _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes)}
+    fig, insets = trajectory_figure(plt, title, tr, truth, nav, outages, gnss_fixes)
+    save_figure(plt, fig, out_dir / "trajectory.png")
     done()
-    _errors_png(plt, out_dir, title, err, outages, t_end)
+    save_figure(plt, errors_figure(plt, title, err, outages, t_end), out_dir / "errors.png")
     done()
-    info["attitude_ylim"], info["truth_yaw"] = _attitude_png(
-        plt, out_dir, title, tr, err, truth, nav, outages, t_end
-    )
+    fig = attitude_figure(plt, title, tr, err, truth, nav, outages, t_end)
+    truth_yaw = any(ln.get_label() == "truth yaw" for ln in fig.axes[1].lines)
+    info = {"insets": insets, "attitude_ylim": fig.axes[0].get_ylim(), "truth_yaw": truth_yaw}
+    save_figure(plt, fig, out_dir / "attitude.png")
     done()
-    _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end)
+    fig = biases_figure(plt, title, tr, nav, bias_truth, outages, t_end)
+    save_figure(plt, fig, out_dir / "biases.png")
     done()
     return info
+
+
+def save_figure(plt, fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def _counter(progress, n):
@@ -160,8 +210,8 @@ def _counter(progress, n):
     return done
 
 
-def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):
-    """trajectory.png; the number of zoomed insets drawn."""
+def trajectory_figure(plt, title, tr, truth, nav, outages, gnss_fixes):
+    """trajectory.png's figure and the number of zoomed insets drawn."""
     zooms = _zooms(truth, tr, nav, list(outages))
     if zooms:  # the drive on the left, the end of each outage zoomed on the right
         fig = plt.figure(figsize=(11, 7))
@@ -192,33 +242,36 @@ def _trajectory_png(plt, out_dir, title, tr, truth, nav, outages, gnss_fixes):
     ax.set_title(f"{title}: trajectory")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / "trajectory.png", dpi=110)
-    plt.close(fig)
-    return len(zooms)
+    return fig, len(zooms)
 
 
-def _errors_png(plt, out_dir, title, err, outages, t_end):
-    """errors.png: position and velocity errors (E, N, U) with the reported 3-sigma."""
+def errors_figure(plt, title, err, outages, t_end):
+    """errors.png's figure: position and velocity errors (E, N, U) with the reported 3-sigma."""
     t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     _err_panel(axs[0], t, err.dp, err.sigma[:, 0:3], "ENU", "position, m", outages, t_end)
     _err_panel(axs[1], t, err.dv, err.sigma[:, 3:6], "ENU", "velocity, m/s", outages, t_end)
-    axs[0].set_title(f"{title}: errors (dashed: the reported 3-sigma)")
+    axs[0].set_title(f"{title}: errors (bands: the reported 3-sigma)")
     axs[1].set_xlabel("time, s")
-    fig.tight_layout()
-    fig.savefig(out_dir / "errors.png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def _attitude_png(plt, out_dir, title, tr, err, truth, nav, outages, t_end):
-    """attitude.png; (the error panel's y limits in deg, whether a truth yaw was drawn)."""
+def attitude_figure(plt, title, tr, err, truth, nav, outages, t_end):
+    """attitude.png's figure: attitude errors with 3-sigma above, yaw below."""
     t = err.t_s
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     tilt = np.sqrt(0.5 * (err.sigma[:, 6] ** 2 + err.sigma[:, 7] ** 2))
     s_att = np.stack([err.sigma[:, 8], tilt, tilt], axis=-1) * _DEG
     _err_panel(axs[0], t, err.da * _DEG, s_att, ("yaw", "pitch", "roll"), "deg", outages, t_end)
-    ylim_deg = axs[0].get_ylim()
+    if not np.isfinite(err.da).any():
+        axs[0].text(
+            0.01,
+            0.04,
+            "no attitude reference: only the reported 3-sigma is drawn",
+            transform=axs[0].transAxes,
+            fontsize=8,
+            bbox={"fc": "w", "ec": "0.7"},
+        )
     nav_t = tr.t_s[nav]
     truth_yaw, fw_yaw = yaw_for_plot(truth.t_s, truth.ypr[:, 0], nav_t, tr.ypr[nav, 0])
     if truth_yaw is not None:
@@ -229,42 +282,65 @@ def _attitude_png(plt, out_dir, title, tr, err, truth, nav, outages, t_end):
     axs[1].set_xlabel("time, s")
     axs[1].grid(alpha=0.3)
     axs[1].legend(fontsize=7)
-    axs[0].set_title(f"{title}: attitude errors (dashed: 3-sigma; tilt sigma for roll/pitch)")
-    fig.tight_layout()
-    fig.savefig(out_dir / "attitude.png", dpi=110)
-    plt.close(fig)
-    return ylim_deg, truth_yaw is not None
+    axs[0].set_title(f"{title}: attitude errors (bands: 3-sigma; tilt sigma for roll/pitch)")
+    return fig
 
 
-def _biases_png(plt, out_dir, title, tr, nav, bias_truth, outages, t_end):
-    """biases.png: gyro and accel bias estimates with 3-sigma, and the simulated biases."""
+def biases_figure(plt, title, tr, nav, bias_truth, outages, t_end):
+    """biases.png's figure: gyro and accel bias estimates with 3-sigma, and the simulated biases."""
     fig, axs = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     g_scale = _DEG * 3600.0  # rad/s -> deg/h
     a_scale = 1000.0 / 9.80665  # m/s^2 -> mg
+    t = tr.t_s[nav]
     for ax, est, idx, scale, unit, key in (
         (axs[0], tr.bg, 9, g_scale, "gyro bias, deg/h", 1),
         (axs[1], tr.ba, 12, a_scale, "accel bias, mg", 2),
     ):
-        for j, name in enumerate("xyz"):
-            c = f"C{j}"
-            ax.plot(tr.t_s[nav], est[nav, j] * scale, color=c, lw=0.9, label=f"{name} estimate")
-            s = tr.sigma[nav, idx + j] * scale
-            ax.fill_between(
-                tr.t_s[nav], (est[nav, j] * scale) - 3 * s, (est[nav, j] * scale) + 3 * s,
-                color=c, alpha=0.1, lw=0,
-            )  # fmt: skip
-            if bias_truth is not None:
-                ax.plot(bias_truth[0], bias_truth[key][:, j] * scale, color=c, ls=":", lw=1.0,
-                        label=f"{name} simulated")  # fmt: skip
+        sim = None if bias_truth is None else (bias_truth[0], bias_truth[key] * scale)
+        _bias_panel(ax, t, est[nav] * scale, tr.sigma[nav, idx : idx + 3] * scale, sim)
         _shade(ax, outages, t_end)
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=3)
     axs[0].set_title(f"{title}: bias estimates (band: 3-sigma)")
     axs[1].set_xlabel("time, s")
-    fig.tight_layout()
-    fig.savefig(out_dir / "biases.png", dpi=110)
-    plt.close(fig)
+    return fig
+
+
+def _bias_panel(ax, t, est, sig, sim):
+    """Estimates (N, 3) with 3-sigma bands, and the simulated biases sim (t, (K, 3)) or None.
+    The y-range is the settled part's (settled_from): the start-up transient, hundreds of
+    times the settled sigma, is marked and clipped instead of flattening the estimates."""
+    k = settled_from(sig, factor=4.0)  # a bias sigma keeps shrinking slowly long after
+    lo, hi = _settled_range(est[k:], sig[k:], sim)
+    for j, name in enumerate("xyz"):
+        c = f"C{j}"
+        ax.plot(t, est[:, j], color=c, lw=0.9, label=f"{name} estimate")
+        ax.fill_between(
+            t,
+            np.clip(est[:, j] - 3 * sig[:, j], lo, hi),
+            np.clip(est[:, j] + 3 * sig[:, j], lo, hi),
+            color=c,
+            alpha=0.1,
+            lw=0,
+        )
+        if sim is not None:
+            ax.plot(sim[0], sim[1][:, j], color=c, ls=":", lw=1.0, label=f"{name} simulated")
+    if len(t) and (np.nanmax(est + 3 * sig) > hi or np.nanmin(est - 3 * sig) < lo):
+        mark_startup(ax, t, k)
+    ax.set_ylim(lo, hi)
+
+
+def _settled_range(est, sig, sim):
+    """(lo, hi) holding the settled estimates, their 3-sigma and the simulated biases."""
+    parts = [est - 3 * sig, est + 3 * sig] + ([] if sim is None else [sim[1]])
+    vals = np.concatenate([np.ravel(p) for p in parts])
+    vals = vals[np.isfinite(vals)]
+    if not vals.size:
+        return -1.0, 1.0
+    lo, hi = float(vals.min()), float(vals.max())
+    pad = 0.1 * (hi - lo) or 1.0
+    return lo - pad, hi + pad
 
 
 def fmt(x, digits=2, unit=""):
@@ -335,18 +411,20 @@ def _figures_table(m):
         "The unmodified firmware loop ran on an emulated board (BMI055 registers over SPI, NMEA "
         "bytes on the GNSS UART at the receiver's baud rate, PPS interrupt, 5 ms timer on a "
         "virtual clock). Errors are those of its output frames against the simulation's truth, "
-        "over the navigation phase (from the first navigating frame), at 10 Hz.",
+        "over the navigation phase (from the first navigating frame), at 10 Hz. The board "
+        "spec is the specification of the WMH601, the original board this firmware ports "
+        "(docs/requirements.md).",
         "",
         "| figure | value | reference |",
         "|---|---|---|",
-        f"| horizontal position RMS | {fmt(m['horiz_rms_m'], unit='m')} | WMH601 spec 3 m |",
+        f"| horizontal position RMS | {fmt(m['horiz_rms_m'], unit='m')} | board spec 3 m |",
         f"| ... with GNSS available | {fmt(m.get('horiz_rms_gnss_m'), unit='m')} | "
         f"raw GNSS input {fmt(m['gnss_horiz_rms_m'], unit='m')} |",
         f"| vertical position RMS | {fmt(m['vert_rms_m'], unit='m')} | |",
-        f"| velocity RMS (3D) | {fmt(m['vel_rms_m_s'], 3, unit='m/s')} | WMH601 spec 0.05 m/s |",
+        f"| velocity RMS (3D) | {fmt(m['vel_rms_m_s'], 3, unit='m/s')} | board spec 0.05 m/s |",
         f"| roll / pitch RMS | {fmt(m['roll_rms_deg'])} / "
-        f"{fmt(m['pitch_rms_deg'], unit='deg')} | WMH601 spec 0.5 deg |",
-        f"| yaw RMS | {fmt(m['yaw_rms_deg'], unit='deg')} | WMH601 spec 3 deg |",
+        f"{fmt(m['pitch_rms_deg'], unit='deg')} | board spec 0.5 deg |",
+        f"| yaw RMS | {fmt(m['yaw_rms_deg'], unit='deg')} | board spec 3 deg |",
         f"| position inside 3-sigma (E, N) | {fmt(m.get('pos_3sigma_coverage'), 3)} | "
         "0.997 if the reported covariance were right |",
         f"| mean (error / sigma)^2, E and N (NEES) | {fmt(m.get('pos_nees_h'))} | "
@@ -366,7 +444,7 @@ def _outage_table(m):
                 f"| from {o['start_s']:g} s | {o['length_s']:g} s | "
                 f"{fmt(o['horiz_err_end_m'], unit='m')} |"
             )
-        lines += ["", "(WMH601 spec: about 30 m after 20 s without GNSS.)", ""]
+        lines += ["", "(Board spec: about 30 m after 20 s without GNSS.)", ""]
     return lines
 
 

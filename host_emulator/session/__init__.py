@@ -3,6 +3,7 @@ and replay it through the emulator; the replayed output must equal the recorded 
 
     python -m host_emulator session record /dev/ttyUSB0 --out drive.ins --config ins.cfg
     python -m host_emulator session replay drive.ins [--runtime mpy_unix] [--until-gap]
+    python -m host_emulator session report drive.ins [--out DIR]
 
 With the configuration setting `raw_record` = 1 the firmware sends, after the frames of each
 5 ms tick, a raw-input record (proto/records.py): the tick's start time, the parser's PPS edge
@@ -17,5 +18,6 @@ tick apart.
     rebuild.py  the emulator's input (a stimulus) rebuilt from the walked recording
     compare.py  the replayed output against the recorded one (what is compared, and how)
     replay.py   the whole replay: read, walk, rebuild, run, compare
+    report.py   report.md and plots of a recording, without truth
     cli.py      the `session` command
 """

@@ -1,4 +1,4 @@
-"""`python -m host_emulator session record|replay|repair`: exit status 0 (done, identical), 1
+"""`python -m host_emulator session record|replay|repair|report`: exit status 0 (done, identical), 1
 (the replay differs, the firmware raised, a file or port that cannot be read or written, a
 recording the disk cut short), 2 (a bad command line), as tools.flash and tools.monitor."""
 
@@ -13,6 +13,7 @@ from common.proto import session_file
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
+from host_emulator.session import report as session_report
 from host_emulator.session.record import record
 from host_emulator.session.replay import replay
 
@@ -66,6 +67,9 @@ def main(argv=None):
     )
     f.add_argument("session", help="the cut or damaged session file (it is not changed)")
     f.add_argument("--out", required=True, help="the session file to write")
+    g = sub.add_parser("report", help="report.md and plots of a recording (no truth needed)")
+    g.add_argument("session", help="session file (or a plain capture of the board's output)")
+    g.add_argument("--out", help="directory for report.md and the plots (default: FILE-report)")
     try:
         args = p.parse_args(argv)
         if args.command == "replay" and args.runtime != "auto":
@@ -85,6 +89,8 @@ def main(argv=None):
         return cli_args.run_reporting(lambda: _main_record(args, seconds, baud))
     if args.command == "repair":
         return cli_args.run_reporting(lambda: _main_repair(args))
+    if args.command == "report":
+        return cli_args.run_reporting(lambda: _main_report(args))
     return cli_args.run_reporting(lambda: _main_replay(args))
 
 
@@ -93,6 +99,17 @@ def _main_repair(args):
     for line in s.problems(args.session) or [f"{args.session}: intact, nothing was lost"]:
         print(line)
     print(f"wrote {len(s.data)} captured bytes into {args.out}")
+    return 0
+
+
+def _main_report(args):
+    out, fig = session_report.write(args.session, args.out)
+    print(
+        f"{fig['frames']} frames over {fig['duration_s']:.1f} s, navigating "
+        f"{fig['navigating_s']:.1f} s, {fig['dropped_frames']} dropped, "
+        f"{fig['starts']} start(s)"
+    )
+    print(f"report: {out}/report.md   plots: {out}/*.png")
     return 0
 
 
