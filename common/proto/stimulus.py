@@ -264,14 +264,18 @@ def from_bytes(data, name="stimulus"):
     )
 
 
-def read(path):
-    """Load a stimulus file; StimulusError (with the path) if it is missing or unusable."""
+def read_bytes(path):
+    """A stimulus file's bytes; StimulusError (with the path) if it cannot be read."""
     try:
         with open(path, "rb") as f:
-            data = f.read()
+            return f.read()
     except OSError as e:
         raise StimulusError(f"cannot read stimulus file {path}: {e.strerror}") from None
-    return from_bytes(data, str(path))
+
+
+def read(path):
+    """Load a stimulus file; StimulusError (with the path) if it is missing or unusable."""
+    return from_bytes(read_bytes(path), str(path))
 
 
 def from_arrays(header, gyro_counts_, accel_counts_, temp_raw, pps_before_us, chunks):

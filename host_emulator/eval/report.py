@@ -44,9 +44,10 @@ def _shade(ax, outages, t_end):
 def settled_from(s, factor=2.0):
     """Index of the first row after the start-up: where every column of the sigma s (N, k)
     is within `factor` of its median over the run's second half (0 if none is)."""
-    s = np.abs(np.asarray(s, float)).reshape(len(s), -1)
-    if not len(s):
+    s = np.abs(np.asarray(s, float))
+    if not len(s):  # a run too short to navigate: nothing drawn, nothing to settle
         return 0
+    s = s.reshape(len(s), -1)
     with np.errstate(invalid="ignore", divide="ignore"):
         ref = np.nanmedian(s[len(s) // 2 :], axis=0)
         ratio = np.nanmax(np.where(ref > 0, s / ref, 1.0), axis=1)

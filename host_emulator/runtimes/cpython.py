@@ -77,8 +77,8 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     progress(k, n): called every 2000 ticks. kernels: "native", "python" or None (the
     default: $INS_KERNELS, else native). A firmware exception -> FirmwareError; EmulatorError
     if the native kernels are asked for and cannot be built."""
-    if isinstance(stim, (str, os.PathLike)):
-        stim = stim_mod.read(stim)
+    records = _Records.of(stim)
+    stim = records.stim
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
     machine = install_machine()
     kind = _use_kernels(kernels)
@@ -103,7 +103,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
             raise _firmware_failed(e, "at start-up") from e
         screen = _Screen(machine, a, pins)
         screen.after(-1, time.now_us())  # the start page
-        out, t0_us = _feed(machine, a, pins, imu, stim, screen, progress)
+        out, t0_us = _feed(machine, a, pins, imu, records, screen, progress)
     finally:
         if gc_was_enabled:
             gc.enable()  # app.start() turned the collector off (board behaviour)
@@ -117,7 +117,7 @@ def run(stim, workdir, config_overrides=None, progress=None, kernels=None):
     return run
 
 
-def _feed(machine, a, pins, imu, stim, screen, progress):
+def _feed(machine, a, pins, imu, records, screen, progress):
     """The stimulus through the firmware by feed.py's loop, the one the VM runtimes run (the
     screen's answers arrive at each tick's moment); (the output UART's bytes, t0 in us)."""
     feed = emulated_board.feed()
@@ -125,12 +125,12 @@ def _feed(machine, a, pins, imu, stim, screen, progress):
     out_uart = machine.uart(pins["out_uart"])
     tx = out_uart.tx  # the transmit buffer, emptied after every tick
     pps = machine.pin(pins["pps"])
-    tick_us = stim.tick_us
+    tick_us = records.stim.tick_us
     t0_us = feed.first_tick_us(tick_us)  # the first timer moment after start-up
     out = bytearray()
     rec = bytearray(REC_LEN)
-    n = len(stim)
-    for k in feed.ticks(_Records(stim), n, imu, gnss_uart, rec, bytearray(2048)):
+    n = len(records.stim)
+    for k in feed.ticks(records, n, imu, gnss_uart, rec, bytearray(2048)):
         t_k = t0_us + k * tick_us
         try:
             feed.run_tick(a, rec, t_k, pps, screen.answer)
@@ -160,13 +160,22 @@ def _stats(machine, a, pins, n, t0_us, kind):
 
 class _Records:
     """A stimulus' records as feed.py reads a stimulus file: readinto(buf, n) from its first
-    record on (the file's bytes, made from the Stimulus: common/proto/stimulus.py)."""
+    record on (the file's bytes: common/proto/stimulus.py), and the parsed Stimulus."""
 
-    def __init__(self, stim):
-        data = stim.to_bytes()
+    def __init__(self, stim, data):
+        self.stim = stim
         (hlen,) = struct.unpack_from("<I", data, len(stim_mod.MAGIC))
         self._data = memoryview(data)
         self._pos = len(stim_mod.MAGIC) + 4 + hlen
+
+    @classmethod
+    def of(cls, stim):
+        """From a Stimulus (its bytes made again) or a stimulus file (its bytes as read: a
+        600 s drive's re-serialisation took a seventh of the run)."""
+        if isinstance(stim, (str, os.PathLike)):
+            data = stim_mod.read_bytes(stim)
+            return cls(stim_mod.from_bytes(data, str(stim)), data)
+        return cls(stim, stim.to_bytes())
 
     def readinto(self, buf, n):
         got = self._data[self._pos : self._pos + n]

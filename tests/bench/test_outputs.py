@@ -21,9 +21,10 @@ def _stop(*_args, **_kw):
 
 def test_a_repository_document_is_said_to_be_overwritten(tmp_path):
     said = io.StringIO()
-    outputs.announce("bench-x", [REPO / "docs/benchmarks/x.md", tmp_path / "x.json"], stream=said)
+    doc = REPO / "docs" / "benchmarks" / "x.md"  # not a file: what the line says of one
+    outputs.announce("bench-x", [doc, tmp_path / "x.json"], stream=said)
     line = said.getvalue()
-    assert line.startswith(f"bench-x will write docs/benchmarks/x.md, {tmp_path / 'x.json'}")
+    assert line.startswith(f"bench-x will write {doc.relative_to(REPO)}, {tmp_path / 'x.json'}")
     assert "overwriting the repository's copies" in line and "--out elsewhere" in line
     said = io.StringIO()
     outputs.announce("bench-x", [tmp_path / "x.md"], stream=said)

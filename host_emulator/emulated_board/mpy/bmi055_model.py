@@ -141,6 +141,10 @@ class _Die:
         sets INT_STATUS bit 7 (data_int)."""
         regs = self.regs  # written out: the emulator's hot path
         d = REG_DATA
+        if _SLICES:  # a slice is a heap object on MicroPython; on CPython the cheaper copy
+            regs[d : d + 6] = buf[off : off + 6]
+            regs[REG_INT_STATUS] |= 0x80
+            return
         regs[d] = buf[off]
         regs[d + 1] = buf[off + 1]
         regs[d + 2] = buf[off + 2]
@@ -280,6 +284,12 @@ class Bmi055:
         self.accel.set_registers(buf, accel_off)
 
     def set_temperature_raw(self, raw):
-        """int8, 0.5 K per LSB, 0 = 23 degC (both dies)."""
+        """int8, 0.5 K per LSB, 0 = 23 degC (both dies). The feed sets it every tick and it
+        changes every few seconds at most: unchanged, the dies are not called."""
+        if (
+            -128 <= raw <= 127
+            and self.accel.regs[REG_TEMP] == raw & 0xFF == self.gyro.regs[REG_TEMP]
+        ):
+            return
         self.accel.set_temperature_raw(raw)
         self.gyro.set_temperature_raw(raw)
