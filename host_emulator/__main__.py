@@ -116,6 +116,13 @@ def _faults(args):
 def _run(args):
     from host_emulator.eval import scenario_run
 
+    if not args.stimulus:  # the command line's values: a usage error (2), as parity's
+        try:
+            cli_args.check_scenario(args.scenario)
+            cli_args.check_duration(args.duration)
+            cli_args.check_seed(args.seed)
+        except EmulatorError as e:
+            raise cli_args.UsageError(str(e)) from None
     injected = _faults(args)
     if injected is None:
         return 0

@@ -158,20 +158,20 @@ def test_cli_replays_its_own_stimulus_to_the_same_frames(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "argv, message",
-    [
-        (["run", "--scenario", "moon_landing", "--out", "X"], "unknown scenario 'moon_landing'"),
-        (["run", "--scenario", "static", "--duration", "-3", "--out", "X"], "--duration"),
-        (["run", "--scenario", "static", "--duration", "0.001", "--out", "X"], "--duration"),
-        (["run", "--scenario", "static", "--seed", "-1", "--out", "X"], "--seed"),
-        (["run", "--stimulus", "MISSING", "--out", "X"], "cannot read stimulus file"),
-        (["run", "--stimulus", "GARBAGE", "--out", "X"], "not a stimulus file"),
+    "argv, message, status",
+    [  # a value of the command line is a usage error (2, as parity's); a bad file's is 1
+        (["run", "--scenario", "moon_landing", "--out", "X"], "unknown scenario 'moon_landing'", 2),
+        (["run", "--scenario", "static", "--duration", "-3", "--out", "X"], "--duration", 2),
+        (["run", "--scenario", "static", "--duration", "0.001", "--out", "X"], "--duration", 2),
+        (["run", "--scenario", "static", "--seed", "-1", "--out", "X"], "--seed", 2),
+        (["run", "--stimulus", "MISSING", "--out", "X"], "cannot read stimulus file", 1),
+        (["run", "--stimulus", "GARBAGE", "--out", "X"], "not a stimulus file", 1),
     ],
 )
-def test_cli_bad_input_is_one_clear_message(tmp_path, capsys, argv, message):
+def test_cli_bad_input_is_one_clear_message(tmp_path, capsys, argv, message, status):
     (tmp_path / "GARBAGE").write_bytes(b"hello")
     argv = [str(tmp_path / a) if a in ("X", "MISSING", "GARBAGE") else a for a in argv]
-    assert cli.main(argv) == 1
+    assert cli.main(argv) == status
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
     assert not (tmp_path / "X" / "metrics.json").exists()
