@@ -27,10 +27,11 @@ def _kb(n_bytes):
 
 
 @pytest.fixture(scope="module")
-def flash_builds(tmp_path_factory):
-    """`make build-flash`'s manifest, and `--strip-lines`'s."""
-    out = tmp_path_factory.mktemp("flash")
-    return build.build(out / "default"), build.build(out / "strip", strip_lines=True)
+def flash_builds(tmp_path_factory, flash_build_dir):
+    """`make build-flash`'s manifest (the session's build, tests/conftest.py), and
+    `--strip-lines`'s."""
+    strip = tmp_path_factory.mktemp("flash-strip")
+    return build.load_manifest(flash_build_dir), build.build(strip, strip_lines=True)
 
 
 def test_the_flash_figures_are_make_build_flash_s(flash_builds):

@@ -25,10 +25,9 @@ def _quiet(_line):
 
 
 @pytest.fixture(scope="module")
-def build_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("build")
-    build.build(out)
-    return out
+def build_dir(flash_build_dir):
+    """The session's build (tests/conftest.py)."""
+    return flash_build_dir
 
 
 def _board(tmp_path, **kw):

@@ -13,10 +13,9 @@ from tools.image import fwid
 
 
 @pytest.fixture(scope="module")
-def build_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("build")
-    build.build(out)
-    return out
+def build_dir(flash_build_dir):
+    """The session's build (tests/conftest.py)."""
+    return flash_build_dir
 
 
 @pytest.fixture(scope="module")

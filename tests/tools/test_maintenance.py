@@ -145,13 +145,12 @@ def test_a_board_without_the_stm_module_is_not_reset(tmp_path, monkeypatch):
     assert fake.resets == 0 and fake.written == ["/flash/ins.cfg"]
 
 
-def test_a_dry_run_leaves_a_stopped_board_in_maintenance_and_says_so(tmp_path, monkeypatch):
+def test_a_dry_run_leaves_a_stopped_board_in_maintenance_and_says_so(
+    tmp_path, monkeypatch, flash_build_dir
+):
     """deploy --dry-run reads the board in maintenance: a firmware that was running starts
     again (a soft reset); one that was not stays in maintenance, which deploy says."""
-    from tools.flash import build
-
-    out = tmp_path / "build"
-    build.build(out)
+    out = flash_build_dir
     fs = tmp_path / "flash"
     fs.mkdir()
     fake = _fake(monkeypatch, fs, firmware="maintenance")

@@ -7,7 +7,7 @@ serve (docs/deploy.md): they say so first, then stop it and restart it."""
 
 import pytest
 
-from tools.flash import build, deploy
+from tools.flash import deploy
 from tools.flash.__main__ import main as flash_main
 from tools.monitor.cli import main as monitor_main
 
@@ -19,13 +19,11 @@ def _quiet(_line):
 
 
 @pytest.fixture(scope="module")
-def board(tmp_path_factory):
+def board(tmp_path_factory, flash_build_dir):
     """The virtual board, the firmware deployed and running in real time."""
-    out = tmp_path_factory.mktemp("build")
-    build.build(out)
     fs = tmp_path_factory.mktemp("board") / "flash"
     with virtual_board.VirtualBoard(fs, realtime=True, duration_s=600.0) as vb:
-        deploy.deploy(out, vb.port, log=_quiet)
+        deploy.deploy(flash_build_dir, vb.port, log=_quiet)
         yield vb
 
 
