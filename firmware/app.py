@@ -64,21 +64,19 @@ _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late rec
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
 _GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
-# gc.mem_free() scans the heap: ~160,000 instructions on the board, 4 ms at 96 MHz (the image
-# on the emulated STM32F411), so a tick that checks runs past the next tick's moment. With the
-# native kernels an aligning tick allocates only when a fix is screened (nav_align._align_fix,
-# Python floats: 848 bytes the origin's fix; nothing for a fix with a course, fix_check's bits
-# being ints; the track of a receiver without a course allocates; tests/runtimes/test_m4f.py
-# holds each to _FIX_BYTES), so a check that finds F bytes free leaves room for
-# (F - low water) / cost fixes, and the heap is checked again only after them, in the tick
-# after a fix's (_heap_fixes);
-# the cost of a fix is _FIX_BYTES until a check has measured what the fixes since the last one
-# took, then _FIX_MARGIN times that (at least _FIX_MIN). A check every second made 47 late ticks
-# in the 76 s urban_drive stands still. While navigating, the heap is checked only before a step
-# that allocates (_heap_room). The Python kernels: every tick.
-_FIX_BYTES = const(1024)
-_FIX_MARGIN = const(4)
-_FIX_MIN = const(64)
+# gc.mem_free() scans the heap: ~140,000 instructions on the board, 3.6 ms at 96 MHz (the image
+# on the emulated STM32F411), so a tick that checks comes close to the next tick's moment. With
+# the native kernels nothing per tick allocates; the navigator's rare Python steps do (the
+# origin: ~850 bytes, the start of navigation, a track window of a receiver without a course,
+# re-anchoring, a reset: Python floats) and ask for room first (_heap_room): each is charged
+# _STEP_BYTES against the room the last check found (tests/runtimes/test_m4f.py holds an
+# aligning fix to it), and the heap is checked again only when they may have used it up; the
+# cost of a step is then _STEP_MARGIN times what the steps since the last check took (at
+# least _STEP_MIN). Counting every screened fix instead made 2 late ticks in the 76 s
+# urban_drive stands still (a check every second: 47). The Python kernels: every tick.
+_STEP_BYTES = const(1024)
+_STEP_MARGIN = const(4)
+_STEP_MIN = const(64)
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # The indices and offsets of other modules' buffers the tick uses, written from their owners
 # (an underscore const is inlined and exists only in its own module: it cannot be imported)
@@ -134,7 +132,6 @@ _C_TICK = const(0)
 _C_STATE = const(1)
 _C_HEALTH = const(2)
 _C_STILL = const(3)
-_C_LAST_FIX_TICK = const(26)
 _C_CAUSES = const(48)
 # ---- end of nav.py's consts ----
 # ---- geo.py's consts used here: `python -m common.native.layout` writes them ----
@@ -211,10 +208,10 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
-        self._heap_left = 0  # bytes the screened fixes may still allocate before a heap check
+        self._heap_left = 0  # bytes the allocating steps may still take before a heap check
         self._heap_free = 0  # what the last check found free
-        self._fix_cost = _FIX_BYTES  # what a screened fix is assumed to allocate
-        self._fixes = 0  # fixes screened since the last check
+        self._step_cost = _STEP_BYTES  # what an allocating step is assumed to take
+        self._steps = 0  # allocating steps since the last check
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame(self.nav.cv)
@@ -336,14 +333,16 @@ class App:
             self.board.wdt_feed()
             return
         imu.read()
-        # the GNSS bytes that arrived, into the parser; a completed epoch to the navigator
+        # an epoch the parser completed in an earlier tick to the navigator, then the GNSS
+        # bytes that arrived into the parser: an epoch's parsing and its screening fall in two
+        # ticks, so neither makes one long (_deliver_fix)
+        if self.gnss.epoch_ready:
+            self.gnss.epoch_ready = 0
+            self._deliver_fix()
         n = self._gnss_uart.any()
         if n:
             n = self._gnss_read(n)
         self.rx_n = n
-        if self.gnss.epoch_ready:
-            self.gnss.epoch_ready = 0
-            self._deliver_fix()
         self.nav.imu_counts(imu.gyro, imu.accel, imu.status)
         # the frame, the extended frame and the raw record when due; the watchdog
         state = self.nav.ctl[_C_STATE]
@@ -377,51 +376,46 @@ class App:
             nav.imu_counts(imu.gyro, imu.accel, st)
 
     def _account(self, t0, state):
-        """Timing statistics; garbage collection when the heap runs low."""
+        """Timing statistics; with the Python kernels, garbage collection when the heap runs
+        low (with the native kernels nothing per tick allocates: _heap_room)."""
         dt = time.ticks_diff(time.ticks_us(), t0)
         if dt > self.t_worst_us:
             self.t_worst_us = dt
         self.t_sum_us += dt
         self._period_ticks += 1
-        low = _GC_LOW_WATER
-        if self._native:
-            # gc.mem_free() scans the heap: ~160,000 instructions, 4 ms (see _FIX_BYTES)
-            if state == NAVIGATING:
-                # a navigating tick allocates nothing (tests/runtimes: the allocation proof);
-                # the steps that do (re-anchoring, a reset: Python, rare) ask for room first
-                # (_heap_room); so nothing is checked here, not even when navigation starts
-                return
-            c = self.nav.ctl
-            if c[_C_TICK] - 1 != c[_C_LAST_FIX_TICK]:
-                return  # an aligning tick allocates only when a fix is screened
-            self._fixes += 1
-            left = self._heap_left - self._fix_cost
-            if left >= 0:
-                self._heap_left = left  # the last check left room for this fix
-                return
-            self._heap_fixes()
-            return
-        self._heap_room(low)
+        if not self._native:
+            self._heap_low()
 
-    def _heap_fixes(self):
-        """A heap check while aligning, once the fixes may have used the room the last one
-        found: what they took sets the cost of the next ones (see _FIX_BYTES)."""
+    def _heap_room(self):
+        """The navigator's heap_check, before a step that allocates (the origin, the start of
+        navigation, a track window, re-anchoring, a reset: Python floats, rare): the step is
+        charged against the room the last check found, and only when that may be used up is
+        the heap looked at again (_heap_check)."""
+        self._steps += 1
+        left = self._heap_left - self._step_cost
+        if left >= 0:
+            self._heap_left = left
+            return
+        self._heap_check()
+
+    def _heap_check(self):
+        """What the steps since the last check took sets the cost of the next ones (see
+        _STEP_BYTES); collected if the room left is less than one step's."""
         free = gc.mem_free()
-        if self._fixes:
-            took = (self._heap_free - free) // self._fixes * _FIX_MARGIN
-            self._fix_cost = took if took > _FIX_MIN else _FIX_MIN
-        if free < _GC_LOW_WATER + self._fix_cost:
+        if self._steps:
+            took = (self._heap_free - free) // self._steps * _STEP_MARGIN
+            self._step_cost = took if took > _STEP_MIN else _STEP_MIN
+        if free < _GC_LOW_WATER + self._step_cost:
             gc.collect()
             self.gc_runs += 1
             free = gc.mem_free()
         self._heap_free = free
-        self._fixes = 0
+        self._steps = 0
         self._heap_left = free - _GC_LOW_WATER
 
-    def _heap_room(self, low=_GC_LOW_WATER):
-        """At least `low` bytes of heap free (automatic collection is off); the navigator's
-        heap_check, before a navigating step that allocates."""
-        if gc.mem_free() < low:
+    def _heap_low(self):
+        """At least _GC_LOW_WATER bytes of heap free (the Python kernels, every tick)."""
+        if gc.mem_free() < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
 

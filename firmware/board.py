@@ -166,11 +166,9 @@ def maintenance_start(mem32=None):
 
 
 def _transmitter(uart_id, uart, direct=_Direct):
-    try:
-        from drivers import uart_dma
-    except ImportError:  # no `stm` module: not the stm32 port
-        return direct(uart)
-    if not uart_dma.supported(uart_id):
+    from drivers import uart_dma
+
+    if not uart_dma.supported(uart_id):  # not the stm32 port (no `stm`), or not this UART
         return direct(uart)
     return uart_dma.DmaTx(uart_id)
 

@@ -67,6 +67,7 @@ LAYOUT = (
     ("drivers.gnss", "the parser's int buffer Nmea._s (framing state, the sentence's fields: "
      "NS_A..NS_F per type, as gnss.py lists) and nmea_scan's results", "",
      ("_NS_*", "_NR_*")),
+    ("drivers.uart_dma", "the DMA transmitter's state DmaTx._tx", "", ("TX_*", "NTX")),
     ("status_page", "text_num's forms of a number", "", ("TN_*",)),
     ("kern", "the native module's ABI, which kern.py checks", "NAVK_", ("ABI",)),
 )  # fmt: skip

@@ -13,7 +13,7 @@ same signature. `NATIVE` and `describe()` say which was chosen (the app prints i
 
 import sys as _sys
 
-ABI = 8  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
+ABI = 9  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
 
 navk = None
 _why = "navk not found"

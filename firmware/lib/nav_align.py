@@ -189,6 +189,7 @@ class Alignment:
     def _course_start(self, course):
         """Navigation starts from the receiver's course and speed; the course's 1-sigma is
         gnss_vel_sigma / speed."""
+        self._room()  # the course's sigma and the start compute in Python floats
         sp = self._fx[_FX_SPEED]
         s = self.cfg.gnss_vel_sigma / sp
         self._start_navigation(course, sp, self.cfg.init_vel_sigma, s * s)
@@ -196,6 +197,7 @@ class Alignment:
     def _set_origin(self):
         """The first stable fix becomes the origin of the navigation frame; False if it cannot
         (geo.LocalFrame.set_origin)."""
+        self._room()  # the origin's conversions compute in Python floats (~850 bytes)
         c = self.ctl
         fr = self.frame
         if not fr.set_origin(c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
@@ -221,6 +223,7 @@ class Alignment:
         sigma `track_vel_sigma`. Cost, at fix ticks while aligning only: the yaw from the
         `euler` kernel; a window's evaluation boxes the floats of a Python atan2 and sqrt on
         the board."""
+        self._room()  # a window's chord and speed are Python floats
         if self._trk is None:
             self._track_buffers()
         ypr = self._tmp3  # scratch
@@ -304,7 +307,7 @@ class Alignment:
         the course's variance, rad^2: the heading's is the larger of it and init_yaw_sigma^2.
         Natively
         one kernel (`nav_start`), which mirrors `_start_navigation_py` and `_restart`."""
-        self._yaw_var(var_course)
+        self._yaw_var(var_course)  # (the caller asked for heap room: _course_start, _track)
         if self._fx[_FX_SIG_V] < 0.0:  # a receiver without height: the height is unknown
             self.mem[_M_CN + _CN_VV] = NO_HEIGHT_VAR
         if _nav_start is None:

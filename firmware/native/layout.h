@@ -441,6 +441,21 @@
 #define NR_OVERLONG 10
 #define NR_COLLIDED 11
 
+/* drivers/uart_dma.py: the DMA transmitter's state DmaTx._tx */
+#define TX_CR 0
+#define TX_DR 1
+#define TX_IFCR 2
+#define TX_RCC 3
+#define TX_CR_VALUE 4
+#define TX_FLAGS 5
+#define TX_RCC_EN 6
+#define TX_FILL 7
+#define TX_N 8
+#define TX_SIZE 9
+#define TX_SENT 10
+#define TX_DROPPED 11
+#define NTX 12
+
 /* status_page.py: text_num's forms of a number */
 #define TN_WIDTH 0xFF
 #define TN_DEC_SHIFT 8
@@ -449,6 +464,6 @@
 #define TN_ZEROS 0x2000
 
 /* kern.py: the native module's ABI, which kern.py checks */
-#define NAVK_ABI 8
+#define NAVK_ABI 9
 
 #endif /* NAVK_LAYOUT_H */

@@ -28,6 +28,8 @@ void navk_ext_pack(uint8_t *buf, const int32_t *fields, const float *p, const fl
     const float *cv);
 void navk_raw_pack(uint8_t *buf, const int32_t *fields, const uint8_t *raw_gyro, const uint8_t *raw_accel, const uint8_t *rx);
 void navk_bytes_copy(uint8_t *dst, int32_t off, const uint8_t *src, int32_t n);
+int32_t navk_tx_write(int32_t *tx, uint8_t *bufs, const uint8_t *src, int32_t n);
+int32_t navk_tx_poll(int32_t *tx, uint8_t *bufs);
 int32_t navk_text_num(uint8_t *t, int32_t p, int32_t v, int32_t form);
 int32_t navk_text_diff(uint8_t *s, int32_t o, const uint8_t *t, int32_t n);
 void navk_fix_in(float *fx, const int32_t *fi, const float *aid);

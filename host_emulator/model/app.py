@@ -400,9 +400,10 @@ class _Loop:
             self.lost = 0
         self.last = (self.gyro_l[k], self.accel_l[k], self.sat_l[k], self.fresh_l[k])
         # tick k: IMU read, GNSS poll, fix, navigator
-        rx = _uart_read(self.ring, g)
+        # an epoch completed in an earlier tick first, then this tick's bytes (app.service)
         if g.epoch_take():
             deliver_fix(g, model, self.fix, self.cfg.gnss_hdop_max, now, self.pps, k + 1)
+        rx = _uart_read(self.ring, g)
         if tick_hook is not None:
             tick_hook(k, model)
         model.imu_raw(self.gyro_l[k], self.accel_l[k], self.sat_l[k], self.fresh_l[k])

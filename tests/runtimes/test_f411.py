@@ -76,12 +76,10 @@ def test_the_blackpills_screen_gets_the_models_bytes_and_answers():
     st = r.firmware_stats
     assert st["display_batches"] == 4 and st["display_oks"] == 4, st
     assert st["display_missed"] == st["display_cause_frames"] == st["display_rx_lost"] == 0
-    # no tick missed, and none late but for the aligning heap check (app.py _heap_fixes: a
-    # gc.mem_free() scan, ~155,000 instructions, 4 ms, in the tick after a screened fix
-    # once the fixes may have used the room the last check found)
+    # no tick missed, and none late
     assert st["overruns"] == 0
     pt = r.firmware_run.per_tick
-    assert not (pt["late"] & (pt["gc_instr"] < 100_000)).any(), pt[pt["late"]]
+    assert not pt["late"].any(), pt[pt["late"]]
     marks = r.firmware_run.display_marks
     assert marks[0][0] == -1 and marks[-1][1] == len(r.display_firmware) > 1000
     assert all(a[0] < b[0] and a[1] < b[1] for a, b in zip(marks, marks[1:], strict=False))

@@ -214,9 +214,10 @@ def test_every_tick_is_counted_and_the_emulation_is_set_apart(quick):
 def test_alignment_allocates_only_at_fixes_and_less_than_the_app_assumes(quick):
     """With the native kernels an aligning tick runs Python only when a fix is screened, and
     a fix with a course boxes no float there (fix_check's bits, not the floats): only the
-    first stable fix allocates (the origin), at most _FIX_BYTES. The app counts the fixes
-    against the room its last heap check found and checks again only when they may have used
-    it up (app.py). Before the bits, every aligning fix allocated 32 bytes."""
+    first stable fix allocates (the origin), at most _STEP_BYTES. The navigator asks for room
+    before such a step, and the app counts the steps against the room its last heap check
+    found and checks again only when they may have used it up (app.py). Before the bits,
+    every aligning fix allocated 32 bytes."""
     from common.firmware_env import import_module
 
     t = quick[1].firmware_run.per_tick
@@ -226,7 +227,7 @@ def test_alignment_allocates_only_at_fixes_and_less_than_the_app_assumes(quick):
     allocating = np.nonzero(alloc)[0]
     assert len(allocating) == 1, allocating  # the origin's fix
     worst = int(alloc.max())
-    assert 100 < worst <= import_module("app")._FIX_BYTES, worst
+    assert 100 < worst <= import_module("app")._STEP_BYTES, worst
 
 
 def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
