@@ -36,6 +36,8 @@ from drivers.gnss import Nmea
 from nav import NAVIGATING, Navigator, nav_frame
 from status_page import StatusPage, font_for
 
+_ext_pack = records.ext_pack
+
 _US_PER_TICK = const(5000)
 _SECOND_TICKS = const(200)  # ticks in a second: how long an app cause lasts
 # missed ticks the navigator steps through at most: board.WDT_TIMEOUT_MS (50) / 5 ms. The
@@ -59,6 +61,7 @@ _K_H_MM = const(10)  # ... and above the ellipsoid (_fix_fields); _FI_NO_HEIGHT:
 _K_STEP_S = const(11)  # the lateness (s) of the epochs in a row that had one (_late_s; 0: none)
 _K_STEP_N = const(12)  # how many had it, of a clock step; -1: it began at a missed edge (late)
 _K_STEP_BAD = const(13)  # CAUSE_GNSS_CLOCK until this tick
+_K_CAUSES = const(14)  # the app's causes for the whole run: CAUSE_CONFIG on the defaults
 _STEP_EPOCHS = const(3)  # a clock step's lateness seen this many epochs in a row: re-synchronised
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
@@ -204,7 +207,8 @@ class App:
         # call on self first misses the instance's attribute table (a hash table grown only
         # when full): as attributes of their own (36 in a table of 37 for the first three),
         # they made every navigating tick dearer (`make bench-board`, measured both ways)
-        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0))
+        self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0,
+                                CAUSE_CONFIG if status != config.OK else 0))
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -215,6 +219,7 @@ class App:
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame(self.nav.cv)
+        self.ext.fields[_EF_CONFIG] = status
         self.raw = records.RawRecord()
         self._period_ticks = 0  # ticks in the current extended-frame period (for the mean)
         self._led = False
@@ -259,7 +264,7 @@ class App:
     def start(self):
         """Timer, PPS interrupt, watchdog; automatic garbage collection off with the native
         kernels (a navigating tick allocates nothing; the app collects between ticks when the
-        heap runs low, _account). With the Python kernels every tick allocates, and a tick
+        heap runs low, _heap_room). With the Python kernels every tick allocates, and a tick
         that needs more than the heap has left would raise MemoryError (automatic collection
         is the collector's only retry): it stays on there. The console line starting
         "ins: running" is what deploy tools wait for."""
@@ -271,7 +276,7 @@ class App:
         )
         # collected before the timer starts: a collection takes ~2 ticks on the board, and
         # after it the first two ticks overran (measured on the emulated STM32F411); the room
-        # it leaves is counted here, while a heap scan delays no tick (_account)
+        # it leaves is counted here, while a heap scan delays no tick (_heap_room)
         gc.collect()
         self._heap_free = gc.mem_free()
         self._heap_left = self._heap_free - _GC_LOW_WATER
@@ -357,7 +362,15 @@ class App:
             self.page.turn(self.ticks, state)  # one field of the screen's page
         if self._wdt is not None:
             self._wdt.feed()
-        self._account(t0, state)
+        # the tick's time for the extended frame's worst and mean (n reused: a twelfth word
+        # would put the frame on the heap); with the Python kernels the heap is looked at
+        n = time.ticks_diff(time.ticks_us(), t0)
+        if n > self.t_worst_us:
+            self.t_worst_us = n
+        self.t_sum_us += n
+        self._period_ticks += 1
+        if not self._native:
+            self._heap_low()
 
     def _catch_up(self, lost):
         """Ticks the loop missed: counted, and stepped by the navigator on the last sample
@@ -375,17 +388,6 @@ class App:
         for _ in range(lost):
             nav.imu_counts(imu.gyro, imu.accel, st)
 
-    def _account(self, t0, state):
-        """Timing statistics; with the Python kernels, garbage collection when the heap runs
-        low (with the native kernels nothing per tick allocates: _heap_room)."""
-        dt = time.ticks_diff(time.ticks_us(), t0)
-        if dt > self.t_worst_us:
-            self.t_worst_us = dt
-        self.t_sum_us += dt
-        self._period_ticks += 1
-        if not self._native:
-            self._heap_low()
-
     def _heap_room(self):
         """The navigator's heap_check, before a step that allocates (the origin, the start of
         navigation, a track window, re-anchoring, a reset: Python floats, rare): the step is
@@ -400,12 +402,13 @@ class App:
 
     def _heap_check(self):
         """What the steps since the last check took sets the cost of the next ones (see
-        _STEP_BYTES); collected if the room left is less than one step's."""
+        _STEP_BYTES); collected below the low water mark only: a collection is the longest
+        thing the loop does (milliseconds: ticks missed)."""
         free = gc.mem_free()
         if self._steps:
             took = (self._heap_free - free) // self._steps * _STEP_MARGIN
             self._step_cost = took if took > _STEP_MIN else _STEP_MIN
-        if free < _GC_LOW_WATER + self._step_cost:
+        if free < _GC_LOW_WATER:
             gc.collect()
             self.gc_runs += 1
             free = gc.mem_free()
@@ -590,47 +593,44 @@ class App:
 
     def _send_ext(self, imu):
         """The extended frame: health, timing, covariance, biases, position and origin."""
-        fi = self.ext.fields
-        c = self.nav.ctl
-        causes = 0  # the app's own, each a warning (running on defaults among them)
-        if self.config_status != config.OK:
-            causes = CAUSE_CONFIG
+        t = self.ticks
         k = self._chk
-        if self.ticks >= k[_K_OVERDUE]:  # no epoch yet after the last edge? (_pps_seen)
+        if t >= k[_K_OVERDUE]:  # no epoch yet after the last edge? (_pps_seen)
             k[_K_OVERDUE] = _NEVER
             if self.gnss.epoch_pps_us != k[_K_PPS_LAST]:  # none: a late receiver
-                k[_K_LATE_BAD] = self.ticks + _SECOND_TICKS
+                k[_K_LATE_BAD] = t + _SECOND_TICKS
                 k[_K_EDGES_OK] = 0
-        if self.ticks < k[_K_NMEA_BAD]:
+        causes = k[_K_CAUSES]  # the app's own, each a warning (running on defaults among them)
+        if t < k[_K_NMEA_BAD]:
             causes |= CAUSE_NMEA
-        if self.ticks < k[_K_PPS_BAD]:
+        if t < k[_K_PPS_BAD]:
             causes |= CAUSE_PPS
-        if self.ticks < k[_K_LATE_BAD]:
+        if t < k[_K_LATE_BAD]:
             causes |= CAUSE_GNSS_LATE
-        if self.ticks < k[_K_STEP_BAD]:
+        if t < k[_K_STEP_BAD]:
             causes |= CAUSE_GNSS_CLOCK
         if self.overruns != self._ext_overruns:
             self._ext_overruns = self.overruns
             causes |= CAUSE_OVERRUN
-        if self.page is not None and self.ticks < self.page.bad_until:
+        if self.page is not None and t < self.page.bad_until:
             causes |= CAUSE_DISPLAY
-        health = c[_C_HEALTH]
-        if causes and health == 0:
-            health = 1
-        causes |= c[_C_CAUSES]
+        k = self.nav.ctl  # (k reused: a twelfth word would put the frame on the heap)
+        t = k[_C_HEALTH]  # ... and t: the health
+        if causes and t == 0:
+            t = 1
+        fi = self.ext.fields
+        fi[_EF_HEALTH] = t
+        fi[_EF_CAUSES] = causes | k[_C_CAUSES]
         fi[_EF_COUNTER] = self.counter
-        fi[_EF_HEALTH] = health
-        fi[_EF_CAUSES] = causes
-        fi[_EF_STATE] = c[_C_STATE]
-        fi[_EF_CONFIG] = self.config_status
+        fi[_EF_STATE] = k[_C_STATE]
         fi[_EF_FLAGS] = (
-            self._fields[_F_VALID] | (2 if c[_C_STILL] else 0) | (4 if imu.saturated else 0)
+            self._fields[_F_VALID] | (2 if k[_C_STILL] else 0) | (4 if imu.saturated else 0)
         )
         fi[_EF_WORST_US] = self.t_worst_us
         fi[_EF_MEAN_US] = self.t_sum_us // self._period_ticks if self._period_ticks else 0
         fi[_EF_OVERRUNS] = self.overruns & 0xFFFF
         fi[_EF_GC_RUNS] = self.gc_runs & 0xFFFF
-        fi[_EF_TICK] = c[_C_TICK] & 0x3FFFFFFF
+        fi[_EF_TICK] = k[_C_TICK] & 0x3FFFFFFF
         self._send_ext_state(fi)
 
     def _pps_seen(self):
@@ -668,7 +668,9 @@ class App:
         fi[_EF_LAT0_E7] = fr.lat0_e7
         fi[_EF_LON0_DEG] = fr.lon0_deg
         fi[_EF_LON0_FRAC] = fr.lon0_frac
-        self.ext.pack(nav.kf.P, nav.ins.x, fr.coef)
+        # the kernel itself, not ExtFrame.pack: a Python call less (its module attribute
+        # through a global: records.ext_pack's method form takes a word more of the frame)
+        _ext_pack(self.ext.data, fi, nav.kf.P, nav.ins.x, fr.coef, nav.cv)
         self._out.write(self.ext.data)
         self.t_sum_us = 0
         self._period_ticks = 0

@@ -32,7 +32,6 @@ PER_TICK = (
     ("app.py", "App._send_frame"),
     ("app.py", "App._send_ext"),
     ("app.py", "App._send_ext_state"),
-    ("app.py", "App._account"),
     ("lib/nav.py", "Navigator.imu_counts"),
     ("lib/records.py", "ExtFrame.pack"),
     ("drivers/bmi055.py", "BMI055.read"),
