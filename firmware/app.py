@@ -66,20 +66,25 @@ _STEP_EPOCHS = const(3)  # a clock step's lateness seen this many epochs in a ro
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
 _NEVER = const(0x3FFFFFFF)  # a tick count the loop does not reach (years)
-_GC_LOW_WATER = const(12 * 1024)  # collect when fewer bytes than this are free
+_GC_LOW_WATER = const(12 * 1024)  # the Python kernels: collect when fewer bytes are free
 # gc.mem_free() scans the heap: ~140,000 instructions on the board, 3.6 ms at 96 MHz (the image
-# on the emulated STM32F411), so a tick that checks comes close to the next tick's moment. With
+# on the emulated STM32F411), so a tick that looks comes close to the next tick's moment. With
 # the native kernels nothing per tick allocates; the navigator's rare Python steps do (the
-# origin: ~850 bytes, the start of navigation, a track window of a receiver without a course,
-# re-anchoring, a reset: Python floats) and ask for room first (_heap_room): each is charged
-# _STEP_BYTES against the room the last check found (tests/runtimes/test_m4f.py holds an
-# aligning fix to it), and the heap is checked again only when they may have used it up; the
-# cost of a step is then _STEP_MARGIN times what the steps since the last check took (at
-# least _STEP_MIN). Counting every screened fix instead made 2 late ticks in the 76 s
-# urban_drive stands still (a check every second: 47). The Python kernels: every tick.
-_STEP_BYTES = const(1024)
-_STEP_MARGIN = const(4)
-_STEP_MIN = const(64)
+# origin: 816 bytes, a track window: 416, a reset to GNSS: 2,000, Python floats; measured on
+# the emulated Cortex-M4F) and ask for room first (_heap_room). The heap is looked at only
+# when what was allocated since the last look may have brought it within a step of the
+# reserve: MicroPython's own count of the bytes asked for (micropython.mem_total, which the
+# image's board definitions turn on: MICROPY_MEM_STATS) taken twice (a float's 8 bytes fill a
+# block of 16), plus _STEP_BYTES; with less than a step over it free, the heap is collected.
+# Charging each step a fixed cost against the room instead made a scan in the tick where navigation
+# starts (emulated board, urban_drive, the status page on: a late tick); counting every
+# screened fix made 2 late ticks in the 76 s urban_drive stands still.
+_STEP_BYTES = const(2048)
+_HEAP_RESERVE = const(4096)
+try:
+    from micropython import mem_total as _mem_total
+except ImportError:  # a build without MICROPY_MEM_STATS: the heap is looked at every step
+    _mem_total = None
 _RX_LEN = const(232)  # GNSS bytes per tick at most: a raw record (length u8 = 23 + n) holds them
 # The indices and offsets of other modules' buffers the tick uses, written from their owners
 # (an underscore const is inlined and exists only in its own module: it cannot be imported)
@@ -212,10 +217,8 @@ class App:
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
-        self._heap_left = 0  # bytes the allocating steps may still take before a heap check
-        self._heap_free = 0  # what the last check found free
-        self._step_cost = _STEP_BYTES  # what an allocating step is assumed to take
-        self._steps = 0  # allocating steps since the last check
+        self._heap_free = 0  # what the last look at the heap found free (_heap_check)
+        self._heap_total = 0  # and micropython.mem_total() then
         self._native = kern.NATIVE
         self.rx_n = 0  # GNSS bytes fed to the parser this tick
         self.ext = records.ExtFrame(self.nav.cv)
@@ -278,8 +281,7 @@ class App:
         # after it the first two ticks overran (measured on the emulated STM32F411); the room
         # it leaves is counted here, while a heap scan delays no tick (_heap_room)
         gc.collect()
-        self._heap_free = gc.mem_free()
-        self._heap_left = self._heap_free - _GC_LOW_WATER
+        self._heap_check()
         if self._native:
             gc.disable()
         b.on_pps(self.gnss.pps_isr)
@@ -390,31 +392,26 @@ class App:
 
     def _heap_room(self):
         """The navigator's heap_check, before a step that allocates (the origin, the start of
-        navigation, a track window, re-anchoring, a reset: Python floats, rare): the step is
-        charged against the room the last check found, and only when that may be used up is
-        the heap looked at again (_heap_check)."""
-        self._steps += 1
-        left = self._heap_left - self._step_cost
-        if left >= 0:
-            self._heap_left = left
-            return
+        navigation, a track window, re-anchoring, a reset: Python floats, rare): the heap is
+        looked at only when what was allocated since the last look, twice over, and one step
+        more may reach the reserve (see _STEP_BYTES)."""
+        if _mem_total is not None:
+            used = (_mem_total() - self._heap_total) & 0x3FFFFFFF  # it wraps as a small int
+            if self._heap_free - 2 * used - _STEP_BYTES >= _HEAP_RESERVE:
+                return
         self._heap_check()
 
     def _heap_check(self):
-        """What the steps since the last check took sets the cost of the next ones (see
-        _STEP_BYTES); collected below the low water mark only: a collection is the longest
-        thing the loop does (milliseconds: ticks missed)."""
+        """The heap's free bytes, collected when less than a step over the reserve is: a
+        collection is the longest thing the loop does (milliseconds: ticks missed)."""
         free = gc.mem_free()
-        if self._steps:
-            took = (self._heap_free - free) // self._steps * _STEP_MARGIN
-            self._step_cost = took if took > _STEP_MIN else _STEP_MIN
-        if free < _GC_LOW_WATER:
+        if free < _HEAP_RESERVE + _STEP_BYTES:
             gc.collect()
             self.gc_runs += 1
             free = gc.mem_free()
         self._heap_free = free
-        self._steps = 0
-        self._heap_left = free - _GC_LOW_WATER
+        if _mem_total is not None:
+            self._heap_total = _mem_total()
 
     def _heap_low(self):
         """At least _GC_LOW_WATER bytes of heap free (the Python kernels, every tick)."""

@@ -403,3 +403,57 @@ def test_a_receiver_clock_that_steps_is_resynchronised_and_late_bytes_stay_late(
     assert a._late_s(e + 15_000_000, 1015) == 0  # on time: the reference
     lateness = [a._late_s(e + (15 + i) * 1_000_000, 1015 + i - 18) for i in range(1, 5)]
     assert lateness == [18] * (app._STEP_EPOCHS - 1) + [0, 0]
+
+
+class _Heap:
+    """gc.mem_free/collect and micropython.mem_total as the board has them, counted: `free`
+    bytes free, `asked` bytes asked for so far."""
+
+    def __init__(self, free):
+        self.free = free
+        self.asked = 0
+        self.scans = 0
+        self.collects = 0
+
+    def mem_free(self):
+        self.scans += 1
+        return self.free
+
+    def collect(self):
+        self.collects += 1
+        self.free = 30_000
+
+    def alloc(self, n):
+        """n bytes asked for: taking n rounded up to 16-byte blocks."""
+        self.asked += n
+        self.free -= -(-n // 16) * 16
+
+
+def test_the_heap_is_looked_at_only_when_the_steps_may_have_reached_the_reserve(
+    tmp_path, monkeypatch
+):
+    """A step that allocates asks for room first (the navigator's heap_check): it is charged
+    twice what MicroPython counted since the last look plus one step, so a few steps pass
+    without a heap scan (~140,000 instructions on the board), the one that may reach the
+    reserve looks, and a heap with less than a step over the reserve is collected."""
+    b = Bench(tmp_path)
+    import app as fw_app
+
+    heap = _Heap(free=16_000)
+    monkeypatch.setattr(fw_app, "_mem_total", lambda: heap.asked)
+    monkeypatch.setattr(fw_app.gc, "mem_free", heap.mem_free, raising=False)
+    monkeypatch.setattr(fw_app.gc, "collect", heap.collect)
+    a = b.app
+    a._heap_check()  # as start() leaves it: 16,000 free, nothing asked for since
+    assert heap.scans == 1 and a._heap_free == 16_000
+    steps = 0
+    while 16_000 - 2 * heap.asked - fw_app._STEP_BYTES >= fw_app._HEAP_RESERVE:
+        a.nav.heap_check()  # steps of 1,000 bytes within the room
+        heap.alloc(1000)
+        steps += 1
+    assert steps == 5 and heap.scans == 1 and heap.collects == 0  # none of them scanned
+    a.nav.heap_check()  # this one may reach the reserve: the heap is looked at
+    assert heap.scans == 2 and heap.collects == 0 and a._heap_free == heap.free
+    heap.alloc(16_000 - fw_app._STEP_BYTES - fw_app._HEAP_RESERVE)  # the heap nearly full
+    a.nav.heap_check()
+    assert heap.collects == 1 and a._heap_free == 30_000 and a.gc_runs == 1

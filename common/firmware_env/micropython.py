@@ -1,5 +1,6 @@
 """Stand-in for MicroPython's `micropython` module on CPython: `const(x)` is x, as the
-compiler makes it on the board; the memory functions do nothing here."""
+compiler makes it on the board; the memory functions do nothing here (mem_total: nothing is
+counted, CPython's heap is not the board's)."""
 
 
 def const(x):
@@ -11,4 +12,8 @@ def heap_lock():
 
 
 def heap_unlock():
+    return 0
+
+
+def mem_total():
     return 0

@@ -182,6 +182,8 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         next_input,
         stalled,
         start_firmware,
+        window_end,
+        window_start,
     )
     from feed_protocol import REC_LEN  # common/proto/mpy
 
@@ -232,6 +234,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
         m0 = gc.mem_alloc()
         if m0 != m1:
             driver_alloc += m0 - m1
+        window_start()  # micropython.mem_total as the board counts it (feed.py)
         e0 = emu_total()
         c0 = icount()
         try:  # the firmware's code: its interrupt handlers and one pass of its loop
@@ -250,6 +253,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             firmware_error(k, e, exit_firmware_error)
         c1 = icount()
         e1 = emu_total()
+        window_end()
         ma = gc.mem_alloc()
         dn = 0
         if disp is not None and disp.tx_n:  # what the tick sent to the screen

@@ -48,6 +48,46 @@ import machine  # emulated_board/mpy/machine.py
 
 PROGRESS_EVERY = 1000  # ticks between progress lines
 
+# MicroPython's count of the bytes asked for (micropython.mem_total), which the firmware reads
+# to know when to look at its heap (app.py, _heap_room): on a board it counts the firmware's
+# allocations only, here the emulator's too. So the firmware is given the count without the
+# emulator's bytes: those between its windows (`window_start`/`window_end` around each tick's
+# interrupts and loop pass, outside any counted instructions) and, on the emulated Cortex-M4F,
+# those of the emulated peripherals inside them (m4f.emu_alloc). _ALLOC: the emulator's bytes
+# between windows so far, and at the last window's end the count and emu_alloc (all wrap at
+# 2**30).
+try:
+    from micropython import mem_total as _mem_total
+except ImportError:
+    _mem_total = None
+try:
+    from m4f import emu_alloc as _emu_alloc
+except ImportError:  # not the m4f runtime: the emulated peripherals count as the firmware
+    def _emu_alloc():
+        return 0
+
+
+# made from a bytes constant: a tuple's iterator would leave a hole of garbage in the heap that
+# the M4F's ballast (emulate_m4f.py), which gives the firmware the board's free heap, cannot fill
+_ALLOC = array("i", b"\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00")
+
+
+def window_start():
+    if _mem_total is not None:
+        between = (_mem_total() - _ALLOC[1]) - (_emu_alloc() - _ALLOC[2])
+        _ALLOC[0] = (_ALLOC[0] + between) & 0x3FFFFFFF
+
+
+def window_end():
+    if _mem_total is not None:
+        _ALLOC[1] = _mem_total()
+        _ALLOC[2] = _emu_alloc()
+
+
+def firmware_mem_total():
+    """micropython.mem_total as the board would count it: the firmware's bytes only."""
+    return (_mem_total() - _ALLOC[0] - _emu_alloc()) & 0x3FFFFFFF
+
 
 def console(msg):
     """The firmware's console: one "C" line per line of text (no allocation for one line)."""
@@ -99,8 +139,12 @@ def start_firmware(imu, config_path, exit=sys.exit, compiles=False):
         )
         import app
 
+        if _mem_total is not None and getattr(app, "_mem_total", None) is not None:
+            app._mem_total = firmware_mem_total
+        window_start()  # what came before was the emulator's; the start-up is the firmware's
         a = app.App(board, console=console)
         a.start()
+        window_end()
     except Exception as e:  # noqa: BLE001  (reported with its traceback, then exit)
         firmware_error(-1, e, exit)
     return a, pins
@@ -144,9 +188,11 @@ def run_tick(a, rec, t_k, pps, at=None):
     """One tick of the board: the record's interrupts at t_k (fire_inputs; at(t_k) once the
     clock reads t_k, before the timer fires), then one pass of the app's loop unless the
     board is stalled over it."""
+    window_start()
     fire_inputs(rec, t_k, pps, at)
     if not rec[REC_FLAGS] & FLAG_STALL:  # stalled(rec), written out: every tick
         a.service()
+    window_end()
 
 
 def stalled(rec):

@@ -70,3 +70,10 @@
 #define MICROPY_HW_LED1             (pin_A5)
 #define MICROPY_HW_LED_ON(pin)      (mp_hal_pin_high(pin))
 #define MICROPY_HW_LED_OFF(pin)     (mp_hal_pin_low(pin))
+
+// MicroPython's count of the bytes allocated (micropython.mem_total): the firmware looks at the
+// heap (a scan of ~140,000 instructions) only when what its rare allocating steps took may have
+// brought it near its low water mark (firmware/app.py, _heap_room). The count needs the sizes
+// at every free.
+#define MICROPY_MEM_STATS                   (1)
+#define MICROPY_MALLOC_USES_ALLOCATED_SIZE  (1)

@@ -16,3 +16,10 @@
 // console once the loop starts. Without these the port has no UART(6) at all.
 #define MICROPY_HW_UART6_TX     (pin_A11)
 #define MICROPY_HW_UART6_RX     (pin_A12)
+
+// MicroPython's count of the bytes allocated (micropython.mem_total): the firmware looks at the
+// heap (a scan of ~140,000 instructions) only when what its rare allocating steps took may have
+// brought it near its low water mark (firmware/app.py, _heap_room). The count needs the sizes
+// at every free.
+#define MICROPY_MEM_STATS                   (1)
+#define MICROPY_MALLOC_USES_ALLOCATED_SIZE  (1)

@@ -9,7 +9,10 @@
 // - Time spent in emulation, not firmware: emu_in()/emu_out() bracket the emulated
 //   peripherals' Python code (host_emulator/emulated_board/mpy/machine.py); the instructions
 //   between them are summed here, emu_total() returns the sum modulo 2**30. Brackets nest: only
-//   the outermost one counts.
+//   the outermost one counts. So are the bytes the emulation asks the heap for (emu_alloc():
+//   MicroPython's allocation count inside the brackets, modulo 2**30), which a board's C
+//   drivers never take: the firmware's view of micropython.mem_total leaves them out
+//   (emulated_board/mpy/feed.py).
 // - Periph(obj): the firmware's handle on an emulated peripheral or clock function. On a board
 //   machine.Pin/SPI/UART/WDT methods and time.ticks_us are C: calling one costs a C method call.
 //   A Periph's methods (PERIPH_METHODS) and its call are C as well: the firmware's call costs
@@ -54,6 +57,8 @@
 static uint32_t emu_start;  // timer value at the outermost emu_in()
 static uint32_t emu_sum;  // timer counts spent in emulation
 static uint32_t emu_depth;  // brackets open
+static size_t emu_alloc_start;  // MicroPython's allocation count at the outermost emu_in()
+static size_t emu_alloc_sum;  // bytes allocated in emulation
 static uint8_t ramdisk_buf[M4F_RAMDISK_BYTES] __attribute__((aligned(4)));
 
 static uint32_t semihost(uint32_t op, const void *arg) {
@@ -80,6 +85,7 @@ static mp_obj_t m4f_init(void) {
     TIMER_CTRL = 1;  // enable, no interrupt
     emu_sum = 0;
     emu_depth = 0;
+    emu_alloc_sum = 0;
     return mp_const_none;
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_init_obj, m4f_init);
@@ -92,12 +98,14 @@ static MP_DEFINE_CONST_FUN_OBJ_0(m4f_icount_obj, m4f_icount);
 static void emu_enter(void) {
     if (emu_depth++ == 0) {
         emu_start = counts();
+        emu_alloc_start = m_get_total_bytes_allocated();
     }
 }
 
 static void emu_leave(void) {
     if (emu_depth > 0 && --emu_depth == 0) {
         emu_sum += counts() - emu_start;
+        emu_alloc_sum += m_get_total_bytes_allocated() - emu_alloc_start;
     }
 }
 
@@ -117,6 +125,11 @@ static mp_obj_t m4f_emu_total(void) {
     return MP_OBJ_NEW_SMALL_INT((emu_sum * INSTR_PER_COUNT) & COUNT_MASK);
 }
 static MP_DEFINE_CONST_FUN_OBJ_0(m4f_emu_total_obj, m4f_emu_total);
+
+static mp_obj_t m4f_emu_alloc(void) {
+    return MP_OBJ_NEW_SMALL_INT(emu_alloc_sum & COUNT_MASK);
+}
+static MP_DEFINE_CONST_FUN_OBJ_0(m4f_emu_alloc_obj, m4f_emu_alloc);
 
 // ---- Periph --------------------------------------------------------------------------------
 
@@ -351,6 +364,7 @@ static const mp_rom_map_elem_t m4f_globals_table[] = {
     { MP_ROM_QSTR(MP_QSTR_emu_in), MP_ROM_PTR(&m4f_emu_in_obj) },
     { MP_ROM_QSTR(MP_QSTR_emu_out), MP_ROM_PTR(&m4f_emu_out_obj) },
     { MP_ROM_QSTR(MP_QSTR_emu_total), MP_ROM_PTR(&m4f_emu_total_obj) },
+    { MP_ROM_QSTR(MP_QSTR_emu_alloc), MP_ROM_PTR(&m4f_emu_alloc_obj) },
     { MP_ROM_QSTR(MP_QSTR_Periph), MP_ROM_PTR(&periph_type) },
     { MP_ROM_QSTR(MP_QSTR_open), MP_ROM_PTR(&m4f_open_obj) },
     { MP_ROM_QSTR(MP_QSTR_close), MP_ROM_PTR(&m4f_close_obj) },
