@@ -314,17 +314,19 @@ class BMI055:
 
         Returns `saturated`. Two SPI transactions of 1 + 6 bytes each, one full-duplex call
         each (per call the board's SPI driver costs more than its bytes); allocates nothing.
+        The chip selects are set by calling the pin (Pin.__call__, the port's pin_call), which
+        spares the method look-up of Pin.value on every edge.
         """
         spi = self._spi
         tx = self._burst_tx
         cs = self._cs_g
-        cs.value(0)
+        cs(0)
         spi.write_readinto(tx, self._burst_g)
-        cs.value(1)
+        cs(1)
         cs = self._cs_a
-        cs.value(0)
+        cs(0)
         spi.write_readinto(tx, self._burst_a)
-        cs.value(1)
+        cs(1)
         m = _decode(self.gyro, self.accel, self.raw_gyro, self.raw_accel)
         self.status = m
         self.saturated = (m & 0x3F) != 0

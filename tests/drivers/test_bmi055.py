@@ -546,6 +546,7 @@ class Cs:
     def value(self, v):
         self.bus.sel = self.d if v == 0 else -1
         self.bus.pos = -1
+    __call__ = value  # a machine.Pin is callable: pin(v) sets it (the port's pin_call)
 from drivers import bmi055
 bus = Bus()
 sleeps = []
