@@ -16,3 +16,21 @@
 // console once the loop starts. Without these the port has no UART(6) at all.
 #define MICROPY_HW_UART6_TX     (pin_A11)
 #define MICROPY_HW_UART6_RX     (pin_A12)
+
+// No hardware I2C: nothing is wired to it (the BMI055 is on SPI1). Without pins the port
+// builds neither machine.I2C, I2CTarget nor pyb.I2C.
+#undef MICROPY_HW_I2C1_SCL
+#undef MICROPY_HW_I2C1_SDA
+#undef MICROPY_HW_I2C2_SCL
+#undef MICROPY_HW_I2C2_SDA
+#undef MICROPY_HW_I2C3_SCL
+#undef MICROPY_HW_I2C3_SDA
+
+// USB: the REPL's CDC serial port only. No mass storage (the PC would mount /flash as a drive
+// and write its FAT behind the firmware's and the tools' backs; the tools use the REPL) and
+// no HID.
+#define MICROPY_HW_USB_MSC          (0)
+#define MICROPY_HW_USB_HID          (0)
+
+// The MicroPython features the firmware and the board tools never use (docs/image.md)
+#include "../ins_features.h"
