@@ -571,7 +571,7 @@ def restart(repl, watch_s=15.0):
                 text += repl.drain(quiet=0.2, overall=1.0)
             done = "ok"
             break
-        if b"Traceback" in text or b"IMU not ready" in text:
+        if b"Traceback" in text or b"IMU not ready" in text or b"ins: cannot start" in text:
             text += repl.drain(quiet=0.5, overall=3.0)
             done = "failed"
             break
