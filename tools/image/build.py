@@ -17,8 +17,9 @@ tree (micropython_dir(), v1.28.0) and its own mpy-cross; then, in build/image/<b
 
 The source tree is checked before and after make (every file's size and mtime): a build that
 wrote into it fails. The outputs (firmware.dfu, firmware.hex, firmware.bin: sector 0 and the
-code at 0x08020000 in one file, the gap filled with 0xFF) and budget.json go to the output
-folder; over budget, only budget.json goes there and the build fails saying why.
+code at 0x08010000 in one file, the gap over the filesystem's sectors 1-3 filled with 0xFF)
+and budget.json go to the output folder; over budget (less than 32 KB of the code region left,
+tools/image/budget.py), only budget.json goes there and the build fails saying why.
 """
 
 import json
@@ -37,6 +38,7 @@ BUILD_ROOT = toolchain.BUILD_ROOT / "image"
 OUT_ROOT = toolchain.REPO / "out" / "image"
 IMAGE_FILES = ("firmware.dfu", "firmware.hex", "firmware.bin")
 REPORT = "budget.json"
+FLASH_BASE = 0x08000000  # sector 0: the vector table (TEXT0_ADDR)
 CC_STEP = 100  # print a progress line every this many compiled C files
 TAIL_LINES = 20  # lines of make's log quoted when it fails
 CLIP = 240  # characters of one quoted line (make prints whole command lines)
@@ -140,7 +142,8 @@ def explain_failure(log_text, log_path, board):
         what = ", ".join(f"{name} by {int(n):,} bytes" for name, n in over)
         return ImageError(
             f"the image for {board} is over budget: the linker says {what} (FLASH_TEXT is the "
-            "384 KB code region, FLASH_START the 16 KB vector sector, RAM the 112 KB of RAM). "
+            "448 KB code region, sectors 4-7; FLASH_START the 16 KB vector sector; RAM the 112 KB "
+            "of RAM). "
             "Freeze less (firmware/manifest.py) or turn MicroPython features off in the board "
             f"definition, then build again. Full log: {log_path}"
         )
@@ -236,7 +239,7 @@ def _build(board, out_dir, log, build_root, board_dir):
         log("  " + line)
     if report["problems"]:
         _refuse_over_budget(out_dir, report, board)
-    _write_image(obj, out_dir)
+    _write_image(obj, out_dir, figures["code_region_origin"])
     report["outputs"] = {name: str(out_dir / name) for name in IMAGE_FILES}
     report["seconds"] = round(time.monotonic() - t0, 1)
     (out_dir / REPORT).write_text(json.dumps(report, indent=1) + "\n")
@@ -368,8 +371,9 @@ def _refuse_over_budget(out_dir, report, board):
     )
 
 
-def _write_image(obj, out_dir):
-    """firmware.dfu, firmware.hex and the flat firmware.bin from obj/ into out_dir."""
+def _write_image(obj, out_dir, code_origin):
+    """firmware.dfu, firmware.hex and the flat firmware.bin from obj/ into out_dir (the code,
+    firmware1.bin, at code_origin: the code region's, TEXT1_ADDR)."""
     # each written whole or not at all: another process (a parallel test worker, the twin)
     # may be reading the image that a build of the same tree rewrites
     from common.errors import write_atomic
@@ -377,7 +381,7 @@ def _write_image(obj, out_dir):
     write_atomic(out_dir / "firmware.dfu", (obj / "firmware.dfu").read_bytes())
     write_atomic(out_dir / "firmware.hex", (obj / "firmware.hex").read_bytes())
     flat = combined_bin(
-        (obj / "firmware0.bin").read_bytes(), 0x08000000, (obj / "firmware1.bin").read_bytes(),
-        0x08020000,
+        (obj / "firmware0.bin").read_bytes(), FLASH_BASE, (obj / "firmware1.bin").read_bytes(),
+        code_origin,
     )  # fmt: skip
     write_atomic(out_dir / "firmware.bin", flat)
