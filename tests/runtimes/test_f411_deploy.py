@@ -56,6 +56,10 @@ def _twin(monkeypatch, tmp_path, partition=None, files=None):
     if partition is not None:
         board.chip.flash_write_raw(flashfs.PART_BASE, partition)
     monkeypatch.setattr(deploy, "open_port", lambda port, baud: board)
+    # the twin's board time runs with the wall clock's polls, slower than a board's on a busy
+    # machine (make test's workers): the tools' 5 s of silence become 30 s here
+    connect = deploy.connect
+    monkeypatch.setattr(deploy, "connect", lambda *a, **k: connect(*a, **{**k, "timeout": 30.0}))
     monkeypatch.setattr(deploy, "SAVE_ROOT", tmp_path / "saved")
     monkeypatch.setattr(maint, "SETTLE_S", 0.0)
     return board
