@@ -6,6 +6,10 @@ console stops the loop and leaves the REPL usable: the watchdog, which cannot be
 started, is then fed by a timer (App.stop). Ctrl-D (soft reset) starts the firmware again:
 with the watchdog running, through a watchdog reset (the start-up outlasts its 50 ms).
 
+Without kernels (no usable lib/navk.mpy on a board whose image, as ours, freezes no Python
+kernels) the firmware does not start: one line says why (`ins: cannot start: no kernels: ...`)
+and the REPL stays the board's.
+
 A maintenance start (board.maintenance_start: the board tools asked for it before resetting
 the board, docs/deploy.md) starts neither the loop nor the watchdog: the console says so in
 one line and the REPL is the board's, for writing its filesystem (a flash sector erase stalls
@@ -13,12 +17,17 @@ the CPU for longer than the watchdog's 50 ms). Ctrl-D or a reset starts the firm
 """
 
 import board
+import kern
 
 
 def main():
     if board.maintenance_start():  # it says so on the console
         return
-    import app
+    try:
+        import app
+    except kern.Missing as e:  # no lib/navk.mpy, and an image without the Python kernels
+        print("ins: cannot start:", e)
+        return
 
     a = app.App(board)
     a.start()

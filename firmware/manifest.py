@@ -7,16 +7,26 @@
 # The layout is the board's: lib/ is on sys.path and its modules are imported flat
 # (`import nav`), so they are frozen as top-level modules; drivers/ is a package. The port's
 # default frozen modules (asyncio, dht, onewire) are not included: the firmware uses none.
-# tests/test_manifest.py checks that this list is every firmware file but main.py and that
-# the firmware imports from the frozen layout.
+#
+# The Python reference kernels (lib/nav_kern.py, drivers/gnss_kern.py: what navk does natively)
+# are not frozen: a board runs navk, and a board without lib/navk.mpy says so and does not
+# start (main.py; kern.py). include(..., reference_kernels=True) freezes them too, for a VM
+# that runs the firmware with its Python kernels (the emulated Cortex-M4F's manifest).
+# tests/test_manifest.py checks that this list is every firmware file but main.py (and the
+# reference kernels) and that the firmware imports from the frozen layout.
 
 metadata(description="INS/GNSS navigation firmware (STM32F411 + BMI055)", version="0.1.0")
 
 module("app.py")
 module("board.py")
-package("drivers")
-for name in (
+drivers = ["__init__.py", "bmi055.py", "gnss.py", "uart_dma.py"]
+lib = [
     "config", "eskf", "f32", "fmath", "frame", "geo", "ins", "kern", "mat", "nav", "nav_aid",
-    "nav_align", "nav_kern", "navcfg", "records", "rot", "status_page",
-):  # fmt: skip
+    "nav_align", "navcfg", "records", "rot", "status_page",
+]  # fmt: skip
+if options.reference_kernels:
+    drivers.append("gnss_kern.py")
+    lib.append("nav_kern")
+package("drivers", files=sorted(drivers))
+for name in sorted(lib):
     module(name + ".py", base_path="lib")

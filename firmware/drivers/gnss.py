@@ -735,8 +735,16 @@ def _rmc_quality(status, mode):
 
 
 # The Python scan, gnss_kern.py: loaded where navk is not, and on CPython (the reference its
-# tests compare with); a board with navk runs nmea.c and keeps the heap its functions would take
+# tests compare with); a board with navk runs nmea.c and keeps the heap its functions would take.
+# A board image does not freeze it; beside a frozen drivers package it can only be a top-level
+# module (/flash/lib/gnss_kern.mpy: a /flash/drivers directory would hide the frozen package)
 gnss_kern = None
 if not kern.NATIVE or kern.HOST:
-    from drivers import gnss_kern  # here, after _utc_ms, which it takes from this module
+    try:
+        from drivers import gnss_kern  # here, after _utc_ms, which it takes from this module
+    except ImportError:
+        try:
+            import gnss_kern
+        except ImportError as e:  # kern.Missing: main.py says so
+            raise kern.missing(e) from None
 _scan = kern.navk.nmea_scan if kern.NATIVE else gnss_kern.scan

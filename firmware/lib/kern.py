@@ -9,6 +9,10 @@ give the same bits; the native one allocates nothing and costs a fraction of the
 `pick(name, python_kernel)` returns navk's kernel of that name when the native module is
 present and built for this firmware (its `abi()` equals ABI), else the Python kernel with the
 same signature. `NATIVE` and `describe()` say which was chosen (the app prints it at start-up).
+
+A board image does not freeze the Python kernels (nav_kern, drivers.gnss_kern: firmware/
+manifest.py): on a board without a usable lib/navk.mpy the modules that load them raise
+`missing(...)`, a `Missing`, and main.py prints its one line instead of starting.
 """
 
 import sys as _sys
@@ -33,6 +37,19 @@ NATIVE = navk is not None
 # CPython (the emulator's hosts, the tests): where a module's heap does not count (nav.py)
 HOST = _sys.implementation.name != "micropython"
 del _sys
+
+
+class Missing(Exception):
+    """Neither navk nor the Python kernels can be loaded: the firmware cannot run."""
+
+
+def missing(err):
+    """The Missing that stops the firmware: why navk is not used, and `err`, the ImportError
+    of the Python kernels (a board image does not freeze them)."""
+    return Missing(
+        "no kernels: " + _why + ", and this image carries no Python kernels ("
+        + str(err) + "): put lib/navk.mpy on /flash (make deploy PORT=...)"
+    )  # fmt: skip
 
 
 def pick(name, python_kernel):

@@ -1085,8 +1085,10 @@ nav_kern = None
 
 def _load_python_kernels():
     global nav_kern
-    import nav_kern as mod
-
+    try:
+        import nav_kern as mod
+    except ImportError as e:  # a board image does not freeze it: kern.Missing, main.py says so
+        raise kern.missing(e) from None
     nav_kern = mod
 
 

@@ -65,6 +65,43 @@ def test_the_blackpill_images_frames_equal_the_models_over_30_s(tmp_path):
     assert r.firmware_stats["overruns"] == 0  # the firmware's own count: no tick missed
 
 
+def test_with_python_kernels_the_image_runs_them_from_flash_lib(tmp_path):
+    """The image freezes no Python kernels (firmware/manifest.py): with kernels="python" the
+    twin deploys them to /flash/lib as .mpy instead of lib/navk.mpy, and the firmware loads and
+    runs them there. They cannot keep the board's 5 ms tick (measured over 2 s: every tick
+    late, 185 of 400 missed), which is why the board runs navk and the image needs no room for
+    them."""
+    stim = board_input.simulate("quick_start", duration_s=2.0, seed=0).stimulus
+    files = f411.deployed_files(stim, None, "python", tmp_path / "files")
+    assert sorted(files) == ["ins.cfg", "lib/gnss_kern.mpy", "lib/nav_kern.mpy", "main.py"]
+    assert all(files[f][:1] == b"M" for f in ("lib/gnss_kern.mpy", "lib/nav_kern.mpy"))
+    fw = runtimes.get("f411").run(stim, tmp_path, kernels="python", board="NUCLEO_F411RE")
+    assert fw.stats["kernels"] == "python"
+    assert "kernels: Python (navk not found)" in fw.console, fw.console
+    assert any(line.startswith("ins: running") for line in fw.console)
+    frames, ext, _raw, err = stream.split(fw.out)
+    assert err is None and len(frames) > 50 and ext  # valid frames, fewer than the ticks
+    assert fw.stats["overruns"] > 0 and fw.stats["resets"] == []
+
+
+def test_without_navk_the_image_says_why_it_cannot_start(tmp_path):
+    """A board whose /flash lacks lib/navk.mpy (and, as every board, the Python kernels): one
+    line on the console, no traceback, no loop, no watchdog; the REPL is the board's."""
+    from host_emulator.runtimes.f411.console import TwinBoard
+
+    stim = board_input.simulate("quick_start", duration_s=1.0, seed=0).stimulus
+    files = f411.deployed_files(stim, None, "native", tmp_path)
+    del files["lib/navk.mpy"]
+    board = TwinBoard(files=files, workdir=tmp_path)
+    assert board.run_until(b">>> ", 8000), board.console_text()
+    text = board.console_text()
+    assert ("ins: cannot start: no kernels: navk not found, and this image carries no Python "
+            "kernels (no module named 'gnss_kern'): put lib/navk.mpy on /flash (make deploy "
+            "PORT=...)\r\n") in text  # fmt: skip
+    assert "Traceback" not in text and "ins: running" not in text
+    assert not board.chip.iwdg.running
+
+
 def test_the_blackpills_screen_gets_the_models_bytes_and_answers():
     """The display setting on: the image drives the UsartGPU screen on USART6 (PA11/PA12,
     mpconfigboard.h) by DMA; what it sends equals the model's byte for byte, and the screen's

@@ -48,12 +48,13 @@ def test_build_is_reproducible_and_independent_of_the_checkout_path(built, tmp_p
 
 def test_fat_geometry_of_the_f411_internal_filesystem():
     geo = build.fat_geometry(48)
-    # 96 sectors: boot sector, one FAT sector, 32 sectors of root directory, 62 clusters
-    assert geo["cluster_bytes"] == 512
-    assert geo["data_clusters"] == 62
-    assert geo["fat_overhead_bytes"] == 34 * 512
-    big = build.fat_geometry(4096)
-    assert big["data_bytes"] > 4000 * 1024
+    # 96 sectors: boot sector, one FAT sector, 2 sectors of root directory (32 entries, as
+    # deploy formats it: tools/flash/fatfs.py), 92 clusters; the port's 512 entries: 62
+    assert geo["cluster_bytes"] == 512 and geo["root_entries"] == 32
+    assert geo["data_clusters"] == 92
+    assert geo["fat_overhead_bytes"] == 4 * 512
+    big = build.fat_geometry(4096)  # an SPI flash: the port's layout, 512 root entries
+    assert big["root_entries"] == 512 and big["data_bytes"] > 4000 * 1024
 
 
 def test_firmware_does_not_fit_48_kb_and_build_says_how_to_get_out(built, capsys, tmp_path):

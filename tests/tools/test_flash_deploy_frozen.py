@@ -71,7 +71,7 @@ def test_frozen_firmware_gets_main_py_and_navk_only_and_firmware_files_go(
     text = "\n".join(lines)
     assert f"carries this firmware frozen (id {host_id['crc32']}" in text
     assert "only main.py and lib/navk.mpy go to /flash" in text
-    assert "31 KB filesystem is no longer a limit" in text
+    assert "the F411's 46 KB of files are no longer a limit" in text
     assert "deleted stale lib/nav.mpy (frozen in the image)" in text
     assert "removed /flash/drivers/ (it would hide the frozen drivers package)" in text
 

@@ -11,7 +11,16 @@ from fakedfu import BASE, FakeDfuSe, install
 from tools.flash import dfu
 from tools.flash.__main__ import main
 
-SECTOR0, FS_START, FS_END, CODE = BASE, BASE + 0x4000, BASE + 0x10000, BASE + 0x20000
+SECTOR0, FS_START, FS_END, SECTOR4, CODE = (BASE, BASE + 0x4000, BASE + 0x10000, BASE + 0x10000,
+                                           BASE + 0x20000)  # fmt: skip
+SECTORS = [BASE + k * 0x4000 for k in range(4)] + [SECTOR4] + [CODE + k * 0x20000 for k in range(3)]
+
+
+def _covered(parts):
+    """The F411 sectors the image's parts cover: pydfu erases exactly those."""
+    ends = SECTORS[1:] + [BASE + 0x80000]
+    return [s for s, e in zip(SECTORS, ends, strict=True)
+            if any(a < e and s < a + len(d) for a, d in parts)]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -30,16 +39,86 @@ def test_a_built_image_is_flashed_verified_and_started(image, monkeypatch):
     result = dfu.flash(path, log=lines.append)
     for addr, data in parts:
         assert board.read(addr, len(data)) == data
-    # sector 0 and the three 128 KB code sectors erased, nothing else: the filesystem stays
-    assert board.erased == [SECTOR0, CODE, CODE + 0x20000, CODE + 0x40000]
+    # sector 0 and the code's sectors from 4 on (4-6 for 286,736 B) erased, nothing else: the
+    # filesystem (sectors 1-3) stays
+    assert [a for a, _d in parts] == [SECTOR0, SECTOR4]
+    assert board.erased == _covered(parts)
+    assert board.erased[:3] == [SECTOR0, SECTOR4, CODE]
+    assert not set(SECTORS[1:4]) & set(board.erased)
     assert board.read(FS_START, FS_END - FS_START) == b"\x5a" * (FS_END - FS_START)
-    assert board.uploads == sum(-(-len(d) // 2048) for _a, d in parts)  # every byte read back
+    # every byte read back, and the filesystem's boot sector before (none there: nothing saved)
+    assert board.uploads == sum(-(-len(d) // 2048) for _a, d in parts) + 1
+    assert result["saved"] is None
     assert board.running and board.commands[-1] == ("set_address", BASE)
     assert result["elements"] == [(a, len(d)) for a, d in parts]
     text = "\n".join(lines)
     assert "the STM32F411's 512 KB flash" in text
     assert f"verified: {sum(len(d) for _a, d in parts):,} bytes" in text
-    assert re.search(r"0x08020000: (3\d\d,\d{3}) of \1 bytes written \(100 %\)", text)
+    assert re.search(r"0x08010000: (2\d\d,\d{3}) of \1 bytes written \(100 %\)", text)
+
+
+def _volume(blocks, root_entries, files):
+    """A FAT volume of `blocks` blocks holding `files`, written by MicroPython's own FAT driver
+    (the unix VM's VfsFat, as the twin writes a board's)."""
+    from host_emulator.runtimes.f411 import flashfs
+    from tools.flash import fatfs
+
+    empty = fatfs.empty_volume(blocks, root_entries)
+    empty += b"\xff" * (blocks * fatfs.BLOCK - len(empty))
+    return flashfs.with_files(empty, files, fresh=False)
+
+
+OLD_FILES = {
+    "boot.py": b"# boot.py\r\n",
+    "ins.cfg": bytes(range(256)) + b"cfg",
+    "main.py": b"import board\n" * 300,
+    "lib/navk.mpy": bytes(range(256)) * 120,
+}
+
+
+def test_an_earlier_images_filesystem_has_its_files_saved_before_the_flash(image, monkeypatch,
+                                                                          tmp_path):  # fmt: skip
+    """The port's own layout (an image before this one): a 64 KB volume, 128 blocks with a
+    512-entry root directory, reaching into sector 4, which this image's code takes. Before
+    anything is erased flash-image reads the volume (DfuSe UPLOAD) and saves its files beside
+    the .dfu; then it flashes as ever (sectors 1-3 stay) and says to run deploy."""
+    from tools.flash import fatfs
+
+    dfu_path = tmp_path / "firmware.dfu"
+    dfu_path.write_bytes(image[0].read_bytes())
+    old = _volume(128, 512, OLD_FILES)
+    assert fatfs.read_files(old) == (OLD_FILES, [])
+    assert fatfs.read_files(old[: 96 * 512])[1]  # lib/navk.mpy reaches beyond sector 3
+    board = FakeDfuSe()
+    board.memory[FS_START - BASE : FS_START - BASE + len(old)] = old
+    install(monkeypatch, board)
+    lines = []
+    result = dfu.flash(dfu_path, log=lines.append)
+    saved = result["saved"]
+    assert saved["blocks"] == 128 and saved["files"] == sorted(OLD_FILES) and saved["lost"] == []
+    where = tmp_path / saved["dir"]
+    assert where.parent == tmp_path and where.name.startswith("board-files-")
+    assert {p.relative_to(where).as_posix(): p.read_bytes() for p in where.rglob("*")
+            if p.is_file() and p.name != "volume.img"} == OLD_FILES  # fmt: skip
+    assert (where / "volume.img").read_bytes() == old
+    text = "\n".join(lines)
+    assert "the board's filesystem is a 128-block (64 KB) FAT volume up to 0x08014000" in text
+    assert "this image's code takes its flash from 0x08010000 on" in text
+    assert "run deploy next (make deploy PORT=...), which formats it anew" in text
+    assert board.erased == _covered(image[1])
+    assert board.read(FS_START, 0xC000) == old[:0xC000]  # sectors 1-3 as they were
+
+
+def test_a_filesystem_within_sectors_1_to_3_is_left_alone(image, monkeypatch, tmp_path):
+    dfu_path = tmp_path / "firmware.dfu"
+    dfu_path.write_bytes(image[0].read_bytes())
+    vol = _volume(96, 32, {"ins.cfg": b"cfg"})
+    board = FakeDfuSe()
+    board.memory[FS_START - BASE : FS_START - BASE + len(vol)] = vol
+    install(monkeypatch, board)
+    assert dfu.flash(dfu_path, log=lambda _: None)["saved"] is None
+    assert not list(tmp_path.glob("board-files-*"))
+    assert board.read(FS_START, len(vol)) == vol
 
 
 def test_the_cli_flashes_a_file(image, monkeypatch, capsys):
@@ -58,7 +137,7 @@ def test_the_cli_flashes_the_boards_built_image(image, monkeypatch, tmp_path, ca
     board = FakeDfuSe()
     install(monkeypatch, board)
     assert main(["image", "--board", "WEACT_F411_BLACKPILL"]) == 0
-    assert board.read(CODE, 16) == image[1][1][1][:16]
+    assert board.read(SECTOR4, 16) == image[1][1][1][:16]
 
 
 def _fails(argv, capsys):
@@ -139,11 +218,11 @@ def test_no_permission_suggests_a_udev_rule(image, monkeypatch, capsys):
 
 
 def test_a_byte_that_reads_back_wrong_is_reported_at_its_address(image, monkeypatch, capsys):
-    board = FakeDfuSe(flip=CODE + 0x1234)
+    board = FakeDfuSe(flip=SECTOR4 + 0x1234)
     install(monkeypatch, board)
     err = _fails(["image", "--file", str(image[0])], capsys)
     want = image[1][1][1][0x1234]
-    assert f"verify failed: at 0x08021234 the board holds 0x{want ^ 0xFF:02x} where the image " \
+    assert f"verify failed: at 0x08011234 the board holds 0x{want ^ 0xFF:02x} where the image " \
            f"has 0x{want:02x} (1 byte differs" in err  # fmt: skip
     assert not board.running  # left in DFU mode for another try
 

@@ -9,8 +9,10 @@ cannot be frozen into an image, so it goes to the filesystem even beside a froze
 
 The budget follows FatFs's f_mkfs as MicroPython formats a flash filesystem (lib/oofatfs/ff.c):
 one reserved sector, one FAT, a fixed root directory of 512 entries x 32 bytes = 16 KB, and the
-cluster size from FatFs's table (512 bytes below 16 MB). On the STM32F411's 48 KB internal
-filesystem (sectors 1-3) that leaves 62 clusters = 31 KB for files and directories.
+cluster size from FatFs's table (512 bytes below 16 MB); on a filesystem of at most 64 KB
+(the STM32F411's internal one, 48 KB in sectors 1-3) deploy formats it with a root directory
+of 32 entries instead (tools/flash/fatfs.py), which leaves 92 clusters = 46 KB for files and
+directories (the port's own layout: 62 = 31 KB).
 """
 
 import json
@@ -33,7 +35,6 @@ ARCH_OPTIONS = ["-march=armv7emsp"]  # Cortex-M4F, single-precision FPU
 NO_LINES_OPTIONS = ["-X", "no-source-lines"]
 MANIFEST = "manifest.json"
 HOST_ONLY = ("manifest.py",)  # firmware/manifest.py: the freeze list, an input of image builds
-_MAX_FAT12 = 4085
 
 
 def clusters(size, cluster=CLUSTER_512):
@@ -42,39 +43,26 @@ def clusters(size, cluster=CLUSTER_512):
 
 
 def fat_geometry(flash_kb):
-    """FatFs f_mkfs's layout of a FAT12/16 volume of flash_kb KB: cluster bytes, data clusters
-    and the bytes taken by the boot sector, FAT and root directory."""
+    """The FAT12/16 layout of a volume of flash_kb KB as it is on the board: f_mkfs's, with the
+    compact root directory deploy gives a small one (tools/flash/fatfs.py): cluster bytes,
+    data clusters and the bytes taken by the boot sector, FAT and root directory."""
+    from tools.flash import fatfs
+
     if flash_kb < 25:  # f_mkfs refuses volumes under 50 sectors
         raise FlashError(f"--flash-kb {flash_kb} is too small for a FAT filesystem (25 KB min)")
-    sz_vol = flash_kb * 1024 // SECTOR
-    sz_dir = ROOT_DIR_ENTRIES * 32 // SECTOR
-    au = 0
-    while True:
-        if au:
-            pau = au
-        else:  # FatFs's table: volume size in units of 4K sectors -> sectors per cluster
-            n, pau = sz_vol // 0x1000, 1
-            for bound in (1, 4, 16, 64, 256, 512):
-                if bound > n:
-                    break
-                pau <<= 1
-        n_clst = sz_vol // pau
-        fat16 = n_clst > _MAX_FAT12
-        fat_bytes = n_clst * 2 + 4 if fat16 else (n_clst * 3 + 1) // 2 + 3
-        sz_fat = -(-fat_bytes // SECTOR)
-        n_clst = (sz_vol - 1 - sz_fat - sz_dir) // pau
-        if fat16 and n_clst <= _MAX_FAT12 and not au and pau > 1:
-            au = pau // 2  # too few clusters for FAT16: FatFs halves the cluster and retries
-            continue
-        break
-    cluster = pau * SECTOR
+    blocks = flash_kb * 1024 // SECTOR
+    root = fatfs.ROOT_ENTRIES if blocks <= fatfs.COMPACT_MAX_BLOCKS else ROOT_DIR_ENTRIES
+    geo = fatfs.layout(blocks, root)
+    cluster = geo["cluster_blocks"] * SECTOR
     return {
         "flash_kb": flash_kb,
         "cluster_bytes": cluster,
-        "data_clusters": n_clst,
-        "data_bytes": n_clst * cluster,
-        "fat_overhead_bytes": (1 + sz_fat + sz_dir) * SECTOR,
-        "fat_overhead_note": "boot sector + 1 FAT + 512-entry root directory (FatFs f_mkfs)",
+        "data_clusters": geo["clusters"],
+        "data_bytes": geo["clusters"] * cluster,
+        "fat_overhead_bytes": geo["data_start"] * SECTOR,
+        "root_entries": root,
+        "fat_overhead_note": f"boot sector + 1 FAT + {root}-entry root directory (FatFs "
+        "f_mkfs's layout; deploy gives a filesystem of at most 64 KB the smaller root directory)",
     }
 
 
@@ -202,10 +190,11 @@ def check_budget(manifest):
         return
     raise FlashFull(
         f"the firmware does not fit a {b['flash_kb']} KB flash filesystem (the manifest is "
-        "written all the same). The STM32F411's internal filesystem (48 KB, sectors 1-3) is too "
-        "small for it. Ways out: freeze firmware/ into the MicroPython image (`make image`, then "
-        "`make flash-image` in DFU mode; docs/image.md): deploy then writes only main.py, "
-        "the native kernels lib/navk.mpy and ins.cfg, and the 31 KB are no longer a limit; or "
+        "written all the same). The STM32F411's internal filesystem (48 KB in sectors 1-3, 46 KB "
+        "of files) is too small for it. Ways out: freeze firmware/ into the MicroPython image "
+        "(`make image`, then `make flash-image` in DFU mode; docs/image.md): deploy then writes "
+        "only main.py, "
+        "the native kernels lib/navk.mpy and ins.cfg, and the 46 KB are no longer a limit; or "
         "use a board with SPI flash (e.g. a WeAct BlackPill with a W25Q flash chip, whose "
         "MicroPython build puts the filesystem there) and pass its size, e.g. --flash-kb 4096. "
         "--strip-lines (mpy-cross -X no-source-lines) saves about 6 % but not enough, and "

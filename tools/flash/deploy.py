@@ -26,7 +26,7 @@ from tools.flash.repl import BoardRepl
 
 ROOT = "/flash"
 CONFIG_NAME = "ins.cfg"
-CHUNK = 512  # file bytes per raw-REPL run (up to 2 KB of source: small for the board's heap)
+CHUNK = 2048  # file bytes per raw-REPL run (up to 8 KB of source; the firmware is not running)
 ATTEMPTS = 3
 
 # Helpers defined once per session in the board's raw-REPL globals.
@@ -136,6 +136,63 @@ class Board:
         out = self._exec(fwid.BOARD_QUERY, "asking which firmware its image carries")
         return fwid.parse_board_answer(out)
 
+    def volume(self):
+        """The internal filesystem's volume: {"device_blocks", "boot": fatfs.boot_sector(...)
+        (None: no FAT boot sector)}; None where the board has no pyb.Flash (not the stm32
+        port, the virtual board)."""
+        from tools.flash import fatfs
+
+        out = self._exec(VOLUME_QUERY, "reading its filesystem's boot sector")
+        for line in out.splitlines():
+            parts = line.split()
+            if parts[:1] == ["VOL"] and len(parts) == 3:
+                boot = bytes.fromhex(parts[2])
+                return {"device_blocks": int(parts[1]), "boot": fatfs.boot_sector(boot)}
+        return None
+
+    def walk(self):
+        """(files {path: size}, dirs, unreadable dirs) under /flash, going on past errors."""
+        if not getattr(self, "walker", False):
+            self._exec(WALK_HELPER, "defining the listing helper")
+            self.walker = True
+        out = self._exec(f"_walk({ROOT!r}, '')", "listing its files", timeout=30)
+        files, dirs, bad = {}, [], []
+        for line in out.splitlines():
+            parts = line.split()
+            if len(parts) == 3 and parts[0] == "F":
+                files[parts[1]] = int(parts[2])
+            elif len(parts) == 2 and parts[0] in ("D", "X"):
+                (dirs if parts[0] == "D" else bad).append(parts[1])
+        return files, dirs, bad
+
+    def format(self, blocks):
+        """Format the internal filesystem anew (tools/flash/fatfs.empty_volume: f_mkfs's layout
+        with a compact root directory): unmount /flash, write the volume's first blocks
+        through pyb.Flash, sync, mount it again. Returns its statvfs."""
+        from tools.flash import fatfs
+
+        head = fatfs.empty_volume(blocks)
+        code = ["import os, vfs, pyb", "_f = pyb.Flash(start=0)", f"_h = bytearray({len(head)})"]
+        i = 0
+        while i < len(head):  # the non-zero runs: the boot sector's fields, the FAT's first bytes
+            if head[i]:
+                j = i
+                while j < len(head) and any(head[j : j + 8]):
+                    j += 1
+                code.append(f"_h[{i}:{j}] = {bytes(head[i:j])!r}")
+                i = j
+            i += 1
+        code += [
+            "os.chdir('/')",
+            "try:\n vfs.umount('/flash')\nexcept OSError:\n pass",
+            "_f.writeblocks(0, _h)",
+            "_f.ioctl(3, 0)",
+            "vfs.mount(vfs.VfsFat(_f), '/flash')",
+            "os.chdir('/flash')",
+        ]
+        self._exec("\n".join(code), "formatting its filesystem", timeout=30)
+        return self.statvfs()
+
     def rmdir(self, rel):
         """Remove an empty directory; False if it is not empty (or not there)."""
         out = self._exec(
@@ -159,9 +216,22 @@ class Board:
         return None if data is None else bytes(data)
 
     def write(self, rel, data):
-        """Write data to /flash/rel (mpremote's fs_writefile); the board's CRC-32 of what it
-        wrote."""
-        self.repl.fs("fs_writefile", ROOT + "/" + rel, data, CHUNK, what=f"writing {rel}")
+        """Write data to /flash/rel as mpremote's fs_writefile does (`f=open(...)`, then a run
+        `w(b'...')` per CHUNK bytes, `f.close()`), each run ending with `os.sync()`; the
+        board's CRC-32 of what it wrote. The sync: a write leaves the port's flash cache dirty,
+        and its storage interrupt erases the cached sector within 512 ms, the core stalled
+        250 ms; a UART REPL (the NUCLEO's) loses what arrives meanwhile, the next run's
+        characters, and the raw-paste flow control stops (measured on the twin: 159-373
+        characters lost, 3 deploys of lib/navk.mpy in 3 failed). Synced within the run (the
+        block device's cache only: FatFs keeps its FAT sector until the close), the cache is
+        clean when the host sends again: one sector erase per run."""
+        path = ROOT + "/" + rel
+        self.repl.exec(f"import os\n_s = getattr(os, 'sync', None) or (lambda: 0)\n"
+                       f"f=open({path!r},'wb')\nw=f.write", what=f"opening {rel}")  # fmt: skip
+        for i in range(0, len(data), CHUNK):
+            self.repl.exec("w(" + repr(bytes(data[i : i + CHUNK])) + ")\n_s()",
+                           what=f"writing {rel}")  # fmt: skip
+        self.repl.exec("f.close()", what=f"writing {rel}")
         return self.crc(rel)
 
     def write_verified(self, rel, data, log):
@@ -188,6 +258,34 @@ class Board:
             "USB cable and hub (connect the board directly), try a lower --baud, and run "
             "deploy again: only the files that differ are sent."
         )
+
+
+# The board's internal filesystem (the stm32 port's pyb.Flash, from the volume's first block):
+# the blocks of its block device and its boot sector, in hex; "VOL -" where there is none
+# (another port, the virtual board, a stand-in)
+VOLUME_QUERY = (
+    "try:\n import pyb, binascii\n _f = pyb.Flash(start=0)\n _b = bytearray(512)\n"
+    " _f.readblocks(0, _b)\n print('VOL', _f.ioctl(4, 0), binascii.hexlify(_b).decode())\n"
+    "except (ImportError, AttributeError, ValueError, OSError):\n print('VOL -')\n"
+)
+# A listing that goes on past what cannot be read (a directory of a volume larger than its
+# device, whose clusters lie beyond it): "D dir", "F file size", "X dir" for unreadable
+WALK_HELPER = """
+def _walk(d, rel):
+    try:
+        es = list(os.ilistdir(d))
+    except OSError:
+        print('X', rel or '/')
+        return
+    for e in es:
+        if e[1] & 0x4000:
+            print('D', rel + e[0])
+            _walk(d + '/' + e[0], rel + e[0] + '/')
+        else:
+            print('F', rel + e[0], e[3] if len(e) > 3 else -1)
+"""
+KEEP_LIMIT = 64 * 1024  # bytes of user files a reformat keeps (read, then written back)
+SAVE_ROOT = None  # where their copies go (None: out/board-files of this checkout)
 
 
 # The native architecture of the board's MicroPython (-1: not MicroPython, e.g. a stand-in)
@@ -310,7 +408,7 @@ def frozen_plan(manifest, board_id, log, with_config):
     log(
         f"the board's image carries this firmware frozen (id {host['crc32']}, version "
         f"{board_id['version']}, {board_id['board']}, MicroPython {board_id['micropython']}): "
-        f"only {goes} to /flash; with the firmware frozen the F411's 31 KB filesystem is no "
+        f"only {goes} to /flash; with the firmware frozen the F411's 46 KB of files are no "
         "longer a limit"
     )
     files = [f for f in manifest["files"] if f["path"] in keep]
@@ -366,6 +464,11 @@ def deploy(
     try:
         board = Board(repl)
         _log_board_said(repl, log)
+        formatted = format_if_needed(board, log, dry_run)
+        if formatted is not None and dry_run:
+            manifest, board_id = _board_manifest(board, manifest, config_bytes, log, check_budget)
+            return _dry_run(repl, manifest["files"], [], [], config_bytes, board_id, watch_s,
+                            log)  # fmt: skip
         if config_merge is not None:  # --set: the changes on --config's or the board's file
             base = config_bytes if config_bytes is not None else board.read(CONFIG_NAME)
             config_bytes = config_merge(base)
@@ -388,6 +491,7 @@ def deploy(
             "stale": stale,
             "console": console,
             "frozen": board_id,
+            "formatted": formatted,
         }
         log("firmware: " + console.strip().replace("\r\n", "\n").replace("\n", "\n  "))
         if frames_port:
@@ -395,6 +499,68 @@ def deploy(
         return result
     finally:
         ser.close()
+
+
+def format_if_needed(board, log, dry_run=False):
+    """Format the board's internal filesystem anew when fatfs.format_reason says so (a volume
+    an earlier image formatted larger than this image's filesystem; the port's 512-entry root
+    directory, which leaves too little room), keeping its files but the firmware's: each is
+    read first (and saved on the host, out/board-files/), then written back. None when nothing
+    was done, else {"reason", "kept", "lost", "saved"}; with dry_run it only says so."""
+    from tools.flash import fatfs
+
+    vol = board.volume()
+    reason = fatfs.format_reason(vol["boot"], vol["device_blocks"]) if vol else None
+    if reason is None:
+        return None
+    blocks = vol["device_blocks"]
+    log(f"the board's filesystem needs formatting anew: {reason}")
+    files, _dirs, bad = board.walk()
+    keep, lost = {}, [d + "/ (a directory)" for d in bad]
+    for rel in sorted(files):
+        if is_firmware_file(rel):
+            continue  # main.py, lib/navk.mpy: written again from this checkout
+        if sum(len(v) for v in keep.values()) + max(files[rel], 0) > KEEP_LIMIT:
+            lost.append(rel + " (beyond the 64 KB kept)")
+            continue
+        try:
+            keep[rel] = board.read(rel)
+        except FlashError:
+            lost.append(rel)
+    keep = {k: v for k, v in keep.items() if v is not None}
+    said = f"keeping {', '.join(keep)} (read now, written back)" if keep else "no files to keep"
+    said += f"; unreadable, lost: {', '.join(lost)}" if lost else ""
+    done = {"reason": reason, "kept": sorted(keep), "lost": lost, "saved": None}
+    if dry_run:
+        log(f"would format it anew ({blocks} blocks, a {fatfs.ROOT_ENTRIES}-entry root "
+            f"directory), {said}; main.py and the native kernels would go again")  # fmt: skip
+        return done
+    if keep:
+        done["saved"] = str(_save_on_host(keep))
+        log(f"copies of the files kept: {done['saved']}")
+    fs = board.format(blocks)
+    log(f"formatted /flash anew: {fs['total']} bytes, {fs['free']} free "
+        f"({fs['cluster']}-byte clusters); {said}")  # fmt: skip
+    for rel in sorted(keep):
+        parent = rel.rsplit("/", 1)[0] if "/" in rel else None
+        if parent:
+            for i, _c in enumerate(parent.split("/")):
+                board.mkdir("/".join(parent.split("/")[: i + 1]))
+        board.write_verified(rel, keep[rel], log)
+        log(f"  {rel}: {len(keep[rel])} bytes written back")
+    return done
+
+
+def _save_on_host(files):
+    """The files in a new folder SAVE_ROOT/<time>/ (out/board-files by default); its path."""
+    from common.firmware_env import REPO_DIR
+
+    root = pathlib.Path(SAVE_ROOT) if SAVE_ROOT else REPO_DIR / "out" / "board-files"
+    out = root / time.strftime("%Y%m%d-%H%M%S")
+    for rel, data in files.items():
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        (out / rel).write_bytes(data)
+    return out
 
 
 def _log_board_said(repl, log):
@@ -421,7 +587,8 @@ def _board_manifest(board, manifest, config_bytes, log, check_budget):
             f"the board's image has no frozen firmware: deploying all "
             f"{len(manifest['files'])} files ({manifest['total_bytes'] / 1024:.1f} KB). An "
             "image with the firmware frozen (make image, make flash-image) needs only "
-            "main.py and ins.cfg on the filesystem: the F411's 31 KB are then no limit"
+            "main.py, lib/navk.mpy and ins.cfg on the filesystem: the F411's 46 KB of files are "
+            "then no limit"
         )
         if check_budget is not None:
             check_budget()
@@ -457,7 +624,7 @@ def _check_space(manifest, fs, writes, stale, new_dirs, board_files, extra, log)
             f"{fs['cluster']}-byte clusters). Nothing was written. "
             + (
                 "The firmware is larger than this whole filesystem (the STM32F411's "
-                "internal one holds about 31 KB of files): flash an image with the "
+                "internal one holds 46 KB of files): flash an image with the "
                 "firmware frozen (`make image`, then `make flash-image` in DFU mode; "
                 "docs/image.md), after which deploy sends only main.py and ins.cfg; or use "
                 "a board with SPI flash (e.g. a WeAct BlackPill with a W25Q chip)."
@@ -571,7 +738,7 @@ def restart(repl, watch_s=15.0):
                 text += repl.drain(quiet=0.2, overall=1.0)
             done = "ok"
             break
-        if b"Traceback" in text or b"IMU not ready" in text:
+        if b"Traceback" in text or b"IMU not ready" in text or b"ins: cannot start" in text:
             text += repl.drain(quiet=0.5, overall=3.0)
             done = "failed"
             break
@@ -616,11 +783,29 @@ def read_config(port, baud, log=_stderr):
     restarts the firmware after (a soft reset: the firmware starts again, and aligns again)."""
     ser, repl = connect(port, baud, log=log)
     try:
-        data = Board(repl).read(CONFIG_NAME)
+        board = Board(repl)
+        _refuse_oversized(board, "reading ins.cfg")
+        data = board.read(CONFIG_NAME)
         soft_reset(repl)
         return data
     finally:
         ser.close()
+
+
+def _refuse_oversized(board, doing):
+    """FlashError, before `doing`, when the board's volume is larger than its filesystem (an
+    earlier image's): what lay beyond is gone and a write there fails; deploy formats it."""
+    vol = board.volume()
+    if vol and vol["boot"] and vol["boot"]["blocks"] > vol["device_blocks"]:
+        from tools.flash import fatfs
+
+        raise FlashError(
+            f"the board's filesystem needs formatting anew before {doing}: "
+            f"{fatfs.format_reason(vol['boot'], vol['device_blocks'])}. Run `make deploy "
+            "PORT=...` (python -m tools.flash deploy): it formats it, keeping ins.cfg and the "
+            "other files it can still read, and writes main.py and lib/navk.mpy again. Nothing "
+            "was written."
+        )
 
 
 # What a recording needs to know of the board besides its configuration: the platform, and
@@ -667,6 +852,7 @@ def write_config(port, baud, data, log=print):
     ser, repl = connect(port, baud, log=log)
     try:
         board = Board(repl)
+        _refuse_oversized(board, "writing ins.cfg")
         board.write_verified(CONFIG_NAME, data, log)
         # the file's own CRC-32 (of what precedes it): that of the whole file is a constant
         log(f"{ROOT}/{CONFIG_NAME}: {len(data)} bytes, CRC-32 {crc32(data[:-4]):08x} OK")

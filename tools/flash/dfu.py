@@ -9,12 +9,16 @@ user needs before and after:
    the STM32 ROM bootloader is VID:PID 0483:df11, and its DfuSe memory layout (the string of
    alternate setting 0, "@Internal Flash  /0x08000000/04*016Kg,01*064Kg,03*128Kg" on an
    F411) must be the F411's 512 KB internal flash, all checked before anything is erased;
-3. pydfu erases the sectors the image covers (sector 0 and 5-7: the filesystem in sectors 1-3
+3. the board's filesystem is read (its FAT boot sector at 0x08004000): a volume an earlier
+   image formatted over more flash than this image leaves it (the port's own layout: 64 KB,
+   into sector 4, where this image's code goes) has its files saved on the host first, since
+   what lies in sector 4 is about to be erased (deploy then formats the volume anew);
+4. pydfu erases the sectors the image covers (sector 0 and 4-7: the filesystem in sectors 1-3
    survives) and writes them;
-4. every element is read back with DfuSe UPLOAD (AN3156: set the address pointer, abort to
+5. every element is read back with DfuSe UPLOAD (AN3156: set the address pointer, abort to
    dfuIDLE, UPLOAD block n reads wTransferSize bytes at pointer + (n - 2) * wTransferSize)
    and compared: the first differing address is reported;
-5. pydfu leaves DFU mode: the board starts the new image.
+6. pydfu leaves DFU mode: the board starts the new image.
 """
 
 import contextlib
@@ -27,6 +31,7 @@ from tools.flash.errors import FlashError
 
 STM32_BOOTLOADER = (0x0483, 0xDF11)
 FLASH_BASE = 0x08000000
+FS_BASE = 0x08004000  # sector 1: where the port's filesystem starts (its FAT boot sector)
 F411_LAYOUT = [(FLASH_BASE, 4, 16 * 1024), (FLASH_BASE + 0x10000, 1, 64 * 1024),
                (FLASH_BASE + 0x20000, 3, 128 * 1024)]  # fmt: skip
 F411_FLASH_BYTES = 512 * 1024
@@ -264,6 +269,7 @@ def flash(path, board=None, log=print, verify=True):
     except (usb.core.USBError, ValueError) as e:
         raise DfuError(_access_message(e) + " Nothing was written.") from None
     try:
+        saved = save_overwritten_files(elements, path, log)
         log("erasing and writing (sector 0 and the code sectors; the filesystem stays)")
         with _stdout_to(log):
             pydfu.write_elements(
@@ -298,11 +304,55 @@ def flash(path, board=None, log=print, verify=True):
         raise DfuError(_access_message(e) + " The board has no complete image until a flash "
                        "succeeds.") from None  # fmt: skip
     log("done: the board left DFU mode and runs the new image")
+    if saved:
+        log(f"its filesystem reached into the flash this image took: run deploy next (make "
+            f"deploy PORT=...), which formats it anew and keeps ins.cfg and the files it can "
+            f"still read; the copies in {saved['dir']} are of all of them (CONFIG="
+            f"{saved['dir']}/ins.cfg gives deploy the configuration)")  # fmt: skip
     return {
         "elements": [(a, len(d)) for a, d in elements],
         "device": "{:04x}:{:04x}".format(*STM32_BOOTLOADER),
         "layout": layout,
+        "saved": saved,
     }
+
+
+def save_overwritten_files(elements, path, log):
+    """When the board's FAT volume (its boot sector at FS_BASE, read with DfuSe UPLOAD) reaches
+    into flash this image writes (an earlier image's, formatted over 64 KB into sector 4),
+    read the whole volume and save its files beside the .dfu in board-files-<time>/, before
+    anything is erased. {"dir", "files", "lost", "blocks"} or None (no volume, or none in the
+    way)."""
+    import pathlib
+    import time
+
+    from tools.flash import fatfs
+
+    boot = fatfs.boot_sector(read_memory(FS_BASE, fatfs.BLOCK))
+    if boot is None:
+        return None
+    end = FS_BASE + boot["blocks"] * fatfs.BLOCK
+    if not any(a < end and FS_BASE < a + len(d) for a, d in elements):
+        return None
+    volume = read_memory(FS_BASE, min(end, FLASH_BASE + F411_FLASH_BYTES) - FS_BASE)
+    try:
+        files, lost = fatfs.read_files(volume)
+    except (fatfs.FatError, ValueError, IndexError, struct.error):
+        files, lost = {}, ["(the volume could not be read)"]
+    out = pathlib.Path(path).resolve().parent / f"board-files-{time.strftime('%Y%m%d-%H%M%S')}"
+    for rel, data in files.items():
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        (out / rel).write_bytes(data)
+    (out / "volume.img").parent.mkdir(parents=True, exist_ok=True)
+    (out / "volume.img").write_bytes(volume)
+    log(
+        f"the board's filesystem is a {boot['blocks']}-block ({boot['blocks'] // 2} KB) FAT "
+        f"volume up to 0x{end:08x}, formatted by an earlier image: this image's code takes its "
+        f"flash from 0x{min(a for a, _d in elements if a + len(_d) > FS_BASE):08x} on. Its "
+        f"{len(files)} files ({', '.join(sorted(files)) or 'none'}) are saved in {out}, with "
+        "the whole volume (volume.img)" + (f"; unreadable: {', '.join(lost)}" if lost else "")
+    )
+    return {"dir": str(out), "files": sorted(files), "lost": lost, "blocks": boot["blocks"]}
 
 
 @contextlib.contextmanager

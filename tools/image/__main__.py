@@ -1,4 +1,4 @@
-"""`python -m tools.image build|boards`: see docs/image.md.
+"""`python -m tools.image build|sizes|boards`: see docs/image.md.
 
 Usage errors exit with status 2, failures with status 1 and one paragraph saying what to do.
 """
@@ -13,6 +13,13 @@ def _build(args):
     from tools.image import build
 
     build.build(args.board, args.out)
+    return 0
+
+
+def _sizes(args):
+    from tools.image import sizes
+
+    sizes.main(args.board, args.top, args.save, args.against)
     return 0
 
 
@@ -35,6 +42,15 @@ def _parser():
     )
     b.add_argument("--out", help="output folder (out/image/BOARD)")
     b.set_defaults(func=_build)
+    z = sub.add_parser("sizes", help="where the last build's bytes go: by object file, by "
+                       "frozen module, the built-in modules")  # fmt: skip
+    z.add_argument(
+        "--board", default=DEFAULT_BOARD, choices=sorted(BOARDS), help=f"({DEFAULT_BOARD})"
+    )
+    z.add_argument("--top", type=int, default=40, help="object files shown (40; 0: all)")
+    z.add_argument("--save", metavar="FILE", help="keep the figures (JSON) for a later --against")
+    z.add_argument("--against", metavar="FILE", help="print the change from a --save file")
+    z.set_defaults(func=_sizes)
     sub.add_parser("boards", help="the boards an image can be built for").set_defaults(func=_boards)
     return p
 

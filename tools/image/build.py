@@ -9,14 +9,17 @@ tree (micropython_dir(), v1.28.0) and its own mpy-cross; then, in build/image/<b
                       text changes, so an unchanged firmware leaves make nothing to do
     gen/manifest.py   include()s firmware/manifest.py and adds gen/fwid.py: the FROZEN_MANIFEST
     obj/              make -C <tree>/ports/stm32 BUILD=obj ...: every object, firmware.elf/.map
-    key.json          what obj/ was built from (tree, version, board, compiler); a change
-                      empties obj/ first, since make alone would not notice another tree
+    key.json          what obj/ was built from (tree, version, board, the board definition's
+                      files, compiler); a change empties obj/ first, since make alone would
+                      not notice another tree, nor remake the module table when only the
+                      board's mpconfigboard.h changed
     build.log         make's output
 
 The source tree is checked before and after make (every file's size and mtime): a build that
 wrote into it fails. The outputs (firmware.dfu, firmware.hex, firmware.bin: sector 0 and the
-code at 0x08020000 in one file, the gap filled with 0xFF) and budget.json go to the output
-folder; over budget, only budget.json goes there and the build fails saying why.
+code at 0x08010000 in one file, the gap over the filesystem's sectors 1-3 filled with 0xFF)
+and budget.json go to the output folder; over budget (less than 32 KB of the code region left,
+tools/image/budget.py), only budget.json goes there and the build fails saying why.
 """
 
 import json
@@ -35,9 +38,11 @@ BUILD_ROOT = toolchain.BUILD_ROOT / "image"
 OUT_ROOT = toolchain.REPO / "out" / "image"
 IMAGE_FILES = ("firmware.dfu", "firmware.hex", "firmware.bin")
 REPORT = "budget.json"
+FLASH_BASE = 0x08000000  # sector 0: the vector table (TEXT0_ADDR)
 CC_STEP = 100  # print a progress line every this many compiled C files
 TAIL_LINES = 20  # lines of make's log quoted when it fails
 CLIP = 240  # characters of one quoted line (make prints whole command lines)
+SHARED_SUFFIXES = (".h", ".ld")  # files beside the board folders that the definitions include
 
 
 class ImageError(Exception):
@@ -137,7 +142,8 @@ def explain_failure(log_text, log_path, board):
         what = ", ".join(f"{name} by {int(n):,} bytes" for name, n in over)
         return ImageError(
             f"the image for {board} is over budget: the linker says {what} (FLASH_TEXT is the "
-            "384 KB code region, FLASH_START the 16 KB vector sector, RAM the 112 KB of RAM). "
+            "448 KB code region, sectors 4-7; FLASH_START the 16 KB vector sector; RAM the 112 KB "
+            "of RAM). "
             "Freeze less (firmware/manifest.py) or turn MicroPython features off in the board "
             f"definition, then build again. Full log: {log_path}"
         )
@@ -233,7 +239,7 @@ def _build(board, out_dir, log, build_root, board_dir):
         log("  " + line)
     if report["problems"]:
         _refuse_over_budget(out_dir, report, board)
-    _write_image(obj, out_dir)
+    _write_image(obj, out_dir, figures["code_region_origin"])
     report["outputs"] = {name: str(out_dir / name) for name in IMAGE_FILES}
     report["seconds"] = round(time.monotonic() - t0, 1)
     (out_dir / REPORT).write_text(json.dumps(report, indent=1) + "\n")
@@ -273,15 +279,45 @@ def _write_generated(gen, ident, board, version):
     )
 
 
+def shared_board_files(board_dir):
+    """The files beside the board folders that their definitions include (tools/image/boards/
+    *.h: the features left out; *.ld: the linker script with our flash layout)."""
+    parent = pathlib.Path(board_dir).parent
+    return sorted(f for f in parent.iterdir() if f.is_file() and f.suffix in SHARED_SUFFIXES)
+
+
 def _assemble_board_dir(board_dir, assembled, pins_board):
-    """The board folder `assembled`: ours with pins_board's pins.csv; returns it."""
+    """The board folder `assembled`: ours with pins_board's pins.csv, and beside it the files
+    the board folders share (shared_board_files); returns it."""
     # the port wants pins.csv inside BOARD_DIR: the board folder is assembled in the build
     # tree from ours and the MicroPython tree's pins.csv (named as the board: BOARD)
     for f in sorted(board_dir.iterdir()):
         if f.is_file():
             write_if_changed(assembled / f.name, f.read_text())
     write_if_changed(assembled / "pins.csv", (pins_board / "pins.csv").read_text())
+    for f in shared_board_files(board_dir):
+        write_if_changed(assembled.parent / f.name, f.read_text())
     return assembled
+
+
+def board_files_digest(board_dir):
+    """{name: sha256} of the board definition's files: those of its folder and the shared ones
+    beside it (shared_board_files: its mpconfigboard.h and .mk name them). A
+    feature turned off in mpconfigboard.h or .mk needs a clean build: make remakes the qstrs
+    when the header changes, but not the module table, and the link then fails on the missing
+    modules; a changed linker script relinks nothing either."""
+    import hashlib
+
+    if board_dir is None:
+        return {}
+    board_dir = pathlib.Path(board_dir)
+    files = [f for f in sorted(board_dir.iterdir()) if f.is_file()]
+    files += shared_board_files(board_dir)
+    return {
+        (f.name if f.parent == board_dir else "../" + f.name):
+            hashlib.sha256(f.read_bytes()).hexdigest()[:16]
+        for f in files
+    }  # fmt: skip
 
 
 def _check_build_key(build_dir, obj, src, version, board, board_dir, log):
@@ -291,13 +327,14 @@ def _check_build_key(build_dir, obj, src, version, board, board_dir, log):
         "micropython": version,
         "board": board,
         "board_dir": str(board_dir) if board_dir else None,
+        "board_files": board_files_digest(board_dir),
         "compiler": _gcc_version(),
         "cflags_extra": toolchain.C_FLOAT_FLAGS,
     }
     key_path = build_dir / "key.json"
     if obj.exists() and (not key_path.is_file() or json.loads(key_path.read_text()) != key):
-        log(f"image {board}: the tree, board or compiler changed since the last build: "
-            "starting afresh")  # fmt: skip
+        log(f"image {board}: the tree, the board definition or the compiler changed since the "
+            "last build: starting afresh")  # fmt: skip
         shutil.rmtree(obj)
     key_path.write_text(json.dumps(key, indent=1) + "\n")
 
@@ -334,8 +371,9 @@ def _refuse_over_budget(out_dir, report, board):
     )
 
 
-def _write_image(obj, out_dir):
-    """firmware.dfu, firmware.hex and the flat firmware.bin from obj/ into out_dir."""
+def _write_image(obj, out_dir, code_origin):
+    """firmware.dfu, firmware.hex and the flat firmware.bin from obj/ into out_dir (the code,
+    firmware1.bin, at code_origin: the code region's, TEXT1_ADDR)."""
     # each written whole or not at all: another process (a parallel test worker, the twin)
     # may be reading the image that a build of the same tree rewrites
     from common.errors import write_atomic
@@ -343,7 +381,7 @@ def _write_image(obj, out_dir):
     write_atomic(out_dir / "firmware.dfu", (obj / "firmware.dfu").read_bytes())
     write_atomic(out_dir / "firmware.hex", (obj / "firmware.hex").read_bytes())
     flat = combined_bin(
-        (obj / "firmware0.bin").read_bytes(), 0x08000000, (obj / "firmware1.bin").read_bytes(),
-        0x08020000,
+        (obj / "firmware0.bin").read_bytes(), FLASH_BASE, (obj / "firmware1.bin").read_bytes(),
+        code_origin,
     )  # fmt: skip
     write_atomic(out_dir / "firmware.bin", flat)

@@ -6,8 +6,9 @@ emulated STM32F411 (host_emulator/f411), fed as a board is, its frames taken off
 What runs is what a user flashes: out/image/<BOARD>/firmware.bin (built or brought up to date
 first, tools/image), the firmware frozen in it, and on its filesystem what deploy writes next
 to such an image: main.py, ins.cfg (the stimulus header's configuration plus any overrides)
-and lib/navk.mpy (the armv7emsp native kernels; none with kernels="python"), in a FAT volume the
-port formatted itself (flashfs.py). The image boots from reset, runs main.py, and the firmware
+and lib/navk.mpy (the armv7emsp native kernels; with kernels="python" none, and the Python
+reference kernels, which the image does not freeze, in /flash/lib instead), in a FAT volume
+the port formatted itself (flashfs.py). The image boots from reset, runs main.py, and the firmware
 starts its loop as on a board.
 
 The world around the chip (world.py): the BMI055's two dies on SPI1 behind their chip selects,
@@ -60,8 +61,17 @@ def image_files(board_name, log=None):
     return out / "firmware.bin", image_build.BUILD_ROOT / board_name / "obj" / "firmware.elf"
 
 
+# The Python reference kernels, which the image does not freeze (firmware/manifest.py): with
+# kernels="python" they go to /flash/lib as .mpy, where the firmware finds them (a /flash/drivers
+# directory would hide the frozen drivers package: gnss_kern is a top-level module there)
+REFERENCE_KERNELS = {"lib/nav_kern.mpy": "lib/nav_kern.py",
+                     "lib/gnss_kern.mpy": "drivers/gnss_kern.py"}  # fmt: skip
+
+
 def deployed_files(stim, config_overrides, kernels, workdir):
-    """What deploy writes to /flash next to an image with the firmware frozen."""
+    """What deploy writes to /flash next to an image with the firmware frozen: main.py,
+    ins.cfg and lib/navk.mpy; with kernels="python" no navk, and the reference kernels
+    instead (REFERENCE_KERNELS, compiled by the tree's mpy-cross for the board)."""
     from common.firmware_env import FIRMWARE_DIR
 
     cfg_path = board_config.write_flash(workdir, board_config.run_values(stim, config_overrides))
@@ -71,7 +81,29 @@ def deployed_files(stim, config_overrides, kernels, workdir):
     }
     if kernels == "native":
         files["lib/navk.mpy"] = pathlib.Path(runtimes.native_module("armv7emsp")).read_bytes()
+    else:
+        for dest, src in REFERENCE_KERNELS.items():
+            files[dest] = _compiled(FIRMWARE_DIR / src, dest[:-4] + ".py", workdir)
     return files
+
+
+def _compiled(src, name, workdir):
+    """src compiled to .mpy for the board (mpy-cross -march=armv7emsp; `name`, its board path,
+    names it in tracebacks)."""
+    import subprocess
+
+    from common import toolchain
+
+    out = pathlib.Path(workdir) / (pathlib.Path(name).stem + ".mpy")
+    try:
+        cmd = [str(toolchain.mpy_cross()), "-march=armv7emsp", "-s", name, "-o", str(out),
+               str(src)]  # fmt: skip
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+    except (OSError, toolchain.ToolchainError) as e:
+        raise EmulatorError(f"cannot compile {name} for the board's /flash/lib: {e}") from None
+    if proc.returncode != 0:
+        raise EmulatorError(f"mpy-cross could not compile {name}: {proc.stderr.strip()}")
+    return out.read_bytes()
 
 
 def run(stim, workdir, config_overrides=None, progress=None, kernels=None, board=None,

@@ -21,15 +21,16 @@ HERE = pathlib.Path(__file__).resolve().parent
 BOARD_DIR = HERE / "boards" / "M4F_INS"
 MANIFEST = HERE / "manifest.py"
 USER_C_MODULES = HERE / "usermod"
+VM_OPTIONS = HERE.parents[2] / "tools" / "image" / "boards" / "ins_vm.h"
 BUILD_DIR = toolchain.BUILD_ROOT / "m4f"
 
-# The firmware's heap is the board's: 89,556 bytes on the WEACT_F411_BLACKPILL image (`make
+# The firmware's heap is the board's: 91,664 bytes on the WEACT_F411_BLACKPILL image (`make
 # image` reports it; tests/tools/test_image_build.py keeps the two equal). The build's heap adds
 # a reserve for the emulated board's objects (its modules, peripherals, C handles, the driver's
 # buffers and the stimulus record's module: 7,456 bytes measured), sized so that the ballast the
 # driver sets aside for the rest (emulated_board/mpy/emulate_m4f.py) stays under a few hundred
 # bytes: the collector scans a ballast like any object, which would inflate every gc.collect().
-BOARD_HEAP_BYTES = 89_556
+BOARD_HEAP_BYTES = 91_664
 EMULATOR_RESERVE_BYTES = 7_760
 GC_HEAP_BYTES = BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES  # MICROPY_HEAP_SIZE of the build
 
@@ -69,7 +70,8 @@ def build(progress=print, gc_heap_bytes=None):
         f"FROZEN_MANIFEST={MANIFEST}",
         f"USER_C_MODULES={USER_C_MODULES}",
         f"MICROPY_HEAP_SIZE={heap}",
-        f"CFLAGS_EXTRA={toolchain.C_FLOAT_FLAGS}",
+        # the VM options the board images are built with (tools/image/boards/ins_vm.h)
+        f"CFLAGS_EXTRA={toolchain.C_FLOAT_FLAGS} -include {VM_OPTIONS}",
     ]  # fmt: skip
     elf = out / "firmware.elf"
     t = time.perf_counter()

@@ -38,13 +38,8 @@
 #define MICROPY_HW_UART_REPL        (PYB_UART_2)
 #define MICROPY_HW_UART_REPL_BAUD   (115200)
 
-// I2C buses
-#define MICROPY_HW_I2C1_SCL         (pin_B8)  // Arduino D15
-#define MICROPY_HW_I2C1_SDA         (pin_B9)  // Arduino D14
-#define MICROPY_HW_I2C2_SCL         (pin_B10) // Arduino D6
-#define MICROPY_HW_I2C2_SDA         (pin_B3)  // Arduino D3
-#define MICROPY_HW_I2C3_SCL         (pin_A8)  // Arduino D7
-#define MICROPY_HW_I2C3_SDA         (pin_C9)  // morpho CN10 pin 1
+// No I2C buses: nothing is wired to them (the BMI055 is on SPI1); without pins the port
+// builds neither machine.I2C, I2CTarget nor pyb.I2C (Arduino D14/D15 are PB9/PB8).
 
 // SPI buses
 #define MICROPY_HW_SPI1_NSS         (pin_A4)  // Arduino A2
@@ -71,9 +66,7 @@
 #define MICROPY_HW_LED_ON(pin)      (mp_hal_pin_high(pin))
 #define MICROPY_HW_LED_OFF(pin)     (mp_hal_pin_low(pin))
 
-// MicroPython's count of the bytes allocated (micropython.mem_total): the firmware looks at the
-// heap (a scan of ~140,000 instructions) only when what its rare allocating steps took may have
-// brought it near its low water mark (firmware/app.py, _heap_room). The count needs the sizes
-// at every free.
-#define MICROPY_MEM_STATS                   (1)
-#define MICROPY_MALLOC_USES_ALLOCATED_SIZE  (1)
+// The MicroPython features the firmware and the board tools never use (docs/image.md)
+#include "../ins_features.h"
+// ... and the VM options the firmware's timing rests on
+#include "../ins_vm.h"

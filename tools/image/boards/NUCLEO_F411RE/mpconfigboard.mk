@@ -4,8 +4,10 @@
 MCU_SERIES = f4
 CMSIS_MCU = STM32F411xE
 AF_FILE = boards/stm32f411_af.csv
-# The port's F411 layout: vectors in sector 0, the filesystem in sectors 1-3, code from
-# sector 5 (0x08020000, 384 KB), exactly as for WEACT_F411_BLACKPILL.
-LD_FILES = boards/stm32f411.ld boards/common_ifs.ld
+# Our F411 layout (../stm32f411_fs48.ld; docs/image.md, the flash layout): vectors in sector 0,
+# the filesystem in sectors 1-3 (48 KB), the code from sector 4 (0x08010000, 448 KB), as for
+# WEACT_F411_BLACKPILL. The port's boards/stm32f411.ld gives the filesystem 64 KB (into sector
+# 4) and the code 384 KB from sector 5.
+LD_FILES = $(BOARD_DIR)/../stm32f411_fs48.ld boards/common_ifs.ld
 TEXT0_ADDR = 0x08000000
-TEXT1_ADDR = 0x08020000
+TEXT1_ADDR = 0x08010000

@@ -17,9 +17,22 @@
 #define MICROPY_HW_UART6_TX     (pin_A11)
 #define MICROPY_HW_UART6_RX     (pin_A12)
 
-// MicroPython's count of the bytes allocated (micropython.mem_total): the firmware looks at the
-// heap (a scan of ~140,000 instructions) only when what its rare allocating steps took may have
-// brought it near its low water mark (firmware/app.py, _heap_room). The count needs the sizes
-// at every free.
-#define MICROPY_MEM_STATS                   (1)
-#define MICROPY_MALLOC_USES_ALLOCATED_SIZE  (1)
+// No hardware I2C: nothing is wired to it (the BMI055 is on SPI1). Without pins the port
+// builds neither machine.I2C, I2CTarget nor pyb.I2C.
+#undef MICROPY_HW_I2C1_SCL
+#undef MICROPY_HW_I2C1_SDA
+#undef MICROPY_HW_I2C2_SCL
+#undef MICROPY_HW_I2C2_SDA
+#undef MICROPY_HW_I2C3_SCL
+#undef MICROPY_HW_I2C3_SDA
+
+// USB: the REPL's CDC serial port only. No mass storage (the PC would mount /flash as a drive
+// and write its FAT behind the firmware's and the tools' backs; the tools use the REPL) and
+// no HID.
+#define MICROPY_HW_USB_MSC          (0)
+#define MICROPY_HW_USB_HID          (0)
+
+// The MicroPython features the firmware and the board tools never use (docs/image.md)
+#include "../ins_features.h"
+// ... and the VM options the firmware's timing rests on
+#include "../ins_vm.h"
