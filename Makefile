@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain native layout lint accuracy bench-nav bench-board bench-faults bench-settings \
+.PHONY: demo test toolchain native layout lint accuracy bench-nav bench-board figures bench-faults bench-settings \
 	cpi accuracy-report \
 	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
@@ -55,6 +55,12 @@ bench-nav: $(STAMP)
 # (~35 min; writes docs/benchmarks/board.md).
 bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
+
+# The board figures README.md and docs/ quote (<!--fig NAME--> markers), rewritten from
+# docs/benchmarks/board.json and the images' budgets (builds them if needed; bench-board does
+# this too); tests/bench/test_figures.py fails on a stale one.
+figures: $(STAMP)
+	$(BIN)/python -m host_emulator figures
 
 # The fault matrix: every fault kind of `run --fault` injected into urban_drive, three seeds,
 # on CPython (~11 min on two cores; writes docs/benchmarks/faults.md).

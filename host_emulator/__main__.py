@@ -18,6 +18,8 @@
     accuracy-report                 drive_0708 and the scenarios (make accuracy-report)
     float32                         accuracy of the float32 math and kernels (make accuracy)
     bench-board                     the app loop's cost per tick on the emulated Cortex-M4F
+    figures [--check]               the board figures the docs quote, from board.json and the
+                                    images' budgets (make figures)
     bench-faults                    the fault matrix: detection, trust, recovery (make bench-faults)
     bench-settings                  every board setting swept: what navigates (make bench-settings)
     profile                         where a tick goes on the emulated Cortex-M4F, per function
@@ -55,6 +57,8 @@ DELEGATED = {
                 "accuracy of the float32 math functions and kernels (docs/float32.md)"),
     "bench-board": ("host_emulator.bench.board:main",
                     "instructions per tick of the app loop on the emulated Cortex-M4F"),
+    "figures": ("host_emulator.bench.figures:main",
+                "the board figures the docs quote, rewritten from board.json and make image"),
     "bench-faults": ("host_emulator.bench.faults:main",
                      "every fault kind injected into a drive: detection, health, recovery"),
     "bench-settings": ("host_emulator.bench.settings:main",

@@ -35,7 +35,7 @@ import numpy as np
 from common.errors import EmulatorError
 from common.firmware_env import REPO_DIR
 from host_emulator import args as cli_args
-from host_emulator.bench import outputs
+from host_emulator.bench import figures, outputs
 from host_emulator.eval import board_cost
 from host_emulator.runtimes.m4f import build as m4f_build
 
@@ -56,6 +56,17 @@ TWIN_VARIANTS = (
     ("image, a 10 Hz receiver", {}, _10_HZ),
     ("image, the screen's status page", {"display": 1}, {}),
 )
+# each configuration's short name in board.json ("id"), by which docs quote its figures
+# (bench/figures.py: twin.<id>.*, m4f.<id>.*)
+IDS = {
+    "default (coning off, 1 slice per tick)": "default",
+    "coning on, 2 slices per tick": "coning",
+    "default, a 10 Hz receiver": "10hz",
+    "image, raw_record off": "off",
+    "image, raw_record on": "raw",
+    "image, a 10 Hz receiver": "10hz",
+    "image, the screen's status page": "page",
+}
 # the f411 runtime's figures of the screen (runtimes/f411/world.py Screen.stats)
 SCREEN_KEYS = ("display_bytes", "display_batches", "display_oks", "display_missed",
                "display_cause_frames", "display_rx_lost")  # fmt: skip
@@ -116,6 +127,7 @@ def _one(task):
         return {"label": label, "overrides": overrides, "receiver": receiver, "error": fw}
     return {
         "label": label,
+        "id": IDS[label],
         "overrides": overrides,
         "receiver": receiver,
         "ticks": fw.ticks,
@@ -142,6 +154,7 @@ def _one_twin(task):
     hz = fw.stats["hclk_hz"]
     return {
         "label": label,
+        "id": IDS[label],
         "overrides": overrides,
         "receiver": receiver,
         "twin": True,
@@ -688,6 +701,11 @@ def main(argv=None):
         print(text)
         print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_name('board_ticks.png')}, "
               f"{out.with_name('board_time.png')}")  # fmt: skip
+        if out.resolve() == DEFAULT_OUT.resolve():  # the figures the docs quote from it
+            src = figures.Sources(out.with_suffix(".json"))
+            changed = figures.write_all(figures.documents(), src)
+            print(f"rewrote the figures of {', '.join(changed)}" if changed
+                  else "the docs' board figures were current")  # fmt: skip
         return 0
 
     return cli_args.run_reporting(command)
