@@ -60,7 +60,7 @@ def summary(m, out_dir):
         lines.append(f"faults injected        {', '.join(m['faults'])}")
     lines.append(
         f"run speed              {m['ticks']} ticks of 5 ms in {m['wall_s']:.1f} s: "
-        f"{m['realtime_factor']:.0f}x real time"
+        f"{m['realtime_factor']:.{0 if m['realtime_factor'] >= 10 else 2}f}x real time"
     )
     if m.get("gc_blocks_per_tick_mean") is not None:
         mean, mx = m["gc_blocks_per_tick_mean"], m["gc_blocks_per_tick_max"]

@@ -100,6 +100,9 @@ class F411:
             (0x20, 17): self.usart[2], (0x24, 4): self.usart[1], (0x24, 5): self.usart[6],
             (0x24, 12): self.spi1, (0x24, 14): self.syscfg,
         })  # fmt: skip
+        self._usart_dma = {(2, 4, self.usart[1].BASE + 4): self.usart[1],
+                           (2, 5, self.usart[6].BASE + 4): self.usart[6],
+                           (1, 4, self.usart[2].BASE + 4): self.usart[2]}  # fmt: skip
         for irq in (6, 7, 8, 9, 10, 23, 40):
             self.irq_sources[irq] = lambda irq=irq: self.exti.irq_level(irq)
         self._wire_board()
@@ -124,9 +127,15 @@ class F411:
     def hook(self, function, fn):
         """fn(chip) each time the core is about to execute C function `function`."""
         addr = self.image.address(function) & ~1
-        h = self.cpu.uc.hook_add(
-            UC_HOOK_CODE, self.cpu.guarded(lambda uc, a, s, d: fn(self)), None, addr, addr
-        )
+        cpu = self.cpu
+
+        def at(uc, a, s, d):
+            if cpu.redirected_at == a:  # the counter's hook sent the core elsewhere first:
+                cpu.redirected_at = None  # the function runs later, and is seen then
+                return
+            fn(self)
+
+        h = self.cpu.uc.hook_add(UC_HOOK_CODE, self.cpu.guarded(at), None, addr, addr)
         self._hooks.append(h)
         return h
 
@@ -180,14 +189,13 @@ class F411:
     # -- DMA routing (dma.py) -----------------------------------------------------------
 
     def dma_target(self, dma, channel, par, direction):
-        spi_dr = self.spi1.BASE + 0x0C
-        if dma == 2 and channel == 3 and par == spi_dr:
+        """(kind, peripheral) of a stream's transfer, or None: SPI1 on DMA2 channel 3, a
+        USART's transmission on DMA2 channel 4 (USART1), 5 (USART6), DMA1 channel 4
+        (USART2)."""
+        if dma == 2 and channel == 3 and par == self.spi1.BASE + 0x0C:
             return ("spi_rx", self.spi1) if direction == 0 else ("spi_tx", self.spi1)
-        routes = {(2, 4, 1): self.usart[1], (2, 5, 6): self.usart[6], (1, 4, 2): self.usart[2]}
-        for (d, ch, _n), u in routes.items():
-            if dma == d and channel == ch and par == u.BASE + 4 and direction == 1:
-                return ("usart_tx", u)
-        return None
+        u = self._usart_dma.get((dma, channel, par))
+        return ("usart_tx", u) if u is not None and direction == 1 else None
 
     def clocks_changed(self):
         pass

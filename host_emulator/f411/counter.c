@@ -8,6 +8,7 @@
 #define N_SAVED 24     /* R0-R3, R12, LR, xPSR, S0-S15 and FPSCR as read from the core */
 
 typedef int (*reg_batch_fn)(void *uc, const int *regs, void **vals, int count);
+typedef int (*reg_fn)(void *uc, int regid, void *value);
 typedef int (*mem_fn)(void *uc, uint64_t address, void *bytes, uint64_t size);
 
 typedef struct {
@@ -27,17 +28,55 @@ typedef struct {
     mem_fn mem_read, mem_write;
     int saved_ids[N_SAVED];  /* R0-R3, R12, LR, XPSR, S0-S15, FPSCR */
     int sp_id, lr_id, ipsr_id, xpsr_id;
+    int pc_id, primask_id, basepri_id;
+    reg_fn reg_read1, reg_write1;  /* uc_reg_read, uc_reg_write: one register */
+    /* WFI: the twin sleeps inside the hook (cpu.py), without Unicorn returning */
+    const uint16_t *flash_code;  /* flash's contents, by halfword */
+    void (*on_wfi)(void *uc, uint32_t addr);
+    /* the next event is due before the instruction at addr (flash, outside an IT block):
+       1 when it must not run now (the core went elsewhere, or emulation stops) */
+    int (*on_due)(void *uc, uint32_t addr);
 } twin_counter;
+
+/* Whether the instruction at halfword h may be inside an IT block: an IT instruction
+ * (0xBFxy, mask y nonzero) among the 8 halfwords before it whose 1-4 instructions, decoded
+ * forward, reach h. Unicorn does not stop inside an IT block (it reverts the request until
+ * the block ends); there the counter keeps to the plain stop. A false "maybe" (the second
+ * half of a 32-bit instruction that looks like IT) only takes that path too. */
+static int maybe_in_it(const uint16_t *code, uint32_t h) {
+    for (uint32_t k = 1; k <= 8 && k <= h; k++) {
+        uint16_t w = code[h - k];
+        if ((w & 0xFF00) != 0xBF00 || !(w & 0xF)) {
+            continue;
+        }
+        int n = (w & 1) ? 4 : (w & 2) ? 3 : (w & 4) ? 2 : 1;
+        uint32_t p = h - k + 1;
+        for (int i = 0; i < n; i++) {
+            if (p == h) {
+                return 1;
+            }
+            p += (code[p] >> 11) >= 0x1D ? 2 : 1;  /* 0b11101, 0b11110, 0b11111: 32 bits */
+        }
+    }
+    return 0;
+}
 
 void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user) {
     twin_counter *s = (twin_counter *)user;
     (void)size;
     if (s->icount >= s->stop_at) {
-        /* every time: a stop requested while Unicorn was inside a memory callback can be
-           lost, and the next instruction must not run */
-        s->stopped = 1;
-        s->stop(uc);
-        return;
+        uint32_t o = (uint32_t)addr - s->flash_base;
+        if (s->on_due && o < s->flash_len && !maybe_in_it(s->flash_code, o >> 1)) {
+            if (s->on_due(uc, (uint32_t)addr)) {
+                return;
+            }  /* else re-armed past this instruction: it runs, counted */
+        } else {
+            /* every time: a stop requested while Unicorn was inside a memory callback can
+               be lost, and the next instruction must not run */
+            s->stopped = 1;
+            s->stop(uc);
+            return;
+        }
     }
     s->icount++;
     if (s->in_handler) {
@@ -49,6 +88,9 @@ void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user) {
         s->category_count[s->category[h]]++;
         if (s->irq_pending && ((s->sync[h >> 3] >> (h & 7)) & 1)) {
             s->stop_at = s->icount;  /* stop after this instruction: an interrupt may be due */
+        }
+        if (s->flash_code[h] == 0xBF30 && s->on_wfi) {
+            s->on_wfi(uc, (uint32_t)addr);  /* counted; it sleeps there, then goes on */
         }
     } else {
         s->category_count[N_CATEGORIES - 1]++;  /* code outside flash: native modules in RAM */
@@ -120,4 +162,32 @@ int twin_return(twin_counter *s, void *uc, uint32_t ipsr, uint32_t *return_pc) {
     void *pw[2] = {&w[0], &w[1]};
     *return_pc = frame[6];
     return s->reg_write(uc, ids, pw, 2);
+}
+
+/* The PC, and PRIMASK | BASEPRI << 8: read on every stop and every interrupt decision, where
+ * Unicorn's Python binding costs microseconds a register. */
+uint32_t twin_pc(twin_counter *s, void *uc) {
+    uint32_t v = 0;
+    s->reg_read1(uc, s->pc_id, &v);
+    return v;
+}
+
+/* A word of memory (the vector table, on every exception entry); 0 if unmapped. */
+uint32_t twin_read_word(twin_counter *s, void *uc, uint32_t addr) {
+    uint32_t v = 0;
+    if (s->mem_read(uc, addr, &v, 4)) {
+        return 0;
+    }
+    return v;
+}
+
+void twin_set_pc(twin_counter *s, void *uc, uint32_t pc) {
+    s->reg_write1(uc, s->pc_id, &pc);
+}
+
+uint32_t twin_masks(twin_counter *s, void *uc) {
+    uint32_t p = 0, b = 0;
+    s->reg_read1(uc, s->primask_id, &p);
+    s->reg_read1(uc, s->basepri_id, &b);
+    return (p & 1) | (b & 0xFF) << 8;
 }

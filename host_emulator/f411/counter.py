@@ -11,6 +11,8 @@ One `twin_counter` struct is shared between C and Python:
     irq_pending     set while an interrupt is pending but masked: after an instruction marked
                     in `sync` (CPSIE, MSR PRIMASK/BASEPRI) the hook stops so that the CPU can
                     take it at once, as the core would
+    on_due          called (cpu.py) instead of stopping when the next event is due before an
+                    instruction in flash outside an IT block; on_wfi: before a WFI in flash
     category_count  instructions per category of the code they belong to (`category` maps
                     each flash halfword to one; the last one is code outside flash: native
                     modules the image loaded into RAM)
@@ -49,11 +51,20 @@ typedef struct {
     void *reg_read, *reg_write, *mem_read, *mem_write;
     int saved_ids[24];
     int sp_id, lr_id, ipsr_id, xpsr_id;
+    int pc_id, primask_id, basepri_id;
+    void *reg_read1, *reg_write1;
+    const uint16_t *flash_code;
+    void (*on_wfi)(void *uc, uint32_t addr);
+    int (*on_due)(void *uc, uint32_t addr);
 } twin_counter;
 void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user);
 int twin_enter(twin_counter *s, void *uc, uint32_t return_pc, uint32_t number,
                uint32_t exc_return);
 int twin_return(twin_counter *s, void *uc, uint32_t ipsr, uint32_t *return_pc);
+uint32_t twin_pc(twin_counter *s, void *uc);
+uint32_t twin_masks(twin_counter *s, void *uc);
+void twin_set_pc(twin_counter *s, void *uc, uint32_t pc);
+uint32_t twin_read_word(twin_counter *s, void *uc, uint32_t addr);
 """
 
 _loaded = None
@@ -107,10 +118,11 @@ def attach(uc, uclib, hook_handle_type, code_hook_type, frame_ids=None):
     c.stop = ffi.cast("int(*)(void *)", _fn(uclib, "uc_emu_stop"))
     c.stop_at = 0
     for field, name in (("reg_read", "uc_reg_read_batch"), ("reg_write", "uc_reg_write_batch"),
-                        ("mem_read", "uc_mem_read"), ("mem_write", "uc_mem_write")):  # fmt: skip
+                        ("mem_read", "uc_mem_read"), ("mem_write", "uc_mem_write"),
+                        ("reg_read1", "uc_reg_read"), ("reg_write1", "uc_reg_write")):  # fmt: skip
         setattr(c, field, ffi.cast("void *", _fn(uclib, name)))
     if frame_ids is not None:
-        saved, sp, lr, ipsr, xpsr = frame_ids
+        saved, sp, lr, ipsr, xpsr, c.pc_id, c.primask_id, c.basepri_id = frame_ids
         for i, r in enumerate(saved):
             c.saved_ids[i] = r
         c.sp_id, c.lr_id, c.ipsr_id, c.xpsr_id = sp, lr, ipsr, xpsr

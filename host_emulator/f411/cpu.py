@@ -13,11 +13,19 @@ of the system around them: no NVIC, no exception entry or return, no sleep. Done
   is caught, the frame unstacked here, and the next pending exception taken at once
   (tail-chaining) if it may be;
 - which exception is taken: nvic.py (priorities, PRIMASK, BASEPRI, active exceptions);
-- WFI: Unicorn returns from emulation; the core sleeps until an interrupt that would preempt
-  (PRIMASK does not keep it asleep, B1.5.19), the clock jumping from event to event;
+- WFI: the core sleeps until an interrupt that would preempt (PRIMASK does not keep it
+  asleep, B1.5.19), the clock jumping from event to event;
 - interrupts unmasked by software (CPSIE, MSR PRIMASK/BASEPRI): the counter stops after such
   an instruction while one is pending, so it is taken before the next instruction, as on the
   core. Interrupts made pending by a peripheral access are taken after that instruction.
+
+Speed: what comes after a stop (the events due, the sleep of a WFI, the interrupt taken, an
+exception return) runs inside Unicorn's hooks, and emulation goes on from there without
+returning from emu_start (each return and restart costs ~15 us, and there were ~37 a tick):
+the counter calls back at the next event (outside an IT block, where Unicorn cannot stop, it
+stops as before) and at a WFI in flash; the interrupt hook does the exception return. The
+instructions counted, and so every figure of a tick, are the same as when each of these
+returned from emulation (the runs' per-tick records compare equal).
 
 What is not modelled: the MPU, fault escalation (a fault stops the run with what faulted),
 lazy FP stacking's timing, the bus matrix's contention, tail-chaining's shorter latency.
@@ -67,9 +75,11 @@ class Cpu:
         saved = (*_FRAME_REGS, A.UC_ARM_REG_XPSR, *_FP_REGS, A.UC_ARM_REG_FPSCR)
         self.counter, self._keep = counter_mod.attach(
             uc, _ucmod.uclib, _ucmod.uc_hook_h, UC_HOOK_CODE,
-            (saved, A.UC_ARM_REG_SP, A.UC_ARM_REG_LR, A.UC_ARM_REG_IPSR, A.UC_ARM_REG_XPSR),
+            (saved, A.UC_ARM_REG_SP, A.UC_ARM_REG_LR, A.UC_ARM_REG_IPSR, A.UC_ARM_REG_XPSR,
+             A.UC_ARM_REG_PC, A.UC_ARM_REG_PRIMASK, A.UC_ARM_REG_BASEPRI),
         )  # fmt: skip
         self._ffi, self._lib, self._uch = self._keep[1], self._keep[2], self._keep[3]
+        self._uc_ptr = self._ffi.cast("void *", self._uch)
         self._ret_pc = self._ffi.new("uint32_t *")
         self.clock = Clock(self.counter, cpi)
         self.nvic = None  # nvic.Scs, set by the chip
@@ -89,6 +99,13 @@ class Cpu:
         self._error = None
         self.on_sleep = None  # fn(pc) when the core executes the WFI at pc
         self._asleep = False
+        self._exit = None  # run()'s result, when a hook reached it (_go_on)
+        self._until, self._halted = 0, lambda: False
+        self.redirected_at = None  # the code hook at this address sent the core elsewhere
+        self._wfi_cb = self._ffi.callback("void(void *, uint32_t)", self._on_wfi)
+        self._due_cb = self._ffi.callback("int(void *, uint32_t)", self._on_due)
+        self.counter.on_wfi = self._wfi_cb
+        self.counter.on_due = self._due_cb
 
     # -- set-up ------------------------------------------------------------------------
 
@@ -107,6 +124,7 @@ class Cpu:
         self._sync_keep = (bytes(categories), bytes(sync))
         ffi = self._keep[1]
         c.flash_base = flash_base
+        c.flash_code = self._ffi.cast("const uint16_t *", ctypes.addressof(self._flash_buf))
         c.flash_len = len(categories) * 2
         c.category = ffi.from_buffer(self._sync_keep[0])
         c.sync = ffi.from_buffer(self._sync_keep[1])
@@ -132,7 +150,7 @@ class Cpu:
     # -- state --------------------------------------------------------------------------
 
     def pc(self):
-        return self.uc.reg_read(A.UC_ARM_REG_PC)
+        return self._lib.twin_pc(self.counter, self._uc_ptr)
 
     def fail(self, exc):
         """An exception in a callback Unicorn made (it would not pass it on): kept, emulation
@@ -161,7 +179,8 @@ class Cpu:
             c.stop_at = c.icount
 
     def masks(self):
-        return self.uc.reg_read(A.UC_ARM_REG_PRIMASK) & 1, self.uc.reg_read(A.UC_ARM_REG_BASEPRI)
+        m = self._lib.twin_masks(self.counter, self._uc_ptr)
+        return m & 1, m >> 8
 
     # -- running -----------------------------------------------------------------------
 
@@ -169,48 +188,36 @@ class Cpu:
         """Execute until the clock reaches until_cycle or halted() becomes true (checked
         after every stop); returns "cycle", "halted" or "asleep" (WFI with no event left that
         could ever wake the core)."""
-        clock = self.clock
         c = self.counter
         uc = self.uc
+        self._until, self._halted = until_cycle, halted
         while True:
-            clock.fire_due()
-            if halted():
-                return "halted"
-            if self._asleep:
-                r = self._woken(until_cycle, halted)
-                if r != "awake":
-                    return r
-            self._take_pending()
-            now = clock.now()
-            if now >= until_cycle:
-                return "cycle"
-            nxt = clock.next_event()
-            target = until_cycle if nxt is None or nxt > until_cycle else nxt
-            stop = clock.instructions_for(target)
-            c.stop_at = stop if stop > c.icount else c.icount + 1
-            c.stopped = 0
-            self._bad = None
-            self._intr = None
-            self.nvic.bus.forget_polling()
+            r = self._resume()
+            if r is not None:
+                return r
+            self._exit = None
             try:
                 uc.emu_start(self._pc | 1, _UNTIL)
-                self._pc = uc.reg_read(A.UC_ARM_REG_PC)
             except UcError as e:
                 if self._error is not None:
                     raise self._take_error() from None
-                pc = uc.reg_read(A.UC_ARM_REG_PC)
+                pc = self.pc()
                 if pc >= 0xFFFFFF00 or (self._bad and self._bad[1] >= 0xFFFFFF00):
                     self._exception_return((self._bad[1] if self._bad else pc) | 1)
                     continue
                 raise self._fault(e, pc) from None
             if self._error is not None:
                 raise self._take_error()
+            if self._exit is not None:
+                return self._exit  # a hook went on as this loop would have, up to a result
+            self._pc = self.pc()
             if self._intr == _EXCP_EXCEPTION_EXIT or self._pc >= 0xFFFFFF00:
                 self._exception_return(self._pc | 1)
                 continue
             if c.stopped:
                 continue
-            # Unicorn returned by itself: the core executed WFI (or a fault hook asked it to)
+            # Unicorn returned by itself: the core executed a WFI outside flash (the counter
+            # sleeps in the hook at those in flash), or a fault hook asked it to
             if self._intr is not None:
                 raise TwinError(f"the core raised exception {self._intr} (an SVC, BKPT or "
                                 f"undefined instruction) in {self.where(self._pc)}")  # fmt: skip
@@ -220,6 +227,71 @@ class Cpu:
             if self.on_sleep is not None:
                 self.on_sleep(self._pc - 2)
             self._asleep = True
+
+    def _resume(self):
+        """What comes after every stop, before the core goes on at self._pc: the events due,
+        halted(), the sleep of a WFI, the interrupts pending; None once the counter is armed
+        for the next event, else run()'s result."""
+        clock = self.clock
+        c = self.counter
+        clock.fire_due()
+        if self._halted():
+            return "halted"
+        if self._asleep:
+            r = self._woken(self._until, self._halted)
+            if r != "awake":
+                return r
+        self._take_pending()
+        now = clock.now()
+        if now >= self._until:
+            return "cycle"
+        nxt = clock.next_event()
+        target = self._until if nxt is None or nxt > self._until else nxt
+        stop = clock.instructions_for(target)
+        c.stop_at = stop if stop > c.icount else c.icount + 1
+        c.stopped = 0
+        self._bad = None
+        self._intr = None
+        self.nvic.bus.forget_polling()
+        return None
+
+    def _go_on(self, at):
+        """In a hook: run()'s loop without leaving Unicorn (each return from emu_start costs
+        ~15 us), from self._pc: the core goes on there, or where an exception sends it, or
+        emulation stops with run()'s result. `at`: the instruction whose code hook this is
+        (the counter's), or None. True when the core does not go on at self._pc as it was."""
+        pc, taken = self._pc, self.exceptions_taken
+        r = self._resume()
+        if r is not None:
+            self._exit = r
+            self.uc.emu_stop()
+            return True
+        if at is not None and self.exceptions_taken == taken and self._pc == pc:
+            return False  # the instruction at `at` runs now
+        self._lib.twin_set_pc(self.counter, self._uc_ptr, self._pc | 1)
+        self.redirected_at = at  # its other code hooks are not to run now (chip.hook)
+        return True
+
+    def _on_due(self, _uc, addr):
+        """The counter reached the next event before the instruction at addr."""
+        try:
+            self._pc = addr
+            return 1 if self._go_on(addr) else 0
+        except BaseException as e:  # noqa: BLE001  (cffi would only print it)
+            self.fail(e)
+            return 1
+
+    def _on_wfi(self, _uc, addr):
+        """The core is about to execute the WFI at addr (counted): it sleeps (run()'s loop
+        in the hook) and goes on after it."""
+        try:
+            self._pc = addr + 2
+            if self.on_sleep is not None:
+                self.on_sleep(addr)
+            self._asleep = True
+            self._go_on(None)  # at None: the core goes on past the WFI, never through it
+        except BaseException as e:  # noqa: BLE001
+            self.fail(e)
 
     def _woken(self, until_cycle, halted):
         """While the core sleeps in WFI: "awake" once an interrupt wakes it, else why not."""
@@ -271,6 +343,13 @@ class Cpu:
         return False
 
     def _on_intr(self, uc, intno, _data):
+        if intno == _EXCP_EXCEPTION_EXIT:  # unstacked here, and the core goes on
+            try:
+                self._exception_return(self.pc() | 1)
+                self._go_on(None)
+            except BaseException as e:  # noqa: BLE001
+                self.fail(e)
+            return
         self._intr = intno
         uc.emu_stop()
 
@@ -284,7 +363,7 @@ class Cpu:
 
     def _enter(self, n):
         """Exception entry (counter.c's twin_enter stacks the frame: in C, it is frequent)."""
-        err = self._lib.twin_enter(self.counter, self._ffi.cast("void *", self._uch), self._pc,
+        err = self._lib.twin_enter(self.counter, self._uc_ptr, self._pc,
                                    n, 0xFFFFFFE1 if self.active else 0xFFFFFFE9)  # fmt: skip
         if err:
             raise TwinError(f"exception {n} could not be stacked (Unicorn error {err}) below SP "
@@ -304,7 +383,7 @@ class Cpu:
             )
         n = self.active.pop()
         beneath = self.active[-1] if self.active else 0
-        err = self._lib.twin_return(self.counter, self._ffi.cast("void *", self._uch), beneath,
+        err = self._lib.twin_return(self.counter, self._uc_ptr, beneath,
                                     self._ret_pc)  # fmt: skip
         if err:
             raise TwinError(f"the frame of exception {n} could not be unstacked (Unicorn error "

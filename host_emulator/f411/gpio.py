@@ -44,6 +44,7 @@ class Gpio(Peripheral):
 
     def reset(self):
         super().reset()
+        self._now = None
         if self.port == "A":
             self.v[MODER], self.v[0x08], self.v[PUPDR] = 0xA8000000, 0x0C000000, 0x64000000
         elif self.port == "B":
@@ -52,7 +53,7 @@ class Gpio(Peripheral):
     def mode(self, pin):
         return (self.v[MODER] >> (2 * pin)) & 3
 
-    def level(self, pin):
+    def _level(self, pin):
         if self.mode(pin) == 1:
             return (self.v[ODR] >> pin) & 1
         ext = self.external.get(pin)
@@ -60,15 +61,28 @@ class Gpio(Peripheral):
             return ext
         return 1 if (self.v[PUPDR] >> (2 * pin)) & 3 == 1 else 0
 
+    def level(self, pin):
+        return (self.levels() >> pin) & 1
+
     def levels(self):
-        v = 0
-        for pin in range(16):
-            v |= self.level(pin) << pin
+        """The 16 pins' levels, kept until a write to the port, a reset or drive(): chip
+        selects and the RS485 driver enable are asked for every byte."""
+        v = self._now
+        if v is None:
+            v = 0
+            for pin in range(16):
+                v |= self._level(pin) << pin
+            self._now = v
         return v
+
+    def bus_write(self, off, size, value):
+        self._now = None
+        super().bus_write(off, size, value)
 
     def drive(self, pin, level):
         """Something outside drives the pin (None: lets go of it)."""
         self.external[pin] = level
+        self._now = None
         self._changed()
 
     def watch(self, pin, fn):

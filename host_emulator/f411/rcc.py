@@ -12,7 +12,7 @@ clock is off); the reset registers reset the peripheral models; CSR's reset flag
 chip last reset (power-on, pin, independent watchdog, software) until RMVF clears them.
 """
 
-from host_emulator.f411.bus import Peripheral, TwinError
+from host_emulator.f411.bus import ENABLE_REGISTERS, Peripheral, TwinError
 
 HSI_HZ = 16_000_000
 CR, PLLCFGR, CFGR = 0x00, 0x04, 0x08
@@ -64,10 +64,14 @@ class Rcc(Peripheral):
         super().reset()
         if backup is not None:
             self.v[BDCR] = backup
+        self._clocks = None
+
+    def bus_write(self, off, size, value):
+        self._clocks = None  # (HCLK, PCLK1, PCLK2) computed anew when next asked
+        super().bus_write(off, size, value)
 
     def enabled(self, reg, bit):
-        return (self.v[{"AHB1ENR": 0x30, "AHB2ENR": 0x34, "APB1ENR": 0x40,
-                        "APB2ENR": 0x44}[reg]] >> bit) & 1  # fmt: skip
+        return (self.v[ENABLE_REGISTERS[reg]] >> bit) & 1
 
     # -- the clock tree -----------------------------------------------------------------
 
@@ -85,14 +89,25 @@ class Rcc(Peripheral):
             raise TwinError(f"PLL configured out of range (M {m}, N {n}) in {self.chip.where()}")
         return src // m * n // pdiv if src % m == 0 else src * n // (m * pdiv)
 
+    def _tree(self):
+        """(HCLK, PCLK1, PCLK2), kept until the next write to RCC: every UART character
+        and SPI byte asks."""
+        c = self._clocks
+        if c is None:
+            cfgr = self.v[CFGR]
+            hclk = self.sysclk() // _AHB_DIV.get((cfgr >> 4) & 0xF, 1)
+            c = self._clocks = (hclk, hclk // _APB_DIV.get((cfgr >> 10) & 7, 1),
+                                hclk // _APB_DIV.get((cfgr >> 13) & 7, 1))  # fmt: skip
+        return c
+
     def hclk(self):
-        return self.sysclk() // _AHB_DIV.get((self.v[CFGR] >> 4) & 0xF, 1)
+        return self._tree()[0]
 
     def pclk1(self):
-        return self.hclk() // _APB_DIV.get((self.v[CFGR] >> 10) & 7, 1)
+        return self._tree()[1]
 
     def pclk2(self):
-        return self.hclk() // _APB_DIV.get((self.v[CFGR] >> 13) & 7, 1)
+        return self._tree()[2]
 
     def _clock_changed(self):
         hz = self.hclk()

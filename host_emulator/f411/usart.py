@@ -77,10 +77,21 @@ class Usart(Peripheral):
         self._sr_seen = 0  # flags the last SR read saw (cleared by the DR read after it)
         self._last_rx_end = None
         self._idle_event = None
+        self._cc_key = self._cc = None
 
     # -- timing -------------------------------------------------------------------------
 
     def char_cycles(self):
+        """HCLK cycles of one character (start, data, parity, stop bits), kept while the
+        registers and clocks it comes from stay: every character asks."""
+        v = self.v
+        key = (v[CR1] & (M | OVER8), v[CR2] & 0x3000, v[BRR], self.chip.rcc._tree())
+        if key != self._cc_key:
+            self._cc = self._char_cycles()
+            self._cc_key = key
+        return self._cc
+
+    def _char_cycles(self):
         cr1, cr2 = self.v[CR1], self.v[CR2]
         brr = self.v[BRR]
         if brr == 0:
@@ -242,11 +253,13 @@ class Usart(Peripheral):
         if self._dr_byte is not None:
             raise TwinError(f"{self.NAME} DMA started with a character waiting in DR")
         ch = self.char_cycles()
-        last_load = t
-        for i, b in enumerate(data):
-            at = t + i * ch
-            self._start(b, at)
-            last_load = at if i == 0 else at - ch  # DR takes byte i when byte i-1 starts
-        self._shift_end = t + len(data) * ch
+        n = len(data)
+        for fn in self.on_tx:  # byte i starts at t + i x ch, back to back
+            for i, b in enumerate(data):
+                fn(b, t + i * ch)
+        self.tx_bytes += n
+        # DR takes byte i when byte i-1 starts: the last load is when byte n-2 starts
+        last_load = t if n <= 1 else t + (n - 2) * ch
+        self._shift_end = t + n * ch
         self._tc_cleared = False
         return last_load
