@@ -19,6 +19,8 @@ BOARD_FIGURE = re.compile(
     r"\b\d+\.\d\d ms\b|\b\d{1,3}(?:,\d{3})+ instructions\b|\b\d{1,3}(?:,\d{3})+ B (?:free|of)\b"
 )
 COMMIT = re.compile(r"\b[0-9a-f]{7,40}\b")
+# a target, not a measurement: "<= 50,000 instructions", "at most 30,000 instructions"
+TARGET = re.compile(r"(?:<=|at most|\*\*at most) \**\d{1,3}(?:,\d{3})+ instructions")
 
 
 @pytest.fixture(scope="module")
@@ -74,3 +76,32 @@ def test_every_configuration_has_a_name_the_docs_can_quote():
     assert sorted(bench_board.IDS) == sorted(labels)
     twin = [bench_board.IDS[v[0]] for v in bench_board.TWIN_VARIANTS]
     assert len(set(twin)) == len(twin)
+
+
+def _loose(text):
+    """The paragraphs of `text` that quote a board figure outside a marker and name no
+    commit (a hex word of 7-40 characters with a letter and a digit)."""
+    out = []
+    for para in text.split("\n\n"):
+        t = TARGET.sub("", figures.MARK.sub("", para))
+        if BOARD_FIGURE.search(t) and not any(
+            re.search(r"[a-f]", c) and re.search(r"\d", c) for c in COMMIT.findall(t)
+        ):
+            out.append(t.strip()[:120])
+    return out
+
+
+def test_no_board_figure_outside_a_marker_without_its_commit():
+    # docs/benchmarks/ is what the benchmarks wrote, each page naming its command and commit
+    found = {str(p): _loose(p.read_text()) for p in figures.documents()
+             if p.parent.name != "benchmarks"}  # fmt: skip
+    found = {p: v for p, v in found.items() if v}
+    assert not found, f"board figures with no marker and no commit: {found}"
+
+
+def test_a_loose_figure_is_found():
+    assert _loose("A tick takes 1.52 ms at p99.")
+    assert not _loose("A tick took 1.52 ms at p99 at 20103cb.")
+    assert not _loose("A tick takes <!--fig twin.off.navigating.busy_p99-->1.52 ms<!--/fig-->.")
+    assert not _loose("The budget: p99 <= 50,000 instructions.")
+    assert _loose("A tick counts 52,733 instructions at p99.")
