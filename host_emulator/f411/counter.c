@@ -51,7 +51,8 @@ static int maybe_in_it(const uint16_t *code, uint32_t h) {
         }
         int n = (w & 1) ? 4 : (w & 2) ? 3 : (w & 4) ? 2 : 1;
         uint32_t p = h - k + 1;
-        for (int i = 0; i < n; i++) {
+        /* past h: not this IT's block (and no read past the end of flash) */
+        for (int i = 0; i < n && p <= h; i++) {
             if (p == h) {
                 return 1;
             }
