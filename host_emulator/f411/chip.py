@@ -145,7 +145,7 @@ class F411:
     # -- memory -------------------------------------------------------------------------
 
     def read_word(self, addr):
-        return int.from_bytes(self.cpu.uc.mem_read(addr, 4), "little")
+        return self.cpu.read_word(addr)
 
     def read_memory(self, addr, n):
         try:

@@ -43,7 +43,7 @@ typedef struct {
  * forward, reach h. Unicorn does not stop inside an IT block (it reverts the request until
  * the block ends); there the counter keeps to the plain stop. A false "maybe" (the second
  * half of a 32-bit instruction that looks like IT) only takes that path too. */
-static int maybe_in_it(const uint16_t *code, uint32_t h) {
+int twin_maybe_in_it(const uint16_t *code, uint32_t h) {
     for (uint32_t k = 1; k <= 8 && k <= h; k++) {
         uint16_t w = code[h - k];
         if ((w & 0xFF00) != 0xBF00 || !(w & 0xF)) {
@@ -67,7 +67,7 @@ void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user) {
     (void)size;
     if (s->icount >= s->stop_at) {
         uint32_t o = (uint32_t)addr - s->flash_base;
-        if (s->on_due && o < s->flash_len && !maybe_in_it(s->flash_code, o >> 1)) {
+        if (s->on_due && o < s->flash_len && !twin_maybe_in_it(s->flash_code, o >> 1)) {
             if (s->on_due(uc, (uint32_t)addr)) {
                 return;
             }  /* else re-armed past this instruction: it runs, counted */
@@ -173,13 +173,10 @@ uint32_t twin_pc(twin_counter *s, void *uc) {
     return v;
 }
 
-/* A word of memory (the vector table, on every exception entry); 0 if unmapped. */
-uint32_t twin_read_word(twin_counter *s, void *uc, uint32_t addr) {
-    uint32_t v = 0;
-    if (s->mem_read(uc, addr, &v, 4)) {
-        return 0;
-    }
-    return v;
+/* A word of memory into *out (the vector table, on every exception entry): 0, or Unicorn's
+ * error (nothing mapped there). */
+int twin_read_word(twin_counter *s, void *uc, uint32_t addr, uint32_t *out) {
+    return s->mem_read(uc, addr, out, 4);
 }
 
 void twin_set_pc(twin_counter *s, void *uc, uint32_t pc) {

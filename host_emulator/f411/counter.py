@@ -64,7 +64,8 @@ int twin_return(twin_counter *s, void *uc, uint32_t ipsr, uint32_t *return_pc);
 uint32_t twin_pc(twin_counter *s, void *uc);
 uint32_t twin_masks(twin_counter *s, void *uc);
 void twin_set_pc(twin_counter *s, void *uc, uint32_t pc);
-uint32_t twin_read_word(twin_counter *s, void *uc, uint32_t addr);
+int twin_read_word(twin_counter *s, void *uc, uint32_t addr, uint32_t *out);
+int twin_maybe_in_it(const uint16_t *code, uint32_t h);
 """
 
 _loaded = None

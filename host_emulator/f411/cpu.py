@@ -21,7 +21,7 @@ of the system around them: no NVIC, no exception entry or return, no sleep. Done
 
 Speed: what comes after a stop (the events due, the sleep of a WFI, the interrupt taken, an
 exception return) runs inside Unicorn's hooks, and emulation goes on from there without
-returning from emu_start (each return and restart costs ~15 us, and there were ~37 a tick):
+returning from emu_start (a return and restart costs more than most of what comes between):
 the counter calls back at the next event (outside an IT block, where Unicorn cannot stop, it
 stops as before) and at a WFI in flash; the interrupt hook does the exception return. The
 instructions counted, and so every figure of a tick, are the same as when each of these
@@ -81,6 +81,7 @@ class Cpu:
         self._ffi, self._lib, self._uch = self._keep[1], self._keep[2], self._keep[3]
         self._uc_ptr = self._ffi.cast("void *", self._uch)
         self._ret_pc = self._ffi.new("uint32_t *")
+        self._word = self._ffi.new("uint32_t *")
         self.clock = Clock(self.counter, cpi)
         self.nvic = None  # nvic.Scs, set by the chip
         self.where = None  # pc -> "function (file)" for messages, set by the chip
@@ -178,6 +179,14 @@ class Cpu:
         if c.stop_at > c.icount:
             c.stop_at = c.icount
 
+    def read_word(self, addr):
+        """A word of memory, read in C (every exception entry reads its vector); TwinError
+        where nothing is mapped."""
+        out = self._word
+        if self._lib.twin_read_word(self.counter, self._uc_ptr, addr, out):
+            raise TwinError(f"read of a word at 0x{addr:08X}: no memory there")
+        return out[0]
+
     def masks(self):
         m = self._lib.twin_masks(self.counter, self._uc_ptr)
         return m & 1, m >> 8
@@ -256,10 +265,11 @@ class Cpu:
         return None
 
     def _go_on(self, at):
-        """In a hook: run()'s loop without leaving Unicorn (each return from emu_start costs
-        ~15 us), from self._pc: the core goes on there, or where an exception sends it, or
-        emulation stops with run()'s result. `at`: the instruction whose code hook this is
-        (the counter's), or None. True when the core does not go on at self._pc as it was."""
+        """In a hook: run()'s loop without leaving Unicorn (a return from emu_start and the
+        restart cost more than the loop), from self._pc: the core goes on there, or where an
+        exception sends it, or emulation stops with run()'s result. `at`: the instruction
+        whose code hook this is (the counter's), or None. True when the core does not go on
+        at self._pc as it was."""
         pc, taken = self._pc, self.exceptions_taken
         r = self._resume()
         if r is not None:

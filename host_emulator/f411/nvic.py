@@ -152,8 +152,7 @@ class Scs(Peripheral):
         self.active.discard(n)
 
     def vector(self, n):
-        cpu = self.chip.cpu
-        return cpu._lib.twin_read_word(cpu.counter, cpu._uc_ptr, self.v[0xD08] + 4 * n)
+        return self.chip.read_word(self.v[0xD08] + 4 * n)
 
     def set_pending(self, n):
         """Exception n pending (a peripheral's interrupt line, SysTick, PendSV)."""

@@ -89,7 +89,7 @@ class Rcc(Peripheral):
             raise TwinError(f"PLL configured out of range (M {m}, N {n}) in {self.chip.where()}")
         return src // m * n // pdiv if src % m == 0 else src * n // (m * pdiv)
 
-    def _tree(self):
+    def clock_tree(self):
         """(HCLK, PCLK1, PCLK2), kept until the next write to RCC: every UART character
         and SPI byte asks."""
         c = self._clocks
@@ -101,13 +101,13 @@ class Rcc(Peripheral):
         return c
 
     def hclk(self):
-        return self._tree()[0]
+        return self.clock_tree()[0]
 
     def pclk1(self):
-        return self._tree()[1]
+        return self.clock_tree()[1]
 
     def pclk2(self):
-        return self._tree()[2]
+        return self.clock_tree()[2]
 
     def _clock_changed(self):
         hz = self.hclk()

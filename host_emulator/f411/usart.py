@@ -85,7 +85,7 @@ class Usart(Peripheral):
         """HCLK cycles of one character (start, data, parity, stop bits), kept while the
         registers and clocks it comes from stay: every character asks."""
         v = self.v
-        key = (v[CR1] & (M | OVER8), v[CR2] & 0x3000, v[BRR], self.chip.rcc._tree())
+        key = (v[CR1] & (M | OVER8), v[CR2] & 0x3000, v[BRR], self.chip.rcc.clock_tree())
         if key != self._cc_key:
             self._cc = self._char_cycles()
             self._cc_key = key
