@@ -3,7 +3,9 @@ simulated scenarios on every runtime, each summed up in files committed under
 tests/change_indication/, so that any change of behaviour shows in review as a diff of them.
 
     digests.json     per run and runtime: the SHA-256 of the whole output stream, its length and
-                     frame count (and, on mpy_unix, of the GC blocks of every tick)
+                     frame count (and, on mpy_unix, of the GC blocks of every tick; on f411, the
+                     image on the emulated STM32F411, of its per-tick records: the instructions,
+                     cycles and interrupts of every tick, which a change of the twin must keep)
     RUN.RUNTIME.csv  the run's frames at 1 Hz in physical units (cpython and mpy_unix; the
                      model's stream is the cpython one, which its digest shows)
 
@@ -36,6 +38,9 @@ RUNS = (
 # Not m4f: it runs at about real time (these runs would add ~3 minutes to make test); its
 # parity test (tests/runtimes/test_m4f.py) shows its stream equals the model's, digested here.
 RUNTIMES = ("cpython", "model", "mpy_unix")
+# the image on the twin (f411), shorter: it runs at about 1.5x real time
+TWIN_RUNS = (("urban_drive_12s", "urban_drive", 12.0, 0, {}),)
+TWIN_RUNTIME = "f411"
 CSV_RUNTIMES = ("cpython", "mpy_unix")
 _COLUMNS = (
     "t_s,counter,nav_state,gnss_valid,lat_e7,lon_e7,height_m,yaw_deg,pitch_deg,roll_deg,"
@@ -66,27 +71,34 @@ def compute(log=None):
     from host_emulator.sim import board_input
 
     digests, csvs = {}, {}
-    for name, scenario, seconds, seed, overrides in RUNS:
-        stim = board_input.simulate(scenario, seconds, seed).stimulus
+    plan = [(run, rt) for run in RUNS for rt in RUNTIMES]
+    plan += [(run, TWIN_RUNTIME) for run in TWIN_RUNS]
+    stims = {}
+    for (name, scenario, seconds, seed, overrides), rt in plan:
+        if name not in stims:
+            stims[name] = board_input.simulate(scenario, seconds, seed).stimulus
+        stim = stims[name]
         every = overrides.get("output_every_ticks", 1)
-        digests[name] = {}
-        for rt in RUNTIMES:
-            if log:
-                log(f"{name} on {rt}")
-            with tempfile.TemporaryDirectory(prefix="digest-") as d:
-                fw = runtimes.get(rt).run(stim, pathlib.Path(d), overrides)
-            entry = {
-                "sha256": hashlib.sha256(fw.out).hexdigest(),
-                "bytes": len(fw.out),
-                "frames": len(stream.decode(fw.out).frames),
-            }
-            if fw.blocks_per_tick is not None:
-                blocks = fw.blocks_per_tick.astype("<i4").tobytes()
-                entry["gc_blocks_sha256"] = hashlib.sha256(blocks).hexdigest()
-                entry["gc_blocks_per_tick_mean"] = round(float(fw.blocks_per_tick.mean()), 3)
-            digests[name][rt] = entry
-            if rt in CSV_RUNTIMES:
-                csvs[f"{name}.{rt}.csv"] = _csv(fw.out, every, stim.tick_us * 1e-6)
+        if log:
+            log(f"{name} on {rt}")
+        with tempfile.TemporaryDirectory(prefix="digest-") as d:
+            fw = runtimes.get(rt).run(stim, pathlib.Path(d), overrides)
+        entry = {
+            "sha256": hashlib.sha256(fw.out).hexdigest(),
+            "bytes": len(fw.out),
+            "frames": len(stream.decode(fw.out).frames),
+        }
+        if fw.blocks_per_tick is not None:
+            blocks = fw.blocks_per_tick.astype("<i4").tobytes()
+            entry["gc_blocks_sha256"] = hashlib.sha256(blocks).hexdigest()
+            entry["gc_blocks_per_tick_mean"] = round(float(fw.blocks_per_tick.mean()), 3)
+        per_tick = getattr(fw, "per_tick", None)
+        if per_tick is not None:
+            entry["per_tick_sha256"] = hashlib.sha256(per_tick.tobytes()).hexdigest()
+            entry["instr_per_tick_mean"] = round(float(per_tick["instr"].mean()), 1)
+        digests.setdefault(name, {})[rt] = entry
+        if rt in CSV_RUNTIMES:
+            csvs[f"{name}.{rt}.csv"] = _csv(fw.out, every, stim.tick_us * 1e-6)
     return digests, csvs
 
 
@@ -100,8 +112,9 @@ def differences(digests, csvs, directory=DIR):
     path = directory / "digests.json"
     committed = json.loads(path.read_text()) if path.exists() else {}
     for name in sorted(set(digests) | set(committed)):
-        for rt in RUNTIMES:
-            a, b = committed.get(name, {}).get(rt), digests.get(name, {}).get(rt)
+        mine, theirs = digests.get(name, {}), committed.get(name, {})
+        for rt in sorted(set(mine) | set(theirs)):
+            a, b = theirs.get(rt), mine.get(rt)
             if a != b:
                 keys = sorted(
                     k for k in set(a or {}) | set(b or {}) if (a or {}).get(k) != (b or {}).get(k)
@@ -139,5 +152,5 @@ def main(argv=None):
         print("behaviour changed:\n  " + "\n  ".join(diff))
         print("if that is intended, run `python -m host_emulator digests --update` and commit it")
         return 1
-    print(f"unchanged: {len(digests)} runs on {len(RUNTIMES)} runtimes")
+    print(f"unchanged: {len(RUNS)} runs on {len(RUNTIMES)} runtimes, {len(TWIN_RUNS)} on the twin")
     return 0

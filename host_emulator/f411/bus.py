@@ -9,6 +9,11 @@ are not mapped: an access there stops the run with the address, the peripheral i
 access to an offset of a modelled peripheral that its model does not declare, or to a
 peripheral whose clock the image has not enabled: never a silent zero.
 
+Speed: a register without behaviour (no read_/write_ method) is read and written in C
+(mmio.c), in the model's register array `v`, without a call into Python; the models see the
+same values there. A model that overrides bus_read or bus_write names the offsets its override
+is for in OVERRIDES (empty: all of them), and those stay in Python.
+
 Bit-band: a word access at 0x42000000 + 32 * (a - 0x40000000) + 4 * b reads or writes bit b of
 the peripheral byte at a (a read-modify-write of the register, as the core's bus does).
 
@@ -24,6 +29,7 @@ loop runs instruction by instruction.
 """
 
 from common.errors import EmulatorError
+from host_emulator.f411 import counter
 
 # RCC's peripheral clock enable registers (rcc.py), by name
 ENABLE_REGISTERS = {"AHB1ENR": 0x30, "AHB2ENR": 0x34, "APB1ENR": 0x40, "APB2ENR": 0x44}
@@ -76,13 +82,15 @@ class Peripheral:
     value)` replaces the store on a write (the writable bits are applied first unless it
     is defined: it sees the raw value). `next_change(offset)` says when a lazily computed
     register will read differently (polling, above). CLOCK: (RCC enable register, bit) that
-    must be set for the peripheral to answer."""
+    must be set for the peripheral to answer. OVERRIDES: the offsets a bus_read or bus_write
+    override needs to see (None: every one)."""
 
     NAME = "?"
     BASE = 0
     SIZE = 0x400
     REGISTERS = ()
     CLOCK = None
+    OVERRIDES = None
 
     def __init__(self, chip):
         self.chip = chip
@@ -91,7 +99,8 @@ class Peripheral:
         for spec in self.REGISTERS:
             r = Register(*spec)
             self.regs[r.offset] = r
-        self.v = {}
+        ffi, _ = counter.load()
+        self.v = ffi.new("uint32_t[]", self.SIZE)  # by byte offset; shared with mmio.c
         self._readers = {}
         self._writers = {}
         for off, r in self.regs.items():
@@ -105,6 +114,19 @@ class Peripheral:
     def reset(self):
         for off, r in self.regs.items():
             self.v[off] = r.reset
+
+    def plain_words(self):
+        """Per word of the window: 1 when C may serve its reads, 2 its writes (both: 3)."""
+        kinds = bytearray(self.SIZE // 4)
+        base = Peripheral
+        for off in self.regs:
+            if self.OVERRIDES is not None and off in self.OVERRIDES:
+                continue
+            read_ok = type(self).bus_read is base.bus_read or self.OVERRIDES is not None
+            write_ok = type(self).bus_write is base.bus_write or self.OVERRIDES is not None
+            kinds[off >> 2] = ((read_ok and self._readers[off] is None) |
+                               (write_ok and self._writers[off] is None) << 1)  # fmt: skip
+        return kinds
 
     def name_of(self, off):
         r = self.regs.get(off & ~3)
@@ -172,12 +194,17 @@ class Bus:
         self.polls_skipped = 0
         self.poll_wait_cycles = 0  # cycles the clock moved over polling loops
         self.poll_wait_by = {}  # ... per peripheral polled (its NAME)
+        ffi, _ = counter.load()
+        self._served = ffi.new("uint32_t *")  # mmio.c served an access (not a polling loop)
+        self._map_fn = ffi.cast("void *", counter.uc_function("uc_mmio_map"))
+        self._keep = []  # what mmio.c's maps point at
 
     def add(self, p):
         self.peripherals.append(p)
         base, size = p.BASE, p.SIZE
-
-        fail = self.chip.cpu.fail
+        ffi, lib = counter.load()
+        cpu = self.chip.cpu
+        fail = cpu.fail
 
         def read(uc, off, sz, _data, p=p, base=base):
             try:
@@ -195,7 +222,23 @@ class Bus:
             except BaseException as e:  # noqa: BLE001
                 fail(e)
 
-        self.uc.mmio_map(base, size, read, None, write, None)
+        c = ffi.new("twin_periph *")
+        plain = ffi.new("uint8_t[]", bytes(p.plain_words()))
+        writable = ffi.new("uint32_t[]", size // 4)
+        for off, r in p.regs.items():
+            writable[off >> 2] = r.writable
+        c.v, c.plain, c.writable, c.words, c.served = p.v, plain, writable, size // 4, self._served
+        if p._gate is not None:
+            c.gate, c.gate_bit = self.chip.rcc.v + p._gate[0], p._gate[1]
+        cbs = (
+            ffi.callback("uint64_t(void *, uint64_t, unsigned, void *)", read),
+            ffi.callback("void(void *, uint64_t, unsigned, uint64_t, void *)", write),
+        )
+        c.py_read, c.py_write = cbs
+        err = lib.twin_mmio_map(self._map_fn, cpu._uc_ptr, base, size, c)
+        if err:
+            raise TwinError(f"Unicorn refused to map {p.NAME} at 0x{base:08X} (error {err})")
+        self._keep.append((c, plain, writable, cbs))
         return p
 
     def forget_polling(self):
@@ -204,6 +247,10 @@ class Bus:
         self._repeats = 0
 
     def _watch(self, address, value, p):
+        served = self._served
+        if served[0]:  # another register, read or written in C, came between
+            served[0] = 0
+            self._last = None
         n = self.chip.cpu.counter.icount
         last = self._last
         if last is not None and last[0] == address and last[1] == value and \

@@ -17,14 +17,14 @@ SRAM kept, RCC_CSR's flags saying why, the core restarting from the vector table
 `on_reset` is told (a run may treat a watchdog reset as a failure).
 
 Observing the image without changing it: `hook(function, fn)` calls fn(chip) when the core is
-about to execute that C function (a Unicorn code hook on its first instruction): the console
+about to execute that C function (the counter watches its first instruction): the console
 (mp_hal_stdout_tx_strn: what MicroPython prints, whichever port it goes to) and the soft
 timers' insertion (the firmware's tick timer) are observed so.
 """
 
 import ctypes
 
-from unicorn import UC_HOOK_CODE, UC_HOOK_MEM_WRITE_PROT, UcError
+from unicorn import UC_HOOK_MEM_WRITE_PROT, UcError
 from unicorn import arm_const as A
 
 from host_emulator.f411.bus import Bus, TwinError, block_name
@@ -64,7 +64,6 @@ class F411:
         self.on_reset = []  # fn(reason) after a reset
         self.resets = []  # (cycle, reason)
         self._reset_request = None
-        self._hooks = []
         uc = self.cpu.uc
         self.cpu.map_flash(FLASH_BASE, FLASH_SIZE)
         uc.mem_map(SRAM_BASE, SRAM_SIZE)
@@ -126,18 +125,7 @@ class F411:
 
     def hook(self, function, fn):
         """fn(chip) each time the core is about to execute C function `function`."""
-        addr = self.image.address(function) & ~1
-        cpu = self.cpu
-
-        def at(uc, a, s, d):
-            if cpu.redirected_at == a:  # the counter's hook sent the core elsewhere first:
-                cpu.redirected_at = None  # the function runs later, and is seen then
-                return
-            fn(self)
-
-        h = self.cpu.uc.hook_add(UC_HOOK_CODE, self.cpu.guarded(at), None, addr, addr)
-        self._hooks.append(h)
-        return h
+        self.cpu.watch(self.image.address(function) & ~1, lambda: fn(self))
 
     def reg(self, n):
         return self.cpu.uc.reg_read(A.UC_ARM_REG_R0 + n)

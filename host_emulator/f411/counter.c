@@ -36,6 +36,10 @@ typedef struct {
     /* the next event is due before the instruction at addr (flash, outside an IT block):
        1 when it must not run now (the core went elsewhere, or emulation stops) */
     int (*on_due)(void *uc, uint32_t addr);
+    /* per flash halfword, a bit: call on_watch before the instruction there runs (chip.hook:
+       one code hook for every instruction, where Unicorn would walk a list of them) */
+    const uint8_t *watch;
+    void (*on_watch)(void *uc, uint32_t addr);
 } twin_counter;
 
 /* Whether the instruction at halfword h may be inside an IT block: an IT instruction
@@ -92,6 +96,8 @@ void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user) {
         }
         if (s->flash_code[h] == 0xBF30 && s->on_wfi) {
             s->on_wfi(uc, (uint32_t)addr);  /* counted; it sleeps there, then goes on */
+        } else if (s->watch && ((s->watch[h >> 3] >> (h & 7)) & 1)) {
+            s->on_watch(uc, (uint32_t)addr);
         }
     } else {
         s->category_count[N_CATEGORIES - 1]++;  /* code outside flash: native modules in RAM */

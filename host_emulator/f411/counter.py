@@ -12,7 +12,8 @@ One `twin_counter` struct is shared between C and Python:
                     in `sync` (CPSIE, MSR PRIMASK/BASEPRI) the hook stops so that the CPU can
                     take it at once, as the core would
     on_due          called (cpu.py) instead of stopping when the next event is due before an
-                    instruction in flash outside an IT block; on_wfi: before a WFI in flash
+                    instruction in flash outside an IT block; on_wfi: before a WFI in flash;
+                    on_watch: before an instruction marked in `watch` runs (chip.hook)
     category_count  instructions per category of the code they belong to (`category` maps
                     each flash halfword to one; the last one is code outside flash: native
                     modules the image loaded into RAM)
@@ -30,6 +31,8 @@ import tempfile
 from common.errors import EmulatorError
 
 SOURCE = pathlib.Path(__file__).with_name("counter.c")
+# compiled into the same module: the peripheral accesses of plain registers (bus.py)
+SOURCES = (SOURCE, SOURCE.with_name("mmio.c"))
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "f411"
 MODULE = "_f411_counter"
@@ -56,6 +59,8 @@ typedef struct {
     const uint16_t *flash_code;
     void (*on_wfi)(void *uc, uint32_t addr);
     int (*on_due)(void *uc, uint32_t addr);
+    const uint8_t *watch;
+    void (*on_watch)(void *uc, uint32_t addr);
 } twin_counter;
 void twin_code_hook(void *uc, uint64_t addr, uint32_t size, void *user);
 int twin_enter(twin_counter *s, void *uc, uint32_t return_pc, uint32_t number,
@@ -66,6 +71,18 @@ uint32_t twin_masks(twin_counter *s, void *uc);
 void twin_set_pc(twin_counter *s, void *uc, uint32_t pc);
 int twin_read_word(twin_counter *s, void *uc, uint32_t addr, uint32_t *out);
 int twin_maybe_in_it(const uint16_t *code, uint32_t h);
+typedef struct {
+    uint32_t *v;
+    const uint8_t *plain;
+    const uint32_t *writable;
+    uint32_t words;
+    const uint32_t *gate;
+    uint32_t gate_bit;
+    uint32_t *served;
+    uint64_t (*py_read)(void *, uint64_t, unsigned, void *);
+    void (*py_write)(void *, uint64_t, unsigned, uint64_t, void *);
+} twin_periph;
+int twin_mmio_map(void *map_fn, void *uc, uint64_t base, uint64_t size, twin_periph *p);
 """
 
 _loaded = None
@@ -74,7 +91,7 @@ _loaded = None
 def _key():
     import cffi
 
-    h = hashlib.sha256(SOURCE.read_bytes())
+    h = hashlib.sha256(b"".join(f.read_bytes() for f in SOURCES))
     h.update(f"{CDEF}{CFLAGS}{sys.version}{cffi.__version__}".encode())
     return h.hexdigest()[:16]
 
@@ -92,7 +109,7 @@ def load():
         out.mkdir(parents=True, exist_ok=True)
         ffi = cffi.FFI()
         ffi.cdef(CDEF)
-        ffi.set_source(MODULE, SOURCE.read_text(), extra_compile_args=CFLAGS)
+        ffi.set_source(MODULE, "\n".join(f.read_text() for f in SOURCES), extra_compile_args=CFLAGS)
         with tempfile.TemporaryDirectory(dir=out) as tmp:
             try:
                 built = pathlib.Path(ffi.compile(tmpdir=tmp, verbose=False))
@@ -109,6 +126,13 @@ def load():
 
 def _fn(uclib, name):
     return ctypes.cast(getattr(uclib, name), ctypes.c_void_p).value
+
+
+def uc_function(name):
+    """The address of one of Unicorn's C functions."""
+    from unicorn.unicorn_py3 import unicorn as ucmod
+
+    return _fn(ucmod.uclib, name)
 
 
 def attach(uc, uclib, hook_handle_type, code_hook_type, frame_ids=None):

@@ -102,7 +102,9 @@ class Cpu:
         self._asleep = False
         self._exit = None  # run()'s result, when a hook reached it (_go_on)
         self._until, self._halted = 0, lambda: False
-        self.redirected_at = None  # the code hook at this address sent the core elsewhere
+        self._watched = {}  # address -> [fn()] (watch)
+        self._watch_cb = self._ffi.callback("void(void *, uint32_t)", self._on_watch)
+        self.counter.on_watch = self._watch_cb
         self._wfi_cb = self._ffi.callback("void(void *, uint32_t)", self._on_wfi)
         self._due_cb = self._ffi.callback("int(void *, uint32_t)", self._on_due)
         self.counter.on_wfi = self._wfi_cb
@@ -129,6 +131,23 @@ class Cpu:
         c.flash_len = len(categories) * 2
         c.category = ffi.from_buffer(self._sync_keep[0])
         c.sync = ffi.from_buffer(self._sync_keep[1])
+        self._watch_bits = ffi.new("uint8_t[]", len(sync))
+        c.watch = self._watch_bits
+
+    def watch(self, addr, fn):
+        """fn() each time the core is about to execute the instruction at addr (in flash)."""
+        h = (addr - self.counter.flash_base) >> 1
+        if not 0 <= h < self.counter.flash_len // 2:
+            raise TwinError(f"0x{addr:08X}: only code in flash can be watched")
+        self._watch_bits[h >> 3] |= 1 << (h & 7)
+        self._watched.setdefault(addr, []).append(fn)
+
+    def _on_watch(self, _uc, addr):
+        try:
+            for fn in self._watched[addr]:
+                fn()
+        except BaseException as e:  # noqa: BLE001  (cffi would only print it)
+            self.fail(e)
 
     def reset(self, vector_table):
         """The core's reset (ARMv7-M B1.5.5): the masks and CONTROL cleared (a reset from code
@@ -279,7 +298,6 @@ class Cpu:
         if at is not None and self.exceptions_taken == taken and self._pc == pc:
             return False  # the instruction at `at` runs now
         self._lib.twin_set_pc(self.counter, self._uc_ptr, self._pc | 1)
-        self.redirected_at = at  # its other code hooks are not to run now (chip.hook)
         return True
 
     def _on_due(self, _uc, addr):
@@ -366,6 +384,9 @@ class Cpu:
     # -- exceptions ---------------------------------------------------------------------
 
     def _take_pending(self):
+        if not self.nvic.pending:  # most stops: nothing to take (nvic.take() would say so)
+            self.counter.irq_pending = 0
+            return
         n = self.nvic.take()
         while n is not None:
             self._enter(n)

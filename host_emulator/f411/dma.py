@@ -195,7 +195,8 @@ class Dma(Peripheral):
     def kick(self):
         """Start what the enabled streams and their peripherals' requests allow."""
         chip = self.chip
-        waiting = [s for s in self.streams if s.cr & EN and not s.active]
+        v = self.v
+        waiting = [s for s in self.streams if v[s.base] & EN and not s.active]
         for st in waiting:
             target = chip.dma_target(self.number, st.channel(), st.par, st.direction())
             if target is None:

@@ -60,10 +60,9 @@ class Rcc(Peripheral):
         self.reset_flags = CSR_PORRST | CSR_PINRST | CSR_BORRST
 
     def reset(self):
-        backup = self.v.get(BDCR)  # the backup domain survives a system reset
+        backup = self.v[BDCR]  # the backup domain survives a system reset (0 at power-on)
         super().reset()
-        if backup is not None:
-            self.v[BDCR] = backup
+        self.v[BDCR] = backup
         self._clocks = None
 
     def bus_write(self, off, size, value):

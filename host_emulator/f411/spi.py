@@ -64,6 +64,8 @@ class Spi(Peripheral):
     # clock off after a start that never used it (a maintenance start). On the chip such a
     # register reads 0 and ignores writes: so here, for that access only; any other access
     # with the clock off still stops the run.
+    OVERRIDES = (CR1,)  # bus_read and bus_write below: CR1 only
+
     def _clocked(self):
         return self.chip.rcc.enabled(*self.CLOCK)
 

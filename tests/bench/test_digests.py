@@ -1,6 +1,7 @@
 """The change indicator (host_emulator/bench/digests.py): short runs of the scenarios on every
 runtime give exactly the digests and 1 Hz frame summaries committed in tests/change_indication/.
-A failure means the firmware's output, or the VM's allocations per tick, changed: if that is
+A failure means the firmware's output, the VM's allocations per tick, or the image's figures
+of every tick on the twin changed: if that is
 the intent, `python -m host_emulator digests --update` rewrites the files and the review sees
 the diff; if not, something changed behaviour that should not have."""
 
@@ -21,7 +22,7 @@ def test_the_committed_digests_are_what_the_runtimes_send(fresh):
 
 def test_the_model_and_cpython_streams_are_one(fresh):
     d, _ = fresh
-    for run in d.values():
+    for run in (d[name] for name, *_ in digests.RUNS):
         assert run["model"] == run["cpython"]  # parity, as the change indicator sees it
         assert run["mpy_unix"]["frames"] == run["cpython"]["frames"] > 0
 
@@ -39,3 +40,11 @@ def test_a_changed_output_is_reported(fresh, tmp_path):
         f"{name} on cpython: sha256 changed",
         f"{csv_name} changed",
     ]
+
+
+def test_the_twin_digests_its_ticks(fresh):
+    d, _ = fresh
+    ((name, *_),) = digests.TWIN_RUNS
+    entry = d[name][digests.TWIN_RUNTIME]
+    assert entry["frames"] > 0 and len(entry["per_tick_sha256"]) == 64
+    assert 20_000 < entry["instr_per_tick_mean"] < 100_000  # the image's ticks, not idle ones
