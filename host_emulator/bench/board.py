@@ -15,9 +15,9 @@ display setting on, the UsartGPU on USART6): the time each tick takes at the ima
 the port's drivers, interrupts and DMA included (eval/board_time.py), and what a turn of the
 page costs, tick by tick against the run without it.
 
-The emulated Cortex-M4F runs at about 3x real time, the emulated STM32F411 at 1.0-1.4x (two
+The emulated Cortex-M4F runs at about 3x real time, the emulated STM32F411 at 1.1-1.7x (two
 runs at a time), so the default (urban_drive, 600 s, seven runs on two processes) takes about
-half an hour. It is a
+twenty minutes (21 min at 5eec272). It is a
 benchmark: the design budget (docs/requirements.md, time budget: p99 <= 50,000 and max <=
 100,000 instructions per tick, no gc.collect while navigating) and the image's targets (a
 navigating tick at most 2.0 ms at p99 and 3.5 ms at most, no tick late or missed) are reported
@@ -670,7 +670,7 @@ def main(argv=None):
         dur = duration or trajectory.SCENARIOS[args.scenario].default_duration_s
         print(f"bench-board: {args.scenario} {dur:g} s on the emulated Cortex-M4F, "
               f"{len(VARIANTS)} configurations (about 3x real time each), and the image on the "
-              f"emulated STM32F411, {len(TWIN_VARIANTS)} configurations (1.0-1.4x real time "
+              f"emulated STM32F411, {len(TWIN_VARIANTS)} configurations (1.1-1.7x real time "
               "each)")  # fmt: skip
         tasks = [("f411", *v, args.scenario, dur) for v in TWIN_VARIANTS]
         tasks += [("m4f", *v, args.scenario, dur) for v in VARIANTS]
