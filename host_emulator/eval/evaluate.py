@@ -102,10 +102,15 @@ class TrackErrors:
     in_outage: np.ndarray  # (K,) bool
 
 
-def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=()):
-    """Errors at the track's navigating samples; truth arrays sampled at truth_t_s (uniform)."""
+def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=(), covered=None):
+    """Errors at the track's navigating samples; truth arrays sampled at truth_t_s (uniform).
+    covered: per truth sample, whether the reference exists there (None: everywhere); the
+    track is scored only there."""
     dt = float(truth_t_s[1] - truth_t_s[0])
     nav = (tr.state == NAVIGATING) & (tr.t_s <= truth_t_s[-1] + 1e-9)
+    if covered is not None:
+        k = np.clip(np.rint((tr.t_s - truth_t_s[0]) / dt).astype(int), 0, truth_t_s.size - 1)
+        nav &= covered[k]
     idx = np.rint((tr.t_s[nav] - truth_t_s[0]) / dt).astype(int)
     t = tr.t_s[nav]
     out = np.zeros(t.size, bool)
@@ -119,6 +124,39 @@ def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=()):
         sigma=tr.sigma[nav],
         in_outage=out,
     )
+
+
+def at_times(t_s, p, t_query, max_gap_s):
+    """p (N, D) sampled at t_s, linearly interpolated at each t_query; NaN where no two
+    samples at most max_gap_s apart bracket it."""
+    t_s, t_query = np.asarray(t_s, float), np.asarray(t_query, float)
+    out = np.full((t_query.size, p.shape[1]), np.nan)
+    if t_s.size < 2:
+        return out
+    j = np.clip(np.searchsorted(t_s, t_query), 1, t_s.size - 1)
+    ok = (t_query >= t_s[0]) & (t_query <= t_s[-1]) & (t_s[j] - t_s[j - 1] <= max_gap_s)
+    w = (t_query - t_s[j - 1]) / np.where(t_s[j] > t_s[j - 1], t_s[j] - t_s[j - 1], 1.0)
+    out[ok] = p[j - 1][ok] + w[ok, None] * (p[j][ok] - p[j - 1][ok])
+    return out
+
+
+def waypoint_errors(t_s, p_en, waypoints, max_gap_s):
+    """Horizontal errors (K,) of positions p_en (N, 2) at times t_s against waypoints
+    (t_s (K,), (K, 2) east, north): the positions interpolated at each waypoint's instant
+    between samples at most max_gap_s apart; NaN where none bracket it."""
+    t_wp, p_wp = waypoints
+    p = at_times(t_s, np.asarray(p_en, float), t_wp, max_gap_s)
+    return np.hypot(*(p - p_wp).T)
+
+
+def spread(x):
+    """{"n", "median", "p75", "max"} of the finite values of x (None where there are none)."""
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    if not x.size:
+        return {"n": 0, "median": None, "p75": None, "max": None}
+    return {"n": int(x.size), "median": float(np.median(x)),
+            "p75": float(np.percentile(x, 75)), "max": float(x.max())}  # fmt: skip
 
 
 def rms(x):

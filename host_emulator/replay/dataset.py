@@ -101,3 +101,7 @@ class Dataset:
     # GPS week a KF-GINS dataset's sow columns count from (its dataset.yaml gpsweek)
     files: dict = field(default_factory=dict)
     gpsweek: int | None = None
+    # surveyed points passed at known instants (t_s, lat, lon; no height): when given, the
+    # reference is only true there (`truth` joins them for the replay's timing) and the
+    # replay scores the output at these instants alone
+    waypoints: Positions | None = None

@@ -25,6 +25,10 @@ YAML subset (`key: value` lines, `#` comments, numbers, strings, `[a, b, c]` lis
     gnssfile      path (optional: without it the dataset has no recorded GNSS input)
     truthfile     path of the .nav reference trajectory
     truthpoint    imu | antenna: which point the .nav describes (ours; default imu, KF-GINS's)
+    waypointfile  path (ours, optional; default: `waypoints.csv` when the directory has one):
+                  surveyed points passed at known instants, a CSV with a header naming at
+                  least gpst_sow, lat_deg, lon_deg; with it the reference is only true there
+                  (the .nav joins them) and the replay scores the output at these instants
     imudatarate   Hz
     gpsweek       the GPS week the sow columns count from
     starttime, endtime   optional sow limits applied to all three files (endtime -1: none)
@@ -71,6 +75,8 @@ DESCRIPTION = "dataset.yaml"
 IMU_FILE = "imu.txt"
 GNSS_FILE = "gnss.txt"
 TRUTH_FILE = "truth.nav"
+WAYPOINT_FILE = "waypoints.csv"
+WAYPOINT_COLUMNS = ("gpst_sow", "lat_deg", "lon_deg")
 GAP_S = 0.1  # KF-GINS ImuFileLoader: a longer interval is a gap, the row covers 1/rate
 
 # key -> (kind, required)
@@ -81,6 +87,7 @@ _KEYS = {
     "gnssfile": ("path", False),
     "truthfile": ("path", True),
     "truthpoint": ("str", False),
+    "waypointfile": ("path", False),
     "imudatarate": ("number", True),
     "gpsweek": ("int", True),
     "starttime": ("number", False),
@@ -462,6 +469,44 @@ def _read_truth(desc_path, desc):
     return pos.select(_window(desc, t - desc["gpsweek"] * WEEK_S))
 
 
+def _read_waypoints(desc_path, desc):
+    if desc["waypointfile"] is not None:
+        path = _data_file(desc_path, desc, "waypointfile")
+    else:
+        path = desc_path.parent / WAYPOINT_FILE
+        if not path.is_file():
+            return None
+    lines = read_lines(path, "waypoint file")
+    rows = [(i + 1, ln.strip()) for i, ln in enumerate(lines) if ln.strip()]
+    if not rows:
+        raise FormatError(f"{path}: no header line (it needs {', '.join(WAYPOINT_COLUMNS)})")
+    header = [h.strip() for h in rows[0][1].split(",")]
+    missing = [c for c in WAYPOINT_COLUMNS if c not in header]
+    if missing:
+        raise FormatError(f"{path}:{rows[0][0]}: the header has no column {', '.join(missing)}")
+    cols = [header.index(c) for c in WAYPOINT_COLUMNS]
+    vals = []
+    for line_no, text in rows[1:]:
+        cells = text.split(",")
+        try:
+            v = [float(cells[c]) for c in cols]
+        except (IndexError, ValueError):
+            need = ", ".join(WAYPOINT_COLUMNS)
+            raise FormatError(
+                f"{path}:{line_no}: not {len(header)} comma-separated values with numbers in {need}"
+            ) from None
+        if not all(math.isfinite(x) for x in v):
+            raise FormatError(f"{path}:{line_no}: {text!r}: not finite")
+        vals.append(v)
+    if not vals:
+        raise FormatError(f"{path}: no waypoints after the header")
+    tab = np.array(vals)
+    check_increasing(path, tab[:, 0], [n for n, _ in rows[1:]], "gpst_sow")
+    t = desc["gpsweek"] * WEEK_S + tab[:, 0]
+    wp = Positions(t, tab[:, 1], tab[:, 2], np.zeros(len(t)))
+    return wp.select(_window(desc, tab[:, 0]))
+
+
 def read(path):
     """Dataset of a directory holding `dataset.yaml` (or of the description file itself)."""
     desc_path = _description_path(path)
@@ -481,6 +526,7 @@ def read(path):
         board_config=desc["board"],
         files=files,
         gpsweek=desc["gpsweek"],
+        waypoints=_read_waypoints(desc_path, desc),
     )
 
 

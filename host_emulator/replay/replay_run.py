@@ -33,6 +33,9 @@ from host_emulator.replay import run_config as board_settings
 from host_emulator.sim import faults as faults_mod
 
 OUTPUTS = (*scenario_run.OUTPUTS, "solution.pos")
+TICK_S = to_stimulus.TICK_S
+# the output is sampled at 10 Hz: a waypoint falls between two samples this far apart at most
+TRACK_GAP_S = 0.25
 
 # docs/requirements.md, reference figures: two open filters on drive_0708 under the same protocol (1
 # Hz, 1.5/1.5/3 m, 15 s outages at t0 + 60/200/400 s, metrics from t0 + 30 s)
@@ -104,10 +107,14 @@ def evaluate_replay(rep, fw, runtime):
     o = rep.truth.origin
     tr = evaluate.track(decoded, rep.stimulus.tick_us * 1e-6, (o.lat_e7, o.lon_e7, o.h_m))
     truth = rep.truth
-    err = evaluate.errors(tr, truth.t_s, truth.p_n, truth.v_n, truth.ypr, rep.outages)
+    err = evaluate.errors(tr, truth.t_s, truth.p_n, truth.v_n, truth.ypr, rep.outages,
+                          truth.covered)  # fmt: skip
     acc = evaluate.accuracy(err, rep.outages, from_s=rep.window_s)
     g = rep.gnss
     sel = g.valid & (g.t_fix_s >= rep.window_s)
+    if truth.covered is not None:  # the fixes too are scored only where the reference is
+        k = np.clip(np.rint(g.t_fix_s / TICK_S).astype(int), 0, truth.covered.size - 1)
+        sel &= truth.covered[k]
     opt = rep.options
     metrics = {
         "scenario": rep.name,
@@ -135,8 +142,44 @@ def evaluate_replay(rep, fw, runtime):
             name: rep.sources.get(name, board_settings.REPLAY) for name in rep.stimulus.config
         },
         "notes": list(rep.notes),
+        "reference": reference_metrics(rep, tr),
     }
     return metrics, tr, err
+
+
+def reference_metrics(rep, tr):
+    """What of the run the reference scores ({"kind", "scored_s", "unscored_s", "max_gap_s"})
+    and, for a reference true only at waypoints, the horizontal errors there of the output
+    and of the raw fixes ("waypoints": evaluate.spread of each)."""
+    truth = rep.truth
+    win = truth.t_s >= rep.window_s
+    covered = truth.covered if truth.covered is not None else np.ones(truth.t_s.size, bool)
+    out = {
+        "kind": truth.kind,
+        "scored_s": float(np.count_nonzero(covered & win) * TICK_S),
+        "unscored_s": float(np.count_nonzero(~covered & win) * TICK_S),
+        "max_gap_s": truth.max_gap_s,
+    }
+    if truth.waypoints is not None:
+        t_wp, _ = truth.waypoints
+        keep = t_wp >= rep.window_s
+        wp = (t_wp[keep], truth.waypoints[1][keep])
+        nav = tr.state == evaluate.NAVIGATING
+        fw = evaluate.waypoint_errors(tr.t_s[nav], tr.p_n[nav, :2], wp, TRACK_GAP_S)
+        g = rep.gnss
+        fix_t = g.t_fix_s[g.valid]
+        fix_gap = fix_gap_s(fix_t)
+        fixes = evaluate.waypoint_errors(fix_t, (g.p_ant_n + g.err_n_m)[g.valid, :2], wp, fix_gap)
+        out["waypoints"] = {"n": int(keep.sum()), "firmware": evaluate.spread(fw),
+                            "fixes": evaluate.spread(fixes), "fix_gap_s": fix_gap}  # fmt: skip
+    return out
+
+
+def fix_gap_s(t_s):
+    """The longest interval between two fixes across which a waypoint is still scored: the
+    reference's rule (to_stimulus.GAP_FACTOR x the median interval)."""
+    d = np.diff(np.asarray(t_s, float))
+    return float(to_stimulus.GAP_FACTOR * np.median(d)) if d.size else 0.0
 
 
 def markdown(m, rep, console=()):
@@ -144,6 +187,7 @@ def markdown(m, rep, console=()):
     lines = [f"# Replay: {m['dataset']} ({m['duration_s']:g} s, {m['runtime']})", ""]
     lines += _protocol_lines(m, rep)
     lines += _figures_table(m)
+    lines += _waypoint_table(m)
     lines += _outage_table(m)
     lines += _reference_table(m, rep.options)
     if m["yaw_rms_deg"] is None:
@@ -200,7 +244,47 @@ def _protocol_lines(m, rep):
         f"{rep.ranges['accel_peak_g']:.2f}).",
         f"- Board settings (ins.cfg) other than the firmware's defaults: "
         f"{board_settings.describe(rep.stimulus.config, rep.sources)}.",
+        _reference_line(m["reference"]),
         *[f"- {note[0].upper()}{note[1:]}." for note in rep.notes],
+        "",
+    ]
+
+
+def _reference_line(ref):
+    """report.md's line on where the reference scores the output."""
+    if ref["kind"] == "waypoints":
+        return (f"- Reference: true only at its {ref['waypoints']['n']} waypoints (the line "
+                "between them is not truth): the output is scored there alone, interpolated "
+                "at each waypoint's instant (the table below; the figures above are those of "
+                "the output samples within "
+                f"{to_stimulus.WAYPOINT_TOL_S:g} s of a waypoint).")  # fmt: skip
+    if ref["kind"] == "gaps":
+        return (f"- Reference: with gaps: {ref['unscored_s']:.1f} s of the scored window lie in "
+                f"gaps longer than {ref['max_gap_s']:.2f} s between its epochs and are not "
+                f"scored (no straight line is drawn across a gap); {ref['scored_s']:.1f} s "
+                "are.")  # fmt: skip
+    gap = ""
+    if ref["max_gap_s"]:
+        gap = f" (no gap longer than {ref['max_gap_s']:.2f} s between its epochs)"
+    return f"- Reference: continuous{gap}: every navigating output sample is scored."
+
+
+def _waypoint_table(m):
+    """report.md's table of the horizontal errors at the waypoints, if the reference has
+    them."""
+    wp = m["reference"].get("waypoints")
+    if wp is None:
+        return []
+    fmt = report.fmt
+    fw, fx = wp["firmware"], wp["fixes"]
+    return [
+        "| horizontal error at the waypoints | firmware | raw GNSS input |",
+        "|---|---|---|",
+        *[
+            f"| {k} | {fmt(fw[k], unit='m')} | {fmt(fx[k], unit='m')} |"
+            for k in ("median", "p75", "max")
+        ],  # fmt: skip
+        f"| waypoints scored | {fw['n']} of {wp['n']} | {fx['n']} of {wp['n']} |",
         "",
     ]
 

@@ -92,7 +92,10 @@ class ReplayOptions:
 class RunTruth:
     """The reference on the run's clock (t = 0 at tick 0), ENU from `origin`, sampled every
     tick (evaluate.errors looks it up by index); ypr NaN where the reference has no
-    attitude."""
+    attitude. `covered`: per tick, whether the reference exists there (between two of its
+    epochs at most `max_gap_s` apart, or at a waypoint): only those ticks are scored, never a
+    straight line across a gap. `waypoints`: (t_s run clock, (K, 2) east, north m) of a
+    reference that is only true at its waypoints, else None."""
 
     t_s: np.ndarray
     p_n: np.ndarray
@@ -100,6 +103,37 @@ class RunTruth:
     ypr: np.ndarray
     origin: trajectory.Origin
     has_attitude: bool
+    covered: np.ndarray | None = None
+    max_gap_s: float | None = None
+    waypoints: tuple | None = None
+
+    @property
+    def kind(self):
+        """The reference's kind: waypoints, gaps (some ticks not covered) or continuous."""
+        if self.waypoints is not None:
+            return "waypoints"
+        return "continuous" if self.covered is None or self.covered.all() else "gaps"
+
+
+# a reference epoch may be this much later than the one before (times their median interval)
+# and still be joined to it by a line for scoring; a longer gap is not scored
+GAP_FACTOR = 1.5
+# a waypoint is scored at the output samples within this of its instant (10 Hz samples: one)
+WAYPOINT_TOL_S = 0.05
+
+
+def reference_covered(ref_t_s, t_s, factor=GAP_FACTOR):
+    """(per time of t_s: inside the reference, max gap s): a time is covered at an epoch, or
+    between two epochs at most `factor` x their median interval apart."""
+    ref = np.asarray(ref_t_s, float)
+    t = np.asarray(t_s, float)
+    if ref.size < 2:
+        return np.abs(t - ref[0]) <= 1e-6 if ref.size else np.zeros(t.size, bool), None
+    max_gap = factor * float(np.median(np.diff(ref)))
+    j = np.clip(np.searchsorted(ref, t), 1, ref.size - 1)
+    inside = (t >= ref[0] - 1e-6) & (t <= ref[-1] + 1e-6)
+    at_epoch = (np.abs(ref[j] - t) <= 1e-6) | (np.abs(ref[j - 1] - t) <= 1e-6)
+    return inside & ((ref[j] - ref[j - 1] <= max_gap + 1e-9) | at_epoch), max_gap
 
 
 @dataclass(eq=False)
@@ -210,7 +244,21 @@ def _truth_on_ticks(dataset, t_start, n_ticks):
         ypr[:, 0] = trajectory.wrap_pi(-np.interp(t_abs, tr.t_s, yaw))
         ypr[:, 1] = np.interp(t_abs, tr.t_s, rpy[:, 1])
         ypr[:, 2] = np.interp(t_abs, tr.t_s, rpy[:, 0])
-    return RunTruth(t_run, p, v, ypr, origin, tr.rpy_deg is not None)
+    wp = dataset.waypoints
+    if wp is not None:  # only the waypoint instants are true: scored there alone
+        we, wn, _ = pymap3d.geodetic2enu(wp.lat_deg, wp.lon_deg, np.full(len(wp), h0), lat0,
+                                         lon0, h0)  # fmt: skip
+        t_wp = wp.t_s - t_start
+        covered = np.zeros(t_run.size, bool)
+        tol = WAYPOINT_TOL_S + 1e-9
+        lo, hi = np.searchsorted(t_run, t_wp - tol), np.searchsorted(t_run, t_wp + tol)
+        for a, b in zip(lo, hi, strict=True):
+            covered[a:b] = True
+        max_gap, waypoints = None, (t_wp, np.stack([we, wn], -1))
+    else:
+        (covered, max_gap), waypoints = reference_covered(tr.t_s, t_abs), None
+    return RunTruth(t_run, p, v, ypr, origin, tr.rpy_deg is not None, covered, max_gap,
+                    waypoints)  # fmt: skip
 
 
 def _span(t_s):
