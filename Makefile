@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test toolchain native layout lint accuracy bench-nav bench-board figures bench-faults bench-settings \
+.PHONY: demo test toolchain native layout lint accuracy bench-nav bench-board figures bench-faults bench-real bench-settings \
 	cpi accuracy-report \
 	digests replay build-flash deploy console monitor virtual-board image flash-image clean
 
@@ -66,6 +66,11 @@ figures: $(STAMP)
 # on CPython (~11 min on two cores; writes docs/benchmarks/faults.md).
 bench-faults: $(STAMP) native
 	$(BIN)/python -m host_emulator bench-faults
+
+# Every real recording in ../shared/data replayed through the firmware next to its own fixes,
+# scored where its reference exists (docs/benchmarks/realdata.md; a few minutes on two cores)
+bench-real: $(STAMP)
+	$(BIN)/python -m host_emulator bench-real
 
 # Every board setting swept one at a time over urban_drive and walk on CPython: the ranges that
 # still navigate within the board spec (~23 min on two busy cores, 16 CPU-min; writes

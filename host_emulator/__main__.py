@@ -22,6 +22,7 @@
                                     images' budgets (make figures)
     bench-faults                    the fault matrix: detection, trust, recovery (make bench-faults)
     bench-settings                  every board setting swept: what navigates (make bench-settings)
+    bench-real                      every real recording in ../shared/data (make bench-real)
     profile                         where a tick goes on the emulated Cortex-M4F, per function
     digests [--update]              the change indicator: frame-stream digests per runtime
     cpi [--no-write]                CPI of MicroPython on an STM32F4 (make cpi; ~1 min)
@@ -63,6 +64,8 @@ DELEGATED = {
                      "every fault kind injected into a drive: detection, health, recovery"),
     "bench-settings": ("host_emulator.bench.settings:main",
                        "every board setting swept: the ranges that still navigate within spec"),
+    "bench-real": ("host_emulator.bench.realdata:main",
+                   "every real recording in ../shared/data, next to its own fixes"),
     "profile": ("host_emulator.bench.profile:main",
                 "where a tick goes on the emulated Cortex-M4F, per function"),
     "digests": ("host_emulator.bench.digests:main",
