@@ -60,6 +60,9 @@ def cases(data=DATA):
                     "kf_gins": str(seg / name),
                     "options": {"gnss_rate_hz": float(rate), "gnss_noise_m": noise,
                                 "gnss_velocity_sigma": 0.0 if vel else None},
+                    # RTK-grade fixes (0.02 m) that the dataset states as 1.5 m: the RMS
+                    # target is judged with the noise added (reported either way)
+                    "rms_target": noise is not None,
                 })  # fmt: skip
     for walk in sorted((data / "ipin_handheld").glob("T*_R*")):
         for vel in (False, True):
@@ -135,6 +138,8 @@ def verdicts(row):
         ok = fw["median"] is not None and fx["median"] is not None
         v["waypoints"] = bool(ok and fw["n"] == wp["n"] and fw["median"] <= fx["median"]
                               and fw["max"] <= fx["max"])  # fmt: skip
+    elif not row.get("rms_target", True):
+        v["rms"] = None
     elif row["horiz_rms_m"] is not None and row["fixes_horiz_rms_m"]:
         v["rms"] = bool(row["horiz_rms_m"] <= RMS_RATIO * row["fixes_horiz_rms_m"])
     return v
@@ -187,7 +192,9 @@ def markdown(rows, cmd):
         "## Targets",
         "",
         f"- horizontal RMS at most {RMS_RATIO:g} x the fixes' own (the same fixes the firmware "
-        "got); on a walk, waypoint median and max no worse than the fixes';",
+        "got; where the receiver is RTK-grade, the Tokyo drive, judged with "
+        f"{NOISE_M:g} m of noise added: its fixes as recorded are reported, not judged); on "
+        "a walk, waypoint median and max no worse than the fixes';",
         f"- navigating within {NAV_WITHIN_S:g} s of the first motion (the reference's speed "
         f"reaching {MOVING_M_S:g} m/s);",
         f"- the horizontal position inside its 3-sigma bound at least {COVERAGE:.0%} of the time.",

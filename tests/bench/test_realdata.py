@@ -27,6 +27,11 @@ def test_the_cases_of_a_folder_of_recordings(tmp_path):
     assert vel5["options"] == {"gnss_rate_hz": 5.0, "gnss_noise_m": realdata.NOISE_M,
                                "gnss_velocity_sigma": 0.0}  # fmt: skip
     assert got[8]["group"] == "walk" and got[8]["kf_gins"].endswith("T01_R01/dataset.yaml")
+    # RTK-grade fixes as recorded are reported, the RMS target judged with noise added
+    assert [c["rms_target"] for c in got[:2]] == [False, True]
+    row = {"group": "drive", "rms_target": False, "horiz_rms_m": 0.5, "fixes_horiz_rms_m": 0.02,
+           "nav_after_motion_s": 3.0, "coverage": 1.0, "waypoints": None}  # fmt: skip
+    assert realdata.verdicts(row)["rms"] is None
 
 
 def test_no_recording_is_one_line(tmp_path, capsys):
