@@ -12,7 +12,8 @@ peripheral whose clock the image has not enabled: never a silent zero.
 Speed: a register without behaviour (no read_/write_ method) is read and written in C
 (mmio.c), in the model's register array `v`, without a call into Python; the models see the
 same values there. A model that overrides bus_read or bus_write names the offsets its override
-is for in OVERRIDES (empty: all of them), and those stay in Python.
+is for in OVERRIDES, and those stay in Python (None, the default: the override sees every
+offset, and none of that direction is served in C).
 
 Bit-band: a word access at 0x42000000 + 32 * (a - 0x40000000) + 4 * b reads or writes bit b of
 the peripheral byte at a (a read-modify-write of the register, as the core's bus does).
