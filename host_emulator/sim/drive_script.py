@@ -86,6 +86,8 @@ class DriveScript:
         self.sensor_grade = "calibrated"
         self.antenna_b_m = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes
         self.board_profile = 0  # the board's profile setting for it: 0 car, 1 handheld
+        # the receiver that goes with it: sim/gnss.py GnssModel fields over its defaults
+        self.receiver = {}
 
     @property
     def v_m_s(self):

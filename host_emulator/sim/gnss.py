@@ -160,9 +160,10 @@ def _hdop(rng, model, t, t_truth):
 
 
 def simulate(truth, model=None, seed=0, outages=None):
-    """Receiver output for a Truth. outages: ((start_s, length_s), ...), default truth.outages;
+    """Receiver output for a Truth (model None: the scenario's receiver, Truth.receiver over
+    GnssModel's defaults). outages: ((start_s, length_s), ...), default truth.outages;
     epochs in [start, start + length) have no fix. Same seed -> same data."""
-    model = GnssModel() if model is None else model
+    model = GnssModel(**getattr(truth, "receiver", {})) if model is None else model
     if model.lever_b_m is None:
         model = dataclasses.replace(model, lever_b_m=tuple(truth.antenna_b_m))
     outages = truth.outages if outages is None else tuple(outages)

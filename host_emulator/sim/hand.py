@@ -51,6 +51,28 @@ _GAIT_HARMONICS = {
 }
 
 
+# The ranges a walker is drawn from (Hand.draw). HEEL_STRIKES: the module docstring's, a board
+# gripped firmly enough to carry the heel strikes. AS_HELD: a phone or board held in front of
+# the walker as the real hand-held walks bench-real replays show it (gyro p99 2-3 rad/s,
+# screens pitched up 50-65 deg; docs/benchmarks/realdata.md): the hand damps the steps to
+# 0.02-0.2 g at the step rate, the board is pitched up 40-70 deg to be read, pointed anywhere
+# against the walking direction, and re-pointed by tens of degrees while walking (the slow
+# yaw sway here: 15-60 deg over three sines at 0.04-0.4 Hz).
+HEEL_STRIKES = {
+    "bob_g": (0.3, 1.0), "surge_g": (0.2, 0.6), "lateral_g": (0.05, 0.15),
+    "pitch_deg": (1.5, 4.0), "roll_deg": (2.0, 5.0), "yaw_deg": (2.0, 5.0),
+    "sway_deg": {}, "hold_pitch_deg": (10.0, 35.0), "hold_roll_deg": (-5.0, 5.0),
+    "hold_yaw_deg": (-8.0, 8.0),
+}  # fmt: skip
+AS_HELD = {
+    "bob_g": (0.02, 0.2), "surge_g": (0.02, 0.15), "lateral_g": (0.01, 0.05),
+    "pitch_deg": (1.0, 3.0), "roll_deg": (3.0, 8.0), "yaw_deg": (3.0, 8.0),
+    "sway_deg": {"yaw": (15.0, 60.0), "pitch": (2.0, 8.0), "roll": (2.0, 8.0)},
+    "hold_pitch_deg": (40.0, 70.0), "hold_roll_deg": (-10.0, 10.0),
+    "hold_yaw_deg": (-180.0, 180.0),
+}  # fmt: skip
+
+
 class _Sines:
     """sum_i a_i sin(w_i t + p_i) with its derivatives, vectorised over t."""
 
@@ -83,17 +105,19 @@ class Hand:
         self.hold = {k: float(hold.get(k, 0.0)) for k in CHANNELS}
 
     @classmethod
-    def draw(cls, rng, v_ref_m_s=1.3):
-        """A walker and the way they hold the board, from the ranges of the module docstring."""
+    def draw(cls, rng, v_ref_m_s=1.3, style=None):
+        """A walker and the way they hold the board, from the ranges of `style` (HEEL_STRIKES,
+        the default: the module docstring's; AS_HELD: what real hand-held recordings show)."""
+        r = HEEL_STRIKES if style is None else style
         step_hz = rng.uniform(1.6, 2.2)
         w = TWO_PI * step_hz
         peaks = {
-            "bob": rng.uniform(0.3, 1.0) * G_M_S2,  # m/s^2 at v_ref
-            "surge": rng.uniform(0.2, 0.6) * G_M_S2,
-            "lateral": rng.uniform(0.05, 0.15) * G_M_S2,
-            "pitch": rng.uniform(1.5, 4.0) * _DEG,  # rad
-            "roll": rng.uniform(2.0, 5.0) * _DEG,
-            "yaw": rng.uniform(2.0, 5.0) * _DEG,
+            "bob": rng.uniform(*r["bob_g"]) * G_M_S2,  # m/s^2 at v_ref
+            "surge": rng.uniform(*r["surge_g"]) * G_M_S2,
+            "lateral": rng.uniform(*r["lateral_g"]) * G_M_S2,
+            "pitch": rng.uniform(*r["pitch_deg"]) * _DEG,  # rad
+            "roll": rng.uniform(*r["roll_deg"]) * _DEG,
+            "yaw": rng.uniform(*r["yaw_deg"]) * _DEG,
         }
         gait = {}
         for name, harmonics in _GAIT_HARMONICS.items():
@@ -120,12 +144,12 @@ class Hand:
             else:
                 r_peak = rng.uniform(0.2, 0.8) * _DEG  # tremor's rate, rad/s
                 tremor[name] = _Sines(r_peak * split / wt, wt, rng.uniform(-np.pi, np.pi, 3))
-                amp = rng.uniform(0.3, 1.5) * _DEG
+                amp = rng.uniform(*r["sway_deg"].get(name, (0.3, 1.5))) * _DEG
             sway[name] = _Sines(amp * rng.dirichlet(np.ones(3)), ws, rng.uniform(-np.pi, np.pi, 3))
         hold = {
-            "pitch": rng.uniform(10.0, 35.0) * _DEG,  # tilted up towards the face
-            "roll": rng.uniform(-5.0, 5.0) * _DEG,
-            "yaw": rng.uniform(-8.0, 8.0) * _DEG,  # the hand's heading off the walk's
+            "pitch": rng.uniform(*r["hold_pitch_deg"]) * _DEG,  # tilted up towards the face
+            "roll": rng.uniform(*r["hold_roll_deg"]) * _DEG,
+            "yaw": rng.uniform(*r["hold_yaw_deg"]) * _DEG,  # the hand's heading off the walk's
         }
         return cls(step_hz, v_ref_m_s, gait, wander, tremor, sway, hold)
 

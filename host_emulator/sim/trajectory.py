@@ -43,7 +43,7 @@ import pymap3d
 
 from .drive_script import CAR_ANTENNA_B_M, DriveScript
 from .drive_script import Ramps as Ramps  # re-exported: trajectory.Ramps as before
-from .hand import Hand
+from .hand import AS_HELD, Hand
 
 RATE_HZ = 200
 DT_S = 1.0 / RATE_HZ
@@ -238,6 +238,7 @@ class Truth:
     antenna_b_m: tuple = CAR_ANTENNA_B_M  # IMU -> GNSS antenna, body axes (sim.gnss uses it)
     board_profile: int = 0  # the board's profile setting (config.py): 0 car, 1 handheld
     sensor_grade: str = "calibrated"  # the IMU that goes with it (sim/imu.py `model_for`)
+    receiver: dict = field(default_factory=dict)  # the receiver that goes with it (sim/gnss.py)
 
     dt_s = DT_S
 
@@ -411,6 +412,7 @@ def truth_from_script(
         antenna_b_m=tuple(script.antenna_b_m),
         board_profile=int(script.board_profile),
         sensor_grade=str(script.sensor_grade),
+        receiver=dict(script.receiver),
         outages=tuple(
             (float(s), float(min(length, duration_s - s)))
             for s, length in outages
@@ -635,6 +637,38 @@ def walk(duration_s, seed, outages):
     _in_hand(script, Hand.draw(hand_rng))
     script.sensor_grade = "uncalibrated"
     _walk_route(script, rng, duration_s, outages)
+    return script
+
+
+@_scenario(
+    "walk_real",
+    "a walk as real hands make it: 10 s standing, then 0.4-1.2 m/s with pauses of 2-10 s, "
+    "turns of 45-180 deg on 1-4 m radii, the board held in front pitched up 40-70 deg, pointed "
+    "anywhere against the walk and re-pointed by 15-60 deg, steps of 0.02-0.2 g at the hand; "
+    "an uncalibrated BMI055; a phone-grade receiver at 1 Hz, 3-8 m per axis",
+    300.0,
+    (),
+)
+def walk_real(duration_s, seed, outages):
+    rng, _ = _streams(seed)
+    hand_rng = np.random.default_rng([seed, 3])
+    script = DriveScript(rng.uniform(-np.pi, np.pi))
+    _in_hand(script, Hand.draw(hand_rng, v_ref_m_s=0.8, style=AS_HELD))
+    script.sensor_grade = "uncalibrated"
+    sigma = rng.uniform(3.0, 8.0)
+    script.receiver = {"sigma_h_m": sigma, "sigma_v_m": 2.0 * sigma}
+    script.hold(10.0)
+    while script.t_s < duration_s:
+        v = rng.uniform(0.4, 1.2)
+        script.speed_to(v, rng.uniform(0.3, 0.6), min_s=1.0)
+        script.hold(rng.uniform(3.0, 12.0))
+        kind = rng.uniform()
+        if kind < 0.2:  # a pause: looking around, reading the screen
+            script.speed_to(0.0, rng.uniform(0.4, 0.8), min_s=1.0)
+            script.hold(rng.uniform(2.0, 10.0))
+        else:  # a turn at walking pace on a 1-4 m radius
+            angle = np.copysign(np.deg2rad(rng.uniform(45.0, 180.0)), kind - 0.6)
+            script.turn(angle, v / rng.uniform(1.0, 4.0), ramp_s=rng.uniform(0.3, 0.6))
     return script
 
 

@@ -507,6 +507,7 @@ def test_scenarios_are_registered_with_descriptions():
         "highway_outage",
         "walk_ideal",
         "walk",
+        "walk_real",
         "bicycle",
     }
     for name, build in tr.SCENARIOS.items():
@@ -523,3 +524,22 @@ def test_imu_ranges_pick_the_datasheet_sensitivity(urban):
     data = imu.simulate(urban, wide)
     assert np.array_equal(data.gyro_counts, np.rint(urban.w_ib_b / DEG * 16.4))
     assert np.array_equal(data.accel_counts, np.rint(urban.f_b / 9.80665 * 256.0))
+
+
+def test_walk_real_is_the_hand_as_real_walks_show_it():
+    """walk_real's ranges (sim/hand.py AS_HELD): slow, turning hard, steps damped at the hand,
+    the board pitched up to be read, a phone-grade receiver."""
+    from host_emulator.replay import carrier
+
+    for seed in (0, 1):
+        t = tr.SCENARIOS["walk_real"](duration_s=300.0, seed=seed)
+        moving = t.speed_m_s > 0.1
+        assert 0.5 < t.speed_m_s[moving].mean() < 0.9 and t.speed_m_s.max() <= 1.2 + 1e-9
+        w = np.linalg.norm(t.w_ib_b, axis=1)
+        rms_deg_s = np.degrees(np.sqrt(np.mean(w[moving] ** 2)))
+        assert 25.0 < rms_deg_s < 60.0  # real walks: 35-55 deg/s (the city car: a few)
+        assert np.percentile(w, 99) > 1.2  # rad/s
+        assert carrier.gait(t.f_b, t.dt_s).strongest_g < 0.2  # no heel strike of 0.3-1 g
+        pitch_deg = np.degrees(np.median(t.ypr[:, 1]))
+        assert 35.0 < pitch_deg < 75.0
+        assert 3.0 <= t.receiver["sigma_h_m"] <= 8.0 and t.board_profile == 1
