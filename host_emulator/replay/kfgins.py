@@ -504,7 +504,11 @@ def _read_waypoints(desc_path, desc):
     check_increasing(path, tab[:, 0], [n for n, _ in rows[1:]], "gpst_sow")
     t = desc["gpsweek"] * WEEK_S + tab[:, 0]
     wp = Positions(t, tab[:, 1], tab[:, 2], np.zeros(len(t)))
-    return wp.select(_window(desc, tab[:, 0]))
+    keep = _window(desc, tab[:, 0])
+    if not keep.any():
+        raise FormatError(f"{path}: none of its {len(t)} waypoints lies between starttime and "
+                          "endtime")  # fmt: skip
+    return wp.select(keep)
 
 
 def read(path):

@@ -117,3 +117,15 @@ def test_a_bad_waypoint_file_says_where(drive, tmp_path, text, says):
     (d / "waypoints.csv").write_text(text)
     with pytest.raises(FormatError, match=says):
         kfgins.read(d)
+
+
+def test_waypoints_outside_starttime_and_endtime_are_an_error(drive, tmp_path):
+    d = _written(drive, tmp_path)
+    sow0 = drive.truth.t_s[0] % kfgins.WEEK_S
+    yaml = d / "dataset.yaml"
+    yaml.write_text(yaml.read_text() + f"starttime: {sow0 + 50.0:.3f}\n")
+    _waypoints_csv(drive, d / "waypoints.csv", [10.0, 20.0])  # both before the window
+    with pytest.raises(FormatError, match=r"none of its 2 waypoints lies between starttime"):
+        kfgins.read(d)
+    _waypoints_csv(drive, d / "waypoints.csv", [10.0, 60.0, 70.0])
+    assert len(kfgins.read(d).waypoints) == 2
