@@ -108,10 +108,10 @@ def errors(tr, truth_t_s, truth_p_n, truth_v_n, truth_ypr, outages=(), covered=N
     track is scored only there."""
     dt = float(truth_t_s[1] - truth_t_s[0])
     nav = (tr.state == NAVIGATING) & (tr.t_s <= truth_t_s[-1] + 1e-9)
+    k = np.clip(np.rint((tr.t_s - truth_t_s[0]) / dt).astype(int), 0, truth_t_s.size - 1)
     if covered is not None:
-        k = np.clip(np.rint((tr.t_s - truth_t_s[0]) / dt).astype(int), 0, truth_t_s.size - 1)
         nav &= covered[k]
-    idx = np.rint((tr.t_s[nav] - truth_t_s[0]) / dt).astype(int)
+    idx = k[nav]
     t = tr.t_s[nav]
     out = np.zeros(t.size, bool)
     for start, length in outages:

@@ -384,9 +384,6 @@ class Cpu:
     # -- exceptions ---------------------------------------------------------------------
 
     def _take_pending(self):
-        if not self.nvic.pending:  # most stops: nothing to take (nvic.take() would say so)
-            self.counter.irq_pending = 0
-            return
         n = self.nvic.take()
         while n is not None:
             self._enter(n)

@@ -124,7 +124,7 @@ class Scs(Peripheral):
     def take(self):
         """The exception to take now, or None; updates the counter's irq_pending flag."""
         cpu = self.chip.cpu
-        best = self._candidate()
+        best = self._candidate() if self.pending else None  # most stops: nothing pending
         if best is None:
             cpu.counter.irq_pending = 0
             return None

@@ -168,18 +168,11 @@ def reference_metrics(rep, tr):
         fw = evaluate.waypoint_errors(tr.t_s[nav], tr.p_n[nav, :2], wp, TRACK_GAP_S)
         g = rep.gnss
         fix_t = g.t_fix_s[g.valid]
-        fix_gap = fix_gap_s(fix_t)
+        fix_gap = to_stimulus.max_gap_s(fix_t) or 0.0  # the reference's rule, for the fixes
         fixes = evaluate.waypoint_errors(fix_t, (g.p_ant_n + g.err_n_m)[g.valid, :2], wp, fix_gap)
         out["waypoints"] = {"n": int(keep.sum()), "firmware": evaluate.spread(fw),
                             "fixes": evaluate.spread(fixes), "fix_gap_s": fix_gap}  # fmt: skip
     return out
-
-
-def fix_gap_s(t_s):
-    """The longest interval between two fixes across which a waypoint is still scored: the
-    reference's rule (to_stimulus.GAP_FACTOR x the median interval)."""
-    d = np.diff(np.asarray(t_s, float))
-    return float(to_stimulus.GAP_FACTOR * np.median(d)) if d.size else 0.0
 
 
 def markdown(m, rep, console=()):

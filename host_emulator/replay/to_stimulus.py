@@ -122,14 +122,21 @@ GAP_FACTOR = 1.5
 WAYPOINT_TOL_S = 0.05
 
 
+def max_gap_s(epochs_t_s, factor=GAP_FACTOR):
+    """The longest interval between two epochs still joined by a line for scoring: `factor` x
+    their median interval (None for fewer than two epochs)."""
+    d = np.diff(np.asarray(epochs_t_s, float))
+    return factor * float(np.median(d)) if d.size else None
+
+
 def reference_covered(ref_t_s, t_s, factor=GAP_FACTOR):
     """(per time of t_s: inside the reference, max gap s): a time is covered at an epoch, or
-    between two epochs at most `factor` x their median interval apart."""
+    between two epochs at most max_gap_s apart."""
     ref = np.asarray(ref_t_s, float)
     t = np.asarray(t_s, float)
-    if ref.size < 2:
+    max_gap = max_gap_s(ref, factor)
+    if max_gap is None:
         return np.abs(t - ref[0]) <= 1e-6 if ref.size else np.zeros(t.size, bool), None
-    max_gap = factor * float(np.median(np.diff(ref)))
     j = np.clip(np.searchsorted(ref, t), 1, ref.size - 1)
     inside = (t >= ref[0] - 1e-6) & (t <= ref[-1] + 1e-6)
     at_epoch = (np.abs(ref[j] - t) <= 1e-6) | (np.abs(ref[j - 1] - t) <= 1e-6)

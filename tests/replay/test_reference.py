@@ -94,6 +94,8 @@ def test_waypoints_are_read_and_the_output_is_scored_there_alone(drive, tmp_path
     # the simulated receiver's fixes (noise and multipath: metres), the firmware near them
     assert 0.5 < wp["fixes"]["median"] < 8.0 and 0.2 < wp["firmware"]["median"] < 6.0
     # the continuous figures are those of the samples at the waypoints: 5 of them, not 500
+    # (each waypoint covers the ticks within WAYPOINT_TOL_S of it: 21 ticks of 5 ms)
+    assert m["reference"]["scored_s"] == pytest.approx(5 * 21 * 0.005)
     lat0, lon0 = lat[0], lon[0]
     e, n, _ = pymap3d.geodetic2enu(lat, lon, 0.0, lat0, lon0, 0.0)
     assert np.hypot(e[-1], n[-1]) > 50  # the waypoints are spread along the drive
