@@ -8,7 +8,8 @@
 # (`import nav`), so they are frozen as top-level modules; drivers/ is a package. The port's
 # default frozen modules (asyncio, dht, onewire) are not included: the firmware uses none.
 #
-# The Python reference kernels (lib/nav_kern.py, drivers/gnss_kern.py: what navk does natively)
+# The Python reference kernels (lib/nav_kern.py, lib/yaw_gsf.py, drivers/gnss_kern.py: what
+# navk does natively)
 # are not frozen: a board runs navk, and a board without lib/navk.mpy says so and does not
 # start (main.py; kern.py). include(..., reference_kernels=True) freezes them too, for a VM
 # that runs the firmware with its Python kernels (the emulated Cortex-M4F's manifest).
@@ -26,7 +27,7 @@ lib = [
 ]  # fmt: skip
 if options.reference_kernels:
     drivers.append("gnss_kern.py")
-    lib.append("nav_kern")
+    lib.extend(("nav_kern", "yaw_gsf"))
 package("drivers", files=sorted(drivers))
 for name in sorted(lib):
     module(name + ".py", base_path="lib")

@@ -1,8 +1,9 @@
 """firmware/manifest.py, the freeze list, read by MicroPython's own manifest runner
 (tools/manifestfile.py of the vendored v1.28.0 tree; MICROPY_DIR= points at another checkout):
 it lists every firmware file but main.py and the Python reference kernels (lib/nav_kern.py,
-drivers/gnss_kern.py: the board runs navk), under the names the board imports them by;
-included with reference_kernels=True (the emulated Cortex-M4F's manifest) it lists those too.
+lib/yaw_gsf.py, drivers/gnss_kern.py: the board runs navk), under the names the board imports
+them by; included with reference_kernels=True (the emulated Cortex-M4F's manifest) it lists
+those too.
 The firmware runs from that layout in the MicroPython VM with the native kernels and nothing
 else on its path, and without them it says in one line why it cannot start."""
 
@@ -17,8 +18,8 @@ from common.firmware_env import FIRMWARE_DIR, REPO_DIR, import_module
 from host_emulator.runtimes.mpy_unix import vm as mpvm
 
 MICROPY_DIR = os.environ.get("MICROPY_DIR") or str(REPO_DIR.parent / "shared/vendor/micropython")
-REFERENCE_KERNELS = {"lib/nav_kern.py": "nav_kern.py", "drivers/gnss_kern.py":
-                     "drivers/gnss_kern.py"}  # fmt: skip
+REFERENCE_KERNELS = {"lib/nav_kern.py": "nav_kern.py", "lib/yaw_gsf.py": "yaw_gsf.py",
+                     "drivers/gnss_kern.py": "drivers/gnss_kern.py"}  # fmt: skip
 
 
 def _frozen(**options):

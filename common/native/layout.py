@@ -69,6 +69,9 @@ LAYOUT = (
      ("_NS_*", "_NR_*")),
     ("drivers.uart_dma", "the DMA transmitter's state DmaTx._tx", "", ("TX_*", "NTX")),
     ("status_page", "text_num's forms of a number", "", ("TN_*",)),
+    ("yaw_gsf", "the yaw estimator's bank at Navigator.mem[M_GSF], a hypothesis in it, "
+     "gsf_step's bits, P's yaw variance in Navigator.mem", "",
+     ("GSF_*", "_H_*", "_NH", "_NST", "_G_*", "NG", "_P_YAW")),
     ("kern", "the native module's ABI, which kern.py checks", "NAVK_", ("ABI",)),
 )  # fmt: skip
 
@@ -81,6 +84,9 @@ TUNING = (
       "CDEG_PER_RAD")),
     ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_M", "_STEP_*")),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),
+    ("yaw_gsf", "the yaw estimator", "GSF_",
+     ("V0_VAR", "B0_VAR", "W_MIN", "EXP_CUT", "SIXTH", "TWENTYFOURTH", "SIXTYFOURTH", "THIRD",
+      "NINE", "INNOV_BAD")),
 )  # fmt: skip
 
 # NAME = const(...), NAME = <int>, NAME = f32.<f32|ratio|from_bits>(...), at column 0

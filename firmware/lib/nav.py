@@ -58,6 +58,21 @@ from ins import Ins
 from nav_aid import Aiding
 from nav_align import Alignment
 
+# ---- yaw_gsf.py's consts used here: `python -m common.native.layout` writes them ----
+_GSF_N = const(6)
+_NH = const(57)
+_G_DYAW = const(5)
+_G_QA = const(10)
+_G_QW = const(11)
+_G_READY = const(12)
+_G_RMIN = const(13)
+_G_QB = const(14)
+_G_RV = const(15)
+_G_HYP = const(86)
+_GSF_DISAGREES = const(2)
+_GSF_NAV_BAD = const(4)
+# ---- end of yaw_gsf.py's consts ----
+
 ALIGNING = const(1)
 NAVIGATING = const(2)
 RING = const(128)  # ticks of state history for the GNSS delay (640 ms at 200 Hz): the fix
@@ -244,13 +259,18 @@ _C_JUMPED = const(71)  # 1: the run of rejected fixes began with a jump (nav_aid
 _C_LAST_TICK = const(72)  # measurement tick of the last fix the filter took (0: none; _M_LAST)
 _C_FROZEN = const(73)  # 1: the repeats of the last fix were judged frozen (_frozen)
 _C_T_STAMP_LAG = const(74)  # the fixes' positions are this much older than their stamps
-_NC = const(75)
+_C_GSF = const(75)  # 1: the yaw estimator's bank runs (yaw_gsf.py; from the first levelled fix)
+_C_GSF_DIS = const(76)  # tick of the first fix of a run the bank disagrees with (0: none)
+_C_T_GSF = const(77)  # a disagreement this long, and the navigator's innovations: a reset
+_NC = const(78)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
 _OPT_NHC = const(2)
 _OPT_CONING = const(4)
 _OPT_LAG = const(8)  # search the fixes' lag (cfg.gnss_lag_learn)
+_OPT_GSF = const(16)  # the heading from the yaw estimator (cfg.yaw_gsf)
+_OPT_COURSE = const(32)  # ... or, until it knows, from the course (cfg.heading_from_course)
 # self.mem: every float buffer a tick touches, in one (layout.h M_*), so that the native
 # `nav_tick` takes few arguments: a call of many arguments makes its caller's frame too large
 # for the C stack, and MicroPython then allocates the frame on the heap at every call
@@ -278,7 +298,8 @@ _M_LAST = const(1654)  # the last fix the filter took: its antenna east, north i
 _M_LS = const(1656)  # the lag search (nav_kern.lag_search): residuals east, north and their means
 _M_BS = const(1704)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
 _M_AW = const(1709)  # the aiding watch: running means of normalised innovations (_AW_*, 2)
-_NM = const(1711)
+_M_GSF = const(1711)  # the yaw estimator's bank (yaw_gsf.py, _G_*: NG)
+_NM = const(2139)
 # mem's _M_BW and _M_BS: the scalars the drift watch follows, position E, N, U, velocity E, N
 _BW_N = const(5)
 # mem's _M_AW: the aiding watch (nav_kern.aid_watch), and its result's bits
@@ -378,11 +399,14 @@ class Navigator(Alignment, Aiding):
             | (_OPT_NHC if cfg.nhc else 0)
             | (_OPT_CONING if self.ins.coning else 0)
             | (_OPT_LAG if cfg.gnss_lag_learn else 0)
+            | (_OPT_GSF if cfg.yaw_gsf else 0)
+            | (_OPT_COURSE if cfg.heading_from_course or not cfg.yaw_gsf else 0)
         )
         c[_C_T_LATENCY] = _ticks(cfg.gnss_latency_s, dt)
         c[_C_T_STAMP_LAG] = _ticks(cfg.gnss_stamp_lag_s, dt)
         c[_C_T_TRACK] = max(1, _ticks(cfg.track_max_s, dt))
         c[_C_T_STUCK] = max(1, _ticks(cfg.imu_stuck_s, dt))
+        c[_C_T_GSF] = _ticks(cfg.yaw_gsf_reset_s, dt)
         # called before a step that allocates while navigating (re-anchoring, a reset): the
         # app makes room on the heap then (it checks nothing while navigating otherwise)
         self.heap_check = None
@@ -426,6 +450,16 @@ class Navigator(Alignment, Aiding):
         ini[eskf.IX_ATT + 1] = tilt2
         ini[eskf.IX_ATT + 2] = cfg.init_yaw_sigma * cfg.init_yaw_sigma
         kf.set_gate(cfg.gate_sigma, 1.0 / cfg.gyro_bias_tau_s, 1.0 / cfg.accel_bias_tau_s)
+        g = f32.view(self.mem, _M_GSF, _G_HYP)  # the yaw estimator's tuning (yaw_gsf.py)
+        g[_G_QA] = cfg.yaw_gsf_accel_sigma * cfg.yaw_gsf_accel_sigma
+        g[_G_QW] = cfg.yaw_gsf_rate_sigma * cfg.yaw_gsf_rate_sigma
+        g[_G_READY] = cfg.yaw_gsf_ready_sigma * cfg.yaw_gsf_ready_sigma
+        g[_G_RMIN] = cfg.yaw_gsf_reset_min * cfg.yaw_gsf_reset_min
+        g[_G_QB] = cfg.yaw_gsf_bias_walk * cfg.yaw_gsf_bias_walk
+        rv = cfg.yaw_gsf_vel_sigma
+        if cfg.gnss_vel_sigma > rv:
+            rv = cfg.gnss_vel_sigma
+        g[_G_RV] = rv * rv
 
     def _set_calibration(self, cfg):
         cal = f32.view(self.mem, _M_CAL, _NCAL)
@@ -704,6 +738,8 @@ class Navigator(Alignment, Aiding):
         ins_step(x, self._w, self._f, ins.coning)
         # ring of state history, minus the corrections injected so far
         ring_put(self._ring_p, self._ring_v, x, self._corr, (c[_C_TICK] % RING) * 3)
+        if c[_C_GSF]:
+            self._gsf_accum()
         c[_C_SINCE_PROP] += 1
         c[_C_SINCE_ZUPT] += 1
         c[_C_SINCE_NHC] += 1
@@ -746,7 +782,46 @@ class Navigator(Alignment, Aiding):
         # the height is fx[_FX_H], at index 0: fx serves as to_enu's height buffer
         self.frame.to_enu(self._gp, c[_C_FIX_LAT], c[_C_FIX_LON_DEG], c[_C_FIX_LON_FRAC],
                           self._fx)  # fmt: skip
+        if c[_C_OPTS] & _OPT_GSF and self._gsf_watch():
+            return  # the heading was reset to the yaw estimator's, at this fix
         c[_C_FIX_QUEUED] = 1  # until the filter is free (see _schedule)
+
+    def _gsf_watch(self):
+        """The yaw estimator's step at a navigating fix (yaw_gsf.py): True when it has
+        disagreed with the navigator's heading for _C_T_GSF ticks (ready, beyond 3 sigma of
+        both) and the navigator's own innovations say it is wrong too (fixes rejected, gated
+        or drifting away, or its positions' y^2 / S high on the mean: GSF_NAV_BAD), and the
+        heading, velocity and covariance were reset (_gsf_reset).
+        The float work is the step's (a native kernel on the board): nothing allocates."""
+        c = self.ctl
+        r = self._gsf_step()
+        if not r & _GSF_DISAGREES:
+            c[_C_GSF_DIS] = 0
+            return False
+        t = c[_C_TICK]
+        if not c[_C_GSF_DIS]:
+            c[_C_GSF_DIS] = t
+        if t - c[_C_GSF_DIS] < c[_C_T_GSF]:
+            return False
+        if not (r & _GSF_NAV_BAD or c[_C_REJECTS] or t < c[_C_GATED_UNTIL]
+                or t < c[_C_DRIFT_UNTIL]):  # fmt: skip
+            return False
+        self._gsf_reset()
+        return True
+
+    def _apply_dx(self):
+        """The filter's dx into the state (the `inject` kernel), without a job's bookkeeping:
+        nav_align._gsf_turn's rotation."""
+        inject(self.ins.x, self.kf.e, self._corr)
+
+    def _gsf_accum(self):
+        """The yaw estimator's share of a tick (the Python flow's: natively nav_tick's)."""
+        yaw_gsf.gsf_accum(self.mem)
+
+    def _gsf_step(self):
+        if _gsf_step is None:
+            return yaw_gsf.gsf_step(self.ctl, self.mem)
+        return _gsf_step(self.ctl, self.mem)
 
     def _frozen(self, usable):
         """True, and CAUSE_GNSS_IMPLAUSIBLE for a second, when the usable fix repeats the last
@@ -800,6 +875,10 @@ class Navigator(Alignment, Aiding):
         m = self.mem
         m[_M_LAST] = m[_M_LAST] - dp[0]
         m[_M_LAST + 1] = m[_M_LAST + 1] - dp[1]
+        for k in range(_GSF_N):  # the yaw estimator's positions, in the new frame
+            h = _M_GSF + _G_HYP + k * _NH
+            m[h] = m[h] - dp[0]
+            m[h + 1] = m[h + 1] - dp[1]
         fr.set_origin(e7[0], e7[1], e7[2], hb[0])
         ins.set_frame(fr)
         self.reanchors += 1
@@ -877,6 +956,9 @@ class Navigator(Alignment, Aiding):
         -= dv, q = q(phi) (x) q, b += db."""
         kf = self.kf
         c = self.ctl
+        # the yaw correction turns the navigator, not the truth: the bank's offsets less it
+        m = self.mem
+        m[_M_GSF + _G_DYAW] = m[_M_GSF + _G_DYAW] + kf.e[eskf.E_DX + eskf.IX_ATT + 2]
         inject(self.ins.x, kf.e, self._corr)
         kf.i[eskf.I_READY] = 0
         job = c[_C_JOB]
@@ -985,6 +1067,8 @@ class Navigator(Alignment, Aiding):
         c[_C_LEVELED] = 0
         c[_C_REJECTS] = 0
         c[_C_V_REJECTS] = 0
+        c[_C_GSF] = 0  # the attitude the bank's offsets were relative to is gone
+        c[_C_GSF_DIS] = 0
         c[_C_LAST_TICK] = 0  # the frame may move with the re-alignment
         c[_C_LAG_TICK] = 0
         c[_C_FAULT_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
@@ -1081,15 +1165,18 @@ ins_step = ins_mod.step
 # A board with navk never runs them (nav_tick does their work), and their functions and floats
 # would take about a kilobyte of its heap (docs/benchmarks/board.md, "Heap and start-up").
 nav_kern = None
+yaw_gsf = None
 
 
 def _load_python_kernels():
-    global nav_kern
+    global nav_kern, yaw_gsf
     try:
         import nav_kern as mod
-    except ImportError as e:  # a board image does not freeze it: kern.Missing, main.py says so
+        import yaw_gsf as gsf
+    except ImportError as e:  # a board image does not freeze them: kern.Missing, main.py says so
         raise kern.missing(e) from None
     nav_kern = mod
+    yaw_gsf = gsf
 
 
 if not kern.NATIVE or kern.HOST:
@@ -1100,6 +1187,7 @@ _nav_tick = kern.pick("nav_tick", None)  # the reference: Navigator._tick and it
 fix_in = _k.fix_in
 _gnss_fix = kern.pick("gnss_fix", None)  # the reference: Navigator.gnss_fix
 _fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
+_gsf_step = kern.pick("gsf_step", None)  # the reference: yaw_gsf.gsf_step
 fix_check = _k.fix_check
 imu_cal = _k.imu_cal
 still = _k.still

@@ -31,7 +31,8 @@ import f32
 import kern
 import rot
 from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
-from nav_aid import NO_HEIGHT_VAR
+from nav_aid import NO_HEIGHT_VAR, UNCONFIRMED
+from navcfg import G0_M_S2
 
 # The Navigator's buffers, as nav.py lays them out (an underscore const is inlined and exists
 # only in its own module, so a module that indexes them repeats what it uses)
@@ -49,6 +50,7 @@ _C_TICK = const(0)
 _C_STATE = const(1)
 _C_STILL = const(3)
 _C_ACCEPT_TICK = const(9)
+_C_REJECTS = const(10)
 _C_SINCE_PROP = const(11)
 _C_FIX_PENDING = const(15)
 _C_FIX_TICK = const(19)
@@ -63,9 +65,32 @@ _C_TRK_SET = const(30)
 _C_TRK_TICK = const(31)
 _C_T_LEVEL = const(38)
 _C_T_TRACK = const(39)
+_C_OPTS = const(43)
+_C_V_REJECTS = const(47)
+_C_RESET_UNTIL = const(62)
+_C_GSF = const(75)
+_C_GSF_DIS = const(76)
+_OPT_GSF = const(16)
+_OPT_COURSE = const(32)
 _M_CN = const(1645)
+_M_GSF = const(1711)
 _CN_VV = const(4)
 # ---- end of nav.py's consts ----
+# ---- eskf.py's consts used here: `python -m common.native.layout` writes them ----
+_IX_ATT = const(6)
+_E_DX = const(654)
+# ---- end of eskf.py's consts ----
+# ---- yaw_gsf.py's consts used here: `python -m common.native.layout` writes them ----
+_GSF_N = const(6)
+_NH = const(57)
+_G_DYAW = const(5)
+_G_YAW = const(6)
+_G_VAR = const(7)
+_G_V = const(8)
+_G_B = const(84)
+_G_HYP = const(86)
+_GSF_READY = const(1)
+# ---- end of yaw_gsf.py's consts ----
 
 # self._trk: the track anchors (heading from GNSS positions, see _track), used only here: a
 # float array, 3 floats per anchor, oldest first, and an int array of their measurement ticks,
@@ -82,6 +107,15 @@ MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this can
 _nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation_py
 _euler = kern.pick("euler", rot.dcm_to_euler)
 _fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
+
+
+def _wrap(a):
+    """a (within 3 pi of 0) into -pi..pi."""
+    if a > PI:
+        return a - TWO_PI
+    if a < -PI:
+        return a + TWO_PI
+    return a
 
 
 class Alignment:
@@ -119,6 +153,8 @@ class Alignment:
                 th[i] = (w[i] - bg[i]) * dt
             rot.q_update(ins.q_bn, th)
             rot.q_to_dcm(ins.c_bn, ins.q_bn)
+        if c[_C_GSF]:
+            self._gsf_accum()
         if c[_C_FIX_PENDING]:
             c[_C_FIX_PENDING] = 0
             self._align_fix()
@@ -176,6 +212,8 @@ class Alignment:
         if not c[_C_LEVELED]:
             c[_C_TRK_SET] = 0
             return
+        if c[_C_OPTS] & _OPT_GSF and (self._gsf_align() or not c[_C_OPTS] & _OPT_COURSE):
+            return
         # fix_check's bits, not the floats: an aligning fix boxes no float (nav_kern.fix_check)
         if u & _FC_COURSE or (u & _FC_SPEED and not u & _FC_FAST):
             # the receiver's course, or its speed says it (nearly) stands: the track's chord
@@ -185,6 +223,81 @@ class Alignment:
                 self._course_start(fx[_FX_COURSE])
         else:
             self._track()
+
+    def _gsf_align(self):
+        """The yaw estimator's step at an aligning fix (yaw_gsf.py): once it knows the
+        heading, navigation starts from it and from its velocity, whatever the course (a
+        board in a hand points anywhere), and True; the heading's variance is the larger of
+        the bank's and init_yaw_sigma^2."""
+        if not self._gsf_step() & _GSF_READY:
+            return False
+        self._room()  # the start computes in Python floats
+        m = self.mem
+        ve = m[_M_GSF + _G_V]
+        vn = m[_M_GSF + _G_V + 1]
+        yaw = self._yaw_now() + m[_M_GSF + _G_YAW]
+        course = atan2(ve, vn)
+        self._start_navigation(course, sqrt(ve * ve + vn * vn), self.cfg.init_vel_sigma,
+                               m[_M_GSF + _G_VAR])  # fmt: skip
+        self._gsf_turn(yaw + course)  # the start set the yaw to -course
+        return True
+
+    def _gsf_reset(self):
+        """The heading, horizontal velocity and covariance from the yaw estimator, the
+        position from the fix, when the bank and the navigator's own innovations agree that
+        its heading is wrong (nav._gsf_watch); a reset as _reset_to_gnss's (CAUSE_RESET
+        until a fix agrees with it). The biases are kept: a heading wrong from the start is
+        no bias's doing."""
+        self._room()
+        c = self.ctl
+        m = self.mem
+        self._yaw_var(m[_M_GSF + _G_VAR])
+        v = self._tmp3
+        v[0] = m[_M_GSF + _G_V]
+        v[1] = m[_M_GSF + _G_V + 1]
+        v[2] = 0.0
+        sh = self._sigma_h()
+        self._restart(self._gp, v, c[_C_TICK] - c[_C_FIX_TICK], sh, self._sigma_v(sh),
+                      self.cfg.init_vel_sigma)  # fmt: skip
+        self._gsf_turn(m[_M_GSF + _G_YAW])
+        c[_C_REJECTS] = 0
+        c[_C_V_REJECTS] = 0
+        c[_C_GSF_DIS] = 0
+        c[_C_RESET_UNTIL] = UNCONFIRMED
+        self.resets += 1
+
+    def _gsf_turn(self, d):
+        """After a start or a reset (no filter job, dx 0): the attitude turned by the bank,
+        about the vertical by d (rad) and in roll and pitch by its weighted specific force
+        error b (east, north in the navigator's frame): phi = (b_N / g, -b_E / g, d), which
+        takes b out of C_bn f (phi x g_up = -b), applied as a correction is (the navigator's
+        `inject` kernel: q = q(phi) (x) q); the bank's offsets less d and its force errors
+        less b. Levelling needs a standstill; a hand or a car that never stops leaves a tilt
+        (and an accelerometer bias that looks like one) which the turns reveal to the bank."""
+        m = self.mem
+        e = self.kf.e
+        be = m[_M_GSF + _G_B]
+        bn = m[_M_GSF + _G_B + 1]
+        d = _wrap(d)
+        e[_E_DX + _IX_ATT] = bn / G0_M_S2
+        e[_E_DX + _IX_ATT + 1] = -be / G0_M_S2
+        e[_E_DX + _IX_ATT + 2] = d
+        self._apply_dx()
+        self._turned(d)
+        for k in range(_GSF_N):
+            h = _M_GSF + _G_HYP + k * _NH
+            m[h + 5] = m[h + 5] - be
+            m[h + 6] = m[h + 6] - bn
+
+    def _yaw_now(self):
+        ypr = self._tmp3
+        _euler(ypr, self.ins.c_bn)
+        return ypr[rot.YAW]
+
+    def _turned(self, d):
+        """The navigator's yaw was set, turned by d (rad): the bank's offsets less d."""
+        m = self.mem
+        m[_M_GSF + _G_DYAW] = m[_M_GSF + _G_DYAW] + _wrap(d)
 
     def _course_start(self, course):
         """Navigation starts from the receiver's course and speed; the course's 1-sigma is
@@ -275,11 +388,7 @@ class Alignment:
         _track). Its frame, and _track_start's, stay within the VM's on-stack limit
         (tests/runtimes/test_frames.py): the chord goes through the scratch self._tmp3."""
         self.ctl[_C_TRK_SET] = 0
-        yaw = yaw - self._trk[0][3 * i + _TR_YAW]  # the yaw change over the window
-        if yaw > PI:
-            yaw = yaw - TWO_PI
-        elif yaw < -PI:
-            yaw = yaw + TWO_PI
+        yaw = _wrap(yaw - self._trk[0][3 * i + _TR_YAW])  # the yaw change over the window
         if not -self.cfg.track_turn_max <= yaw <= self.cfg.track_turn_max:
             return False
         t = self._tmp3
@@ -308,6 +417,7 @@ class Alignment:
         Natively
         one kernel (`nav_start`), which mirrors `_start_navigation_py` and `_restart`."""
         self._yaw_var(var_course)  # (the caller asked for heap room: _course_start, _track)
+        self._turned(-course - self._yaw_now())
         if self._fx[_FX_SIG_V] < 0.0:  # a receiver without height: the height is unknown
             self.mem[_M_CN + _CN_VV] = NO_HEIGHT_VAR
         if _nav_start is None:

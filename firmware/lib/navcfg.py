@@ -112,6 +112,36 @@ class NavConfig:
         self.track_max_s = f32.f32(20)
         self.track_turn_max = _deg(30)  # rad
         self.track_vel_sigma = f32.f32(2)  # m/s
+        # The heading from motion alone (yaw_gsf.py, docs/navigation.md "The yaw estimator"):
+        # a bank of yaw hypotheses weighed by how well each explains the fixes' positions and
+        # velocities. On (True), navigation starts when the bank's yaw 1-sigma is under
+        # yaw_gsf_ready_sigma, from its heading and velocity, whatever the course says (the
+        # course and track starts above serve only with it off); while navigating, a bank
+        # that disagrees by more than 3 sigma and yaw_gsf_reset_min for yaw_gsf_reset_s, while
+        # the navigator's own fixes are rejected or gated or drift, resets the heading.
+        self.yaw_gsf = True
+        # with it, the course and track starts too, whichever comes first: a car points where
+        # it goes; a board in hand need not (then the bank resets a wrong start)
+        self.heading_from_course = True
+        # m/s^2 / sqrt(Hz): what the summed specific force misses beyond the error the bank
+        # estimates (the IMU's noise, a hand's lever), rad / sqrt(s): the offsets' random
+        # walk (a gyro bias of 0.1 deg/s after levelling, with margin)
+        self.yaw_gsf_accel_sigma = f32.ratio(1, 10)
+        self.yaw_gsf_rate_sigma = _deg(1, 2)
+        # m/s^2 / sqrt(s): how fast the specific force's error in the navigator's frame may
+        # change (a body-fixed accelerometer bias turns with the board)
+        self.yaw_gsf_bias_walk = f32.ratio(1, 20)
+        # a board in hand: 30 deg, a start the filter refines (a hand's course is no
+        # heading); a car: 15 deg, sooner than its course only when sure
+        # m/s: a velocity's 1-sigma to the bank, at least gnss_vel_sigma. The bank compares
+        # it with its hypotheses' velocity at the fix's arrival, later than its measurement
+        # by the latency (0.1 s: a hand's 2 m/s^2 make 0.2 m/s), yet widening it for that
+        # loses more than it gains (`bench-nav --trial walk_real --nav yaw_gsf_vel_sigma=V`:
+        # 2.10 m with 0.08, 2.67 m with 0.3)
+        self.yaw_gsf_vel_sigma = f32.ratio(8, 100)
+        self.yaw_gsf_ready_sigma = _deg(15) if profile == "car" else _deg(30)
+        self.yaw_gsf_reset_min = _deg(20)
+        self.yaw_gsf_reset_s = f32.f32(2)
 
         # Standstill detection (zero-velocity update) and non-holonomic constraint.
         self.zupt = True

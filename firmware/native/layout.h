@@ -244,11 +244,16 @@
 #define C_LAST_TICK 72
 #define C_FROZEN 73
 #define C_T_STAMP_LAG 74
-#define NC 75
+#define C_GSF 75
+#define C_GSF_DIS 76
+#define C_T_GSF 77
+#define NC 78
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
 #define OPT_LAG 8
+#define OPT_GSF 16
+#define OPT_COURSE 32
 #define EV_ALIGN 1
 #define EV_FIX 2
 #define EV_RESET 3
@@ -281,7 +286,8 @@
 #define M_LS 1656
 #define M_BS 1704
 #define M_AW 1709
-#define NM 1711
+#define M_GSF 1711
+#define NM 2139
 #define BW_N 5
 #define AW_LAT 0
 #define AW_UP 1
@@ -463,7 +469,40 @@
 #define TN_SIGNED 0x1000
 #define TN_ZEROS 0x2000
 
+/* yaw_gsf.py: the yaw estimator's bank at Navigator.mem[M_GSF], a hypothesis in it, gsf_step's
+ * bits, P's yaw variance in Navigator.mem */
+#define GSF_N 6
+#define H_X 0
+#define H_P 7
+#define H_W 56
+#define NH 57
+#define NST 7
+#define G_A1 0
+#define G_A2 2
+#define G_T 4
+#define G_DYAW 5
+#define G_YAW 6
+#define G_VAR 7
+#define G_V 8
+#define G_QA 10
+#define G_QW 11
+#define G_READY 12
+#define G_RMIN 13
+#define G_QB 14
+#define G_RV 15
+#define G_PH 16
+#define G_FP 23
+#define G_D 72
+#define G_S 78
+#define G_B 84
+#define G_HYP 86
+#define NG 428
+#define GSF_READY 1
+#define GSF_DISAGREES 2
+#define GSF_NAV_BAD 4
+#define P_YAW 180
+
 /* kern.py: the native module's ABI, which kern.py checks */
-#define NAVK_ABI 9
+#define NAVK_ABI 10
 
 #endif /* NAVK_LAYOUT_H */

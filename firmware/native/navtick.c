@@ -186,6 +186,9 @@ static void align_step(int32_t *c, float *m) {
         rot_q_update(x + X_Q, th);
         rot_q_to_dcm(x + X_C, x + X_Q);
     }
+    if (c[C_GSF]) {
+        navk_gsf_accum(m);
+    }
 }
 
 /* _still_update */
@@ -517,6 +520,8 @@ static void last_fix(int32_t *c, float *m) {
 static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
     float *e = m + M_E;
+    /* the yaw correction turns the navigator, not the truth: the bank's offsets less it */
+    m[M_GSF + G_DYAW] = m[M_GSF + G_DYAW] + e[E_DX + IX_ATT + 2];
     navk_inject(x, e, m + M_CORR);
     ki[I_READY] = 0;
     int32_t job = c[C_JOB];
@@ -635,6 +640,9 @@ int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro,
             }
             navk_ins_step(x, w, f, (c[C_OPTS] & OPT_CONING) ? 1 : 0);
             navk_ring_put(m + M_RING_P, m + M_RING_V, x, corr, (c[C_TICK] % RING) * 3);
+            if (c[C_GSF]) {
+                navk_gsf_accum(m);
+            }
             c[C_SINCE_PROP] += 1;
             c[C_SINCE_ZUPT] += 1;
             c[C_SINCE_NHC] += 1;

@@ -28,12 +28,13 @@ TARGETS = (
                     "_send_frame", "_send_ext")),
     ("drivers.bmi055", "BMI055", ("read",)),
     ("drivers.gnss", "Nmea", ("feed", "_end")),
-    ("nav_align", "Alignment", ("_align_fix", "_level", "_track", "_start_navigation")),
+    ("nav_align", "Alignment", ("_align_fix", "_level", "_track", "_start_navigation",
+                                "_gsf_align", "_gsf_reset", "_gsf_turn", "_yaw_now")),
     ("nav", "Navigator", ("imu_counts", "_reset_event", "gnss_fix", "_take_fix", "_tick", "gnss",
                           "_navigate", "_nav_fix",
                           "_schedule", "_start_queued_fix", "_inject", "_align",
                           "_still_update", "_fix_usable", "_reanchor", "_update_health",
-                          "_fault_reset", "_restart")),
+                          "_fault_reset", "_restart", "_gsf_watch", "_gsf_step", "_apply_dx")),
     ("nav_aid", "Aiding", ("_start_gnss_update", "_start_zupt", "_start_nhc", "_reset_to_gnss",
                            "_lever_n", "_sigma_h", "_sigma_v")),
     ("eskf", "Eskf", ("work", "diagonal_ok", "start_propagation", "start_update", "add_scalar")),
@@ -49,7 +50,7 @@ TARGETS = (
 # nav_tick, where no wrapper sees them; a wrapper costs ~140 bytes of the board's heap)
 KERNELS = ("nav_tick", "nav_frame", "ext_pack", "gnss_fix", "fix_usable", "geo_enu", "euler",
            "nav_start", "bmi055_decode", "gnss_rows", "zupt_rows", "nhc_rows",
-           "nmea_scan")  # fmt: skip
+           "nmea_scan", "gsf_step", "inject")  # fmt: skip
 
 # The wrappers' room: the profile runs on a build whose GC heap is this much larger, so the
 # firmware still gets the board's heap (the wrappers took the room of its largest buffer)

@@ -44,12 +44,15 @@ from host_emulator.model.ins import InsModel
 from host_emulator.model.nav_aid import AidingModel
 from host_emulator.model.nav_align import AlignmentModel
 from host_emulator.model.nav_kern import KernelsModel
+from host_emulator.model.yaw_gsf import PARTS as GSF_PARTS
+from host_emulator.model.yaw_gsf import GsfModel
 
 firmware_env.install()
 import geo as fw_geo  # noqa: E402
 import nav as fw_nav  # noqa: E402  (constants shared with the firmware)
 import nav_align as fw_nav_align  # noqa: E402
 import nav_kern  # noqa: E402  (... and the kernels' tuning)
+import yaw_gsf as fw_gsf  # noqa: E402
 
 
 def _rate_slices(interval, configured):
@@ -77,7 +80,7 @@ def _ticks(seconds, dt):
     return int(F32(seconds) / dt + HALF)
 
 
-class NavModel(AlignmentModel, AidingModel, KernelsModel):
+class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
     """The navigator tick by tick like `nav.Navigator` (same inputs: `imu_raw`/`imu`, `gnss`):
     mechanization, scheduling, injection, resets, health and re-anchoring here, alignment in
     AlignmentModel (nav_align.py), the measurement rows in AidingModel (nav_aid.py), the
@@ -134,6 +137,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         self.prev_g = [0, 0, 0]  # the last counts
         self.prev_a = [0, 0, 0]
         self._set_noise(cfg)
+        self._gsf_init_tuning(cfg)
         self._reset_counters()
 
     def _set_noise(self, cfg):
@@ -386,6 +390,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         slot = self.tick % RING
         self.ring_p[slot] = ins.p_n - self.corr[0:3]
         self.ring_v[slot] = ins.v_n - self.corr[3:6]
+        if self.gsf_on:
+            self._gsf_accum()
         self.since_prop += 1
         self.since_zupt += 1
         self.since_nhc += 1
@@ -423,6 +429,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         if p[0] > lim or p[0] < -lim or p[1] > lim or p[1] < -lim:
             self._reanchor()
         self.gnss_p = self._to_enu(self.fix_lat_e7, self.fix_lon_e7, self.fix[0])
+        if self.cfg.yaw_gsf and self._gsf_watch():
+            return  # nav._nav_fix: the heading was reset to the bank's at this fix
         self.fix_queued = True
 
     def _frozen(self):
@@ -453,6 +461,9 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         ins.shift_origin(dp, rho)
         self.corr[0:3] = self.corr[0:3] - dp
         self.last_fix_en = self.last_fix_en - dp[0:2]
+        hyp = self._hyp()  # the bank's positions, in the new frame
+        hyp[:, 0] = hyp[:, 0] - dp[0]
+        hyp[:, 1] = hyp[:, 1] - dp[1]
         self._set_origin(lat, lon, h)
         ins.set_frame(self.coef)
         self.reanchors += 1
@@ -507,6 +518,16 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         """Closed loop: p -= dp, v -= dv (also into the corrections), b += db,
         q = q(phi) (x) q, dx = 0; then GNSS bookkeeping (all three positions gated: a reject)."""
         kf = self.kf
+        g = self.gsf  # nav._inject: the bank's offsets less the yaw correction
+        g[fw_gsf._G_DYAW] = g[fw_gsf._G_DYAW] + kf.dx[IX_ATT + 2]
+        self._apply_dx()
+        kf.ready = False
+        self._inject_bookkeeping()
+
+    def _apply_dx(self):
+        """nav_kern.inject: p -= dp, v -= dv (also into the corrections), b += db,
+        q = q(phi) (x) q, dx = 0."""
+        kf = self.kf
         ins = self.ins
         dx = kf.dx
         dp = dx[IX_POS : IX_POS + 3]
@@ -521,7 +542,10 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         ins.q_bn = ref_rot.q_normalize(ref_rot.q_mul(dq, ins.q_bn))[0]
         ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
         kf.dx = np.zeros(N, F32)
-        kf.ready = False
+
+    def _inject_bookkeeping(self):
+        """nav._inject after the correction: the watches, rejects and resets of the job."""
+        kf = self.kf
         if self.job == JOB_AID:
             hit = self._aid_watch(kf.innov)
             if hit:  # nav._inject: a sensor step, for 5 s
@@ -583,6 +607,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
         self.leveled = False
         self.rejects = 0
         self.v_rejects = 0
+        self.gsf_on = False
+        self.gsf_dis = 0
         self.last_used_tick = 0  # nav._fault_reset: the frame may move
         self.lag_tick = 0
         self.fault_until = self.tick + self.ticks_second
@@ -687,6 +713,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
             "used_fix": self.used,
             "ypr": self.ypr,
             "frame_coef": self.coef,
+            **{name: self.gsf[a:b] for name, (a, b) in GSF_PARTS.items()},
         }
 
     def _nav_ints(self):
@@ -736,6 +763,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel):
             "updates": self.updates,
             "resets": self.resets,
             "reanchors": self.reanchors,
+            "gsf_on": self.gsf_on,
+            "gsf_dis": self.gsf_dis,
         }
 
     def _kf_frame_ints(self):

@@ -36,6 +36,8 @@ class AlignmentModel:
             theta = (self.w_b - ins.bg) * self.cfg.dt_s
             ins.q_bn = ref_rot.q_update(ins.q_bn, theta)[0]
             ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
+        if self.gsf_on:
+            self._gsf_accum()
         if self.fix_pending:
             self.fix_pending = False
             self._align_fix()
@@ -83,6 +85,10 @@ class AlignmentModel:
         self.ins.p_n = self.gnss_p.copy()
         if not self.leveled:
             self.trk_set = 0
+            return
+        # nav_align._align_fix: the yaw estimator's start, and the course's or the track's
+        # with it (heading_from_course) or without it
+        if cfg.yaw_gsf and (self._gsf_align() or not cfg.heading_from_course):
             return
         course = self.fix[3]
         sp = self.fix[2]
@@ -155,6 +161,7 @@ class AlignmentModel:
         y = self.cfg.init_yaw_sigma
         y = y * y
         self.init_diag[IX_ATT + 2] = var_course if var_course > y else y
+        self._turned(-course - ref_rot.dcm_to_euler(self.ins.c_bn)[fw_rot.YAW])
         if self.fix[5] < 0.0:  # a receiver without height: the height is unknown
             self.consistency[fw_nav._CN_VV] = fw_nav_align.NO_HEIGHT_VAR
         ins = self.ins

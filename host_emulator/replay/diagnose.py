@@ -5,7 +5,8 @@ levelled on the accelerometer (the mean specific force over `level_s` must excee
 gravity), `gnss_stable_fixes` usable fixes in a row (quality >= `gnss_min_quality`, HDOP <=
 `gnss_hdop_max`), and a heading: the receiver's course at a speed >= `heading_speed_m_s`, or
 without a course the track: a chord of `track_min_m` or more between two fixes `track_s` to
-`track_max_s` apart, at that mean speed and turning at most `track_turn_max`. `why` checks
+`track_max_s` apart, at that mean speed and turning at most `track_turn_max`; or the yaw
+estimator's (yaw_gsf.py) once it is sure, on fixes with a velocity. `why` checks
 each condition on what the board was sent (the stimulus: BMI055 counts, the GNSS epochs) with
 the thresholds of the configuration it ran with, and names the first that failed; if all held,
 it says so and quotes the console.
@@ -165,6 +166,12 @@ def why(rep, console=()):
     else:
         no_heading = _track_fails(rep, cfg, usable, hs, tick_s)
     if no_heading is not None:
+        if cfg.yaw_gsf:  # nav_align._gsf_align: the bank's start needed a fix with velocity
+            no_heading += (
+                "; nor did the yaw estimator become sure of one (its 1-sigma under "
+                f"yaw_gsf_ready_sigma {math.degrees(_f(cfg.yaw_gsf_ready_sigma)):.0f} deg: it "
+                "needs fixes with speed and course, and turns or changes of speed)"
+            )
         return no_heading
     said = "; ".join(console) or "nothing"
     return (

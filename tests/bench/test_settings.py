@@ -42,11 +42,12 @@ def test_the_defaults_pass(quick):
 
 
 def test_a_gate_of_one_sigma_fails_with_its_figure(quick):
-    """A user measured 28 m horizontal RMS with gate_sigma=1; the quick walk: 35.8 m."""
+    """A user measured 28 m horizontal RMS with gate_sigma=1; the quick walk: 8.6 m (35.8 m
+    before the yaw estimator reset the heading such a gate lets go wrong), the fixes' 3 m."""
     _text, data = quick
     v = _verdict(data, "gate_sigma", 1.0)
     assert not v["pass"] and any(w.startswith("horiz") for w in v["why"]["walk"]), v
-    assert _run(data, "walk", "gate_sigma", 1.0)["horiz_rms_m"] > 10.0
+    assert _run(data, "walk", "gate_sigma", 1.0)["horiz_rms_m"] > 5.0
 
 
 def test_a_uere_at_its_lower_end_fails_with_its_figure(quick):

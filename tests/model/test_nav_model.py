@@ -26,8 +26,10 @@ import ins as ins_mod
 import nav as nav_mod
 import nav_align
 import navcfg
+import yaw_gsf
 from host_emulator.bench import navigator as nav_runner
 from host_emulator.model.nav import NavModel
+from host_emulator.model.yaw_gsf import PARTS as GSF_PARTS
 from host_emulator.sim import gnss as sim_gnss
 from host_emulator.sim import imu as sim_imu
 from host_emulator.sim import trajectory
@@ -239,6 +241,9 @@ def _firmware_floats(nav):
         "used_fix": nav._used,
         "ypr": nav.ypr,
         "frame_coef": fr.coef,
+        **{
+            name: f32.view(nav.mem, nav_mod._M_GSF + a, b - a) for name, (a, b) in GSF_PARTS.items()
+        },
     }
 
 
@@ -269,6 +274,8 @@ def _firmware_ints(nav):
             "origin_lat_e7": fr.lat0_e7,
             "origin_lon_e7": geo.join_e7(fr.lon0_deg, fr.lon0_frac),
             "frame_valid": fr.valid,
+            "gsf_on": nav.ctl[nav_mod._C_GSF],
+            "gsf_dis": nav.ctl[nav_mod._C_GSF_DIS],
         }
     )
     return ints
@@ -616,7 +623,7 @@ def test_model_of_the_start_from_the_gnss_track():
     sigma, then navigation on positions alone with a stop, all bit for bit."""
     cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1,
                      heading_speed_m_s=f32.f32(3), track_min_m=f32.f32(12),
-                     track_max_s=f32.f32(8))  # fmt: skip
+                     track_max_s=f32.f32(8), yaw_gsf=False)  # fmt: skip
     drive = track_drive(60.0)
     n = len(drive.truth.t_s) - 1
     anchors = []  # the anchor fix's time (s) whenever the anchors start anew
@@ -682,3 +689,62 @@ def test_model_of_a_receiver_whose_fixes_are_late():
     # the set 0.05 s is 10 ticks; the search applies the 0.1 s left (measured: median 20)
     assert nav.ctl[nav_mod._C_T_STAMP_LAG] == 10
     assert 16 <= sorted(applied)[len(applied) // 2] <= 24, sorted(applied)[len(applied) // 2]
+
+
+def test_model_of_the_yaw_estimator_start_and_reset():
+    """The yaw estimator (yaw_gsf.py) on the city drive: its bank from the first levelled fix,
+    navigation started from it alone (no course start), the bank's offsets kept relative to
+    the navigator through every yaw correction; then at 40 s the navigator's heading turned 60
+    deg off, as a start from a course that is not the heading would leave it (the bank told of
+    the turn, as of any start's): the bank disagrees, the navigator's fixes are gated,
+    and the heading is reset to the bank's, all bit for bit."""
+    cfg = car_config(earth_terms=True, coning=False, zupt=True, nhc=True, slices_per_tick=1,
+                     yaw_gsf=True, heading_from_course=False,
+                     yaw_gsf_ready_sigma=f32.from_bits(0x3F000000))  # 0.5 rad  # fmt: skip
+    drive = city_drive(70.0)
+    n = len(drive.truth.t_s) - 1
+    k_turn = round(40.0 / DT)
+    off = f32.from_bits(0x3F860A92)  # 1.0472 rad
+    offsets = []  # the bank's offset from the navigator's heading, each second navigating
+
+    def turn(nav, model, k):
+        # the heading turned by `off` as a correction turns it (the filter's job left as it
+        # is), and the bank told, as a start or a reset tells it
+        e, dx = nav.kf.e, model.kf.dx
+        kept, kept_m = [e[eskf.E_DX + i] for i in range(eskf.N)], dx.copy()
+        for i in range(eskf.N):
+            e[eskf.E_DX + i] = 0.0
+        e[eskf.E_DX + eskf.IX_ATT + 2] = off
+        nav._apply_dx()
+        model.kf.dx = np.zeros(eskf.N, np.float32)
+        model.kf.dx[eskf.IX_ATT + 2] = off
+        model._apply_dx()
+        for i in range(eskf.N):
+            e[eskf.E_DX + i] = kept[i]
+        model.kf.dx = kept_m
+        nav._turned(off)
+        model._turned(off)
+        watch(nav, model, k)
+
+    def watch(nav, model, k):
+        nav.imu_raw(drive.gyro[k], drive.accel[k])
+        model.imu_raw(drive.gyro[k], drive.accel[k])
+        if k % 200 == 0 and nav.state == NAVIGATING:
+            offsets.append((k * DT, float(nav.mem[nav_mod._M_GSF + yaw_gsf._G_YAW]), nav.resets))
+
+    hooks = dict.fromkeys(range(n), watch)
+    hooks[k_turn] = turn
+    nav, _, seen = side_by_side(drive, cfg, n, hooks=hooks)
+    assert nav.ctl[nav_mod._C_GSF] == 1
+    # the start came from the bank, before the first turn (the course start is off)
+    assert seen.nav_tick is not None and seen.nav_tick * DT < 12.0, seen.nav_tick
+    before = [abs(y) for t, y, _ in offsets if 30.0 <= t < 40.0]
+    after = [y for t, y, _ in offsets if 41.0 <= t < 43.0]
+    end = [abs(y) for t, y, _ in offsets if t >= 60.0]
+    resets = {t: r for t, _, r in offsets}
+    assert before and max(before) < 0.1, offsets  # the bank agrees with the navigator
+    assert after and all(y < -0.5 for y in after), offsets  # ... sees the turn at once
+    # a reset after the turn, none before it, and health 2 (CAUSE_RESET) until a fix agrees
+    assert resets[40.0] == 0 and nav.resets >= 1, offsets
+    assert any(k & nav_mod.CAUSE_RESET for k in seen.causes)
+    assert end and max(end) < 0.15, offsets  # and after the reset agrees again (9 deg)

@@ -73,8 +73,9 @@ def test_with_python_kernels_the_image_runs_them_from_flash_lib(tmp_path):
     them."""
     stim = board_input.simulate("quick_start", duration_s=2.0, seed=0).stimulus
     files = f411.deployed_files(stim, None, "python", tmp_path / "files")
-    assert sorted(files) == ["ins.cfg", "lib/gnss_kern.mpy", "lib/nav_kern.mpy", "main.py"]
-    assert all(files[f][:1] == b"M" for f in ("lib/gnss_kern.mpy", "lib/nav_kern.mpy"))
+    kernels = ["lib/gnss_kern.mpy", "lib/nav_kern.mpy", "lib/yaw_gsf.mpy"]
+    assert sorted(files) == ["ins.cfg", *kernels, "main.py"]
+    assert all(files[f][:1] == b"M" for f in kernels)
     fw = runtimes.get("f411").run(stim, tmp_path, kernels="python", board="NUCLEO_F411RE")
     assert fw.stats["kernels"] == "python"
     assert "kernels: Python (navk not found)" in fw.console, fw.console

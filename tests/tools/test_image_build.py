@@ -76,10 +76,10 @@ def test_the_image_carries_the_firmware_and_its_id(weact_image):
     assert report["firmware"]["crc32"] == ident["crc32"]
     assert ident["crc32"].encode() in flat  # the frozen fwid's FIRMWARE_CRC32 string
     # every firmware file but main.py and the Python reference kernels (navk runs instead)
-    left_out = ("main.py", "manifest.py", "nav_kern.py", "gnss_kern.py")
+    left_out = ("main.py", "manifest.py", "nav_kern.py", "yaw_gsf.py", "gnss_kern.py")
     want = sum(1 for p in FIRMWARE_DIR.rglob("*.py") if p.name not in left_out)
     assert ident["files"] == want == len(frozen)
-    assert not {"nav_kern.py", "drivers/gnss_kern.py"} & set(names)
+    assert not {"nav_kern.py", "yaw_gsf.py", "drivers/gnss_kern.py"} & set(names)
     gen = (build.BUILD_ROOT / "WEACT_F411_BLACKPILL" / "gen" / "fwid.py").read_text()
     assert f"FIRMWARE_CRC32 = '{ident['crc32']}'" in gen and "BOARD = 'WEACT_F411_BLACKPILL'" in gen
 

@@ -64,7 +64,7 @@ def image_files(board_name, log=None):
 # The Python reference kernels, which the image does not freeze (firmware/manifest.py): with
 # kernels="python" they go to /flash/lib as .mpy, where the firmware finds them (a /flash/drivers
 # directory would hide the frozen drivers package: gnss_kern is a top-level module there)
-REFERENCE_KERNELS = {"lib/nav_kern.mpy": "lib/nav_kern.py",
+REFERENCE_KERNELS = {"lib/nav_kern.mpy": "lib/nav_kern.py", "lib/yaw_gsf.mpy": "lib/yaw_gsf.py",
                      "lib/gnss_kern.mpy": "drivers/gnss_kern.py"}  # fmt: skip
 
 

@@ -1,5 +1,5 @@
 # What the emulated Cortex-M4F carries frozen (MicroPython's manifest format): the firmware
-# as the board image freezes it, with its Python reference kernels (nav_kern,
+# as the board image freezes it, with its Python reference kernels (nav_kern, yaw_gsf,
 # drivers.gnss_kern: a board image leaves them out; kernels="python" runs them here), plus the
 # emulated board (machine, time: found before the built-in modules of those names, as frozen
 # modules come first on sys.path; bmi055_model, the BMI055 register model machine imports)

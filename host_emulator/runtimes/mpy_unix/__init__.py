@@ -56,6 +56,9 @@ from host_emulator.runtimes.guest_output import (
 from host_emulator.runtimes.mpy_unix import vm
 
 HEAP_KB = 512
+# With the Python reference kernels every float is boxed: the yaw estimator's step at a fix
+# alone boxes about 300 KB in one tick (gc.mem_alloc around yaw_gsf.gsf_step in this VM)
+PYTHON_KERNELS_HEAP_KB = 2048
 
 
 def _default_timeout_s(stim):
@@ -81,7 +84,7 @@ def _memory_hint(heap_kb):
     )
 
 
-def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, timeout_s=None,
+def run(stim, workdir, config_overrides=None, progress=None, heap_kb=None, timeout_s=None,
         kernels=None):  # fmt: skip
     """Run the firmware in the MicroPython VM over a whole stimulus; returns a FirmwareRun.
 
@@ -91,7 +94,8 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
         stimulus header's "config" plus `config_overrides`, as the cpython runtime) and the
         VM's output files (workdir/vm/).
     progress(k, n): called as the VM reports ticks done (every 1000 ticks and at the end).
-    heap_kb: the VM's heap; timeout_s: wall-time limit (default 60 s + the stimulus duration).
+    heap_kb: the VM's heap (default HEAP_KB, PYTHON_KERNELS_HEAP_KB with the Python kernels);
+    timeout_s: wall-time limit (default 60 s + the stimulus duration).
     kernels: "native" (the x64 navk.mpy on the VM's path, built on demand), "python" (no
         navk) or None (the default: native unless $INS_KERNELS says python).
 
@@ -101,6 +105,9 @@ def run(stim, workdir, config_overrides=None, progress=None, heap_kb=HEAP_KB, ti
 
     FirmwareError (with .tick, .t_s, .vm_traceback) if the firmware raises in the VM;
     EmulatorError if the VM cannot start, fails otherwise, or times out."""
+    if heap_kb is None:
+        kind = runtimes.check_kernels(kernels or runtimes.default_kernels())
+        heap_kb = HEAP_KB if kind == "native" else PYTHON_KERNELS_HEAP_KB
     workdir = pathlib.Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     stim, stim_path = _stimulus_file(stim, workdir)

@@ -1,0 +1,116 @@
+"""The yaw estimator's bank (firmware/lib/yaw_gsf.py): its exponential, the native kernels
+against the Python reference bit for bit, and the heading it finds on a simulated walk with
+the board held across the way it goes (the NumPy model's agreement: tests/model)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from common import firmware_env
+from host_emulator.bench import navigator as nav_runner
+from host_emulator.sim import gnss as sim_gnss
+from host_emulator.sim import imu as sim_imu
+from host_emulator.sim import trajectory
+
+firmware_env.install()
+import f32  # noqa: E402
+import kern  # noqa: E402
+import nav as nav_mod  # noqa: E402
+import navcfg  # noqa: E402
+import yaw_gsf  # noqa: E402
+
+G = nav_mod._M_GSF
+
+
+def test_exp_neg_is_the_exponential_where_the_weights_need_it():
+    ys = np.linspace(0.0, 40.0, 4001, dtype=np.float32)
+    got = np.array([float(yaw_gsf.exp_neg(f32.f32(float(y)))) for y in ys])
+    want = np.exp(-ys.astype(float))
+    rel = np.abs(got - want) / want
+    assert rel[ys <= 4.0].max() < 1e-5
+    assert rel[ys <= 16.0].max() < 5e-4
+    assert rel[ys < 32.0].max() < 0.012
+    assert (got[ys >= 32.0] == 0.0).all()
+    assert float(yaw_gsf.exp_neg(f32.f32(0))) == 1.0
+
+
+def _bank_after(steps, native, seed):
+    """A Navigator's mem after `steps` bank steps on random sums and fixes, through the native
+    kernels or the Python reference."""
+    rng = np.random.default_rng(seed)
+    nav = nav_mod.Navigator(navcfg.NavConfig("handheld"))
+    m, c = nav.mem, nav.ctl
+    accum = kern.navk.gsf_accum if native else yaw_gsf.gsf_accum
+    step = kern.navk.gsf_step if native else yaw_gsf.gsf_step
+    c[nav_mod._C_STATE] = nav_mod.NAVIGATING
+    results = []
+    for s in range(steps):
+        for _ in range(int(rng.integers(20, 220))):
+            for i in range(3):
+                m[nav_mod._M_F + i] = f32.f32(
+                    float(rng.normal(0.0, 2.0)) + (9.8 if i == 2 else 0.0)
+                )
+            accum(m)
+        for i in range(2):
+            m[nav_mod._M_GP + i] = f32.f32(float(rng.normal(0.0, 5.0)) + s)
+        m[nav_mod._M_FX + nav_mod._FX_SPEED] = f32.f32(float(rng.uniform(-1.0, 3.0)))
+        m[nav_mod._M_FX + nav_mod._FX_COURSE] = f32.f32(float(rng.uniform(-0.5, 6.0)))
+        m[nav_mod._M_FX + nav_mod._FX_SIG_H] = f32.f32(float(rng.uniform(0.0, 6.0)))
+        m[nav_mod._M_FX + nav_mod._FX_HDOP] = f32.f32(float(rng.uniform(0.5, 2.0)))
+        m[G + yaw_gsf._G_DYAW] = f32.f32(float(rng.normal(0.0, 0.3)))
+        c[nav_mod._C_TICK] += 200
+        c[nav_mod._C_FIX_TICK] = c[nav_mod._C_TICK] - int(rng.integers(-5, 40))
+        results.append(step(c, m))
+    return np.asarray(m).view(np.uint32).copy(), results
+
+
+@pytest.mark.skipif(not kern.NATIVE, reason="the native kernels are not built (make native)")
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_native_bank_is_the_python_reference_bit_for_bit(seed):
+    native, r_native = _bank_after(40, True, seed)
+    python, r_python = _bank_after(40, False, seed)
+    sl = slice(G, G + yaw_gsf.NG)
+    assert r_native == r_python and any(r_native)
+    diff = np.flatnonzero(native[sl] != python[sl])
+    assert diff.size == 0, diff
+    # and the bank moved: weights apart, offsets apart from their start
+    w = native[sl].view(np.float32)[yaw_gsf._G_HYP + yaw_gsf._H_W :: yaw_gsf._NH]
+    assert w.max() > 2.0 * w.min()
+
+
+def _across(gsf):
+    """highway_outage with the board turned 90 deg across the car (its x axis forward), the
+    handheld profile (no non-holonomic constraint): the navigator's heading error (deg) each
+    second it navigates from 5 s after its start, and its resets."""
+    truth = trajectory.SCENARIOS["highway_outage"](120.0, 1)
+    imu = sim_imu.simulate(truth, seed=1)
+    gnss = sim_gnss.simulate(truth, seed=1)
+    for counts in (imu.gyro_counts, imu.accel_counts):  # car body (x, y) is board (-y, x)
+        x = counts[:, 0].copy()
+        counts[:, 0] = counts[:, 1]
+        counts[:, 1] = -x
+    cfg = navcfg.NavConfig("handheld")
+    cfg.yaw_gsf = gsf
+    nav = nav_mod.Navigator(cfg)
+    errors = []
+
+    def on_tick(nav, k):
+        if k % 200 == 0 and nav.state == nav_mod.NAVIGATING:
+            board_yaw = float(truth.ypr[k + 1, 0]) + math.pi / 2
+            errors.append(math.degrees(math.remainder(float(nav.euler()[0]) - board_yaw,
+                                                      2 * math.pi)))  # fmt: skip
+
+    nav_runner.feed(nav, imu, gnss, 0, len(truth.t_s) - 1, on_tick=on_tick)
+    return errors[5:], nav.resets
+
+
+def test_the_bank_finds_the_heading_of_a_board_across_the_way_it_moves():
+    """The course says where the car goes, not where the board points: started from it the
+    heading is 90 deg off and the filter never undoes it; the bank finds it from the motion
+    alone (the receiver's velocity and the IMU's specific force)."""
+    with_bank, _ = _across(True)
+    course_only, resets = _across(False)
+    assert len(with_bank) > 60 and max(abs(e) for e in with_bank) < 10.0, with_bank
+    assert min(abs(e) for e in course_only) > 40.0, course_only
+    assert resets > 0  # the course start's filter keeps rejecting its fixes
