@@ -254,3 +254,13 @@ def asin(x):
     if x < 0.0:
         return -r
     return r
+
+
+def wrap(a):
+    """a (within 3 pi of 0) into -pi..pi by one turn: the angle differences the heading code
+    forms (nav_align, yaw_gsf; gsf.c's wrap is its native twin)."""
+    if a > PI:
+        return a - TWO_PI
+    if a < -PI:
+        return a + TWO_PI
+    return a

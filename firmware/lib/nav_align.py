@@ -30,7 +30,8 @@ from micropython import const
 import f32
 import kern
 import rot
-from fmath import PI, TWO_PI, asin, atan2, cos, sin, sqrt
+from fmath import asin, atan2, cos, sin, sqrt
+from fmath import wrap as _wrap
 from nav_aid import NO_HEIGHT_VAR, UNCONFIRMED
 from navcfg import G0_M_S2
 
@@ -107,15 +108,6 @@ MIN_LEVEL_F = f32.ratio(49, 10)  # m/s^2: less mean specific force than this can
 _nav_start = kern.pick("nav_start", None)  # the reference: _start_navigation_py
 _euler = kern.pick("euler", rot.dcm_to_euler)
 _fix_usable = kern.pick("fix_usable", None)  # the reference: Navigator._fix_usable
-
-
-def _wrap(a):
-    """a (within 3 pi of 0) into -pi..pi."""
-    if a > PI:
-        return a - TWO_PI
-    if a < -PI:
-        return a + TWO_PI
-    return a
 
 
 class Alignment:

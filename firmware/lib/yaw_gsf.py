@@ -36,6 +36,7 @@ from micropython import const
 
 import f32
 from fmath import PI, TWO_PI, atan2, cos, sin, sqrt
+from fmath import wrap as _wrap
 
 # ---- nav.py's consts used here: `python -m common.native.layout` writes them ----
 _NAVIGATING = const(2)
@@ -135,14 +136,6 @@ def exp_neg(y):
     for _ in range(6):
         r = r * r
     return r
-
-
-def _wrap(a):
-    if a > PI:
-        return a - TWO_PI
-    if a < -PI:
-        return a + TWO_PI
-    return a
 
 
 def gsf_accum(m):
