@@ -1,7 +1,7 @@
-"""The report lines a MicroPython guest prints (host_emulator/emulated_board/mpy/feed.py: C console,
-P progress, E error + traceback + E-END, S statistics), read back on the host, for the runtimes
-that run the firmware in a MicroPython (mpy_unix, m4f); and the display stream's marks from the
-bytes per tick those guests record."""
+"""The report lines a MicroPython guest prints (host_emulator/emulated_board/mpy/feed.py: C
+console, P progress, E error + traceback + E-END, S statistics in one line or several), read
+back on the host, for the runtimes that run the firmware in a MicroPython (mpy_unix, m4f); and
+the display stream's marks from the bytes per tick those guests record."""
 
 import json
 import subprocess
@@ -65,10 +65,12 @@ class GuestOutput:
             self.error_tick = int(fields[0])
             self._in_error = True
         elif kind == "S" and rest.startswith("{"):
-            try:
-                self.stats = json.loads(rest)
+            try:  # one or several lines (emulate_m4f.py prints one per statistic)
+                part = json.loads(rest)
             except ValueError:
                 self.other.append(text)
+            else:
+                self.stats = {**(self.stats or {}), **part}
         elif kind == "R" and rest.startswith("["):
             try:
                 self.reports.append(tuple(json.loads(rest)))

@@ -319,7 +319,7 @@ def _padding_setup():
     pad = bytearray({n})
     def report():
         return [("padding", len(pad))]
-    return report
+    return report, 0
 """
 
 
@@ -381,6 +381,16 @@ def test_a_firmware_error_names_the_tick_and_a_driver_error_is_an_emulator_error
     out, rc, _ = m4f._execute(elf, "raise OSError(5)\r\n", tmp_path, None, 60, 10)
     assert rc == m4f.EXIT_DRIVER_ERROR
     assert any("OSError" in line for line in out.other)
+    # a driver that raises inside main ends the run too, even with the heap left full (here
+    # its setup fills it for good: the REPL could not compile its next command)
+    full = (
+        "_x = []\r\ndef _fill():\r\n n = 4096\r\n while n:\r\n  try:\r\n"
+        "   _x.append(bytearray(n))\r\n  except MemoryError:\r\n   n //= 2\r\n"
+        " raise MemoryError\r\n"
+    )
+    stim = board_input.simulate("static", 1.0, seed=0).stimulus
+    with pytest.raises(EmulatorError, match=r"exit status 4[\s\S]*MemoryError"):
+        m4f.run(stim, tmp_path / "m", guest_setup=(full, "_fill"), timeout_s=60)
     stim = board_input.simulate("static", 60.0, seed=0).stimulus
     with pytest.raises(EmulatorError, match=r"did not finish within 1 s") as e:
         m4f.run(stim, tmp_path / "t", timeout_s=1)

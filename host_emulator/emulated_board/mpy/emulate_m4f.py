@@ -33,7 +33,7 @@ allocates (checked: `driver_alloc_bytes` must be 0), so the heap the app sees is
 Output (OUT_DIR): out.bin (the output UART's bytes), display.bin (the screen's UART's) and
 ticks.bin, per tick 16 bytes: instructions i32, emulation instructions i32, allocated bytes
 i32, navigation state u8, collected u8, display bytes u16. Stdout lines as feed.py says; S
-carries the run's statistics.
+lines carry the run's statistics, one each; a driver that raises ends QEMU with status 4.
 
 The screen: when the firmware made its status page (`app.page`, the display setting on), the
 driver takes what it wrote to the display UART (board.PINS["display_uart"]) after start-up and
@@ -166,10 +166,12 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     gc.collect()
     system_bytes = gc.mem_alloc()  # MicroPython's own (start-up objects, /flash), as on a board
     # setup (the profiler's, bench/profile.py): runs once /flash is there and before the
-    # firmware is imported; what it returns is called at the end for (name, value) pairs,
-    # each printed as an "R" line. What it keeps counts as the emulator's, not the board's:
-    # the firmware still gets the board's heap when the build's heap has room for both
-    report = setup() if setup else None
+    # firmware is imported; it returns (report, firmware_bytes): report is called at the end
+    # for (name, value) pairs, each printed as an "R" line; firmware_bytes is what the
+    # firmware's modules it imported hold, which the board's free heap pays for. The rest of
+    # what it keeps counts as the emulator's: the firmware still gets the board's heap when
+    # the build's heap has room for both
+    report, firmware_bytes = setup() if setup else (None, 0)
     usable = (gc.mem_alloc() + gc.mem_free()) * board_heap // build_heap  # the board's region
     from feed import (
         PROGRESS_EVERY,
@@ -202,8 +204,9 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     recs = bytearray(16 * CHUNK)
     imu = machine.Bmi055()
     gc.collect()
-    emulator_bytes = gc.mem_alloc() - system_bytes  # the emulated board's and the driver's
-    board_free = usable - system_bytes
+    # the emulated board's and the driver's
+    emulator_bytes = gc.mem_alloc() - system_bytes - firmware_bytes
+    board_free = usable - system_bytes - firmware_bytes
     spare = (gc.mem_free() - board_free - 16) // 16 * 16  # a bytearray: 16-byte head + data
     ballast = bytearray(spare) if spare > 0 else None
     gc.collect()
@@ -284,6 +287,13 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     f.close()
     if n_ticks % PROGRESS_EVERY or not n_ticks:
         print("P", n_ticks, n_ticks)
+    # the ticks are over: what the board would have free now, then the ballast goes (the
+    # report below is the emulator's, and needs heap the board's firmware never left over)
+    gc.collect()
+    free_at_end = gc.mem_free()
+    ballast_bytes = len(ballast) if ballast is not None else 0
+    ballast = None
+    gc.collect()
     stats = app_stats(a, n_ticks, t0, pins)
     stats.update(
         {
@@ -291,9 +301,11 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             "heap_total_bytes": gc.mem_alloc() + gc.mem_free(),
             "emulator_bytes": emulator_bytes,
             "system_bytes": system_bytes,
+            "setup_firmware_bytes": firmware_bytes,
             "board_free_at_start": board_free,
-            "ballast_bytes": len(ballast) if ballast is not None else 0,
+            "ballast_bytes": ballast_bytes,
             "free_at_start": free_at_start,
+            "free_at_end": free_at_end,
             "live_after_start": live_after_start,
             "startup_instructions": startup_instr,
             "icount_cost": icount_pair_cost(),
@@ -303,11 +315,12 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
             "platform": sys.platform,
         }
     )
-    print("S", json.dumps(stats))
+    # one "S" line per statistic, one "R" line per (name, value) pair: one long JSON string
+    # would need a contiguous block that the run's fragmented heap may not have (measured:
+    # 392 bytes failed with 8 KB free, 1.6 KB with 17 KB)
+    for key in stats:
+        print("S", json.dumps({key: stats[key]}))
     if report:
-        # one "R" line per (name, value) pair: one long JSON string would need a contiguous
-        # block that the run's fragmented heap may not have (measured: 1.6 KB failed with 17 KB
-        # free)
         for pair in report():
             print("R", json.dumps(pair))
     m4f.exit(0)

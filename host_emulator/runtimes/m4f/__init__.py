@@ -120,9 +120,11 @@ def run(
     kernels: "native" (the armv7emsp navk.mpy, built on demand, in the guest's /flash/lib as on
         a board), "python" (none: the firmware's Python kernels) or None (the default: native
         unless $INS_KERNELS says python).
-    guest_setup: (MicroPython source, name of the function it defines) run in the guest before
-        the firmware is imported; what it returns is called at the end for (name, value) pairs,
-        which stats["report"] lists (bench/profile.py).
+    guest_setup: (MicroPython source, an expression of a callable), the source run in the
+        guest and the callable called before the firmware starts; it returns (report,
+        firmware_bytes): report is called at the end for (name, value) pairs, which
+        stats["report"] lists; firmware_bytes, the heap the firmware's modules it imported
+        hold, is taken from the firmware's start (bench/profile.py).
     gc_heap_bytes: a build whose GC heap is this large instead of build.GC_HEAP_BYTES (room
         for a guest_setup's objects: the firmware still gets the board's heap, the rest is a
         ballast the collector scans).
@@ -190,11 +192,16 @@ def _guest_call(workdir, stim, stim_path, navk, cfg_path, out_dir, build_heap, g
     source, setup = guest_setup or ("", "None")
     stim_rel = _in_workdir(workdir, stim_path, "stim.bin")
     navk_rel = _in_workdir(workdir, navk, "navk.mpy") if navk else None
+    # a driver that raises ends QEMU from here: the handler needs no heap (its names are bound
+    # before the call), where the REPL's next command (AFTER_ERROR) must be compiled, and a
+    # heap the run left full refuses that (measured: 512 bytes), leaving QEMU at the prompt
     return (
-        f"{source}import emulate_m4f\r\nemulate_m4f.main({stim_rel!r}, "
+        f"{source}import emulate_m4f, m4f, sys\r\n_exit, _pe = m4f.exit, sys.print_exception\r\n"
+        f"try:\r\n emulate_m4f.main({stim_rel!r}, "
         f"{_data_offset(stim_path)}, {len(stim)}, {stim.tick_us}, "
         f"{cfg_path.resolve().relative_to(workdir).as_posix()!r}, {out_dir.name!r}, "
         f"{m4f_build.BOARD_HEAP_BYTES}, {build_heap}, {navk_rel!r}, {setup})\r\n"
+        f"except BaseException as e:\r\n _pe(e)\r\n _exit({EXIT_DRIVER_ERROR})\r\n"
     )
 
 
