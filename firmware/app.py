@@ -62,6 +62,8 @@ _K_STEP_S = const(11)  # the lateness (s) of the epochs in a row that had one (_
 _K_STEP_N = const(12)  # how many had it, of a clock step; -1: it began at a missed edge (late)
 _K_STEP_BAD = const(13)  # CAUSE_GNSS_CLOCK until this tick
 _K_CAUSES = const(14)  # the app's causes for the whole run: CAUSE_CONFIG on the defaults
+_K_MEM0 = const(15)  # micropython.mem_total() when an aligning tick began (_heap_ahead)
+_K_AHEAD = const(16)  # the look ahead's next stage: 0 a look, 1 a collection, 2 a look again
 _STEP_EPOCHS = const(3)  # a clock step's lateness seen this many epochs in a row: re-synchronised
 _OVERDUE_TICKS = const(160)  # no epoch 0.8 s after an edge: overdue (a late receiver)
 _OVERDUE_EDGES = const(5)  # ... once this many seconds in a row had theirs (1 Hz output)
@@ -78,7 +80,9 @@ _GC_LOW_WATER = const(12 * 1024)  # the Python kernels: collect when fewer bytes
 # block of 16), plus _STEP_BYTES; with less than a step over it free, the heap is collected.
 # Charging each step a fixed cost against the room instead made a scan in the tick where navigation
 # starts (emulated board, urban_drive, the status page on: a late tick); counting every
-# screened fix made 2 late ticks in the 76 s urban_drive stands still.
+# screened fix made 2 late ticks in the 76 s urban_drive stands still. While aligning, a quiet
+# tick looks ahead of the steps (_heap_ahead): with a heap a few KB from the reserve, the start
+# itself had to look (a late tick on the emulated STM32F411).
 _STEP_BYTES = const(2048)
 _HEAP_RESERVE = const(4096)
 try:
@@ -213,7 +217,7 @@ class App:
         # when full): as attributes of their own (36 in a table of 37 for the first three),
         # they made every navigating tick dearer (`make bench-board`, measured both ways)
         self._chk = array("i", (0, 0, 0, -1, 0, 0, 0, 0, _NEVER, 0, _FI_NO_HEIGHT, 0, 0, 0,
-                                CAUSE_CONFIG if status != config.OK else 0))
+                                CAUSE_CONFIG if status != config.OK else 0, 0, 0))  # fmt: skip
         self.t_worst_us = 0
         self.t_sum_us = 0
         self.gc_runs = 0
@@ -340,6 +344,8 @@ class App:
             self.board.wdt_feed()
             return
         imu.read()
+        if _mem_total is not None and self.nav.ctl[_C_STATE] != NAVIGATING:
+            self._chk[_K_MEM0] = _mem_total() & 0x3FFFFFFF  # one that allocates none is quiet
         # an epoch the parser completed in an earlier tick to the navigator, then the GNSS
         # bytes that arrived into the parser: an epoch's parsing and its screening fall in two
         # ticks, so neither makes one long (_deliver_fix)
@@ -373,6 +379,9 @@ class App:
         self._period_ticks += 1
         if not self._native:
             self._heap_low()
+        elif state != NAVIGATING and _mem_total is not None:
+            if _mem_total() & 0x3FFFFFFF == self._chk[_K_MEM0]:
+                self._heap_ahead()
 
     def _catch_up(self, lost):
         """Ticks the loop missed: counted, and stepped by the navigator on the last sample
@@ -401,9 +410,36 @@ class App:
                 return
         self._heap_check()
 
+    def _heap_ahead(self):
+        """In a quiet aligning tick (one that allocated nothing: no fix, no Python step),
+        one stage of a look at the heap when the next step might need one (the estimate
+        within two steps of the reserve): so that the alignment's steps (the first levelled
+        fix, the start of navigation, heavy ticks of their own) find room by the estimate
+        instead of scanning the heap themselves (a scan, 3.6 ms, made them late on the
+        emulated STM32F411). A look; then, if it found what _heap_check collects at, a
+        collection, and a look again, each in a quiet tick of its own: a collection comes
+        no sooner than without the look ahead, in a tick that does nothing else. Not while
+        navigating: no collection there (docs/requirements.md)."""
+        chk = self._chk
+        stage = chk[_K_AHEAD]
+        if stage == 1:
+            gc.collect()
+            self.gc_runs += 1
+            chk[_K_AHEAD] = 2
+            return
+        if stage == 0:
+            used = (_mem_total() - self._heap_total) & 0x3FFFFFFF
+            if not used or self._heap_free - 2 * used - 2 * _STEP_BYTES >= _HEAP_RESERVE:
+                return
+        free = gc.mem_free()
+        self._heap_free = free
+        self._heap_total = _mem_total()
+        chk[_K_AHEAD] = 1 if stage == 0 and free < _HEAP_RESERVE + _STEP_BYTES else 0
+
     def _heap_check(self):
         """The heap's free bytes, collected when less than a step over the reserve is: a
         collection is the longest thing the loop does (milliseconds: ticks missed)."""
+        self._chk[_K_AHEAD] = 0  # this look replaces the look ahead's
         free = gc.mem_free()
         if free < _HEAP_RESERVE + _STEP_BYTES:
             gc.collect()

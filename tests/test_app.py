@@ -457,3 +457,44 @@ def test_the_heap_is_looked_at_only_when_the_steps_may_have_reached_the_reserve(
     heap.alloc(16_000 - fw_app._STEP_BYTES - fw_app._HEAP_RESERVE)  # the heap nearly full
     a.nav.heap_check()
     assert heap.collects == 1 and a._heap_free == 30_000 and a.gc_runs == 1
+
+
+def test_a_quiet_aligning_tick_looks_at_the_heap_ahead_of_the_steps(tmp_path, monkeypatch):
+    """While aligning, a tick that allocated nothing looks at the heap when the estimate is
+    within two steps of the reserve, so the step that follows (the start of navigation, a
+    heavy tick) finds room without a scan of its own; a heap under what _heap_check collects
+    at is collected in the next quiet tick and looked at again in the one after. A tick that
+    allocated does none of it."""
+    b = Bench(tmp_path)
+    import app as fw_app
+
+    heap = _Heap(free=9_000)
+    monkeypatch.setattr(fw_app, "_mem_total", lambda: heap.asked)
+    monkeypatch.setattr(fw_app.gc, "mem_free", heap.mem_free, raising=False)
+    monkeypatch.setattr(fw_app.gc, "collect", heap.collect)
+    a = b.app
+    a._heap_check()
+    b.run(3)
+    assert heap.scans == 1  # nothing asked for since the look
+    heap.alloc(600)  # a fix's Python: 9,000 - 2 x 600 - 2 steps is under the reserve
+    b.run(1)
+    assert heap.scans == 2 and heap.collects == 0 and a._heap_free == 8_392
+    a.nav.heap_check()  # the step that follows: room by the estimate, no scan
+    assert heap.scans == 2
+    heap.alloc(2_400)  # now under a step over the reserve: collected, then looked at
+    b.run(1)
+    assert heap.scans == 3 and heap.collects == 0
+    b.run(1)
+    assert heap.collects == 1 and a.gc_runs == 1 and heap.scans == 3
+    b.run(2)
+    assert heap.scans == 4 and a._heap_free == 30_000
+    assert a.nav.ctl[fw_app._C_STATE] != fw_app.NAVIGATING
+
+    def busy():  # every call asks for 16 bytes: every tick allocates
+        heap.asked += 16
+        return heap.asked
+
+    monkeypatch.setattr(fw_app, "_mem_total", busy)
+    heap.alloc(30_000 - 6_000)
+    b.run(5)
+    assert heap.scans == 4 and heap.collects == 1
