@@ -825,12 +825,15 @@ class Navigator(Alignment, Aiding):
 
     def _frozen(self, usable):
         """True, and CAUSE_GNSS_IMPLAUSIBLE for a second, when the usable fix repeats the last
-        one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2 allows
-        (fix_check's _FC_MOVING: the float work is the kernel's): a receiver that keeps
-        sending its last solution (a real one's noise moves every fix; one that holds its
-        position at a standstill holds it where the navigator stands too). Such a fix is not
-        used, nor are its repeats once the navigator stops (the position is stale by the way
-        driven since). The fix becomes the last one either way."""
+        one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2 allows and
+        the receiver does not report a speed under it (fix_check's _FC_MOVING: the float work
+        is the kernel's): a receiver that keeps sending its last solution (a real one's noise
+        moves every fix; one that holds its position at a standstill holds it where the
+        navigator stands too, and says so with its speed: a hand-held walk's phone at each
+        waypoint, while the navigator's velocity had drifted over 1 m/s, was judged frozen
+        and the walk ran away by 100 m). Such a fix is not used, nor are its repeats once the
+        navigator stops (the position is stale by the way driven since). The fix becomes the
+        last one either way."""
         c = self.ctl
         same = (
             c[_C_FIX_LAT] == c[_C_PREV_FIX]

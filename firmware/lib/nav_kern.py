@@ -574,7 +574,9 @@ def fix_check(st, fx, x, aid):
     aligning tick reads these bits, not the floats: a float read from a buffer is boxed, and a
     10 Hz receiver's boxes made the aligning heap checks ten times as often), the position
     (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and the navigator moving
-    (_FROZEN_V2)."""
+    (_FROZEN_V2) while the receiver does not say it stands: a receiver reporting a speed
+    under the same bound holds its position by its own account (a phone standing at a
+    waypoint repeats its fix with speed 0), a frozen one repeats the speed it had."""
     if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
         return 0
     r = _FC_USABLE
@@ -590,7 +592,8 @@ def fix_check(st, fx, x, aid):
     if x[0] > lim or x[0] < -lim or x[1] > lim or x[1] < -lim:
         r |= _FC_REANCHOR
     if x[ins_mod.X_V] * x[ins_mod.X_V] + x[ins_mod.X_V + 1] * x[ins_mod.X_V + 1] > _FROZEN_V2:
-        r |= _FC_MOVING
+        if not (sp >= 0.0 and sp * sp <= _FROZEN_V2):  # a NaN speed is unknown too
+            r |= _FC_MOVING
     return r
 
 

@@ -193,7 +193,9 @@ int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *
     if (x[X_P] > lim || x[X_P] < -lim || x[X_P + 1] > lim || x[X_P + 1] < -lim) {
         r |= FC_REANCHOR;
     }
-    if (x[X_V] * x[X_V] + x[X_V + 1] * x[X_V + 1] > FROZEN_V2) {
+    /* a receiver that says it stands (a known speed, a NaN is not) is not frozen */
+    if (x[X_V] * x[X_V] + x[X_V + 1] * x[X_V + 1] > FROZEN_V2 &&
+        !(sp >= 0.0f && sp * sp <= FROZEN_V2)) {
         r |= FC_MOVING;
     }
     return r;

@@ -693,3 +693,32 @@ def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
             assert nav_runner.control(nav, "speed_tick") == before
         else:
             assert nav_runner.control(nav, "speed_tick") > before
+
+
+@pytest.mark.parametrize("native", [False, True], ids=["python", "native"])
+def test_a_receiver_that_says_it_stands_is_not_moving_for_the_frozen_rule(native):
+    """fix_check's _FC_MOVING (nav._frozen judges a repeated fix frozen with it): the navigator
+    faster than 1 m/s and the receiver not saying it stands. A phone at a waypoint repeats its
+    fix with speed 0 while a drifting navigator "moves": those fixes are used; a frozen
+    receiver repeats the speed it had, and one without a speed (unknown: < 0 or NaN) has no
+    say."""
+    import kern
+
+    nav = Navigator(navcfg.NavConfig("handheld"))
+    c = nav.ctl
+    c[fw_nav._C_FIX_QUALITY] = 1
+    c[fw_nav._C_MIN_QUALITY] = 1
+    nav._fx[fw_nav._FX_HDOP] = 1.0
+
+    def moving(v_east, speed):
+        nav.ins.x[fw_nav.ins_mod.X_V] = v_east
+        nav._fx[fw_nav._FX_SPEED] = speed
+        bits = kern.navk.fix_usable(c, nav.mem) if native else nav._fix_usable()
+        assert bits & fw_nav._FC_USABLE
+        return bool(bits & fw_nav._FC_MOVING)
+
+    for speed in (0.0, 0.5, 1.0):  # the receiver stands, by its own account
+        assert not moving(1.3, speed)
+    for speed in (1.1, 10.0, -1.0, float("nan")):
+        assert moving(1.3, speed)
+    assert not moving(0.9, 10.0) and not moving(0.9, -1.0)  # the navigator itself is slow
