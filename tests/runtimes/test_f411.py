@@ -80,8 +80,11 @@ def test_with_python_kernels_the_image_runs_them_from_flash_lib(tmp_path):
     assert fw.stats["kernels"] == "python"
     assert "kernels: Python (navk not found)" in fw.console, fw.console
     assert any(line.startswith("ins: running") for line in fw.console)
-    frames, ext, _raw, err = stream.split(fw.out)
-    assert err is None and len(frames) > 50 and ext  # valid frames, fewer than the ticks
+    # valid frames, fewer than the ticks; the run's end may cut the last record (a late
+    # tick's frame begun at the very end: the twin keeps every character started by then)
+    d = stream.decode(fw.out)
+    assert d.bad_checksum == d.bad_crc == 0 and d.skipped_bytes < stream.FRAME_LEN
+    assert len(d.frames) > 50 and d.ext
     assert fw.stats["overruns"] > 0 and fw.stats["resets"] == []
 
 
