@@ -429,6 +429,18 @@ class _Heap:
         self.free -= -(-n // 16) * 16
 
 
+def _on_heap(tmp_path, monkeypatch, free):
+    """A Bench whose app sees a _Heap with `free` bytes free: (bench, the app module, heap)."""
+    b = Bench(tmp_path)
+    import app as fw_app
+
+    heap = _Heap(free=free)
+    monkeypatch.setattr(fw_app, "_mem_total", lambda: heap.asked)
+    monkeypatch.setattr(fw_app.gc, "mem_free", heap.mem_free, raising=False)
+    monkeypatch.setattr(fw_app.gc, "collect", heap.collect)
+    return b, fw_app, heap
+
+
 def test_the_heap_is_looked_at_only_when_the_steps_may_have_reached_the_reserve(
     tmp_path, monkeypatch
 ):
@@ -436,13 +448,7 @@ def test_the_heap_is_looked_at_only_when_the_steps_may_have_reached_the_reserve(
     twice what MicroPython counted since the last look plus one step, so a few steps pass
     without a heap scan (~140,000 instructions on the board), the one that may reach the
     reserve looks, and a heap with less than a step over the reserve is collected."""
-    b = Bench(tmp_path)
-    import app as fw_app
-
-    heap = _Heap(free=16_000)
-    monkeypatch.setattr(fw_app, "_mem_total", lambda: heap.asked)
-    monkeypatch.setattr(fw_app.gc, "mem_free", heap.mem_free, raising=False)
-    monkeypatch.setattr(fw_app.gc, "collect", heap.collect)
+    b, fw_app, heap = _on_heap(tmp_path, monkeypatch, 16_000)
     a = b.app
     a._heap_check()  # as start() leaves it: 16,000 free, nothing asked for since
     assert heap.scans == 1 and a._heap_free == 16_000
@@ -465,13 +471,7 @@ def test_a_quiet_aligning_tick_looks_at_the_heap_ahead_of_the_steps(tmp_path, mo
     heavy tick) finds room without a scan of its own; a heap under what _heap_check collects
     at is collected in the next quiet tick and looked at again in the one after. A tick that
     allocated does none of it."""
-    b = Bench(tmp_path)
-    import app as fw_app
-
-    heap = _Heap(free=9_000)
-    monkeypatch.setattr(fw_app, "_mem_total", lambda: heap.asked)
-    monkeypatch.setattr(fw_app.gc, "mem_free", heap.mem_free, raising=False)
-    monkeypatch.setattr(fw_app.gc, "collect", heap.collect)
+    b, fw_app, heap = _on_heap(tmp_path, monkeypatch, 9_000)
     a = b.app
     a._heap_check()
     b.run(3)
