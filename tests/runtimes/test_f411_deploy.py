@@ -146,3 +146,21 @@ def test_deploy_gives_a_freshly_formatted_volume_room_for_the_native_kernels(
     assert "ins: running" in r["console"] and board.uart.rx_lost == 0
     got, lost = fatfs.read_files(_volume(board))
     assert lost == [] and sorted(got) == ["boot.py", "lib/navk.mpy", "main.py"]
+
+
+def test_the_twins_volume_is_the_same_whatever_the_hosts_clock(files, monkeypatch):
+    """The unix VM's FAT driver stamps what it writes with the host's local time; the twin's
+    volume carries the time a board's RTC gives after a cold start instead (1 January 2015),
+    so a volume written at another hour (here: in two time zones a day apart) is the same
+    bytes, and the image does the same thing on it."""
+    vols = []
+    for tz in ("Etc/GMT-12", "Etc/GMT+12"):
+        monkeypatch.setenv("TZ", tz)
+        empty = fatfs.empty_volume(96)
+        vols.append(flashfs.with_files(empty + b"\xff" * (96 * 512 - len(empty)), files,
+                                       fresh=False))  # fmt: skip
+    assert vols[0] == vols[1]
+    assert fatfs.read_files(vols[0]) == (files, [])
+    entries = list(fatfs.Volume(vols[0]).entries([]))
+    assert {p for p, _, _ in entries} >= {"main.py", "ins.cfg", "lib", "lib/.", "lib/navk.mpy"}
+    assert {e[22:26] for _, _, e in entries} == {bytes.fromhex("00002146")}  # 00:00, 2015-01-01

@@ -10,7 +10,9 @@ filesystem, its console a serial port the board tools open (runtimes/f411/consol
   loop's timer: the erase outlasts the 50 ms and the watchdog resets the board;
 - the stopped loop's timer keeps the watchdog fed (every 12 ms), also after a second Ctrl-C;
 - a soft reset (Ctrl-D) of a board whose watchdog runs ends in a watchdog reset: the
-  firmware's start-up outlasts 50 ms (why the tools restart from a maintenance start)."""
+  firmware's start-up outlasts 50 ms (why the tools restart from a maintenance start);
+- the console's read waits in board time: a host too loaded to emulate a second in a second
+  still hears the board's answer (the tools' exchanges failed that way under a loaded CI)."""
 
 import pytest
 
@@ -107,3 +109,21 @@ def test_a_soft_reset_with_the_watchdog_running_ends_in_its_reset(tmp_path, monk
     board.write(b"\x04")
     assert board.run_until(b"ins: running", 5000)
     assert _reasons(board) == ["IWDG"]
+
+
+def test_a_read_waits_in_the_boards_time_however_slow_the_host(tmp_path, monkeypatch):
+    """A host so loaded that each look at its clock finds a second gone (a test run's parallel
+    workers): a read with a 1 s timeout still waits for the board's answer to Ctrl-C, as long
+    as the board takes to give it; the board's clock moved on by about that answer's time."""
+    from host_emulator.runtimes.f411 import console
+
+    board = _running(tmp_path, monkeypatch)
+    host = iter(range(10**6))
+    monkeypatch.setattr(console.time, "monotonic", lambda: float(next(host)))
+    board._polled = console.time.monotonic()
+    board.read(len(board._out))  # what the running firmware said so far
+    t0 = board.clock.us()
+    board.write(b"\r\x03")
+    got = board.read(1)
+    assert got != b""
+    assert 0 < board.clock.us() - t0 < 1e6  # the answer's time, under the read's timeout

@@ -8,7 +8,8 @@ FAT12 root directory is fixed at 512 entries: 32 of the 96 blocks (512 bytes) of
 formats the volume as f_mkfs does but with a root directory of ROOT_ENTRIES entries:
 `empty_volume(blocks)` is its first blocks (boot sector, FAT, root directory), 92 clusters =
 46 KB for files on 96 blocks. `boot_sector` reads a volume's layout; `read_files` its files
-(8.3 and long names, subdirectories), as flash-image saves them from an older image's volume.
+(8.3 and long names, subdirectories), as flash-image saves them from an older image's volume;
+`stamped` gives its entries one time, as a board with its RTC at that time would write them.
 """
 
 import struct
@@ -126,74 +127,98 @@ def read_files(data):
     """{path: bytes} of the files of the FAT12/16 volume in `data` (its bytes from block 0; a
     volume cut short reads as far as it goes: a file whose clusters lie beyond is left out and
     its path listed in the second result). Returns (files, unreadable paths)."""
-    geo = boot_sector(data)
-    if geo is None:
-        raise FatError("no FAT boot sector")
-    fat_at = geo["reserved"] * BLOCK
-    fat = bytes(data[fat_at : fat_at + geo["fat_blocks"] * BLOCK])
-    fat16 = geo["clusters"] > MAX_FAT12
-    csize = geo["cluster_blocks"] * BLOCK
-    data_at = geo["data_start"] * BLOCK
+    vol = Volume(data)
+    files, lost = {}, []
+    for path, _at, e in vol.entries(lost):
+        if e[11] & 0x18 or path.rsplit("/", 1)[-1] in (".", ".."):
+            continue  # directories (walked), the volume label, dot entries
+        size = struct.unpack_from("<I", e, 28)[0]
+        spans = vol.spans(struct.unpack_from("<H", e, 26)[0])
+        body = b"".join(data[a:b] for a, b in spans) if spans is not None else None
+        if body is None or len(body) < size:
+            lost.append(path)
+        else:
+            files[path] = body[:size]
+    return files, lost
 
-    def next_cluster(c):
-        if fat16:
-            return struct.unpack_from("<H", fat, 2 * c)[0]
-        v = struct.unpack_from("<H", fat, c + c // 2)[0]
+
+def stamped(data, fattime):
+    """A copy of the volume in `data` whose directory entries (files, directories, their dot
+    entries, the label) say they were created, written and read at `fattime` (FatFs's
+    get_fattime word: year-1980 << 25 | month << 21 | day << 16 | h << 11 | min << 5 | s / 2).
+    The port stamps what it writes with its RTC; a host's FAT driver stamps it with the host's
+    clock, which would make two otherwise equal volumes differ."""
+    out = bytearray(data)
+    date, time = fattime >> 16, fattime & 0xFFFF
+    for _path, at, _e in Volume(data).entries([]):
+        struct.pack_into("<BHHH", out, at + 13, 0, time, date, date)  # created (10 ms, time,
+        struct.pack_into("<HH", out, at + 22, time, date)  # date), read; written
+    return bytes(out)
+
+
+class Volume:
+    """A FAT12/16 volume's layout over its bytes: cluster chains and directory entries."""
+
+    def __init__(self, data):
+        geo = boot_sector(data)
+        if geo is None:
+            raise FatError("no FAT boot sector")
+        self.data, self.geo = data, geo
+        fat_at = geo["reserved"] * BLOCK
+        self.fat = bytes(data[fat_at : fat_at + geo["fat_blocks"] * BLOCK])
+        self.fat16 = geo["clusters"] > MAX_FAT12
+        self.csize = geo["cluster_blocks"] * BLOCK
+        self.data_at = geo["data_start"] * BLOCK
+
+    def _next(self, c):
+        if self.fat16:
+            return struct.unpack_from("<H", self.fat, 2 * c)[0]
+        v = struct.unpack_from("<H", self.fat, c + c // 2)[0]
         return v >> 4 if c & 1 else v & 0xFFF
 
-    def chain(c):
-        out, end = [], 0xFFF8 if fat16 else 0xFF8
-        while 2 <= c < end and len(out) <= geo["clusters"]:
-            out.append(c)
-            c = next_cluster(c)
+    def spans(self, first):
+        """[(start, end)] byte ranges in the data of the chain from cluster `first`; None when
+        one lies beyond the data."""
+        out, end, c = [], 0xFFF8 if self.fat16 else 0xFF8, first
+        while 2 <= c < end and len(out) <= self.geo["clusters"]:
+            at = self.data_at + (c - 2) * self.csize
+            if at + self.csize > len(self.data):
+                return None
+            out.append((at, at + self.csize))
+            c = self._next(c)
         return out
 
-    def clusters_bytes(first):
-        out = bytearray()
-        for c in chain(first):
-            at = data_at + (c - 2) * csize
-            if at + csize > len(data):
-                return None  # beyond what `data` holds
-            out += data[at : at + csize]
-        return bytes(out)
+    def entries(self, lost):
+        """(path, offset, entry) of every short directory entry in use (files, directories,
+        dot entries, the label; long-name entries give the path), subdirectories walked; a
+        directory whose clusters lie beyond the data goes to `lost` as "path/"."""
+        geo = self.geo
+        root_at = (geo["reserved"] + geo["fats"] * geo["fat_blocks"]) * BLOCK
+        yield from self._walk([(root_at, root_at + geo["root_entries"] * 32)], "", lost)
 
-    files, lost = {}, []
-
-    def walk(entries, prefix):
+    def _walk(self, spans, prefix, lost):
         lfn = {}
-        for i in range(0, len(entries) - 31, 32):
-            e = entries[i : i + 32]
-            if e[0] == 0:
-                break
+        for at in (i for a, b in spans for i in range(a, b - 31, 32)):
+            e = bytes(self.data[at : at + 32])
+            if len(e) < 32 or e[0] == 0:
+                return
             if e[0] == 0xE5:
                 lfn = {}
                 continue
-            attr = e[11]
-            if attr == 0x0F:  # a long-name entry: 13 UCS-2 characters, in reverse order
+            if e[11] == 0x0F:  # a long-name entry: 13 UCS-2 characters, in reverse order
                 part = e[1:11] + e[14:26] + e[28:32]
                 lfn[e[0] & 0x1F] = part.decode("utf-16-le", "replace").split("\x00")[0]
                 continue
             name = "".join(lfn[k] for k in sorted(lfn)) if lfn else _short_name(e)
             lfn = {}
-            if attr & 0x08 or name in (".", ".."):  # the volume label; dot entries
-                continue
+            yield prefix + name, at, e
             first = struct.unpack_from("<H", e, 26)[0]
-            size = struct.unpack_from("<I", e, 28)[0]
-            path = prefix + name
-            body = clusters_bytes(first) if first else b""
-            if attr & 0x10:
-                if body is None:
-                    lost.append(path + "/")
+            if e[11] & 0x10 and name not in (".", "..") and first:
+                sub = self.spans(first)
+                if sub is None:
+                    lost.append(prefix + name + "/")
                 else:
-                    walk(body, path + "/")
-            elif body is None or len(body) < size:
-                lost.append(path)
-            else:
-                files[path] = body[:size]
-
-    root_at = (geo["reserved"] + geo["fats"] * geo["fat_blocks"]) * BLOCK
-    walk(bytes(data[root_at : root_at + geo["root_entries"] * 32]), "")
-    return files, lost
+                    yield from self._walk(sub, prefix + name + "/", lost)
 
 
 def _short_name(e):

@@ -11,7 +11,10 @@ transport, deploy, `config set`, the maintenance start's reset) runs against the
 Time: the twin runs only when the port is used: every `in_waiting` (and a `read` that finds
 nothing) runs the chip for the wall-clock time since the last poll (at least SLICE_MS, at
 most MAX_SLICE_MS of board time), so a tool polling the port with its wall-clock timeouts
-moves the board's clock on about as fast as its own. `write` catches the board up the same
+moves the board's clock on about as fast as its own. A `read` that waits waits `timeout`
+seconds of board time, however long the host takes to emulate them: a host slowed by other
+work (a test run's parallel workers) sees a board that answers as late as a board would, not
+a board that seems to say nothing. `write` catches the board up the same
 way (the writer may have slept), then puts the characters on the line back to back at the
 UART's baud rate from the board's now, as a USB-serial adapter sends them. The port stays
 open across a reset (the ST-LINK's COM port does not re-enumerate), and closing it stops
@@ -129,9 +132,12 @@ class TwinBoard:
         return self.in_waiting
 
     def read(self, n=1):
-        deadline = time.monotonic() + (self.timeout or 0)
-        while len(self._out) < n and time.monotonic() < deadline:
+        if len(self._out) < n:
             self._poll()
+        end = self.clock.us() + (self.timeout or 0) * 1e6  # the board's time, not the host's
+        while len(self._out) < n and self.clock.us() < end:
+            self.chip.run_for_ms(SLICE_MS)
+        self._polled = time.monotonic()  # the emulation's own wall time is not the board's
         data = bytes(self._out[:n])
         del self._out[:n]
         return data

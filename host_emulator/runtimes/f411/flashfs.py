@@ -18,7 +18,9 @@ flash erases); `with_files(partition, files)` writes the files deploy writes (ma
 lib/navk.mpy) into that volume with MicroPython's own FAT driver (VfsFat of the unix VM from
 PyPI: the same oofatfs code as the board's), as deploy's writes through the board's REPL would,
 after giving the volume the compact root directory deploy gives it (tools/flash/fatfs.py: the
-port's 512-entry one leaves 31 KB, less than lib/navk.mpy and main.py need).
+port's 512-entry one leaves 31 KB, less than lib/navk.mpy and main.py need), every entry
+stamped with the time a board's RTC gives them after a cold start (BOARD_FATTIME): the host's
+clock in the entries would change what the image does by an instruction here and there.
 """
 
 import hashlib
@@ -33,6 +35,9 @@ PART_SIZE = 48 * 1024  # sectors 1-3 (tools/image/boards/stm32f411_fs48.ld); par
 BLOCK = 512
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 CACHE = ROOT / "build" / "f411" / "fs"
+# the time a board stamps deploy's files with: its RTC from a cold start, which the port sets
+# to 1 January 2015 00:00 (ports/stm32/rtc.c); the unix VM would stamp the host's clock
+BOARD_FATTIME = (2015 - 1980) << 25 | 1 << 21 | 1 << 16
 FORMAT_LIMIT_S = 30  # board seconds to wait for the first boot's prompt
 
 _VM_SCRIPT = """
@@ -171,7 +176,7 @@ def with_files(partition, files, fresh=None):
                 "writing the board's files into its filesystem failed (MicroPython's VfsFat): "
                 + (proc.stdout + proc.stderr).strip()[-400:]
             )
-        return (d / "out.img").read_bytes()
+        return fatfs.stamped((d / "out.img").read_bytes(), BOARD_FATTIME)
 
 
 def _image_key(image):
