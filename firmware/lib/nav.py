@@ -791,7 +791,9 @@ class Navigator(Alignment, Aiding):
         disagreed with the navigator's heading for _C_T_GSF ticks (ready, beyond 3 sigma of
         both) and the navigator's own innovations say it is wrong too (fixes rejected, gated
         or drifting away, or its positions' y^2 / S high on the mean: GSF_NAV_BAD), and the
-        heading, velocity and covariance were reset (_gsf_reset).
+        heading, velocity and covariance were reset (_gsf_reset). Never while the fixes are
+        rejected in a run that began with a jump of the receiver (_C_JUMPED): the bank, fed
+        the same fixes, disagrees then too, and the reset would take the receiver's position.
         The float work is the step's (a native kernel on the board): nothing allocates."""
         c = self.ctl
         r = self._gsf_step()
@@ -802,6 +804,10 @@ class Navigator(Alignment, Aiding):
         if not c[_C_GSF_DIS]:
             c[_C_GSF_DIS] = t
         if t - c[_C_GSF_DIS] < c[_C_T_GSF]:
+            return False
+        if c[_C_REJECTS] and c[_C_JUMPED]:
+            # the receiver's fault, not the heading's: a reset here took the position of a
+            # receiver 2000 km off (`make bench-faults`, gnss-jump@250+30:2000000, seeds 0, 2)
             return False
         if not (r & _GSF_NAV_BAD or c[_C_REJECTS] or t < c[_C_GATED_UNTIL]
                 or t < c[_C_DRIFT_UNTIL]):  # fmt: skip

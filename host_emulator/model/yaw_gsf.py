@@ -274,6 +274,8 @@ class GsfModel:
             self.gsf_dis = t
         if t - self.gsf_dis < self.ticks_gsf:
             return False
+        if self.rejects and self.jumped:  # nav._gsf_watch: the receiver jumped
+            return False
         if not (r & fw.GSF_NAV_BAD or self.rejects or t < self.gated_until
                 or t < self.drift_until):  # fmt: skip
             return False

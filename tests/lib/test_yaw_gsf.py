@@ -114,3 +114,38 @@ def test_the_bank_finds_the_heading_of_a_board_across_the_way_it_moves():
     assert len(with_bank) > 60 and max(abs(e) for e in with_bank) < 10.0, with_bank
     assert min(abs(e) for e in course_only) > 40.0, course_only
     assert resets > 0  # the course start's filter keeps rejecting its fixes
+
+
+def _watch(nav, step, reset, jumped):
+    """_gsf_watch at a fix where the bank has disagreed long enough and the navigator rejects
+    its third fix in a row, the run begun with a jump of the receiver or not: (its answer,
+    the resets it asked for)."""
+    resets = []
+    nav._gsf_step = lambda: step
+    nav._gsf_reset = lambda: resets.append(reset)
+    return nav._gsf_watch(), resets
+
+
+@pytest.mark.parametrize("jumped", [False, True])
+def test_a_receiver_that_jumped_does_not_reset_the_heading(jumped):
+    """A receiver that jumped makes the navigator reject its fixes and the bank, fed the same
+    fixes, disagree: that is no sign of a wrong heading, and the reset (position and velocity
+    from the fix) would follow the receiver (2000 km off, in `make bench-faults`). Without the
+    jump the same evidence resets the heading. The NumPy model decides alike."""
+    from host_emulator.model.nav import NavModel
+
+    cfg = navcfg.NavConfig("car")
+    nav = nav_mod.Navigator(cfg)
+    c = nav.ctl
+    c[nav_mod._C_TICK] = 100000
+    c[nav_mod._C_GSF_DIS] = 1
+    c[nav_mod._C_REJECTS] = 3
+    c[nav_mod._C_JUMPED] = 1 if jumped else 0
+    assert c[nav_mod._C_T_GSF] < 100000 - 1
+    answer, resets = _watch(nav, nav_mod._GSF_DISAGREES, "reset", jumped)
+    assert answer is (not jumped) and resets == ([] if jumped else ["reset"])
+
+    model = NavModel(cfg)
+    model.tick, model.gsf_dis, model.rejects, model.jumped = 100000, 1, 3, jumped
+    answer, resets = _watch(model, nav_mod._GSF_DISAGREES, "reset", jumped)
+    assert answer is (not jumped) and resets == ([] if jumped else ["reset"])
