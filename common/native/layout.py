@@ -48,7 +48,8 @@ LAYOUT = (
     ("nav", "the aiding parameters Navigator._aid", "", ("_AID_*", "_NAID")),
     ("nav", "a fix in ints (Navigator.fix_in), fix_check's bits, the pending fix "
      "Navigator._fx", "", ("FI_*", "NFI", "_FC_*", "_FX_*")),
-    ("nav_aid", "the fix of the running GNSS update, Navigator._used", "", ("_US_*",)),
+    ("nav_aid", "the fix of the running GNSS update, Navigator._used; how long a jumped "
+     "receiver may be refused", "", ("_US_*", "_STEP_HOLD_S")),
     ("nav", "the control state Navigator.ctl, its option bits, the filter jobs, nav_tick's "
      "events, the IMU status bits, health's causes and the states", "",
      ("ALIGNING", "NAVIGATING", "RING", "IMU_*", "CAUSE_*", "_JOB_*", "_C_*", "_NC",

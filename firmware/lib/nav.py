@@ -53,6 +53,7 @@ import f32
 import geo
 import ins as ins_mod
 import kern
+import nav_aid
 import rot
 from ins import Ins
 from nav_aid import Aiding
@@ -299,7 +300,9 @@ _M_LS = const(1656)  # the lag search (nav_kern.lag_search): residuals east, nor
 _M_BS = const(1704)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
 _M_AW = const(1709)  # the aiding watch: running means of normalised innovations (_AW_*, 2)
 _M_GSF = const(1711)  # the yaw estimator's bank (yaw_gsf.py, _G_*: NG)
-_NM = const(2139)
+_M_JUMP = const(2139)  # the innovation east, north at the first fix of a jumped run (2)
+_M_RESET_D = const(2141)  # the last reset's step in position east, north (_restart, 2)
+_NM = const(2143)
 # mem's _M_BW and _M_BS: the scalars the drift watch follows, position E, N, U, velocity E, N
 _BW_N = const(5)
 # mem's _M_AW: the aiding watch (nav_kern.aid_watch), and its result's bits
@@ -1007,10 +1010,12 @@ class Navigator(Alignment, Aiding):
                 c[_C_REJECTS] += 1
                 if c[_C_REJECTS] == 1:
                     c[_C_JUMPED] = 1 if self._jumped() else 0
+                    m[_M_JUMP] = m[_M_E + eskf.E_Z]
+                    m[_M_JUMP + 1] = m[_M_E + eskf.E_Z + 1]
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                 self._last_fix()
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
-                    if c[_C_JUMPED] and self._beyond_drift():  # the receiver jumped: no reset
+                    if c[_C_JUMPED] and nav_aid.refused(self):  # the receiver jumped: no reset
                         c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                     else:
                         self._reset_to_gnss()
@@ -1028,7 +1033,7 @@ class Navigator(Alignment, Aiding):
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
         covariance from the initial diagonal, the fix's sigmas and the horizontal velocity's
-        sigma_vel."""
+        sigma_vel; the step in position east, north into mem's _M_RESET_D (nav_aid.refused)."""
         ins = self.ins
         p = self._tmp4
         self._lever_n(p)
@@ -1038,6 +1043,9 @@ class Navigator(Alignment, Aiding):
         for i in range(3):
             # IMU = antenna - C_bn lever, carried forward over the fix's age
             p[i] = (gp[i] - p[i]) + v[i] * t
+        m = self.mem
+        m[_M_RESET_D] = p[0] - ins.p_n[0]
+        m[_M_RESET_D + 1] = p[1] - ins.p_n[1]
         ins.reset_kinematics(p, v)
         ini = self._init
         ini[0] = sigma_h * sigma_h

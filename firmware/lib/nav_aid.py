@@ -40,6 +40,7 @@ _C_ACCEPT_TICK = const(9)
 _C_REJECTS = const(10)
 _C_FIX_TICK = const(19)
 _C_USED_TICK = const(20)
+_C_T_SECOND = const(32)
 _C_V_REJECTS = const(47)
 _C_RESET_UNTIL = const(62)
 _C_LAST_TICK = const(72)
@@ -47,6 +48,8 @@ _M_X = const(0)
 _M_E = const(52)
 _M_US = const(1595)
 _M_LAST = const(1654)
+_M_JUMP = const(2139)
+_M_RESET_D = const(2141)
 # ---- end of nav.py's consts ----
 # ---- ins.py's consts used here: `python -m common.native.layout` writes them ----
 _X_V = const(3)
@@ -69,12 +72,41 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 # without a heading runs off faster than the fixes walk on), so its runs of rejected fixes
 # never begin with a jump. (Judged by the innovation instead, at 4de8e41, the GGA-only walk
 # looked like a jump: `bench-nav --trial walk --receiver "GGA only"` 10.63 m, now 4.87 m.)
-# While a run that did lasts, the reset to GNSS is refused unless the INS could have drifted
-# that far since its last accepted fix t s ago: _STEP_M + _STEP_HALF_A t^2 (15 m: the
-# receiver's scatter; then a constant error of 1 m/s^2, 0.1 g).
+# While a run that did lasts, the reset to GNSS is refused (`refused`) while the fix is beyond
+# what the INS could have drifted since its last accepted fix t s ago: _STEP_M +
+# _STEP_HALF_A t^2 (15 m: the receiver's scatter; then a constant error of 1 m/s^2, 0.1 g).
+# Within that bound it is refused too for _STEP_HOLD_S while the fixes stay where the jump
+# put them (the innovation less the run's first, within the same bound: the INS agrees with
+# the receiver's motion, only not with its place) and the jump does not undo the last reset
+# (the receiver coming back to where the INS was before a reset followed it). Reset to at
+# once, a receiver 20 or 40 m off for 30 s was followed (239 and 198 frames above 10 m
+# without health 2, `make bench-faults`, seed 0); one that stays where it jumped is believed
+# after _STEP_HOLD_S (a judgement: longer refuses longer a receiver wrong before its jump).
 _JUMP_M = f32.f32(15)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
+_STEP_HOLD_S = const(60)
+
+
+def refused(self):
+    """True when the reset to the fix of the GNSS update just done is refused, in a run of
+    rejected fixes that began with a jump of the receiver (_C_JUMPED; the module's
+    comment above _JUMP_M says when). self: the Navigator (nav._inject asks). On the board
+    navtick.c's `refused` decides, the same float32 operations (this reference boxes its
+    floats); the NumPy model's AidingModel._refused mirrors both."""
+    c = self.ctl
+    m = self.mem
+    ye = m[_M_E + eskf.E_Z]
+    yn = m[_M_E + eskf.E_Z + 1]
+    if self._beyond_drift(ye, yn):
+        return True
+    if c[_C_TICK] - c[_C_ACCEPT_TICK] >= _STEP_HOLD_S * c[_C_T_SECOND]:
+        return False
+    de = m[_M_JUMP] - m[_M_RESET_D]
+    dn = m[_M_JUMP + 1] - m[_M_RESET_D + 1]
+    if de * de + dn * dn < _STEP_M * _STEP_M:
+        return False  # the jump undoes the last reset
+    return not self._beyond_drift(ye - m[_M_JUMP], yn - m[_M_JUMP + 1])
 
 
 def lever_vel(out, x, w, lv):
@@ -229,8 +261,7 @@ class Aiding:
         what let it drift (after a bias step, a learned 1 deg/s outlives the step and
         defeats standstill detection), and the fresh covariance lets it learn them again.
         Not asked for (nav._inject, navtick.c inject) when the rejected run began with a
-        jump of the receiver (_C_JUMPED: _jumped) and the fix is still beyond what the INS
-        can have drifted since its last accepted fix (_beyond_drift): the rejects go on
+        jump of the receiver (_C_JUMPED: _jumped) and `refused` says so: the rejects go on
         counting and the next rejected fix asks again."""
         c = self.ctl
         self._room()
@@ -284,15 +315,12 @@ class Aiding:
         m[_M_LAST + 1] = m[_M_US + 1]
         self.ctl[_C_LAST_TICK] = self.ctl[_C_USED_TICK]
 
-    def _beyond_drift(self):
-        """True when the east/north innovation of the GNSS update just done (eskf E_Z) is beyond
-        what the INS can have drifted since the last accepted fix (_STEP_M)."""
+    def _beyond_drift(self, ye, yn):
+        """True when an east/north innovation (ye, yn) is beyond what the INS can have
+        drifted since the last accepted fix (_STEP_M)."""
         c = self.ctl
-        m = self.mem
         t = f32.f32(c[_C_TICK] - c[_C_ACCEPT_TICK]) * self.cfg.dt_s
         lim = _STEP_M + _STEP_HALF_A * (t * t)
-        ye = m[_M_E + eskf.E_Z]
-        yn = m[_M_E + eskf.E_Z + 1]
         return ye * ye + yn * yn > lim * lim
 
     def _reset_vertical(self):

@@ -143,12 +143,14 @@
 #define FC_COURSE 16
 #define FC_FAST 32
 
-/* nav_aid.py: the fix of the running GNSS update, Navigator._used */
+/* nav_aid.py: the fix of the running GNSS update, Navigator._used; how long a jumped receiver
+ * may be refused */
 #define US_P 0
 #define US_SPEED 3
 #define US_COURSE 4
 #define US_SIG_H 5
 #define US_SIG_V 6
+#define STEP_HOLD_S 60
 
 /* nav.py: the control state Navigator.ctl, its option bits, the filter jobs, nav_tick's events,
  * the IMU status bits, health's causes and the states */
@@ -287,7 +289,9 @@
 #define M_BS 1704
 #define M_AW 1709
 #define M_GSF 1711
-#define NM 2139
+#define M_JUMP 2139
+#define M_RESET_D 2141
+#define NM 2143
 #define BW_N 5
 #define AW_LAT 0
 #define AW_UP 1

@@ -499,14 +499,30 @@ static int32_t jumped(const int32_t *c, const float *m) {
     return de * de + dn * dn > reach * reach;
 }
 
-/* nav_aid._beyond_drift: the east/north innovation of the GNSS update just done beyond what
-   the INS can have drifted since the last accepted fix */
-static int32_t beyond_drift(const int32_t *c, const float *e, const float *m) {
+/* nav_aid._beyond_drift: an east/north innovation (ye, yn) beyond what the INS can have
+   drifted since the last accepted fix */
+static int32_t beyond_drift(const int32_t *c, const float *m, float ye, float yn) {
     float t = (float)(c[C_TICK] - c[C_ACCEPT_TICK]) * m[M_X + X_DT];
     float lim = STEP_M + STEP_HALF_A * (t * t);
+    return ye * ye + yn * yn > lim * lim;
+}
+
+/* nav_aid.refused: the reset to the fix of a jumped run's GNSS update just done refused */
+static int32_t refused(const int32_t *c, const float *e, const float *m) {
     float ye = e[E_Z];
     float yn = e[E_Z + 1];
-    return ye * ye + yn * yn > lim * lim;
+    if (beyond_drift(c, m, ye, yn)) {
+        return 1;
+    }
+    if (c[C_TICK] - c[C_ACCEPT_TICK] >= STEP_HOLD_S * c[C_T_SECOND]) {
+        return 0;
+    }
+    float de = m[M_JUMP] - m[M_RESET_D];
+    float dn = m[M_JUMP + 1] - m[M_RESET_D + 1];
+    if (de * de + dn * dn < STEP_M * STEP_M) {
+        return 0; /* the jump undoes the last reset */
+    }
+    return !beyond_drift(c, m, ye - m[M_JUMP], yn - m[M_JUMP + 1]);
 }
 
 /* nav_aid._last_fix: the fix just used becomes the last one the filter took */
@@ -560,13 +576,15 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
         c[C_REJECTS] += 1;
         if (c[C_REJECTS] == 1) {
             c[C_JUMPED] = jumped(c, m);
+            m[M_JUMP] = e[E_Z];
+            m[M_JUMP + 1] = e[E_Z + 1];
         }
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
         last_fix(c, m);
         if (c[C_REJECTS] < c[C_RESET_AFTER]) {
             return 0;
         }
-        if (c[C_JUMPED] && beyond_drift(c, e, m)) { /* the receiver jumped: no reset to it */
+        if (c[C_JUMPED] && refused(c, e, m)) { /* the receiver jumped: no reset to it */
             c[C_IMPLAUSIBLE_UNTIL] = c[C_TICK] + c[C_T_SECOND];
             return 0;
         }

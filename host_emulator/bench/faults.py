@@ -92,6 +92,9 @@ MATRIX = (
     Case("pps-missing@+10", ("pps_irregular",), 1.5),
     Case("pps-spurious@+10", ("pps_irregular",), 1.0),
     Case("gnss-jump@+5:100", _GNSS_FIX, 1.0),
+    # a receiver that stays 20 or 40 m off for 30 s: within what an INS can drift, not followed
+    Case("gnss-jump@+30:20", ("gnss_implausible", *_GNSS_FIX), 1.0),
+    Case("gnss-jump@+30:40", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("gnss-height@+5:100", _GNSS_FIX, 1.0),
     Case("gnss-height@+5:900000", ("gnss_bad_data",), 1.0),
     Case("gnss-speed@+5:51000", ("gnss_bad_data",), 1.0),

@@ -208,6 +208,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.drift_until = 0
         self.implausible_until = 0  # nav._C_IMPLAUSIBLE_UNTIL
         self.jumped = False  # nav._C_JUMPED
+        self.jump_y0 = np.zeros(2, F32)  # nav._M_JUMP: the jumped run's first innovation
+        self.reset_d = np.zeros(2, F32)  # nav._M_RESET_D: the last reset's step in position
         self.last_fix_en = np.zeros(2, F32)  # nav._M_LAST: the last fix the filter took
         self.last_used_tick = 0  # ... its measurement tick (nav._C_LAST_TICK; 0: none)
         self.prev_fix = (0, 0)  # the last usable fix's lat, lon (1e-7 deg; nav._C_PREV_FIX)
@@ -371,9 +373,11 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
 
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """p = (antenna - C_bn lever) + v age dt, the fix carried forward over its age; P from
-        the initial diagonal with the fix's sigmas and the horizontal velocity's sigma_vel."""
+        the initial diagonal with the fix's sigmas and the horizontal velocity's sigma_vel; the
+        step in position east, north into reset_d."""
         t = F32(max(age, 0)) * self.cfg.dt_s
         p = (gp - self._lever_n()) + v * t
+        self.reset_d = p[0:2] - self.ins.p_n[0:2]
         self.ins.reset_kinematics(p, v)
         self.init_diag[0] = sigma_h * sigma_h
         self.init_diag[1] = sigma_h * sigma_h
@@ -568,10 +572,11 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
                 self.rejects += 1
                 if self.rejects == 1:
                     self.jumped = self._jumped()
+                    self.jump_y0 = np.array([kf.innov[0][0], kf.innov[1][0]], F32)
                 self.gated_until = self.tick + self.ticks_second
                 self._last_fix()
                 if self.rejects >= self.cfg.reset_after_rejects:
-                    if self.jumped and self._beyond_drift():  # nav._inject: no reset
+                    if self.jumped and self._refused():  # nav._inject: no reset
                         self.implausible_until = self.tick + self.ticks_second
                     else:
                         self._reset_to_gnss()

@@ -151,13 +151,26 @@ class AidingModel:
         self.last_fix_en = self.used[0:2].copy()
         self.last_used_tick = self.used_tick
 
-    def _beyond_drift(self):
-        """nav_aid._beyond_drift: the last update's east/north innovation beyond _STEP_M +
-        _STEP_HALF_A t^2, t the time since the last accepted fix."""
+    def _beyond_drift(self, ye, yn):
+        """nav_aid._beyond_drift: an east/north innovation beyond _STEP_M + _STEP_HALF_A t^2,
+        t the time since the last accepted fix."""
         t = F32(self.tick - self.last_accept_tick) * self.cfg.dt_s
         lim = fw_nav_aid._STEP_M + fw_nav_aid._STEP_HALF_A * (t * t)
-        ye, yn = self.kf.innov[0][0], self.kf.innov[1][0]
         return bool(ye * ye + yn * yn > lim * lim)
+
+    def _refused(self):
+        """nav_aid.refused: the reset to a jumped run's fix refused: beyond the drift bound,
+        or within _STEP_HOLD_S while the jump neither undoes the last reset nor has the INS
+        drifted from where it put the fixes beyond the bound."""
+        ye, yn = self.kf.innov[0][0], self.kf.innov[1][0]
+        if self._beyond_drift(ye, yn):
+            return True
+        if self.tick - self.last_accept_tick >= fw_nav_aid._STEP_HOLD_S * self.ticks_second:
+            return False
+        d = self.jump_y0 - self.reset_d
+        if d[0] * d[0] + d[1] * d[1] < fw_nav_aid._STEP_M * fw_nav_aid._STEP_M:
+            return False
+        return not self._beyond_drift(ye - self.jump_y0[0], yn - self.jump_y0[1])
 
     def _reset_vertical(self):
         """The height from the fix the last update rejected, vertical velocity 0, their rows

@@ -126,9 +126,10 @@ def fast_drive(duration_s):
 
 def simple_drive(duration_s):
     """For the board's simple model: no fix for the first 2.5 s, static start, away to 8 m/s,
-    twelve consecutive fixes 40 m off (a jump of the receiver's track, nav_aid._jumped: the
-    reset is refused while the INS cannot have drifted that far, nav_aid._STEP_M; then the
-    navigator resets to GNSS, and, rejecting the good fixes, back), a 5 s stop, away again."""
+    twelve consecutive fixes walking away from the track, 8 m further north and east each
+    (no jump, nav_aid._jumped: the navigator resets to GNSS, and again as they go on), then
+    back on it at once (a jump that undoes no reset: refused, nav_aid.refused), a 5 s stop,
+    away again."""
     s = trajectory.DriveScript(yaw0_rad=2.5)
     s.hold(6.0)
     s.speed_to(8.0, 1.5)
@@ -142,7 +143,7 @@ def simple_drive(duration_s):
     truth, imu, fixes = simulate(s, duration_s, seed=8, outages=[(0.0, 2.5)])
     i = fix_at(fixes, 11.0)
     for k in range(i, i + 12):
-        fixes[k] = glitch(fixes[k], 40.0)
+        fixes[k] = glitch(fixes[k], 8.0 * (k - i + 1))
     return Drive(truth, imu, fixes, ())
 
 
