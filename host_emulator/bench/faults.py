@@ -92,7 +92,8 @@ MATRIX = (
     Case("pps-missing@+10", ("pps_irregular",), 1.5),
     Case("pps-spurious@+10", ("pps_irregular",), 1.0),
     Case("gnss-jump@+5:100", _GNSS_FIX, 1.0),
-    # a receiver that stays 20 or 40 m off for 30 s: within what an INS can drift, not followed
+    # a receiver that stays 20 or 40 m off for 30 s, within what a faulty INS can drift:
+    # refused where it began with a jump (docs/health.md)
     Case("gnss-jump@+30:20", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("gnss-jump@+30:40", ("gnss_implausible", *_GNSS_FIX), 1.0),
     Case("gnss-height@+5:100", _GNSS_FIX, 1.0),
