@@ -77,10 +77,10 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 # _STEP_HALF_A t^2 (15 m: the receiver's scatter; then a constant error of 1 m/s^2, 0.1 g).
 # Within that bound it is refused too for _STEP_HOLD_S while the fixes stay where the jump
 # put them (the innovation less the run's first, within the same bound: the INS agrees with
-# the receiver's motion, only not with its place) and the jump does not undo the last reset
-# (the receiver coming back to where the INS was before a reset followed it). Reset to at
-# once, a receiver 20 or 40 m off for 30 s was followed (239 and 198 frames above 10 m
-# without health 2, `make bench-faults`, seed 0); one that stays where it jumped is believed
+# the receiver's motion, only not with its place). Neither when the jump undoes the last
+# reset (the receiver coming back to where the INS was before a reset followed it). Reset to
+# at once, a receiver 20 or 40 m off for 30 s was followed (239 and 198 frames above 10 m
+# without health 2, `make bench-faults` at 1cff419, seed 0); one that stays there is believed
 # after _STEP_HOLD_S (a judgement: longer refuses longer a receiver wrong before its jump).
 _JUMP_M = f32.f32(15)
 _STEP_M = f32.f32(15)
@@ -91,21 +91,21 @@ _STEP_HOLD_S = const(60)
 def refused(self):
     """True when the reset to the fix of the GNSS update just done is refused, in a run of
     rejected fixes that began with a jump of the receiver (_C_JUMPED; the module's
-    comment above _JUMP_M says when). self: the Navigator (nav._inject asks). On the board
-    navtick.c's `refused` decides, the same float32 operations (this reference boxes its
-    floats); the NumPy model's AidingModel._refused mirrors both."""
+    comment above _JUMP_M says when). self: the Navigator. A function, not an Aiding method:
+    as a method it left the emulated Cortex-M4F's status page 297 bytes short of heap at
+    start-up (tests/runtimes/test_m4f.py). On the board navtick.c's `refused` decides."""
     c = self.ctl
     m = self.mem
+    de = m[_M_JUMP] - m[_M_RESET_D]
+    dn = m[_M_JUMP + 1] - m[_M_RESET_D + 1]
+    if de * de + dn * dn < _STEP_M * _STEP_M:
+        return False  # the jump undoes the last reset
     ye = m[_M_E + eskf.E_Z]
     yn = m[_M_E + eskf.E_Z + 1]
     if self._beyond_drift(ye, yn):
         return True
     if c[_C_TICK] - c[_C_ACCEPT_TICK] >= _STEP_HOLD_S * c[_C_T_SECOND]:
         return False
-    de = m[_M_JUMP] - m[_M_RESET_D]
-    dn = m[_M_JUMP + 1] - m[_M_RESET_D + 1]
-    if de * de + dn * dn < _STEP_M * _STEP_M:
-        return False  # the jump undoes the last reset
     return not self._beyond_drift(ye - m[_M_JUMP], yn - m[_M_JUMP + 1])
 
 

@@ -509,6 +509,11 @@ static int32_t beyond_drift(const int32_t *c, const float *m, float ye, float yn
 
 /* nav_aid.refused: the reset to the fix of a jumped run's GNSS update just done refused */
 static int32_t refused(const int32_t *c, const float *e, const float *m) {
+    float de = m[M_JUMP] - m[M_RESET_D];
+    float dn = m[M_JUMP + 1] - m[M_RESET_D + 1];
+    if (de * de + dn * dn < STEP_M * STEP_M) {
+        return 0; /* the jump undoes the last reset */
+    }
     float ye = e[E_Z];
     float yn = e[E_Z + 1];
     if (beyond_drift(c, m, ye, yn)) {
@@ -516,11 +521,6 @@ static int32_t refused(const int32_t *c, const float *e, const float *m) {
     }
     if (c[C_TICK] - c[C_ACCEPT_TICK] >= STEP_HOLD_S * c[C_T_SECOND]) {
         return 0;
-    }
-    float de = m[M_JUMP] - m[M_RESET_D];
-    float dn = m[M_JUMP + 1] - m[M_RESET_D + 1];
-    if (de * de + dn * dn < STEP_M * STEP_M) {
-        return 0; /* the jump undoes the last reset */
     }
     return !beyond_drift(c, m, ye - m[M_JUMP], yn - m[M_JUMP + 1]);
 }

@@ -159,16 +159,16 @@ class AidingModel:
         return bool(ye * ye + yn * yn > lim * lim)
 
     def _refused(self):
-        """nav_aid.refused: the reset to a jumped run's fix refused: beyond the drift bound,
-        or within _STEP_HOLD_S while the jump neither undoes the last reset nor has the INS
-        drifted from where it put the fixes beyond the bound."""
+        """nav_aid.refused: the reset to a jumped run's fix refused unless the jump undoes the
+        last reset: beyond the drift bound, or within _STEP_HOLD_S unless the INS drifted
+        from where the jump put the fixes beyond the bound."""
+        d = self.jump_y0 - self.reset_d
+        if d[0] * d[0] + d[1] * d[1] < fw_nav_aid._STEP_M * fw_nav_aid._STEP_M:
+            return False
         ye, yn = self.kf.innov[0][0], self.kf.innov[1][0]
         if self._beyond_drift(ye, yn):
             return True
         if self.tick - self.last_accept_tick >= fw_nav_aid._STEP_HOLD_S * self.ticks_second:
-            return False
-        d = self.jump_y0 - self.reset_d
-        if d[0] * d[0] + d[1] * d[1] < fw_nav_aid._STEP_M * fw_nav_aid._STEP_M:
             return False
         return not self._beyond_drift(ye - self.jump_y0[0], yn - self.jump_y0[1])
 

@@ -116,14 +116,13 @@ def test_the_bank_finds_the_heading_of_a_board_across_the_way_it_moves():
     assert resets > 0  # the course start's filter keeps rejecting its fixes
 
 
-def _watch(nav, step, reset, jumped):
-    """_gsf_watch at a fix where the bank has disagreed long enough and the navigator rejects
-    its third fix in a row, the run begun with a jump of the receiver or not: (its answer,
-    the resets it asked for)."""
+def _watch(nav):
+    """_gsf_watch of a navigator (or the model) whose bank disagrees: (its answer, how many
+    resets it asked for)."""
     resets = []
-    nav._gsf_step = lambda: step
-    nav._gsf_reset = lambda: resets.append(reset)
-    return nav._gsf_watch(), resets
+    nav._gsf_step = lambda: nav_mod._GSF_DISAGREES
+    nav._gsf_reset = lambda: resets.append(1)
+    return nav._gsf_watch(), len(resets)
 
 
 @pytest.mark.parametrize("jumped", [False, True])
@@ -142,10 +141,8 @@ def test_a_receiver_that_jumped_does_not_reset_the_heading(jumped):
     c[nav_mod._C_REJECTS] = 3
     c[nav_mod._C_JUMPED] = 1 if jumped else 0
     assert c[nav_mod._C_T_GSF] < 100000 - 1
-    answer, resets = _watch(nav, nav_mod._GSF_DISAGREES, "reset", jumped)
-    assert answer is (not jumped) and resets == ([] if jumped else ["reset"])
+    assert _watch(nav) == (not jumped, 0 if jumped else 1)
 
     model = NavModel(cfg)
     model.tick, model.gsf_dis, model.rejects, model.jumped = 100000, 1, 3, jumped
-    answer, resets = _watch(model, nav_mod._GSF_DISAGREES, "reset", jumped)
-    assert answer is (not jumped) and resets == ([] if jumped else ["reset"])
+    assert _watch(model) == (not jumped, 0 if jumped else 1)

@@ -124,12 +124,12 @@ def fast_drive(duration_s):
     return Drive(truth, imu, fixes, ())
 
 
-def simple_drive(duration_s):
+def simple_drive(duration_s, offsets_m=tuple(8.0 * k for k in range(1, 13))):
     """For the board's simple model: no fix for the first 2.5 s, static start, away to 8 m/s,
-    twelve consecutive fixes walking away from the track, 8 m further north and east each
-    (no jump, nav_aid._jumped: the navigator resets to GNSS, and again as they go on), then
-    back on it at once (a jump that undoes no reset: refused, nav_aid.refused), a 5 s stop,
-    away again."""
+    the fixes from 11 s on offsets_m north and east of the track (by default twelve walking
+    away from it, 8 m further each: no jump, nav_aid._jumped, the navigator resets to GNSS,
+    and again as they go on), then back on it at once (a jump that undoes no reset: refused,
+    nav_aid.refused), a 5 s stop, away again."""
     s = trajectory.DriveScript(yaw0_rad=2.5)
     s.hold(6.0)
     s.speed_to(8.0, 1.5)
@@ -142,8 +142,8 @@ def simple_drive(duration_s):
     s.hold(max(0.0, duration_s - s.t_s))
     truth, imu, fixes = simulate(s, duration_s, seed=8, outages=[(0.0, 2.5)])
     i = fix_at(fixes, 11.0)
-    for k in range(i, i + 12):
-        fixes[k] = glitch(fixes[k], 8.0 * (k - i + 1))
+    for k, metres in enumerate(offsets_m, i):
+        fixes[k] = glitch(fixes[k], metres)
     return Drive(truth, imu, fixes, ())
 
 
@@ -555,6 +555,17 @@ def test_model_follows_re_anchoring_across_the_180th_meridian():
     assert_gnss_seen(seen, ())
     assert seen.floored >= 10 and seen.ceiled >= 10
     assert nav.resets == 0
+
+
+def test_model_of_a_receiver_back_after_a_reset_followed_it():
+    """Fixes that walk away from the track and stay there are reset to (no jump); when they
+    come back at once, the jump undoes that reset and is taken at once, not refused as a
+    receiver that jumped (nav_aid.refused); bit for bit."""
+    cfg = car_config(earth_terms=False, coning=False, zupt=True, nhc=True)
+    drive = simple_drive(40.0, (8.0, 16.0, 24.0, 32.0) + (40.0,) * 9)
+    nav, _, seen = side_by_side(drive, cfg, len(drive.truth.t_s) - 1)
+    assert nav.resets == 2
+    assert not any(k & CAUSE_GNSS_IMPLAUSIBLE for k in seen.causes)
 
 
 def test_model_of_a_receiver_without_height():
