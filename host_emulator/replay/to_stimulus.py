@@ -567,7 +567,7 @@ def convert(dataset, opt=None):
         if "gnss_latency_s" not in user:
             config["gnss_latency_s"] = latency
     notes.append(_gnss_note(plan, len(plan.pos), baud, latency, user, sources))
-    notes.append(_profile(accel_counts, ranges, config, user, sources))
+    notes.append(_profile(gyro_counts, accel_counts, ranges, config, user, sources))
     config.update(user)
     run_config.check_scorable(config, sources)
     refused = run_config.problem(config)
@@ -767,12 +767,15 @@ def _stimulus_header(dataset, opt, plan, config, outages, model, t_start, t0):
     }
 
 
-def _profile(accel_counts, ranges, config, user, sources):
+def _profile(gyro_counts, accel_counts, ranges, config, user, sources):
     """The board's profile for the replay, and the note that says which and why: the one
-    given (dataset or --set), else the one the accelerometer shows (carrier.py: a walker's
-    steps, the handheld profile); a car profile given for a walker's data is said loudly."""
+    given (dataset or --set), else the one the IMU shows (carrier.py: a walker's steps or a
+    hand's tilting, the handheld profile); a car profile given for a walker's data is said
+    loudly."""
     lsb = imu_mod.ACCEL_LSB_PER_G_BY_RANGE[int(ranges["accel_range_g"])]
-    gait = carrier.gait(accel_counts / lsb * carrier.G_M_S2, TICK_S)
+    lsb_g = imu_mod.GYRO_LSB_PER_DPS_BY_RANGE[int(ranges["gyro_range_dps"])]
+    gait = carrier.gait(accel_counts / lsb * carrier.G_M_S2, TICK_S,
+                        np.radians(gyro_counts / lsb_g))  # fmt: skip
     if "profile" not in user:
         config["profile"] = 1 if gait.walking else 0
         sources["profile"] = run_config.DETECTED
