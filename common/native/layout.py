@@ -81,7 +81,7 @@ TUNING = (
     ("ins", "gravity and the coning terms", "", ("FREE_AIR", "TWELFTH")),
     ("nav_kern", "the watches (drift, suspicion, aiding), the receiver's unseen error and lag, "
      "the frozen receiver, the angle units", "",
-     ("_FROZEN_V2", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
+     ("_FROZEN_*", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
       "CDEG_PER_RAD")),
     ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_M", "_STEP_*")),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),

@@ -729,7 +729,7 @@ class Navigator(Alignment, Aiding):
         (`fix_usable`), which the callers call instead."""
         if self.ctl[_C_FIX_QUALITY] < self.ctl[_C_MIN_QUALITY]:
             return 0
-        r = fix_check(self._st, self._fx, self.ins.x, self._aid)
+        r = fix_check(self._st, self._fx, self.ins.x, self._aid, self.kf.e)
         if r & _FC_SPEED:
             self.ctl[_C_SPEED_TICK] = self.ctl[_C_TICK]
         return r
@@ -835,12 +835,14 @@ class Navigator(Alignment, Aiding):
     def _frozen(self, usable):
         """True, and CAUSE_GNSS_IMPLAUSIBLE for a second, when the usable fix repeats the last
         one to the 1e-7 degree while the navigator moves faster than _FROZEN_V2 allows and
-        the receiver does not report a speed under it (fix_check's _FC_MOVING: the float work
-        is the kernel's): a receiver that keeps sending its last solution (a real one's noise
-        moves every fix; one that holds its position at a standstill holds it where the
-        navigator stands too, and says so with its speed: a hand-held walk's phone at each
-        waypoint, while the navigator's velocity had drifted over 1 m/s, was judged frozen
-        and the walk ran away by 100 m). Such a fix is not used, nor are its repeats once the
+        than 3 sigma of its own velocity, and the receiver does not report a speed under it
+        (fix_check's _FC_MOVING: the float work is the kernel's): a receiver that keeps
+        sending its last solution (a real one's noise moves every fix; one that holds its
+        position at a standstill holds it where the navigator stands too, and says so with
+        its speed or, without one, by the navigator's not knowing that it moves: a hand-held
+        walk's phone at each waypoint, while the navigator's velocity had drifted over 1 m/s,
+        was judged frozen and the walk ran away by 100 m; without speeds, at 1.1 m/s with a
+        sigma of 1.8 m/s, by 62.9 m). Such a fix is not used, nor are its repeats once the
         navigator stops (the position is stale by the way driven since). The fix becomes the
         last one either way."""
         c = self.ctl

@@ -247,6 +247,7 @@ def uncertain(e, aid, mem):
 
 
 _FROZEN_V2 = f32.f32(1)  # _frozen: a repeated fix while moving faster than 1 m/s (squared)
+_FROZEN_K2 = f32.f32(9)  # ... and faster than 3 sigma of its own horizontal velocity (squared)
 _BW_ALPHA = f32.ratio(1, 4)  # weight of a second of fixes in the drift watch's running means
 _BW_LIMIT = f32.f32(3)  # a running mean beyond 3 (in innovation sigmas): drift
 # A suspected drift, health 2 while it lasts: running means of the same ratios, each clipped
@@ -568,15 +569,17 @@ def fix_in(fx, fi, aid):
     fx[_FX_SIG_H] = 0.0
 
 
-def fix_check(st, fx, x, aid):
+def fix_check(st, fx, x, aid, p):
     """_FC_* bits of a fix whose quality is acceptable: HDOP acceptable (then its speed, if
     known, into st), whether it has a course and a speed from heading_speed_m_s on (the
     aligning tick reads these bits, not the floats: a float read from a buffer is boxed, and a
     10 Hz receiver's boxes made the aligning heap checks ten times as often), the position
-    (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and the navigator moving
-    (_FROZEN_V2) while the receiver does not say it stands: a receiver reporting a speed
-    under the same bound holds its position by its own account (a phone standing at a
-    waypoint repeats its fix with speed 0), a frozen one repeats the speed it had."""
+    (x[0:2], ins.X_P = 0) beyond the re-anchoring distance, and the navigator moving while
+    the receiver does not say it stands: faster than _FROZEN_V2 allows and than 3 sigma of
+    its horizontal velocity (p: Eskf.e, P from eskf.E_P = 0), a speed it can tell from
+    standing; a receiver reporting a speed under the same bound holds its position by its own
+    account (a phone standing at a waypoint repeats its fix with speed 0), a frozen one
+    repeats the speed it had."""
     if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
         return 0
     r = _FC_USABLE
@@ -591,7 +594,9 @@ def fix_check(st, fx, x, aid):
     lim = aid[_AID_REANCHOR]
     if x[0] > lim or x[0] < -lim or x[1] > lim or x[1] < -lim:
         r |= _FC_REANCHOR
-    if x[ins_mod.X_V] * x[ins_mod.X_V] + x[ins_mod.X_V + 1] * x[ins_mod.X_V + 1] > _FROZEN_V2:
+    v2 = x[ins_mod.X_V] * x[ins_mod.X_V] + x[ins_mod.X_V + 1] * x[ins_mod.X_V + 1]
+    k = (eskf.N + 1) * eskf.IX_VEL
+    if v2 > _FROZEN_V2 and v2 > _FROZEN_K2 * (p[k] + p[k + eskf.N + 1]):
         if not (sp >= 0.0 and sp * sp <= _FROZEN_V2):  # a NaN speed is unknown too
             r |= _FC_MOVING
     return r

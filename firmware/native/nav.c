@@ -145,7 +145,7 @@ int32_t navk_fix_usable(int32_t *c, float *m) {
     if (c[C_FIX_QUALITY] < c[C_MIN_QUALITY]) {
         return 0;
     }
-    int32_t r = navk_fix_check(m + M_ST, m + M_FX, m + M_X, m + M_AID);
+    int32_t r = navk_fix_check(m + M_ST, m + M_FX, m + M_X, m + M_AID, m + M_E + E_P);
     if (r & FC_SPEED) {
         c[C_SPEED_TICK] = c[C_TICK];
     }
@@ -173,7 +173,8 @@ void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
 }
 
 /* nav_kern.fix_check: FC_* bits of a fix whose quality is acceptable. */
-int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid) {
+int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid,
+                       const float *p) {
     if (!(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {
         return 0;
     }
@@ -193,10 +194,14 @@ int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *
     if (x[X_P] > lim || x[X_P] < -lim || x[X_P + 1] > lim || x[X_P + 1] < -lim) {
         r |= FC_REANCHOR;
     }
-    /* a receiver that says it stands (a known speed, a NaN is not) is not frozen */
-    if (x[X_V] * x[X_V] + x[X_V + 1] * x[X_V + 1] > FROZEN_V2 &&
-        !(sp >= 0.0f && sp * sp <= FROZEN_V2)) {
-        r |= FC_MOVING;
+    /* moving: beyond 1 m/s and 3 sigma of the horizontal velocity (P's diagonal); a receiver
+     * that says it stands (a known speed, a NaN is not) is not frozen */
+    float v2 = x[X_V] * x[X_V] + x[X_V + 1] * x[X_V + 1];
+    int k = (N + 1) * IX_VEL;
+    if (v2 > FROZEN_V2 && v2 > FROZEN_K2 * (p[k] + p[k + N + 1])) {
+        if (!(sp >= 0.0f && sp * sp <= FROZEN_V2)) {
+            r |= FC_MOVING;
+        }
     }
     return r;
 }

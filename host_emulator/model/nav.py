@@ -438,14 +438,19 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.fix_queued = True
 
     def _frozen(self):
-        """nav._frozen: the usable fix repeats the last one while moving above 1 m/s and the
-        receiver does not say it stands (its speed unknown or above 1 m/s: fix_check)."""
+        """nav._frozen: the usable fix repeats the last one while moving above 1 m/s and 3
+        sigma of the horizontal velocity, and the receiver does not say it stands (its speed
+        unknown or above 1 m/s: fix_check)."""
         same = (self.fix_lat_e7, self.fix_lon_e7) == self.prev_fix
         self.prev_fix = (self.fix_lat_e7, self.fix_lon_e7)
         v = self.ins.v_n
         sp = self.fix[2]
-        moving = v[0] * v[0] + v[1] * v[1] > nav_kern._FROZEN_V2 and not (
-            sp >= 0.0 and sp * sp <= nav_kern._FROZEN_V2
+        v2 = v[0] * v[0] + v[1] * v[1]
+        p = self.kf.P
+        moving = (
+            v2 > nav_kern._FROZEN_V2
+            and v2 > F32(nav_kern._FROZEN_K2) * (p[IX_VEL, IX_VEL] + p[IX_VEL + 1, IX_VEL + 1])
+            and not (sp >= 0.0 and sp * sp <= nav_kern._FROZEN_V2)
         )
         if same and (moving or self.frozen):
             self.frozen = True  # nav._C_FROZEN: until the fix changes

@@ -698,10 +698,13 @@ def test_an_unknown_speed_is_no_speed_measurement_for_the_standstill_detector():
 @pytest.mark.parametrize("native", [False, True], ids=["python", "native"])
 def test_a_receiver_that_says_it_stands_is_not_moving_for_the_frozen_rule(native):
     """fix_check's _FC_MOVING (nav._frozen judges a repeated fix frozen with it): the navigator
-    faster than 1 m/s and the receiver not saying it stands. A phone at a waypoint repeats its
-    fix with speed 0 while a drifting navigator "moves": those fixes are used; a frozen
-    receiver repeats the speed it had, and one without a speed (unknown: < 0 or NaN) has no
-    say."""
+    faster than 1 m/s and than 3 sigma of its horizontal velocity, and the receiver not
+    saying it stands. A phone at a waypoint repeats its fix with speed 0 while a drifting
+    navigator "moves": those fixes are used; a frozen receiver repeats the speed it had, and
+    one without a speed (unknown: < 0 or NaN) has no say. A navigator unsure of its speed
+    cannot tell a stop from a freeze: a phone's walk (ipin_handheld T01_R01, positions) whose
+    navigator "moved" at 1.10 m/s with a sigma of 1.80 m/s when the phone stood 40 s at the
+    route's end judged the fixes frozen and ran away by 62.9 m at a waypoint."""
     import kern
 
     nav = Navigator(navcfg.NavConfig("handheld"))
@@ -709,10 +712,13 @@ def test_a_receiver_that_says_it_stands_is_not_moving_for_the_frozen_rule(native
     c[fw_nav._C_FIX_QUALITY] = 1
     c[fw_nav._C_MIN_QUALITY] = 1
     nav._fx[fw_nav._FX_HDOP] = 1.0
+    p = nav.kf.e  # P at eskf.E_P = 0
+    k = (eskf.N + 1) * eskf.IX_VEL
 
-    def moving(v_east, speed):
+    def moving(v_east, speed, sigma_v=0.1):
         nav.ins.x[fw_nav.ins_mod.X_V] = v_east
         nav._fx[fw_nav._FX_SPEED] = speed
+        p[k] = p[k + eskf.N + 1] = sigma_v * sigma_v
         bits = kern.navk.fix_usable(c, nav.mem) if native else nav._fix_usable()
         assert bits & fw_nav._FC_USABLE
         return bool(bits & fw_nav._FC_MOVING)
@@ -722,3 +728,7 @@ def test_a_receiver_that_says_it_stands_is_not_moving_for_the_frozen_rule(native
     for speed in (1.1, 10.0, -1.0, float("nan")):
         assert moving(1.3, speed)
     assert not moving(0.9, 10.0) and not moving(0.9, -1.0)  # the navigator itself is slow
+    # 3 sigma of the speed, the two variances summed: 1.3 m/s against 0.3 m/s each moves,
+    # against 0.31 it does not; the walk's 1.10 m/s at 1.80 m/s does not
+    assert moving(1.3, -1.0, 0.3) and not moving(1.3, -1.0, 0.31)
+    assert not moving(1.1, -1.0, 1.8) and moving(10.0, -1.0, 1.8)
