@@ -86,8 +86,8 @@ TUNING = (
     ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_M", "_STEP_*")),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),
     ("yaw_gsf", "the yaw estimator", "GSF_",
-     ("V0_VAR", "B0_VAR", "W_MIN", "EXP_CUT", "SIXTH", "TWENTYFOURTH", "SIXTYFOURTH", "THIRD",
-      "NINE", "INNOV_BAD")),
+     ("V0_VAR", "V0_CHORD_VAR", "B0_VAR", "W_MIN", "EXP_CUT", "SIXTH", "TWENTYFOURTH",
+      "SIXTYFOURTH", "THIRD", "NINE", "FOUR", "INNOV_BAD")),
 )  # fmt: skip
 
 # NAME = const(...), NAME = <int>, NAME = f32.<f32|ratio|from_bits>(...), at column 0

@@ -13,7 +13,8 @@ and turns. Between fixes the navigator's specific force, rotated by its attitude
 frame, is summed once for all hypotheses (`gsf_accum`: once a tick, a dozen float
 operations); at a fix each hypothesis turns the sums, less its force error, by its offset,
 predicts, and is updated with the fix's position (always) and velocity (when the receiver
-reports speed and course); its weight is multiplied by the likelihood of what it predicted
+reports speed and course; without a speed the bank starts at the second fix, from the chord);
+its weight is multiplied by the likelihood of what it predicted
 (`gsf_step`). What explains the motion best wins, and the spread of the weighted offsets says
 when the heading is known, with the board held at any yaw to the way it moves. In the spirit
 of the yaw estimator PX4's EKF2 and ArduPilot run in the air (EKF-GSF: a bank of yaw
@@ -102,14 +103,21 @@ _G_B = const(84)  # the weighted specific force error, east, north (m/s^2)
 _G_HYP = const(86)  # the hypotheses (GSF_N x _NH)
 NG = const(428)
 
+# the bank's state in the navigator's _C_GSF (0: off)
+GSF_ON = const(1)  # running: the sums are kept, every fix steps it
+GSF_HELD = const(2)  # a fix without velocity held for the chord; the sums are kept
+
 # step's result bits
-GSF_READY = const(1)  # the offset's variance is under _G_READY, at a fix with a velocity
+GSF_READY = const(1)  # the offset's variance is under _G_READY (at a fix without velocity,
+# only while aligning and under a quarter of it)
 GSF_DISAGREES = const(2)  # navigating, ready, and the offset is beyond 3 sigma of the
 # navigator's and the bank's yaw variances together, and beyond sqrt(_G_RMIN)
 GSF_NAV_BAD = const(4)  # ... and the navigator's positions miss their fixes: the running mean
 # of their y^2 / S (nav_kern.consistency) over INNOV_BAD
 
 V0_VAR = f32.f32(4)  # (m/s)^2 at the start, beyond the fix's speed squared
+V0_CHORD_VAR = f32.ratio(1, 4)  # (m/s)^2 beyond the chord's: the force error and the fix's
+# latency the chord leaves in the end's velocity
 B0_VAR = f32.ratio(1, 25)  # (m/s^2)^2: the specific force error at the start (1.2 deg of tilt)
 W_MIN = f32.ratio(1, 10000)  # a weight never below: a hypothesis out of favour can come back
 EXP_CUT = f32.f32(32)  # exp_neg(y) for y beyond this is 0 (e^-32 = 1.3e-14)
@@ -118,6 +126,7 @@ TWENTYFOURTH = f32.ratio(1, 24)
 SIXTYFOURTH = f32.ratio(1, 64)
 THIRD = f32.ratio(1, 3)
 NINE = f32.f32(9)
+FOUR = f32.f32(4)
 INNOV_BAD = f32.f32(2)
 
 _P_YAW = const(_M_E + _E_P + (_IX_ATT + 2) * (_N + 1))  # P's yaw variance in mem
@@ -169,14 +178,60 @@ def _sigma_h(m):
 
 
 def _init(m, sh):
-    """The bank at its first fix: every hypothesis at the fix with no velocity (its variance
-    V0_VAR plus the fix's speed squared) and no specific force error (B0_VAR), its offset one
-    of GSF_N around the circle (the variance of half their spacing), equal weights."""
-    g = _M_GSF
+    """The bank at its first fix with a speed: every hypothesis at the fix with no velocity
+    (its variance V0_VAR plus the fix's speed squared) and no specific force error (B0_VAR),
+    its offset one of GSF_N around the circle (the variance of half their spacing), equal
+    weights."""
     sp = m[_M_FX + _FX_SPEED]
     vv = V0_VAR
     if sp > 0.0:
         vv = vv + sp * sp
+    _spread(m, sh * sh, vv)
+
+
+def _init_chord(m, sh):
+    """The bank at the second fix of a receiver without velocity: the chord from the held
+    fix (hypothesis 0's position) over the interval is the mean velocity, and each hypothesis
+    turns the sums' part that the end's velocity adds (_G_A1 - _G_A2 / t, the same for every
+    yaw but for its rotation) by its offset. Started at rest instead, a car already at 10 m/s
+    is 5 sigma from every hypothesis, and the bank grew sure of a wrong heading (50 deg off
+    at 13 deg of sigma after the sharp turn of tests/lib/test_nav.py). The velocity's
+    variance is the chord's (two fixes' noise over t^2), what the offset's spread turns the
+    added part by, and what the force error (B0_VAR) makes of it over the interval (half of
+    (b t)^2, for the long interval after an outage); position and velocity share the fix's
+    noise (sh^2 / t)."""
+    g = _M_GSF
+    t = m[g + _G_T]
+    h0 = g + _G_HYP
+    ve = (m[_M_GP] - m[h0]) / t
+    vn = (m[_M_GP + 1] - m[h0 + 1]) / t
+    de = m[g + _G_A1] - m[g + _G_A2] / t
+    dn = m[g + _G_A1 + 1] - m[g + _G_A2 + 1] / t
+    r = sh * sh
+    _spread(m, r, 0.0)
+    yv = m[h0 + _H_P + 32]
+    vv = (r + r) / (t * t) + (de * de + dn * dn) * yv + B0_VAR * (t * t) * 0.5 + V0_CHORD_VAR
+    pv = r / t
+    for k in range(GSF_N):
+        h = g + _G_HYP + k * _NH
+        s = sin(m[h + 4])
+        c = cos(m[h + 4])
+        m[h + 2] = ve + (c * de - s * dn)
+        m[h + 3] = vn + (s * de + c * dn)
+        p = h + _H_P
+        m[p + 2] = pv
+        m[p + 14] = pv
+        m[p + 10] = pv
+        m[p + 22] = pv
+        m[p + 16] = vv
+        m[p + 24] = vv
+
+
+def _spread(m, pp, vv):
+    """Every hypothesis at the fix (position variance pp, velocity 0 of variance vv), no
+    specific force error (B0_VAR), its offset one of GSF_N around the circle (the variance of
+    half their spacing), equal weights."""
+    g = _M_GSF
     dy = TWO_PI / f32.f32(GSF_N)
     yv = dy * 0.5
     yv = yv * yv
@@ -189,8 +244,8 @@ def _init(m, sh):
         m[h + 1] = m[_M_GP + 1]
         m[h + 4] = (f32.f32(k) + 0.5) * dy - PI
         p = h + _H_P
-        m[p] = sh * sh
-        m[p + 8] = sh * sh
+        m[p] = pp
+        m[p + 8] = pp
         m[p + 16] = vv
         m[p + 24] = vv
         m[p + 32] = yv
@@ -293,19 +348,30 @@ def _update(m, h, i, a, z, r):
 
 
 def gsf_step(c, m):
-    """A usable fix (the navigator's _gp and _fx) once levelled: the bank's first, or the
-    predict and update of every hypothesis and their new weights; the weighted offset, its
-    variance and the weighted velocity (_G_YAW, _G_VAR, _G_V); GSF_* bits. The sums and
-    _G_DYAW start again."""
+    """A usable fix (the navigator's _gp and _fx) once levelled: the bank's first (a fix with
+    a speed), its second (a receiver without velocity: the chord from the first, held in
+    _C_GSF's state GSF_HELD), or the predict and update of every hypothesis and their new
+    weights; the weighted offset, its variance and the weighted velocity (_G_YAW, _G_VAR,
+    _G_V); GSF_* bits. The sums and _G_DYAW start again."""
     g = _M_GSF
     sh = _sigma_h(m)
-    if not c[_C_GSF]:
-        _init(m, sh)
-        c[_C_GSF] = 1
-    else:
+    st = c[_C_GSF]
+    if st == GSF_HELD and m[g + _G_T] > 0.0:
+        _init_chord(m, sh)
+        c[_C_GSF] = GSF_ON
+    elif st == GSF_ON:
         _bank(c, m, sh * sh)
+    elif m[_M_FX + _FX_SPEED] >= 0.0:
+        _init(m, sh)
+        c[_C_GSF] = GSF_ON
+    else:
+        m[g + _G_HYP] = m[_M_GP]
+        m[g + _G_HYP + 1] = m[_M_GP + 1]
+        c[_C_GSF] = GSF_HELD
     for i in range(6):
         m[g + i] = 0.0
+    if c[_C_GSF] != GSF_ON:
+        return 0
     return _result(c, m)
 
 
@@ -388,10 +454,10 @@ def _result(c, m):
     m[g + _G_B + 1] = bn
     if not var < m[g + _G_READY]:
         return 0
-    # positions alone make the bank sure too soon (in a sharp turn on 1.5 m fixes, 51 deg off
-    # with 15 deg of sigma: tests/lib/test_nav.py): it is ready only on a fix with velocity
     if not (m[_M_FX + _FX_SPEED] >= 0.0 and m[_M_FX + _FX_COURSE] >= 0.0):
-        return 0
+        # positions alone: a start only, under a quarter of the variance (docs/navigation.md)
+        if c[_C_STATE] == _NAVIGATING or not var * FOUR < m[g + _G_READY]:
+            return 0
     r = GSF_READY
     if c[_C_STATE] == _NAVIGATING:
         y2 = y * y

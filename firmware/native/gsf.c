@@ -59,13 +59,8 @@ static float sigma_h(const float *m) {
     return s;
 }
 
-static void init(float *m, float sh) {
+static void spread(float *m, float pp, float vv) {
     float *g = m + M_GSF;
-    float sp = m[M_FX + FX_SPEED];
-    float vv = GSF_V0_VAR;
-    if (sp > 0.0f) {
-        vv = vv + sp * sp;
-    }
     float dy = FM_TWO_PI / (float)GSF_N;
     float yv = dy * 0.5f;
     yv = yv * yv;
@@ -79,14 +74,53 @@ static void init(float *m, float sh) {
         h[1] = m[M_GP + 1];
         h[4] = ((float)k + 0.5f) * dy - FM_PI;
         float *p = h + H_P;
-        p[0] = sh * sh;
-        p[8] = sh * sh;
+        p[0] = pp;
+        p[8] = pp;
         p[16] = vv;
         p[24] = vv;
         p[32] = yv;
         p[40] = GSF_B0_VAR;
         p[48] = GSF_B0_VAR;
         h[H_W] = w;
+    }
+}
+
+static void init(float *m, float sh) {
+    float sp = m[M_FX + FX_SPEED];
+    float vv = GSF_V0_VAR;
+    if (sp > 0.0f) {
+        vv = vv + sp * sp;
+    }
+    spread(m, sh * sh, vv);
+}
+
+static void init_chord(float *m, float sh) {
+    float *g = m + M_GSF;
+    float t = g[G_T];
+    float *h0 = g + G_HYP;
+    float ve = (m[M_GP] - h0[0]) / t;
+    float vn = (m[M_GP + 1] - h0[1]) / t;
+    float de = g[G_A1] - g[G_A2] / t;
+    float dn = g[G_A1 + 1] - g[G_A2 + 1] / t;
+    float r = sh * sh;
+    spread(m, r, 0.0f);
+    float yv = h0[H_P + 32];
+    float vv = (r + r) / (t * t) + (de * de + dn * dn) * yv + GSF_B0_VAR * (t * t) * 0.5f +
+        GSF_V0_CHORD_VAR;
+    float pv = r / t;
+    for (int k = 0; k < GSF_N; k++) {
+        float *h = g + G_HYP + k * NH;
+        float s = f32_sin(h[4]);
+        float c = f32_cos(h[4]);
+        h[2] = ve + (c * de - s * dn);
+        h[3] = vn + (s * de + c * dn);
+        float *p = h + H_P;
+        p[2] = pv;
+        p[14] = pv;
+        p[10] = pv;
+        p[22] = pv;
+        p[16] = vv;
+        p[24] = vv;
     }
 }
 
@@ -264,7 +298,9 @@ static int32_t result(const int32_t *c, float *m) {
         return 0;
     }
     if (!(m[M_FX + FX_SPEED] >= 0.0f && m[M_FX + FX_COURSE] >= 0.0f)) {
-        return 0;
+        if (c[C_STATE] == NAVIGATING || !(var * GSF_FOUR < g[G_READY])) {
+            return 0;
+        }
     }
     int32_t r = GSF_READY;
     if (c[C_STATE] == NAVIGATING) {
@@ -280,15 +316,27 @@ static int32_t result(const int32_t *c, float *m) {
 }
 
 int32_t navk_gsf_step(int32_t *c, float *m) {
+    float *g = m + M_GSF;
     float sh = sigma_h(m);
-    if (!c[C_GSF]) {
-        init(m, sh);
-        c[C_GSF] = 1;
-    } else {
+    int32_t st = c[C_GSF];
+    if (st == GSF_HELD && g[G_T] > 0.0f) {
+        init_chord(m, sh);
+        c[C_GSF] = GSF_ON;
+    } else if (st == GSF_ON) {
         bank(c, m, sh * sh);
+    } else if (m[M_FX + FX_SPEED] >= 0.0f) {
+        init(m, sh);
+        c[C_GSF] = GSF_ON;
+    } else {
+        g[G_HYP] = m[M_GP];
+        g[G_HYP + 1] = m[M_GP + 1];
+        c[C_GSF] = GSF_HELD;
     }
     for (int i = 0; i < 6; i++) {
-        m[M_GSF + i] = 0.0f;
+        g[i] = 0.0f;
+    }
+    if (c[C_GSF] != GSF_ON) {
+        return 0;
     }
     return result(c, m);
 }

@@ -501,6 +501,8 @@
 #define G_B 84
 #define G_HYP 86
 #define NG 428
+#define GSF_ON 1
+#define GSF_HELD 2
 #define GSF_READY 1
 #define GSF_DISAGREES 2
 #define GSF_NAV_BAD 4

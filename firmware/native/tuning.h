@@ -83,6 +83,7 @@
 
 /* yaw_gsf.py: the yaw estimator */
 #define GSF_V0_VAR F32_BITS(0x40800000) /* 4. */
+#define GSF_V0_CHORD_VAR F32_BITS(0x3E800000) /* 0.25 */
 #define GSF_B0_VAR F32_BITS(0x3D23D70A) /* 0.04 */
 #define GSF_W_MIN F32_BITS(0x38D1B717) /* 0.0001 */
 #define GSF_EXP_CUT F32_BITS(0x42000000) /* 32. */
@@ -91,6 +92,7 @@
 #define GSF_SIXTYFOURTH F32_BITS(0x3C800000) /* 0.015625 */
 #define GSF_THIRD F32_BITS(0x3EAAAAAB) /* 0.33333334 */
 #define GSF_NINE F32_BITS(0x41100000) /* 9. */
+#define GSF_FOUR F32_BITS(0x40800000) /* 4. */
 #define GSF_INNOV_BAD F32_BITS(0x40000000) /* 2. */
 
 #endif /* NAVK_TUNING_H */

@@ -394,7 +394,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         slot = self.tick % RING
         self.ring_p[slot] = ins.p_n - self.corr[0:3]
         self.ring_v[slot] = ins.v_n - self.corr[3:6]
-        if self.gsf_on:
+        if self.gsf_state:
             self._gsf_accum()
         self.since_prop += 1
         self.since_zupt += 1
@@ -622,7 +622,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.leveled = False
         self.rejects = 0
         self.v_rejects = 0
-        self.gsf_on = False
+        self.gsf_state = 0
         self.gsf_dis = 0
         self.last_used_tick = 0  # nav._fault_reset: the frame may move
         self.lag_tick = 0
@@ -778,7 +778,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
             "updates": self.updates,
             "resets": self.resets,
             "reanchors": self.reanchors,
-            "gsf_on": self.gsf_on,
+            "gsf_state": self.gsf_state,
             "gsf_dis": self.gsf_dis,
         }
 

@@ -36,7 +36,7 @@ class AlignmentModel:
             theta = (self.w_b - ins.bg) * self.cfg.dt_s
             ins.q_bn = ref_rot.q_update(ins.q_bn, theta)[0]
             ins.c_bn = ref_rot.q_to_dcm(ins.q_bn)
-        if self.gsf_on:
+        if self.gsf_state:
             self._gsf_accum()
         if self.fix_pending:
             self.fix_pending = False

@@ -69,7 +69,7 @@ class GsfModel:
             else cfg.gnss_vel_sigma
         )
         g[fw._G_RV] = rv * rv
-        self.gsf_on = False  # nav._C_GSF
+        self.gsf_state = 0  # nav._C_GSF: 0, fw.GSF_ON or fw.GSF_HELD
         self.gsf_dis = 0  # nav._C_GSF_DIS
         self.ticks_gsf = int(cfg.yaw_gsf_reset_s / cfg.dt_s + 0.5)
 
@@ -94,14 +94,24 @@ class GsfModel:
         g[fw._G_T] = g[fw._G_T] + dt
 
     def _gsf_step(self):
-        """yaw_gsf.gsf_step: the bank's first fix or its predict, update and weighing."""
+        """yaw_gsf.gsf_step: the bank's first fix (with a speed), its chord start (without),
+        or its predict, update and weighing."""
+        g = self.gsf
         sh = self._sigma_h()
-        if not self.gsf_on:
-            self._gsf_first(sh)
-            self.gsf_on = True
-        else:
+        if self.gsf_state == fw.GSF_HELD and g[fw._G_T] > 0.0:
+            self._gsf_chord(sh)
+            self.gsf_state = fw.GSF_ON
+        elif self.gsf_state == fw.GSF_ON:
             self._gsf_bank(sh * sh)
-        self.gsf[0:6] = ZERO
+        elif self.fix[2] >= 0.0:
+            self._gsf_first(sh)
+            self.gsf_state = fw.GSF_ON
+        else:
+            g[fw._G_HYP : fw._G_HYP + 2] = self.gnss_p[0:2]
+            self.gsf_state = fw.GSF_HELD
+        g[0:6] = ZERO
+        if self.gsf_state != fw.GSF_ON:
+            return 0
         return self._gsf_result()
 
     def _gsf_first(self, sh):
@@ -109,6 +119,32 @@ class GsfModel:
         vv = fw.V0_VAR
         if sp > 0.0:
             vv = vv + sp * sp
+        self._gsf_spread(sh * sh, vv)
+
+    def _gsf_chord(self, sh):
+        """yaw_gsf._init_chord."""
+        g = self.gsf
+        t = g[fw._G_T]
+        h = self._hyp()
+        ve = (self.gnss_p[0] - h[0, 0]) / t
+        vn = (self.gnss_p[1] - h[0, 1]) / t
+        de = g[fw._G_A1] - g[fw._G_A2] / t
+        dn = g[fw._G_A1 + 1] - g[fw._G_A2 + 1] / t
+        r = sh * sh
+        self._gsf_spread(r, ZERO)
+        yv = h[0, fw._H_P + 32]
+        vv = (r + r) / (t * t) + (de * de + dn * dn) * yv + fw.B0_VAR * (t * t) * HALF
+        vv = vv + fw.V0_CHORD_VAR
+        pv = r / t
+        s = ref_fmath.sin(h[:, 4])
+        c = ref_fmath.cos(h[:, 4])
+        h[:, 2] = ve + (c * de - s * dn)
+        h[:, 3] = vn + (s * de + c * dn)
+        p = fw._H_P
+        for i, v in ((2, pv), (14, pv), (10, pv), (22, pv), (16, vv), (24, vv)):
+            h[:, p + i] = v
+
+    def _gsf_spread(self, pp, vv):
         dy = TWO_PI / F32(K)
         yv = dy * HALF
         yv = yv * yv
@@ -118,7 +154,7 @@ class GsfModel:
         h[:, 1] = self.gnss_p[1]
         h[:, 4] = (np.arange(K, dtype=F32) + HALF) * dy - PI
         p = fw._H_P
-        for i, v in ((0, sh * sh), (8, sh * sh), (16, vv), (24, vv), (32, yv),
+        for i, v in ((0, pp), (8, pp), (16, vv), (24, vv), (32, yv),
                      (40, fw.B0_VAR), (48, fw.B0_VAR)):  # fmt: skip
             h[:, p + i] = v
         h[:, fw._H_W] = ONE / F32(K)
@@ -250,8 +286,9 @@ class GsfModel:
         g[fw._G_B + 1] = bn
         if not var < g[fw._G_READY]:
             return 0
-        if not (self.fix[2] >= 0.0 and self.fix[3] >= 0.0):  # ready only with a velocity
-            return 0
+        if not (self.fix[2] >= 0.0 and self.fix[3] >= 0.0):  # positions alone: a start only
+            if self.state == fw_nav.NAVIGATING or not var * fw.FOUR < g[fw._G_READY]:
+                return 0
         r = fw.GSF_READY
         if self.state == fw_nav.NAVIGATING:
             y2 = y * y

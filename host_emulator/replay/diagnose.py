@@ -166,11 +166,13 @@ def why(rep, console=()):
     else:
         no_heading = _track_fails(rep, cfg, usable, hs, tick_s)
     if no_heading is not None:
-        if cfg.yaw_gsf:  # nav_align._gsf_align: the bank's start needed a fix with velocity
+        if cfg.yaw_gsf:  # nav_align._gsf_align: yaw_gsf._result's bounds
+            ready_deg = math.degrees(_f(cfg.yaw_gsf_ready_sigma))
             no_heading += (
                 "; nor did the yaw estimator become sure of one (its 1-sigma under "
-                f"yaw_gsf_ready_sigma {math.degrees(_f(cfg.yaw_gsf_ready_sigma)):.0f} deg: it "
-                "needs fixes with speed and course, and turns or changes of speed)"
+                f"yaw_gsf_ready_sigma {ready_deg:.0f} deg at a fix with speed and course, "
+                f"under {ready_deg / 2:.0f} deg on positions alone: it needs turns or "
+                "changes of speed)"
             )
         return no_heading
     said = "; ".join(console) or "nothing"

@@ -35,9 +35,10 @@ def test_exp_neg_is_the_exponential_where_the_weights_need_it():
     assert float(yaw_gsf.exp_neg(f32.f32(0))) == 1.0
 
 
-def _bank_after(steps, native, seed):
+def _bank_after(steps, native, seed, chord=False):
     """A Navigator's mem after `steps` bank steps on random sums and fixes, through the native
-    kernels or the Python reference."""
+    kernels or the Python reference; `chord`: the first fix without speed (the bank starts at
+    the second, from the chord)."""
     rng = np.random.default_rng(seed)
     nav = nav_mod.Navigator(navcfg.NavConfig("handheld"))
     m, c = nav.mem, nav.ctl
@@ -54,7 +55,8 @@ def _bank_after(steps, native, seed):
             accum(m)
         for i in range(2):
             m[nav_mod._M_GP + i] = f32.f32(float(rng.normal(0.0, 5.0)) + s)
-        m[nav_mod._M_FX + nav_mod._FX_SPEED] = f32.f32(float(rng.uniform(-1.0, 3.0)))
+        speed = float(rng.uniform(-1.0, 3.0))
+        m[nav_mod._M_FX + nav_mod._FX_SPEED] = f32.f32(-1.0 if chord and s == 0 else speed)
         m[nav_mod._M_FX + nav_mod._FX_COURSE] = f32.f32(float(rng.uniform(-0.5, 6.0)))
         m[nav_mod._M_FX + nav_mod._FX_SIG_H] = f32.f32(float(rng.uniform(0.0, 6.0)))
         m[nav_mod._M_FX + nav_mod._FX_HDOP] = f32.f32(float(rng.uniform(0.5, 2.0)))
@@ -66,10 +68,11 @@ def _bank_after(steps, native, seed):
 
 
 @pytest.mark.skipif(not kern.NATIVE, reason="the native kernels are not built (make native)")
+@pytest.mark.parametrize("chord", [False, True], ids=["at-rest", "chord"])
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_the_native_bank_is_the_python_reference_bit_for_bit(seed):
-    native, r_native = _bank_after(40, True, seed)
-    python, r_python = _bank_after(40, False, seed)
+def test_the_native_bank_is_the_python_reference_bit_for_bit(seed, chord):
+    native, r_native = _bank_after(40, True, seed, chord)
+    python, r_python = _bank_after(40, False, seed, chord)
     sl = slice(G, G + yaw_gsf.NG)
     assert r_native == r_python and any(r_native)
     diff = np.flatnonzero(native[sl] != python[sl])
@@ -77,6 +80,92 @@ def test_the_native_bank_is_the_python_reference_bit_for_bit(seed):
     # and the bank moved: weights apart, offsets apart from their start
     w = native[sl].view(np.float32)[yaw_gsf._G_HYP + yaw_gsf._H_W :: yaw_gsf._NH]
     assert w.max() > 2.0 * w.min()
+
+
+def _two_fixes(speed, native=False):
+    """A car's bank after two fixes 1 s apart, 10 m apart eastward, at 10 m/s east and
+    accelerating 1 m/s^2 north in the navigator's frame (yaw offset 0 is the truth): each
+    hypothesis's velocity and its covariance, and the bank's state after each fix."""
+    nav = nav_mod.Navigator(navcfg.NavConfig("car"))
+    m, c = nav.mem, nav.ctl
+    accum = kern.navk.gsf_accum if native else yaw_gsf.gsf_accum
+    step = kern.navk.gsf_step if native else yaw_gsf.gsf_step
+    x = nav_mod._M_X
+    for i in range(9):  # level, no accelerometer bias
+        m[x + 10 + i] = f32.f32(1.0 if i in (0, 4, 8) else 0.0)
+    states = []
+    for k in range(2):
+        for i in range(2):
+            m[nav_mod._M_GP + i] = f32.f32(10.0 * k if i == 0 else 0.5 * k)
+        m[nav_mod._M_FX + nav_mod._FX_SPEED] = f32.f32(speed)
+        m[nav_mod._M_FX + nav_mod._FX_COURSE] = f32.f32(-1.0)
+        m[nav_mod._M_FX + nav_mod._FX_SIG_H] = f32.f32(1.5)
+        step(c, m)
+        states.append(c[nav_mod._C_GSF])
+        if k == 0:
+            m[nav_mod._M_F + 1] = f32.f32(1.0)
+            m[nav_mod._M_F + 2] = f32.f32(9.8)
+            for _ in range(200):
+                accum(m)
+    h = np.asarray(m[G + yaw_gsf._G_HYP : G + yaw_gsf._G_HYP + yaw_gsf.GSF_N * yaw_gsf._NH],
+                   float).reshape(yaw_gsf.GSF_N, yaw_gsf._NH)  # fmt: skip
+    return h, states
+
+
+@pytest.mark.parametrize("native", [False, True], ids=["python", "native"])
+def test_a_receiver_without_speed_starts_the_bank_from_the_chord(native):
+    """The first fix without speed is held; the second starts every hypothesis at the chord's
+    velocity (10 m/s east) plus the interval's added 0.5 m/s (0.4975 in 200 ticks), turned
+    by its offset: the true one (offset 0, between the 3rd and 4th at +-30 deg) 0.5 m/s north.
+    Position and velocity share the fix's noise. At rest instead (a fix with a speed 0), the
+    second fix's update leaves every velocity 4-6 m/s short of the car's."""
+    if native and not kern.NATIVE:
+        pytest.skip("the native kernels are not built (make native)")
+    h, states = _two_fixes(-1.0, native)
+    assert states == [yaw_gsf.GSF_HELD, yaw_gsf.GSF_ON]
+    yaw = h[:, 4]
+    want_e = 10.0 - 0.5 * np.sin(yaw)
+    want_n = 0.5 + 0.5 * np.cos(yaw)
+    assert np.allclose(h[:, 2], want_e, atol=5e-3) and np.allclose(h[:, 3], want_n, atol=5e-3)
+    p = h[:, yaw_gsf._H_P : yaw_gsf._H_W].reshape(-1, 7, 7)
+    assert np.allclose(p[:, 0, 0], 2.25) and np.allclose(p[:, 0, 2], 2.25)
+    assert np.allclose(p[:, 2, 0], 2.25) and np.allclose(p[:, 3, 1], 2.25)
+    assert (p[:, 2, 2] > 4.5).all() and (p[:, 2, 2] < 5.0).all()  # two fixes' 2 x 2.25, more
+    at_rest, states = _two_fixes(0.0, native)
+    assert states == [yaw_gsf.GSF_ON, yaw_gsf.GSF_ON]
+    assert (np.abs(at_rest[:, 2] - 10.0) > 4.0).all()  # one update from rest: 4-6 m/s short
+
+
+def _ready(state, var, velocity, native):
+    """gsf_step's READY bit for a bank whose variance comes out as `var` (one hypothesis,
+    every weight on it), aligning or navigating, at a fix with or without velocity."""
+    nav = nav_mod.Navigator(navcfg.NavConfig("car"))
+    m, c = nav.mem, nav.ctl
+    c[nav_mod._C_STATE] = state
+    c[nav_mod._C_GSF] = yaw_gsf.GSF_ON
+    for k in range(yaw_gsf.GSF_N):
+        h = G + yaw_gsf._G_HYP + k * yaw_gsf._NH
+        m[h + yaw_gsf._H_W] = f32.f32(1.0 if k == 0 else 0.0)
+        m[h + yaw_gsf._H_P + 32] = f32.f32(var)
+    m[nav_mod._M_FX + nav_mod._FX_SPEED] = f32.f32(1.0 if velocity else -1.0)
+    m[nav_mod._M_FX + nav_mod._FX_COURSE] = f32.f32(0.5 if velocity else -1.0)
+    result = kern.navk.gsf_step if native else yaw_gsf.gsf_step
+    return bool(result(c, m) & yaw_gsf.GSF_READY)
+
+
+@pytest.mark.parametrize("native", [False, True], ids=["python", "native"])
+def test_positions_alone_start_at_half_the_sigma_and_never_reset(native):
+    """Ready under yaw_gsf_ready_sigma at a fix with velocity; on positions alone only while
+    aligning and under half of it (a quarter of the variance); navigating, never on positions
+    (no reset from them)."""
+    if native and not kern.NATIVE:
+        pytest.skip("the native kernels are not built (make native)")
+    ready = float(navcfg.NavConfig("car").yaw_gsf_ready_sigma) ** 2
+    al, nv = nav_mod.ALIGNING, nav_mod.NAVIGATING
+    assert _ready(al, 0.9 * ready, True, native) and not _ready(al, 1.1 * ready, True, native)
+    assert not _ready(al, 0.3 * ready, False, native)
+    assert _ready(al, 0.2 * ready, False, native)
+    assert _ready(nv, 0.2 * ready, True, native) and not _ready(nv, 0.2 * ready, False, native)
 
 
 def _across(gsf):

@@ -275,7 +275,7 @@ def _firmware_ints(nav):
             "origin_lat_e7": fr.lat0_e7,
             "origin_lon_e7": geo.join_e7(fr.lon0_deg, fr.lon0_frac),
             "frame_valid": fr.valid,
-            "gsf_on": nav.ctl[nav_mod._C_GSF],
+            "gsf_state": nav.ctl[nav_mod._C_GSF],
             "gsf_dis": nav.ctl[nav_mod._C_GSF_DIS],
         }
     )
