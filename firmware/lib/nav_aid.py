@@ -66,7 +66,8 @@ _US_SIG_V = const(6)  # < 0: the fix had no height (its magnitude: the sigma it 
 NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance without one, (10 km)^2
 # A receiver that jumps is told from an INS that drifts by the receiver's own track: a fix
 # farther from the receiver's previous fix than the board can have moved between them (the
-# INS's speed times the time, plus _JUMP_M: twice a fix's scatter at HDOP 2.5) jumped (100 m,
+# INS's speed times the time, plus _JUMP_M: twice a fix's scatter at HDOP 2.5, plus
+# _STEP_HALF_A t^2: a speed that changed by 0.1 g since, as after an outage) jumped (100 m,
 # 2000 km, the pole). A faulty IMU drifts away from fixes that go on as the board moves (a
 # 1 deg/s gyro bias tilts the INS and its drift passes 0.1 g within seconds; a walker's INS
 # without a heading runs off faster than the fixes walk on), so its runs of rejected fixes
@@ -294,8 +295,10 @@ class Aiding:
     def _jumped(self):
         """True when the fix of the GNSS update just done (self._used) is farther from the last
         fix the filter took (_M_LAST) than the board can have moved between their moments at
-        the INS's horizontal speed, plus _JUMP_M (nav._inject asks it at the first rejected
-        fix of a run: _C_JUMPED)."""
+        the INS's horizontal speed, plus _JUMP_M and what a speed changing by 1 m/s^2 adds
+        (_STEP_HALF_A t^2: after an outage the car that slowed to 2 m/s had come 300 m, which
+        at the speed alone was a jump and 60 s of refused resets; nav._inject asks it at the
+        first rejected fix of a run: _C_JUMPED)."""
         c = self.ctl
         if c[_C_LAST_TICK] == 0:
             return False
@@ -305,7 +308,7 @@ class Aiding:
         dn = m[_M_US + 1] - m[_M_LAST + 1]
         ve = m[_M_X + _X_V]
         vn = m[_M_X + _X_V + 1]
-        reach = f32.sqrt(ve * ve + vn * vn) * t + _JUMP_M
+        reach = f32.sqrt(ve * ve + vn * vn) * t + _JUMP_M + _STEP_HALF_A * (t * t)
         return de * de + dn * dn > reach * reach
 
     def _last_fix(self):

@@ -485,7 +485,7 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
 }
 
 /* nav_aid._jumped: the fix just used farther from the last fix the filter took than the
-   board can have moved between them at the INS's speed, plus JUMP_M */
+   board can have moved between them at the INS's speed, plus JUMP_M and STEP_HALF_A t^2 */
 static int32_t jumped(const int32_t *c, const float *m) {
     if (c[C_LAST_TICK] == 0) {
         return 0;
@@ -495,7 +495,7 @@ static int32_t jumped(const int32_t *c, const float *m) {
     float dn = m[M_US + 1] - m[M_LAST + 1];
     float ve = m[M_X + X_V];
     float vn = m[M_X + X_V + 1];
-    float reach = __builtin_sqrtf(ve * ve + vn * vn) * t + JUMP_M;
+    float reach = __builtin_sqrtf(ve * ve + vn * vn) * t + JUMP_M + STEP_HALF_A * (t * t);
     return de * de + dn * dn > reach * reach;
 }
 

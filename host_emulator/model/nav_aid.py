@@ -136,7 +136,7 @@ class AidingModel:
 
     def _jumped(self):
         """nav_aid._jumped: the fix just used farther from the last one the filter took than
-        the INS's speed times the time between them, plus _JUMP_M."""
+        the INS's speed times the time between them, plus _JUMP_M and _STEP_HALF_A t^2."""
         if self.last_used_tick == 0:
             return False
         t = F32(self.used_tick - self.last_used_tick) * self.cfg.dt_s
@@ -144,6 +144,7 @@ class AidingModel:
         dn = self.used[1] - self.last_fix_en[1]
         v = self.ins.v_n
         reach = np.sqrt(v[0] * v[0] + v[1] * v[1]) * t + fw_nav_aid._JUMP_M
+        reach = reach + fw_nav_aid._STEP_HALF_A * (t * t)
         return bool(de * de + dn * dn > reach * reach)
 
     def _last_fix(self):
