@@ -83,7 +83,7 @@ TUNING = (
      "the frozen receiver, the angle units", "",
      ("_FROZEN_*", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
       "CDEG_PER_RAD")),
-    ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_M", "_STEP_*")),
+    ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_*", "_STEP_*")),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),
     ("yaw_gsf", "the yaw estimator", "GSF_",
      ("V0_VAR", "V0_CHORD_VAR", "B0_VAR", "W_MIN", "EXP_CUT", "SIXTH", "TWENTYFOURTH",

@@ -68,11 +68,20 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 # farther from the receiver's previous fix than the board can have moved between them (the
 # INS's speed times the time, plus _JUMP_M: twice a fix's scatter at HDOP 2.5, plus
 # _STEP_HALF_A t^2: a speed that changed by 0.1 g since, as after an outage) jumped (100 m,
-# 2000 km, the pole). A faulty IMU drifts away from fixes that go on as the board moves (a
-# 1 deg/s gyro bias tilts the INS and its drift passes 0.1 g within seconds; a walker's INS
-# without a heading runs off faster than the fixes walk on), so its runs of rejected fixes
-# never begin with a jump. (Judged by the innovation instead, at 4de8e41, the GGA-only walk
-# looked like a jump: `bench-nav --trial walk --receiver "GGA only"` 10.63 m, now 4.87 m.)
+# 2000 km, the pole); so did one whose fix is farther than that margin from where its own
+# velocity (speed and course) put it from its previous fix _JUMP_VEL_S or less before,
+# whatever the INS believes: a step across the board's motion (20 m north while the car drives
+# south-east at 12.7 m/s moved the fix 15 m in the second, no farther than the car could go).
+# Over a longer gap the fix's velocity says little of the chord: a car turning at 12 m/s,
+# 0.3 rad/s (2.4 m/s^2) for 8 s comes 98 m from where its velocity of now puts it, a jump
+# that refused the resets a 1 deg/s gyro bias needed across 8 s of fixes over hdop_max
+# (bench-faults seed 1: 964 m, never back; 223 m by the distance alone). 2 s: one missed
+# fix at 1 Hz, and 7.1 m off in that turn against its 17 m. A faulty IMU drifts away from
+# fixes that go on as the board moves (a 1 deg/s gyro bias tilts the INS and its drift
+# passes 0.1 g within seconds; a walker's INS without a heading runs off faster than the
+# fixes walk on), so its runs of rejected fixes never begin with a jump. (Judged by the
+# innovation instead, at 4de8e41, the GGA-only walk looked like a jump: `bench-nav --trial
+# walk --receiver "GGA only"` 10.63 m, now 4.87 m.)
 # While a run that did lasts, the reset to GNSS is refused (`refused`) while the fix is beyond
 # what the INS could have drifted since its last accepted fix t s ago: _STEP_M +
 # _STEP_HALF_A t^2 (15 m: the receiver's scatter; then a constant error of 1 m/s^2, 0.1 g).
@@ -84,6 +93,7 @@ NO_HEIGHT_VAR = f32.f32(100000000)  # m^2: the height's reported variance withou
 # without health 2, `make bench-faults` at 1cff419, seed 0); one that stays there is believed
 # after _STEP_HOLD_S (a judgement: longer refuses longer a receiver wrong before its jump).
 _JUMP_M = f32.f32(15)
+_JUMP_VEL_S = f32.f32(2)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
 _STEP_HOLD_S = const(60)
@@ -297,8 +307,10 @@ class Aiding:
         fix the filter took (_M_LAST) than the board can have moved between their moments at
         the INS's horizontal speed, plus _JUMP_M and what a speed changing by 1 m/s^2 adds
         (_STEP_HALF_A t^2: after an outage the car that slowed to 2 m/s had come 300 m, which
-        at the speed alone was a jump and 60 s of refused resets; nav._inject asks it at the
-        first rejected fix of a run: _C_JUMPED)."""
+        at the speed alone was a jump and 60 s of refused resets); or, with a course, farther
+        than _JUMP_M + _STEP_HALF_A t^2 from the previous fix moved by the fix's own velocity
+        times the time, t up to _JUMP_VEL_S. nav._inject asks it at the first rejected fix of
+        a run: _C_JUMPED."""
         c = self.ctl
         if c[_C_LAST_TICK] == 0:
             return False
@@ -308,8 +320,17 @@ class Aiding:
         dn = m[_M_US + 1] - m[_M_LAST + 1]
         ve = m[_M_X + _X_V]
         vn = m[_M_X + _X_V + 1]
-        reach = f32.sqrt(ve * ve + vn * vn) * t + _JUMP_M + _STEP_HALF_A * (t * t)
-        return de * de + dn * dn > reach * reach
+        margin = _JUMP_M + _STEP_HALF_A * (t * t)
+        reach = f32.sqrt(ve * ve + vn * vn) * t + margin
+        if de * de + dn * dn > reach * reach:
+            return True
+        course = m[_M_US + _US_COURSE]
+        if course < 0.0 or t > _JUMP_VEL_S:
+            return False
+        sp = m[_M_US + _US_SPEED]
+        de = de - sp * sin(course) * t
+        dn = dn - sp * cos(course) * t
+        return de * de + dn * dn > margin * margin
 
     def _last_fix(self):
         """The fix of the GNSS update just done becomes the last one the filter took."""

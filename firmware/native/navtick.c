@@ -485,7 +485,9 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
 }
 
 /* nav_aid._jumped: the fix just used farther from the last fix the filter took than the
-   board can have moved between them at the INS's speed, plus JUMP_M and STEP_HALF_A t^2 */
+   board can have moved between them at the INS's speed, plus JUMP_M and STEP_HALF_A t^2; or,
+   with a course and t up to JUMP_VEL_S, farther than that margin from it moved by the fix's
+   own velocity */
 static int32_t jumped(const int32_t *c, const float *m) {
     if (c[C_LAST_TICK] == 0) {
         return 0;
@@ -495,8 +497,19 @@ static int32_t jumped(const int32_t *c, const float *m) {
     float dn = m[M_US + 1] - m[M_LAST + 1];
     float ve = m[M_X + X_V];
     float vn = m[M_X + X_V + 1];
-    float reach = __builtin_sqrtf(ve * ve + vn * vn) * t + JUMP_M + STEP_HALF_A * (t * t);
-    return de * de + dn * dn > reach * reach;
+    float margin = JUMP_M + STEP_HALF_A * (t * t);
+    float reach = __builtin_sqrtf(ve * ve + vn * vn) * t + margin;
+    if (de * de + dn * dn > reach * reach) {
+        return 1;
+    }
+    float course = m[M_US + US_COURSE];
+    if (course < 0.0f || t > JUMP_VEL_S) {
+        return 0;
+    }
+    float sp = m[M_US + US_SPEED];
+    de = de - sp * f32_sin(course) * t;
+    dn = dn - sp * f32_cos(course) * t;
+    return de * de + dn * dn > margin * margin;
 }
 
 /* nav_aid._beyond_drift: an east/north innovation (ye, yn) beyond what the INS can have

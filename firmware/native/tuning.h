@@ -75,6 +75,7 @@
 /* nav_aid.py: the screening of fixes */
 #define NO_HEIGHT_VAR F32_BITS(0x4CBEBC20) /* 1.e+08 */
 #define JUMP_M F32_BITS(0x41700000) /* 15. */
+#define JUMP_VEL_S F32_BITS(0x40000000) /* 2. */
 #define STEP_M F32_BITS(0x41700000) /* 15. */
 #define STEP_HALF_A F32_BITS(0x3F000000) /* 0.5 */
 

@@ -136,16 +136,25 @@ class AidingModel:
 
     def _jumped(self):
         """nav_aid._jumped: the fix just used farther from the last one the filter took than
-        the INS's speed times the time between them, plus _JUMP_M and _STEP_HALF_A t^2."""
+        the INS's speed times the time between them, plus _JUMP_M and _STEP_HALF_A t^2; or,
+        with a course and t up to _JUMP_VEL_S, farther than that margin from it moved by the
+        fix's own velocity."""
         if self.last_used_tick == 0:
             return False
         t = F32(self.used_tick - self.last_used_tick) * self.cfg.dt_s
         de = self.used[0] - self.last_fix_en[0]
         dn = self.used[1] - self.last_fix_en[1]
         v = self.ins.v_n
-        reach = np.sqrt(v[0] * v[0] + v[1] * v[1]) * t + fw_nav_aid._JUMP_M
-        reach = reach + fw_nav_aid._STEP_HALF_A * (t * t)
-        return bool(de * de + dn * dn > reach * reach)
+        margin = fw_nav_aid._JUMP_M + fw_nav_aid._STEP_HALF_A * (t * t)
+        reach = np.sqrt(v[0] * v[0] + v[1] * v[1]) * t + margin
+        if de * de + dn * dn > reach * reach:
+            return True
+        course, sp = self.used[4], self.used[3]
+        if course < 0.0 or t > fw_nav_aid._JUMP_VEL_S:
+            return False
+        de = de - sp * ref_fmath.sin(course) * t
+        dn = dn - sp * ref_fmath.cos(course) * t
+        return bool(de * de + dn * dn > margin * margin)
 
     def _last_fix(self):
         """nav_aid._last_fix."""

@@ -5,10 +5,12 @@ detected with its cause in time, say health 2 whenever an error exceeds 10 m, an
 within 2x the no-fault RMS within 30 s of its end. `make bench-faults` runs every kind on three
 seeds at 250 s.
 
-Every kind meets every target here but the one KNOWN names, which fails until it is fixed
-(the sensor steps since the aiding watch: detected in 1.9-8.9 s, no frame above 10 m
-without health 2); `make bench-faults` has the seeds and kinds
-where they are missed, and docs/health.md ("How well: the fault benchmark") says why."""
+Every kind meets every target here but those KNOWN names (none now), which fail until they
+are fixed (the sensor steps since the aiding watch: detected in 1.9-8.9 s, no frame above 10 m
+without health 2; the 20 m step north across the car's south-east track since the jump test
+also compares the fix with the receiver's own velocity, nav_aid._jumped); `make bench-faults`
+has the seeds and kinds where they are missed, and docs/health.md ("How well: the fault
+benchmark") says why."""
 
 import pytest
 
@@ -24,14 +26,7 @@ def nominal():
 
 
 # Known shortfalls, each failing here until it is fixed (strict): their reason
-KNOWN = {
-    # nav_aid._jumped compares the distance between fixes with the INS's speed times the
-    # time, whatever the direction: at 120 s the car drives south-east at 12.7 m/s, and with
-    # the step 20 m north the fixes move 15 m in that second, less than its 12.7 m plus
-    # _JUMP_M: no jump, the receiver is followed (241 frames above 10 m without health 2;
-    # at 250 s, seeds 0 and 2, a jump: refused, none)
-    "gnss-jump@+30:20": "a jump along the track is not seen as one",
-}
+KNOWN = {}  # spec -> why it fails: a strict xfail, so a fix is noticed
 
 
 def _case(c):

@@ -309,16 +309,23 @@ def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
     assert np.allclose(p_diag[12:15], F32(cfg.init_accel_bias_sigma) ** 2, rtol=1e-6)
 
 
-def _jumped_after(seconds, came_m, speed_m_s):
-    """nav_aid._jumped (the Python reference) for a fix `came_m` north of the last one the
-    filter took, `seconds` later, the INS moving north at `speed_m_s`."""
+def _jumped_after(seconds, came_en_m, speed_m_s, fix_v_en=None):
+    """nav_aid._jumped (the Python reference) for a fix `came_en_m` (east, north, or north
+    alone) from the last one the filter took, `seconds` later, the INS moving north at
+    `speed_m_s`; the fix's own velocity `fix_v_en` (east, north m/s) or none (no course)."""
     nav = Navigator(navcfg.NavConfig("car"))
     c, m = nav.ctl, nav.mem
     c[fw_nav._C_LAST_TICK] = 1000
     c[fw_nav._C_USED_TICK] = 1000 + round(seconds / DT)
+    e, n = came_en_m if isinstance(came_en_m, tuple) else (0.0, came_en_m)
     m[fw_nav._M_LAST], m[fw_nav._M_LAST + 1] = F32(0.0), F32(0.0)
-    m[fw_nav._M_US], m[fw_nav._M_US + 1] = F32(0.0), F32(came_m)
+    m[fw_nav._M_US], m[fw_nav._M_US + 1] = F32(e), F32(n)
     m[fw_nav._M_X + 3], m[fw_nav._M_X + 4] = F32(0.0), F32(speed_m_s)
+    used = fw_nav._M_US
+    m[used + 3], m[used + 4] = F32(-1.0), F32(-1.0)  # nav_aid._US_SPEED, _US_COURSE
+    if fix_v_en is not None:
+        m[used + 3] = F32(np.hypot(*fix_v_en))
+        m[used + 4] = F32(np.arctan2(*fix_v_en) % (2 * np.pi))
     return nav._jumped()
 
 
@@ -331,6 +338,33 @@ def test_a_receiver_jumps_by_more_than_the_board_can_have_moved():
     assert not _jumped_after(1.0, 15.0, 2.3)
     assert not _jumped_after(30.0, 300.0, 2.3)
     assert _jumped_after(30.0, 600.0, 2.3)
+
+
+def test_a_receiver_jumps_when_its_fix_leaves_its_own_velocity():
+    """The car drives south-east at 12.7 m/s and the receiver steps 20 m north: the fix is
+    15 m from the last, no farther than the car can go in the second (12.7 + 15.5 m), but 20 m
+    from where the receiver's own velocity puts it (beyond 15.5 m): a jump. Without a course
+    only the distance decides; a fix that follows its velocity is none."""
+    v = 12.7 * np.sqrt(0.5)
+    step = (v, -v + 20.0)
+    assert _jumped_after(1.0, step, 12.7, fix_v_en=(v, -v))
+    assert not _jumped_after(1.0, step, 12.7)
+    assert not _jumped_after(1.0, (v + 3.0, -v), 12.7, fix_v_en=(v, -v))
+    # past nav_aid._JUMP_VEL_S the velocity says little of the chord: 8 s of a car turning
+    # left at 12 m/s, 0.3 rad/s put the fix 98 m from where its velocity of now does, no
+    # jump (a gyro bias in such a gap was refused its resets: 964 m); 2 s of it, 7.1 m: none
+    assert not _jumped_after(
+        2.0,
+        (40.0 * np.sin(0.6), 40.0 * (1.0 - np.cos(0.6))),
+        12.0,
+        fix_v_en=(12.0 * np.cos(0.6), 12.0 * np.sin(0.6)),
+    )
+    r_m = 12.0 / 0.3
+    chord = (r_m * np.sin(2.4), r_m * (1.0 - np.cos(2.4)))
+    v_now = (12.0 * np.cos(2.4), 12.0 * np.sin(2.4))
+    assert not _jumped_after(8.0, chord, 12.0, fix_v_en=v_now)
+    # after a 30 s outage in which the car stopped: 180 m from its velocity of 0 is no jump
+    assert not _jumped_after(30.0, (127.0, -127.0), 0.0, fix_v_en=(0.0, 0.0))
 
 
 def test_a_hand_held_in_a_car_that_slowed_in_an_outage_recovers_at_its_end():
