@@ -353,16 +353,14 @@ def test_a_receiver_jumps_when_its_fix_leaves_its_own_velocity():
     # past nav_aid._JUMP_VEL_S the velocity says little of the chord: 8 s of a car turning
     # left at 12 m/s, 0.3 rad/s put the fix 98 m from where its velocity of now does, no
     # jump (a gyro bias in such a gap was refused its resets: 964 m); 2 s of it, 7.1 m: none
-    assert not _jumped_after(
-        2.0,
-        (40.0 * np.sin(0.6), 40.0 * (1.0 - np.cos(0.6))),
-        12.0,
-        fix_v_en=(12.0 * np.cos(0.6), 12.0 * np.sin(0.6)),
-    )
     r_m = 12.0 / 0.3
-    chord = (r_m * np.sin(2.4), r_m * (1.0 - np.cos(2.4)))
-    v_now = (12.0 * np.cos(2.4), 12.0 * np.sin(2.4))
-    assert not _jumped_after(8.0, chord, 12.0, fix_v_en=v_now)
+    for t_s, off_m in ((2.0, 7.1), (8.0, 98.0)):  # the figures nav_aid.py and health.md give
+        th = 0.3 * t_s
+        chord = (r_m * np.sin(th), r_m * (1.0 - np.cos(th)))
+        v_now = (12.0 * np.cos(th), 12.0 * np.sin(th))
+        off = np.hypot(chord[0] - v_now[0] * t_s, chord[1] - v_now[1] * t_s)
+        assert abs(off - off_m) < 0.5, off
+        assert not _jumped_after(t_s, chord, 12.0, fix_v_en=v_now)
     # after a 30 s outage in which the car stopped: 180 m from its velocity of 0 is no jump
     assert not _jumped_after(30.0, (127.0, -127.0), 0.0, fix_v_en=(0.0, 0.0))
 
