@@ -263,7 +263,8 @@ _C_T_STAMP_LAG = const(74)  # the fixes' positions are this much older than thei
 _C_GSF = const(75)  # 1: the yaw estimator's bank runs (yaw_gsf.py; from the first levelled fix)
 _C_GSF_DIS = const(76)  # tick of the first fix of a run the bank disagrees with (0: none)
 _C_T_GSF = const(77)  # a disagreement this long, and the navigator's innovations: a reset
-_NC = const(78)
+_C_STEP_UNTIL = const(78)  # a constraint the INS keeps breaking was seen (a sensor step) until
+_NC = const(79)
 # (the ints live here, not in attributes, also because a store into an attribute of a class
 # with properties searches the class first: thousands of instructions on the board)
 _OPT_ZUPT = const(1)
@@ -313,6 +314,11 @@ _AW_HIT_UP = const(2)
 # ctl's _C_INFLATE: the variances to widen at the next filter job
 _INFLATE_MOTION = const(1)  # velocity and attitude (the IMU back after a dead spell)
 _INFLATE_VERTICAL = const(2)  # vertical velocity and accelerometer bias (nav_kern.aid_watch)
+# nav_kern.drift_watch's bit for a horizontal mean (position or velocity east or north) beyond
+# its limit, next to its 1 (suspected) and 2 (drift); and how long the drift is held after
+# the reset it caused (s): the biases are then the calibration's again, not yet learned
+_DRIFT_H = const(4)
+_DRIFT_HOLD_S = const(10)
 # mem's _M_CN: the receiver's unseen error (nav_kern.consistency)
 _CN_K = const(0)  # seconds of fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
@@ -725,13 +731,18 @@ class Navigator(Alignment, Aiding):
     def _fix_usable(self):
         """fix_check's bits, non-zero when quality and HDOP are acceptable (_FC_REANCHOR: see
         _nav_fix); a usable fix's speed, if it has one, also feeds standstill detection (an
-        unknown speed, < 0 or NaN, is no speed measurement). Natively one kernel
+        unknown speed, < 0 or NaN, is no speed measurement). While a drift is held
+        (_C_DRIFT_UNTIL) any HDOP is acceptable: a fix of 8 m is worth more than an INS with a
+        bias it has not learned (`make bench-faults`, seed 1: through 8 s of HDOP over
+        gnss_hdop_max a 1 deg/s gyro step ran to 223 m, 96 m with this alone). Natively one kernel
         (`fix_usable`), which the callers call instead."""
-        if self.ctl[_C_FIX_QUALITY] < self.ctl[_C_MIN_QUALITY]:
+        c = self.ctl
+        if c[_C_FIX_QUALITY] < c[_C_MIN_QUALITY]:
             return 0
-        r = fix_check(self._st, self._fx, self.ins.x, self._aid, self.kf.e)
+        any_hdop = 1 if c[_C_TICK] < c[_C_DRIFT_UNTIL] else 0
+        r = fix_check(self._st, self._fx, self.ins.x, self._aid, self.kf.e, any_hdop)
         if r & _FC_SPEED:
-            self.ctl[_C_SPEED_TICK] = self.ctl[_C_TICK]
+            c[_C_SPEED_TICK] = c[_C_TICK]
         return r
 
     def _navigate(self):
@@ -987,6 +998,7 @@ class Navigator(Alignment, Aiding):
                 w = c[_C_TICK] + 5 * c[_C_T_SECOND]
                 if w > c[_C_DRIFT_UNTIL]:
                     c[_C_DRIFT_UNTIL] = w
+                c[_C_STEP_UNTIL] = w
                 if hit & _AW_HIT_UP:
                     c[_C_INFLATE] |= _INFLATE_VERTICAL
         if job == _JOB_GNSS:
@@ -998,11 +1010,14 @@ class Navigator(Alignment, Aiding):
             ki = kf.i
             n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
             w = nav_kern.drift_watch(kf.e, self.mem, n)
-            if w:
+            if w & 3:
                 # a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it
-                w = c[_C_TICK] + (5 * c[_C_T_SECOND] if w == 2 else 3 * c[_C_T_SECOND] // 2)
-                if w > c[_C_DRIFT_UNTIL]:
-                    c[_C_DRIFT_UNTIL] = w
+                t = c[_C_TICK] + (5 * c[_C_T_SECOND] if w & 3 == 2 else 3 * c[_C_T_SECOND] // 2)
+                if t > c[_C_DRIFT_UNTIL]:
+                    c[_C_DRIFT_UNTIL] = t
+            # a sensor step the constraints show (_C_STEP_UNTIL), the yaw estimator agreeing
+            # with the heading: a rejected fix, or a horizontal drift, resets now (_drift_reset)
+            step = c[_C_TICK] < c[_C_STEP_UNTIL] and not c[_C_GSF_DIS]
             nav_kern.consistency(kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
@@ -1016,10 +1031,12 @@ class Navigator(Alignment, Aiding):
                     m[_M_JUMP + 1] = m[_M_E + eskf.E_Z + 1]
                 c[_C_GATED_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                 self._last_fix()
-                if c[_C_REJECTS] >= c[_C_RESET_AFTER]:
+                if c[_C_REJECTS] >= c[_C_RESET_AFTER] or step:
                     if c[_C_JUMPED] and nav_aid.refused(self):  # the receiver jumped: no reset
                         c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
                     else:
+                        if c[_C_REJECTS] < c[_C_RESET_AFTER]:
+                            self._drift_reset()
                         self._reset_to_gnss()
             else:
                 self._last_fix()
@@ -1031,6 +1048,29 @@ class Navigator(Alignment, Aiding):
                     c[_C_RESET_UNTIL] = c[_C_TICK]  # a whole fix agrees with the reset state
                 if c[_C_V_REJECTS] >= c[_C_RESET_AFTER]:
                     self._reset_vertical()
+                elif step and w & _DRIFT_H:
+                    self._drift_reset()
+                    self._reset_to_gnss()
+
+    def _drift_reset(self):
+        """A reset to GNSS before RESET_AFTER rejected fixes, for a sensor step: while the
+        aiding watch sees a constraint broken (_C_STEP_UNTIL, nav_kern.aid_watch), at a fix
+        rejected or at one whose innovations the drift watch finds drifting horizontally
+        (_DRIFT_H), suspected or not. A bias step runs the INS off faster than five rejected
+        fixes let it (`make bench-faults`, a 1 deg/s gyro step: 223 m before this, see
+        docs/health.md); the constraints tell such a step from late fixes or a walker's wrong
+        heading, which drift as much but break no constraint, and which resets do not mend
+        (every drift reset at once took `bench-nav`'s walk from 0.71 to 4.77 m and its
+        urban_drive with fixes 0.2 s late from 2.27 to 11.86 m); a car's wrong heading breaks
+        the constraint too, and while the yaw estimator disagrees with it (_C_GSF_DIS) its own
+        reset mends the heading (_gsf_watch), not this one. The drift is held _DRIFT_HOLD_S
+        after it (health 2): the reset puts the biases back to the calibration, and while the
+        filter learns them again a step still acting runs off again (a 1 deg/s gyro step left
+        10-13 m without health 2 within 8 s of its reset). navtick.c inject does the same."""
+        c = self.ctl
+        t = c[_C_TICK] + _DRIFT_HOLD_S * c[_C_T_SECOND]
+        if t > c[_C_DRIFT_UNTIL]:
+            c[_C_DRIFT_UNTIL] = t
 
     def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),

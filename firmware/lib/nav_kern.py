@@ -102,6 +102,7 @@ _M_AW = const(1709)
 _BW_N = const(5)
 _AW_LAT = const(0)
 _AW_UP = const(1)
+_DRIFT_H = const(4)
 _CN_K = const(0)
 _CN_MH = const(1)
 _CN_MV = const(2)
@@ -311,12 +312,15 @@ def drift_watch(e, mem, n):
     2, and the means restarted, when one is beyond _BW_LIMIT; else 1 when one of the
     suspicion's means (_M_BS: the ratios clipped at _BS_CLIP) is beyond _BS_LIMIT (a drift
     suspected: a bias step's errors pass 10 m before the drift means reach their limit);
-    else 0. Innovations that keep one
-    sign for several fixes mean the INS drifts away from GNSS faster than the filter allows
-    for (a sensor bias or scale that jumped; or fixes that are late). The positions count
-    because a fix without a course (a stop, a slow receiver) has no velocity rows. Each ratio
-    is clipped at _BW_CLIP, so it takes four one-sided outliers in a row (or more, smaller
-    ones) to pass the limit: one bad fix alone does not. A detector only (docs/health.md)."""
+    else 0; plus _DRIFT_H when a mean beyond its limit is a horizontal one (not the height's).
+    Innovations that keep one sign for several fixes mean the INS drifts away from GNSS faster
+    than the filter allows for (a sensor bias or scale that jumped; or fixes that are late).
+    The positions count because a fix without a course (a stop, a slow receiver) has no
+    velocity rows. Each ratio is clipped at _BW_CLIP, so it takes four one-sided outliers in a
+    row (or more, smaller ones) to pass the limit: one bad fix alone does not. A detector
+    (docs/health.md), and with _DRIFT_H the trigger of nav._drift_reset: the height is left to
+    its own reset (a suspected vertical drift that reset the drive_0708 replay's fixes took its
+    height RMS from 0.93 to 1.54 m)."""
     z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
     r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
     bw = f32.view(mem, _M_BW, _BW_N)
@@ -326,6 +330,7 @@ def drift_watch(e, mem, n):
     # health 2 frames in a no-fault run with a weight per fix)
     a = _BW_ALPHA / mem[_M_CN + _CN_RK]
     hit = 0
+    hz = 0
     for m in range(_BW_N):
         if m < n and r[m] > 0.0:
             q = z[m] / f32.sqrt(r[m])
@@ -334,20 +339,25 @@ def drift_watch(e, mem, n):
             elif q < -_BW_CLIP:
                 q = -_BW_CLIP
             bw[m] = bw[m] + a * (q - bw[m])
-            if bw[m] > _BW_LIMIT or bw[m] < -_BW_LIMIT:
+            beyond = bw[m] > _BW_LIMIT or bw[m] < -_BW_LIMIT
+            if beyond:
                 hit = 2
             if q > _BS_CLIP:
                 q = _BS_CLIP
             elif q < -_BS_CLIP:
                 q = -_BS_CLIP
             bs[m] = bs[m] + a * (q - bs[m])
-            if hit == 0 and (bs[m] > _BS_LIMIT or bs[m] < -_BS_LIMIT):
-                hit = 1
+            if bs[m] > _BS_LIMIT or bs[m] < -_BS_LIMIT:
+                beyond = True
+                if hit == 0:
+                    hit = 1
+            if beyond and m != 2:
+                hz = _DRIFT_H
     if hit == 2:
         for m in range(_BW_N):
             bw[m] = 0.0
             bs[m] = 0.0
-    return hit
+    return hit | hz
 
 
 # The receiver's error that a white-noise filter cannot see (docs/navigation.md, "The reported
@@ -569,7 +579,7 @@ def fix_in(fx, fi, aid):
     fx[_FX_SIG_H] = 0.0
 
 
-def fix_check(st, fx, x, aid, p):
+def fix_check(st, fx, x, aid, p, any_hdop):
     """_FC_* bits of a fix whose quality is acceptable: HDOP acceptable (then its speed, if
     known, into st), whether it has a course and a speed from heading_speed_m_s on (the
     aligning tick reads these bits, not the floats: a float read from a buffer is boxed, and a
@@ -579,8 +589,8 @@ def fix_check(st, fx, x, aid, p):
     its horizontal velocity (p: Eskf.e, P from eskf.E_P = 0), a speed it can tell from
     standing; a receiver reporting a speed under the same bound holds its position by its own
     account (a phone standing at a waypoint repeats its fix with speed 0), a frozen one
-    repeats the speed it had."""
-    if not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
+    repeats the speed it had. any_hdop (0 or 1): every HDOP acceptable (a drift held)."""
+    if not any_hdop and not fx[_FX_HDOP] <= aid[_AID_HDOP_MAX]:
         return 0
     r = _FC_USABLE
     sp = fx[_FX_SPEED]

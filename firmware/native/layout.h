@@ -249,13 +249,16 @@
 #define C_GSF 75
 #define C_GSF_DIS 76
 #define C_T_GSF 77
-#define NC 78
+#define C_STEP_UNTIL 78
+#define NC 79
 #define OPT_ZUPT 1
 #define OPT_NHC 2
 #define OPT_CONING 4
 #define OPT_LAG 8
 #define OPT_GSF 16
 #define OPT_COURSE 32
+#define DRIFT_H 4
+#define DRIFT_HOLD_S 10
 #define EV_ALIGN 1
 #define EV_FIX 2
 #define EV_RESET 3

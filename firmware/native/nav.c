@@ -139,13 +139,14 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid) {
     fx[FX_SIG_H] = 0.0f;
 }
 
-/* Navigator._fix_usable: fix_check's bits when the quality is acceptable, and the tick of a
- * usable fix's speed */
+/* Navigator._fix_usable: fix_check's bits when the quality is acceptable (any HDOP while a
+ * drift is held), and the tick of a usable fix's speed */
 int32_t navk_fix_usable(int32_t *c, float *m) {
     if (c[C_FIX_QUALITY] < c[C_MIN_QUALITY]) {
         return 0;
     }
-    int32_t r = navk_fix_check(m + M_ST, m + M_FX, m + M_X, m + M_AID, m + M_E + E_P);
+    int32_t any_hdop = c[C_TICK] < c[C_DRIFT_UNTIL];
+    int32_t r = navk_fix_check(m + M_ST, m + M_FX, m + M_X, m + M_AID, m + M_E + E_P, any_hdop);
     if (r & FC_SPEED) {
         c[C_SPEED_TICK] = c[C_TICK];
     }
@@ -172,10 +173,10 @@ void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi) {
     c[C_FIX_PENDING] = 1;
 }
 
-/* nav_kern.fix_check: FC_* bits of a fix whose quality is acceptable. */
+/* nav_kern.fix_check: FC_* bits of a fix whose quality is acceptable (any HDOP: any_hdop). */
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid,
-                       const float *p) {
-    if (!(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {
+                       const float *p, int32_t any_hdop) {
+    if (!any_hdop && !(fx[FX_HDOP] <= aid[AID_HDOP_MAX])) {
         return 0;
     }
     int32_t r = FC_USABLE;

@@ -36,7 +36,7 @@ void navk_fix_in(float *fx, const int32_t *fi, const float *aid);
 void navk_gnss_fix(int32_t *c, float *m, const int32_t *fi);
 int32_t navk_fix_usable(int32_t *c, float *m);
 int32_t navk_fix_check(float *st, const float *fx, const float *x, const float *aid,
-                       const float *p);
+                       const float *p, int32_t any_hdop);
 void navk_geo_enu(float *enu, const float *coef, const float *h, const int32_t *d_e7);
 void navk_geo_coef(float *c, int32_t lat0_e7);
 int32_t navk_bmi055_decode(int16_t *gyro, int16_t *accel, const uint8_t *raw_gyro, const uint8_t *raw_accel);

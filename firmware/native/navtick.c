@@ -360,7 +360,8 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
 }
 
 /* nav_kern.drift_watch: 2 when a running mean of normalised innovations passes the limit, else 1
-   when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT, else 0 */
+   when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT, else 0;
+   plus DRIFT_H when a mean beyond its limit is a horizontal one */
 static int32_t drift_watch(const float *e, float *m, int32_t n) {
     const float *z = e + E_Z;
     const float *r = e + E_R;
@@ -368,6 +369,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
     float *bs = m + M_BS;
     float a = BW_ALPHA / m[M_CN + CN_RK]; /* a fix weighs 1 / rk of a second's */
     int32_t hit = 0;
+    int32_t hz = 0;
     for (int k = 0; k < BW_N; k++) {
         if (k < n && r[k] > 0.0f) {
             float q = z[k] / __builtin_sqrtf(r[k]);
@@ -377,7 +379,8 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
                 q = -BW_CLIP;
             }
             bw[k] = bw[k] + a * (q - bw[k]);
-            if (bw[k] > BW_LIMIT || bw[k] < -BW_LIMIT) {
+            int beyond = bw[k] > BW_LIMIT || bw[k] < -BW_LIMIT;
+            if (beyond) {
                 hit = 2;
             }
             if (q > BS_CLIP) {
@@ -386,8 +389,14 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
                 q = -BS_CLIP;
             }
             bs[k] = bs[k] + a * (q - bs[k]);
-            if (hit == 0 && (bs[k] > BS_LIMIT || bs[k] < -BS_LIMIT)) {
-                hit = 1;
+            if (bs[k] > BS_LIMIT || bs[k] < -BS_LIMIT) {
+                beyond = 1;
+                if (hit == 0) {
+                    hit = 1;
+                }
+            }
+            if (beyond && k != 2) { /* not the height's */
+                hz = DRIFT_H;
             }
         }
     }
@@ -397,7 +406,7 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
             bw[j] = 0.0f;
         }
     }
-    return hit;
+    return hit | hz;
 }
 
 /* nav_kern.aid_watch: after the non-holonomic constraint (n = 2: rows lateral, vertical) or the
@@ -545,7 +554,16 @@ static void last_fix(int32_t *c, float *m) {
     c[C_LAST_TICK] = c[C_USED_TICK];
 }
 
-/* _inject (dx is ready): the reset the rejects call for (EV_RESET, EV_VRESET), else 0 */
+/* nav._drift_reset: a reset to GNSS that a drift calls for holds the drift DRIFT_HOLD_S */
+static void drift_reset(int32_t *c) {
+    int32_t t = c[C_TICK] + DRIFT_HOLD_S * c[C_T_SECOND];
+    if (t > c[C_DRIFT_UNTIL]) {
+        c[C_DRIFT_UNTIL] = t;
+    }
+}
+
+/* _inject (dx is ready): the reset the rejects or a drift call for (EV_RESET, EV_VRESET),
+   else 0 */
 static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     float *x = m + M_X;
     float *e = m + M_E;
@@ -562,6 +580,7 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
             if (w > c[C_DRIFT_UNTIL]) {
                 c[C_DRIFT_UNTIL] = w;
             }
+            c[C_STEP_UNTIL] = w;
             if (hit & AW_HIT_UP) {
                 c[C_INFLATE] |= INFLATE_VERTICAL;
             }
@@ -573,12 +592,15 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     int32_t mask = ki[I_GATE_MASK];
     int32_t n = ki[I_ACCEPTED] + ki[I_REJECTED];
     int32_t w = drift_watch(e, m, n);
-    if (w) { /* a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it */
-        w = c[C_TICK] + (w == 2 ? 5 * c[C_T_SECOND] : 3 * c[C_T_SECOND] / 2);
-        if (w > c[C_DRIFT_UNTIL]) {
-            c[C_DRIFT_UNTIL] = w;
+    if (w & 3) { /* a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it */
+        int32_t t = c[C_TICK] + ((w & 3) == 2 ? 5 * c[C_T_SECOND] : 3 * c[C_T_SECOND] / 2);
+        if (t > c[C_DRIFT_UNTIL]) {
+            c[C_DRIFT_UNTIL] = t;
         }
     }
+    /* a sensor step the constraints show, the yaw estimator agreeing with the heading: a
+       rejected fix, or a horizontal drift, resets now (nav._drift_reset) */
+    int32_t step = c[C_TICK] < c[C_STEP_UNTIL] && !c[C_GSF_DIS];
     consistency(e, m, n, mask);
     if (mask & 4) {
         c[C_V_REJECTS] += 1;
@@ -594,12 +616,15 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
         }
         c[C_GATED_UNTIL] = c[C_TICK] + c[C_T_SECOND];
         last_fix(c, m);
-        if (c[C_REJECTS] < c[C_RESET_AFTER]) {
+        if (c[C_REJECTS] < c[C_RESET_AFTER] && !step) {
             return 0;
         }
         if (c[C_JUMPED] && refused(c, e, m)) { /* the receiver jumped: no reset to it */
             c[C_IMPLAUSIBLE_UNTIL] = c[C_TICK] + c[C_T_SECOND];
             return 0;
+        }
+        if (c[C_REJECTS] < c[C_RESET_AFTER]) {
+            drift_reset(c);
         }
         return EV_RESET;
     }
@@ -611,7 +636,14 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     } else if (c[C_RESET_UNTIL] > c[C_TICK]) {
         c[C_RESET_UNTIL] = c[C_TICK]; /* a whole fix agrees with the reset state */
     }
-    return c[C_V_REJECTS] >= c[C_RESET_AFTER] ? EV_VRESET : 0;
+    if (c[C_V_REJECTS] >= c[C_RESET_AFTER]) {
+        return EV_VRESET;
+    }
+    if (step && (w & DRIFT_H)) {
+        drift_reset(c);
+        return EV_RESET;
+    }
+    return 0;
 }
 
 static int32_t stop(int32_t *c, int32_t phase, int32_t ev) {

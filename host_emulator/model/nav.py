@@ -206,6 +206,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.n_same_a = 0
         self.inflate = 0  # nav._INFLATE_* bits: P to widen at the next job
         self.drift_until = 0
+        self.step_until = 0  # nav._C_STEP_UNTIL: a constraint broken (a sensor step) until
         self.implausible_until = 0  # nav._C_IMPLAUSIBLE_UNTIL
         self.jumped = False  # nav._C_JUMPED
         self.jump_y0 = np.zeros(2, F32)  # nav._M_JUMP: the jumped run's first innovation
@@ -361,10 +362,11 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.still = self.n_still >= self.ticks_still
 
     def _fix_usable(self):
-        """Quality and HDOP acceptable; remembers a usable fix's speed for standstill, unless
-        the speed is unknown (< 0 or NaN)."""
+        """Quality and HDOP acceptable (any HDOP while a drift is held); remembers a usable
+        fix's speed for standstill, unless the speed is unknown (< 0 or NaN)."""
         cfg = self.cfg
-        if self.fix_quality >= cfg.gnss_min_quality and self.fix[1] <= cfg.gnss_hdop_max:
+        hdop_ok = self.tick < self.drift_until or self.fix[1] <= cfg.gnss_hdop_max
+        if self.fix_quality >= cfg.gnss_min_quality and hdop_ok:
             if self.fix[2] >= 0.0:
                 self.still_lp[5] = self.fix[2]
                 self.speed_tick = self.tick
@@ -564,13 +566,16 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
             hit = self._aid_watch(kf.innov)
             if hit:  # nav._inject: a sensor step, for 5 s
                 self.drift_until = max(self.drift_until, self.tick + 5 * self.ticks_second)
+                self.step_until = self.tick + 5 * self.ticks_second
                 if hit & fw_nav._AW_HIT_UP:
                     self.inflate |= fw_nav._INFLATE_VERTICAL
         if self.job == JOB_GNSS:
             w = self._drift_watch(kf.innov)
-            if w:  # nav._inject: a drift for 5 s, a suspected one for 1.5 s
-                hold = 5 * self.ticks_second if w == 2 else 3 * self.ticks_second // 2
+            if w & 3:  # nav._inject: a drift for 5 s, a suspected one for 1.5 s
+                hold = 5 * self.ticks_second if w & 3 == 2 else 3 * self.ticks_second // 2
                 self.drift_until = max(self.drift_until, self.tick + hold)
+            # nav._inject: a sensor step, the bank agreeing with the heading: resets at once
+            step = self.tick < self.step_until and not self.gsf_dis
             self._consistency(kf.innov, kf.gate_mask)
             self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
@@ -580,10 +585,12 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
                     self.jump_y0 = np.array([kf.innov[0][0], kf.innov[1][0]], F32)
                 self.gated_until = self.tick + self.ticks_second
                 self._last_fix()
-                if self.rejects >= self.cfg.reset_after_rejects:
+                if self.rejects >= self.cfg.reset_after_rejects or step:
                     if self.jumped and self._refused():  # nav._inject: no reset
                         self.implausible_until = self.tick + self.ticks_second
                     else:
+                        if self.rejects < self.cfg.reset_after_rejects:
+                            self._drift_reset()
                         self._reset_to_gnss()
             else:
                 self._last_fix()
@@ -595,7 +602,15 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
                     self.reset_until = self.tick
                 if self.v_rejects >= self.cfg.reset_after_rejects:
                     self._reset_vertical()
+                elif step and w & fw_nav._DRIFT_H:
+                    self._drift_reset()
+                    self._reset_to_gnss()
         self.job = JOB_NONE
+
+    def _drift_reset(self):
+        """nav._drift_reset: the drift held _DRIFT_HOLD_S after the reset it calls for."""
+        hold = fw_nav._DRIFT_HOLD_S * self.ticks_second
+        self.drift_until = max(self.drift_until, self.tick + hold)
 
     def p_diag(self):
         """The covariance diagonal as the extended frame reports it (Navigator.p_diag)."""
@@ -770,6 +785,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
             "n_same_a": self.n_same_a,
             "inflate": self.inflate,
             "drift_until": self.drift_until,
+            "step_until": self.step_until,
             "lag_tick": self.lag_tick,
             "since_prop": self.since_prop,
             "since_zupt": self.since_zupt,

@@ -59,24 +59,29 @@ class KernelsModel:
         """nav_kern.drift_watch: running means of y / sqrt(S) of the position east, north, up
         and the velocity east and north; 2 (and both sets restarted) when one passes the
         limit, else 1 when one of the suspicion's (each ratio clipped at _BS_CLIP) passes
-        _BS_LIMIT, else 0."""
+        _BS_LIMIT, else 0; plus _DRIFT_H when a mean beyond its limit is a horizontal one."""
         bw, bs = self.drift_watch, self.suspect_watch
         a = fw_kern._BW_ALPHA / self.consistency[fw_nav._CN_RK]  # a fix: 1 / rk of a second's
         hit = 0
+        hz = 0
         for j, (y, s) in enumerate(innov[: fw_nav._BW_N]):
             if s > 0.0:
                 q = min(max(y / np.sqrt(s), -fw_kern._BW_CLIP), fw_kern._BW_CLIP)
                 bw[j] = bw[j] + a * (q - bw[j])
-                if abs(bw[j]) > fw_kern._BW_LIMIT:
+                beyond = abs(bw[j]) > fw_kern._BW_LIMIT
+                if beyond:
                     hit = 2
                 q = min(max(q, -fw_kern._BS_CLIP), fw_kern._BS_CLIP)
                 bs[j] = bs[j] + a * (q - bs[j])
                 if abs(bs[j]) > fw_kern._BS_LIMIT:
+                    beyond = True
                     hit = max(hit, 1)
+                if beyond and j != 2:  # not the height's
+                    hz = fw_nav._DRIFT_H
         if hit == 2:
             bw[:] = ZERO
             bs[:] = ZERO
-        return hit
+        return hit | hz
 
     def _aid_watch(self, innov):
         """nav_kern.aid_watch: running means of y / sqrt(S) (clipped at _BW_CLIP) of the

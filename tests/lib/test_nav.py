@@ -271,11 +271,87 @@ def test_fixes_above_the_hdop_limit_are_not_used():
     assert nav.ctl[fw_nav._C_CAUSES] & fw_nav.CAUSE_GNSS_GATED and nav.health >= 1
 
 
+def test_fixes_above_the_hdop_limit_are_used_while_a_drift_is_held():
+    """The same fixes at HDOP 2.5 (gnss_hdop_max 2) while a drift is held: used, with their
+    HDOP-scaled sigma (nav._fix_usable): an INS with a bias it has not learned runs off
+    faster than such a fix is wrong."""
+    nav, truth, _, _ = navigating()
+    c = nav.ctl
+    before = nav.updates
+    lat, lon = int(truth.lat_e7[-1]), int(truth.lon_e7[-1])
+    c[fw_nav._C_DRIFT_UNTIL] = c[fw_nav._C_TICK] + 10 * c[fw_nav._C_T_SECOND]
+    nav_runner.gnss_e7(
+        nav, lat, lon, f32.f32(truth.h_m[-1]), 1, f32.f32(2.5), f32.f32(10.0), f32.f32(1.0)
+    )
+    for _ in range(200):
+        nav.imu(f32.zeros(3) + F32(0.0), _gravity_up())
+    assert nav.updates == before + 1
+
+
+def _drift_watch_after(rows, n=5):
+    """nav_kern.drift_watch's results for GNSS updates whose innovations are `rows` (n
+    scalars each: y, with S = 1), on a fresh navigator's means."""
+    nav = Navigator(navcfg.NavConfig("car"))
+    nav.mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0
+    e = nav.kf.e
+    out = []
+    for y in rows:
+        for j in range(n):
+            e[eskf.E_Z + j] = y[j]
+            e[eskf.E_R + j] = 1.0
+        out.append(nav_kern.drift_watch(e, nav.mem, n))
+    return out
+
+
+def test_the_drift_watch_says_when_a_drift_is_horizontal():
+    """Four fixes 5 sigma high pass the drift limit (2); the suspicion (1) comes a fix
+    earlier; _DRIFT_H rides with either only when the mean beyond its limit is east, north or
+    a velocity's: a height that drifts is left to its own reset (nav._drift_reset)."""
+    up = _drift_watch_after([(0, 0, 5, 0, 0)] * 4)
+    east = _drift_watch_after([(5, 0, 0, 0, 0)] * 4)
+    v_north = _drift_watch_after([(0, 0, 0, 0, -5)] * 4)
+    # the means: suspicion 0.75, 1.31, 1.73 (each ratio clipped at 3; limit 1.5); drift 1.25,
+    # 2.19, 2.89, 3.42 (limit 3)
+    assert up == [0, 0, 1, 2]
+    assert east == [0, 0, 1 | fw_nav._DRIFT_H, 2 | fw_nav._DRIFT_H]
+    assert v_north == east
+
+
+def test_a_gyro_step_is_reset_to_gnss_at_once_and_its_drift_held():
+    """1 deg/s more on every gyro axis from 100 s (`make bench-faults`' gyro-bias step): the
+    drift watch's horizontal means pass their limits within seconds and the navigator resets
+    to the fix then (nav._drift_reset), not after reset_after_rejects rejected fixes, and says
+    drift (health 2) for _DRIFT_HOLD_S after it, while the biases are learned again."""
+    truth, imu, gnss = scenario("urban_drive", 125, seed=0)
+    k0 = round(100.0 / DT)
+    imu.gyro_counts[k0:] += round(sim_imu.GYRO_LSB_PER_DPS)
+    nav = car_nav(gnss)
+    seen = []
+
+    def watch(nav, k):
+        if k >= k0:
+            c = nav.ctl
+            seen.append((k, nav.resets, c[fw_nav._C_REJECTS], c[fw_nav._C_DRIFT_UNTIL],
+                         nav.health))  # fmt: skip
+
+    feed(nav, imu, gnss, 0, len(truth.t_s) - 1, on_tick=watch)
+    assert seen[0][1] == 0
+    i = next(i for i, s in enumerate(seen) if s[1] > 0)
+    k, _, _, until, _ = seen[i]
+    assert seen[i - 1][2] < nav.cfg.reset_after_rejects - 1  # at once: fewer rejects before
+    assert (k - k0) * DT < 6.0  # measured: 4.4 s after the step began
+    hold = fw_nav._DRIFT_HOLD_S * nav.ctl[fw_nav._C_T_SECOND]
+    assert until >= k + hold
+    assert all(s[4] == 2 for s in seen[i : i + hold])
+
+
 def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
     """Fixes 400 m north of where the navigator was, one a second: the receiver's track jumped
     (nav_aid._jumped), so no reset while the INS cannot have drifted that far since its last
     accepted fix (nav_aid._STEP_M: 15 m + 0.5 t^2), health 2 with gnss_implausible from the
-    fifth rejected fix; once it could (the navigator moves on, the limit grows) it resets
+    fourth rejected fix (the stand-in samples break the non-holonomic constraint, a sensor
+    step to the aiding watch, whose rejected fixes ask for the reset before the fifth:
+    nav._drift_reset); once it could (the navigator moves on, the limit grows) it resets
     onto them, and the biases it had learned
     (which let it drift, after a bias step) go back to 0 on top of the calibration, their
     variances to the initial ones, so it learns them again."""
@@ -302,7 +378,7 @@ def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
             break
     assert nav.resets == 1 and at_reset is not None
     k_reset, bg, ba, p_diag = at_reset
-    assert refused[0] == 4 and k_reset > 8  # measured: refused from the 5th, reset at the 17th
+    assert refused[0] == 3 and k_reset > 8  # measured: refused from the 4th, reset at the 17th
     assert np.all(bg == 0.0) and np.all(ba == 0.0)
     cfg = nav.cfg
     assert np.allclose(p_diag[9:12], F32(cfg.init_gyro_bias_sigma) ** 2, rtol=1e-6)

@@ -318,6 +318,7 @@ def _runner_controls(nav):
         "n_same_a": nav_runner.control(nav, "n_same_a"),
         "inflate": nav_runner.control(nav, "inflate"),
         "drift_until": nav_runner.control(nav, "drift_until"),
+        "step_until": nav_runner.control(nav, "step_until"),
         "lag_tick": nav_runner.control(nav, "lag_tick"),
         "since_prop": nav_runner.control(nav, "since_prop"),
         "since_zupt": nav_runner.control(nav, "since_zupt"),
