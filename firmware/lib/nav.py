@@ -1072,10 +1072,13 @@ class Navigator(Alignment, Aiding):
         if t > c[_C_DRIFT_UNTIL]:
             c[_C_DRIFT_UNTIL] = t
 
-    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
+    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel, keep_height=False):
         """Position and velocity from a fix (antenna gp, velocity v, taken `age` ticks ago),
         covariance from the initial diagonal, the fix's sigmas and the horizontal velocity's
-        sigma_vel; the step in position east, north into mem's _M_RESET_D (nav_aid.refused)."""
+        sigma_vel; the step in position east, north into mem's _M_RESET_D (nav_aid.refused).
+        keep_height: the height stays the navigator's, and the variances of the height, the
+        vertical velocity and the vertical accelerometer bias stay P's (their covariances
+        with the rest restart at 0)."""
         ins = self.ins
         p = self._tmp4
         self._lever_n(p)
@@ -1085,6 +1088,13 @@ class Navigator(Alignment, Aiding):
         for i in range(3):
             # IMU = antenna - C_bn lever, carried forward over the fix's age
             p[i] = (gp[i] - p[i]) + v[i] * t
+        pk = self.kf.P
+        kh = eskf.N + 1
+        if keep_height:
+            p[2] = ins.p_n[2]
+            k_h = pk[2 * kh]
+            k_v = pk[(eskf.IX_VEL + 2) * kh]
+            k_b = pk[(eskf.IX_BA + 2) * kh]
         m = self.mem
         m[_M_RESET_D] = p[0] - ins.p_n[0]
         m[_M_RESET_D + 1] = p[1] - ins.p_n[1]
@@ -1097,6 +1107,10 @@ class Navigator(Alignment, Aiding):
         ini[eskf.IX_VEL] = vv
         ini[eskf.IX_VEL + 1] = vv
         self.kf.reset_p(ini)
+        if keep_height:
+            pk[2 * kh] = k_h
+            pk[(eskf.IX_VEL + 2) * kh] = k_v
+            pk[(eskf.IX_BA + 2) * kh] = k_b
         for i in range(6):
             self._corr[i] = 0.0
         self.ctl[_C_LAG_TICK] = 0  # the velocity track jumps: no pair for the lag search

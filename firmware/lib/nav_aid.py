@@ -41,6 +41,7 @@ _C_REJECTS = const(10)
 _C_FIX_TICK = const(19)
 _C_USED_TICK = const(20)
 _C_T_SECOND = const(32)
+_C_RESET_AFTER = const(42)
 _C_V_REJECTS = const(47)
 _C_RESET_UNTIL = const(62)
 _C_LAST_TICK = const(72)
@@ -273,7 +274,9 @@ class Aiding:
         defeats standstill detection), and the fresh covariance lets it learn them again.
         Not asked for (nav._inject, navtick.c inject) when the rejected run began with a
         jump of the receiver (_C_JUMPED: _jumped) and `refused` says so: the rejects go on
-        counting and the next rejected fix asks again."""
+        counting and the next rejected fix asks again. A sensor step's reset (nav._drift_reset,
+        asked for before RESET_AFTER rejects) is horizontal: the height, the vertical velocity
+        and the vertical accelerometer bias stay, with their variances."""
         c = self.ctl
         self._room()
         ins = self.ins
@@ -281,7 +284,12 @@ class Aiding:
         v = self._tmp3
         course = used[_US_COURSE]
         sp = used[_US_SPEED]
-        v[2] = 0.0  # a vertical velocity that let the filter drift away is not kept
+        # a sensor step's reset (nav._drift_reset: before RESET_AFTER rejects) is horizontal:
+        # the height channel has its own containment, and a height from the fix (4 m noise),
+        # vertical velocity 0 and a vertical bias back to 0 at each such reset left
+        # `make bench-faults`' gyro steps 19 m off in height, never back
+        drift = c[_C_REJECTS] < c[_C_RESET_AFTER]
+        v[2] = ins.v_n[2] if drift else 0.0  # a vertical velocity that let it drift: not kept
         if course >= 0.0:
             v[0] = sp * sin(course)
             v[1] = sp * cos(course)
@@ -293,10 +301,11 @@ class Aiding:
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
             sigma_vel = self.cfg.track_vel_sigma
-        self._restart(used, v, c[_C_TICK] - c[_C_USED_TICK], sh, sv, sigma_vel)
+        self._restart(used, v, c[_C_TICK] - c[_C_USED_TICK], sh, sv, sigma_vel, drift)
         for i in range(3):
             ins.bg[i] = 0.0
-            ins.ba[i] = 0.0
+            if i < 2 or not drift:
+                ins.ba[i] = 0.0
         c[_C_REJECTS] = 0
         c[_C_V_REJECTS] = 0
         c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state

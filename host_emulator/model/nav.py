@@ -373,12 +373,17 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
             return True
         return False
 
-    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel):
+    def _restart(self, gp, v, age, sigma_h, sigma_v, sigma_vel, keep_height=False):
         """p = (antenna - C_bn lever) + v age dt, the fix carried forward over its age; P from
         the initial diagonal with the fix's sigmas and the horizontal velocity's sigma_vel; the
-        step in position east, north into reset_d."""
+        step in position east, north into reset_d. keep_height: the height, and the variances
+        of the height, vertical velocity and vertical accelerometer bias, kept."""
         t = F32(max(age, 0)) * self.cfg.dt_s
         p = (gp - self._lever_n()) + v * t
+        kept = [IX_POS + 2, IX_VEL + 2, IX_BA + 2]
+        if keep_height:
+            p[2] = self.ins.p_n[2]
+            k_var = self.kf.P[kept, kept].copy()
         self.reset_d = p[0:2] - self.ins.p_n[0:2]
         self.ins.reset_kinematics(p, v)
         self.init_diag[0] = sigma_h * sigma_h
@@ -386,6 +391,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.init_diag[2] = sigma_v * sigma_v
         self.init_diag[IX_VEL : IX_VEL + 2] = sigma_vel * sigma_vel
         self.kf.reset_p(self.init_diag)
+        if keep_height:
+            self.kf.P[kept, kept] = k_var
         self.corr = np.zeros(6, F32)
         self.lag_tick = 0  # nav._restart: no pair for the lag search
 

@@ -121,14 +121,17 @@ class AidingModel:
         ins = self.ins
         u = self.used
         course, sp = u[4], u[3]
+        drift = self.rejects < self.cfg.reset_after_rejects  # nav_aid: a sensor step's reset
+        vz = ins.v_n[2] if drift else F32(0)
         if course >= 0.0:
             v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
         else:
             v = vec(ins.v_n[0], ins.v_n[1], 0)
+        v[2] = vz
         sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
-        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel)
+        self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel, drift)
         ins.bg = np.zeros(3, F32)
-        ins.ba = np.zeros(3, F32)
+        ins.ba = np.zeros(3, F32) if not drift else np.array([0, 0, ins.ba[2]], F32)
         self.rejects = 0
         self.v_rejects = 0
         self.reset_until = fw_nav_aid.UNCONFIRMED

@@ -321,7 +321,9 @@ def test_a_gyro_step_is_reset_to_gnss_at_once_and_its_drift_held():
     """1 deg/s more on every gyro axis from 100 s (`make bench-faults`' gyro-bias step): the
     drift watch's horizontal means pass their limits within seconds and the navigator resets
     to the fix then (nav._drift_reset), not after reset_after_rejects rejected fixes, and says
-    drift (health 2) for _DRIFT_HOLD_S after it, while the biases are learned again."""
+    drift (health 2) for _DRIFT_HOLD_S after it, while the biases are learned again. The
+    reset is horizontal: the height and the vertical accelerometer bias stay the
+    navigator's (nav_aid._reset_to_gnss)."""
     truth, imu, gnss = scenario("urban_drive", 125, seed=0)
     k0 = round(100.0 / DT)
     imu.gyro_counts[k0:] += round(sim_imu.GYRO_LSB_PER_DPS)
@@ -332,13 +334,16 @@ def test_a_gyro_step_is_reset_to_gnss_at_once_and_its_drift_held():
         if k >= k0:
             c = nav.ctl
             seen.append((k, nav.resets, c[fw_nav._C_REJECTS], c[fw_nav._C_DRIFT_UNTIL],
-                         nav.health))  # fmt: skip
+                         nav.health, float(nav.ins.p_n[2]), list(nav.ins.bg),
+                         list(nav.ins.ba)))  # fmt: skip
 
     feed(nav, imu, gnss, 0, len(truth.t_s) - 1, on_tick=watch)
     assert seen[0][1] == 0
     i = next(i for i, s in enumerate(seen) if s[1] > 0)
-    k, _, _, until, _ = seen[i]
+    k, _, _, until, _, h_m, bg, ba = seen[i]
     assert seen[i - 1][2] < nav.cfg.reset_after_rejects - 1  # at once: fewer rejects before
+    assert bg == [0.0] * 3 and ba[:2] == [0.0] * 2 and ba[2] != 0.0
+    assert abs(h_m - seen[i - 1][5]) < 0.05  # a tick's climb, not a step to the fix's height
     assert (k - k0) * DT < 6.0  # measured: 4.4 s after the step began
     hold = fw_nav._DRIFT_HOLD_S * nav.ctl[fw_nav._C_T_SECOND]
     assert until >= k + hold
