@@ -319,8 +319,8 @@ def drift_watch(e, mem, n):
     velocity rows. Each ratio is clipped at _BW_CLIP, so it takes four one-sided outliers in a
     row (or more, smaller ones) to pass the limit: one bad fix alone does not. A detector
     (docs/health.md), and with _DRIFT_H the trigger of nav._drift_reset: the height is left to
-    its own reset (a suspected vertical drift that reset the drive_0708 replay's fixes took its
-    height RMS from 0.93 to 1.54 m)."""
+    its own reset (tried without the bit, a suspected vertical drift reset the drive_0708
+    replay to its fixes and took its height RMS from 0.93 to 1.54 m)."""
     z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
     r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
     bw = f32.view(mem, _M_BW, _BW_N)
