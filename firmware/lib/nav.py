@@ -867,7 +867,7 @@ class Navigator(Alignment, Aiding):
         c[_C_PREV_FIX + 2] = c[_C_FIX_LON_FRAC]
         if same and (usable & _FC_MOVING or c[_C_FROZEN]):
             c[_C_FROZEN] = 1  # until the fix changes: a stop does not make it fresh
-            c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+            self._implausible()
             return True
         c[_C_FROZEN] = 0
         return False
@@ -1033,7 +1033,7 @@ class Navigator(Alignment, Aiding):
                 self._last_fix()
                 if c[_C_REJECTS] >= c[_C_RESET_AFTER] or step:
                     if c[_C_JUMPED] and nav_aid.refused(self):  # the receiver jumped: no reset
-                        c[_C_IMPLAUSIBLE_UNTIL] = c[_C_TICK] + c[_C_T_SECOND]
+                        self._implausible()
                     else:
                         if c[_C_REJECTS] < c[_C_RESET_AFTER]:
                             self._drift_reset()
@@ -1051,6 +1051,13 @@ class Navigator(Alignment, Aiding):
                 elif step and w & _DRIFT_H:
                     self._drift_reset()
                     self._reset_to_gnss()
+
+    def _implausible(self):
+        """CAUSE_GNSS_IMPLAUSIBLE for a second, or longer if a reset holds it (Aiding._hold)."""
+        c = self.ctl
+        t = c[_C_TICK] + c[_C_T_SECOND]
+        if t > c[_C_IMPLAUSIBLE_UNTIL]:
+            c[_C_IMPLAUSIBLE_UNTIL] = t
 
     def _drift_reset(self):
         """A reset to GNSS before RESET_AFTER rejected fixes, for a sensor step: while the

@@ -44,6 +44,7 @@ _C_T_SECOND = const(32)
 _C_RESET_AFTER = const(42)
 _C_V_REJECTS = const(47)
 _C_RESET_UNTIL = const(62)
+_C_IMPLAUSIBLE_UNTIL = const(67)
 _C_LAST_TICK = const(72)
 _M_X = const(0)
 _M_E = const(52)
@@ -98,6 +99,9 @@ _JUMP_VEL_S = f32.f32(2)
 _STEP_M = f32.f32(15)
 _STEP_HALF_A = f32.ratio(1, 2)
 _STEP_HOLD_S = const(60)
+# A reset beyond 3 sigma of the filter's and the fix's horizontal variance (Aiding._hold): for
+# both honest, a chance of exp(-9), 1e-4 (a reset follows fixes beyond the gate, though)
+_HOLD_K2 = f32.f32(9)
 
 
 def refused(self):
@@ -282,6 +286,13 @@ class Aiding:
         ins = self.ins
         used = self._used
         v = self._tmp3
+        m = self.mem
+        pk = self.kf.P
+        sh = used[_US_SIG_H]
+        # the filter's and the fix's horizontal variance, and the last reset's step: _hold's
+        var_h = pk[0] + pk[eskf.N + 1] + 2.0 * (sh * sh)
+        pe = m[_M_RESET_D]
+        pn = m[_M_RESET_D + 1]
         course = used[_US_COURSE]
         sp = used[_US_SPEED]
         # a sensor step's reset (nav._drift_reset: before RESET_AFTER rejects) is horizontal:
@@ -296,7 +307,6 @@ class Aiding:
         else:
             v[0] = ins.v_n[0]
             v[1] = ins.v_n[1]
-        sh = used[_US_SIG_H]
         sv = used[_US_SIG_V]
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted
@@ -310,6 +320,34 @@ class Aiding:
         c[_C_V_REJECTS] = 0
         c[_C_RESET_UNTIL] = UNCONFIRMED  # until a fix agrees with the reset state
         self.resets += 1
+        self._hold(var_h, pe, pn)
+
+    def _hold(self, var_h, pe, pn):
+        """CAUSE_GNSS_IMPLAUSIBLE held after a reset to GNSS whose step (_M_RESET_D) the
+        filter's and the fix's own horizontal variance (var_h, both axes) did not allow, d^2 >
+        _HOLD_K2 var_h: either the INS or the receiver was wrong, and one receiver cannot say
+        which. Held until _STEP_HOLD_S after the last accepted fix (when `refused`, too,
+        believes a receiver that stays where it jumped); a later reset that undoes this one's
+        step within _STEP_M (pe, pn: the step before this reset) ends it: the receiver came
+        back. A receiver that jumped 20 or 40 m while its fixes were over gnss_hdop_max is
+        no jump to `_jumped` when they are back (the last fix the filter took is 17 s old),
+        and the navigator followed it with health 0 (`make bench-faults`, gnss-jump@250+30:20
+        and :40, seed 1: 148 frames above 10 m without health 2 each)."""
+        c = self.ctl
+        m = self.mem
+        t = c[_C_TICK]
+        de = m[_M_RESET_D]
+        dn = m[_M_RESET_D + 1]
+        if t < c[_C_IMPLAUSIBLE_UNTIL]:
+            ue = de + pe
+            un = dn + pn
+            if ue * ue + un * un < _STEP_M * _STEP_M:
+                c[_C_IMPLAUSIBLE_UNTIL] = t
+                return
+        if de * de + dn * dn > _HOLD_K2 * var_h:
+            u = c[_C_ACCEPT_TICK] + _STEP_HOLD_S * c[_C_T_SECOND]
+            if u > c[_C_IMPLAUSIBLE_UNTIL]:
+                c[_C_IMPLAUSIBLE_UNTIL] = u
 
     def _jumped(self):
         """True when the fix of the GNSS update just done (self._used) is farther from the last

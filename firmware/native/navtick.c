@@ -620,7 +620,10 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
             return 0;
         }
         if (c[C_JUMPED] && refused(c, e, m)) { /* the receiver jumped: no reset to it */
-            c[C_IMPLAUSIBLE_UNTIL] = c[C_TICK] + c[C_T_SECOND];
+            int32_t u = c[C_TICK] + c[C_T_SECOND]; /* not shortening a reset's hold */
+            if (u > c[C_IMPLAUSIBLE_UNTIL]) {
+                c[C_IMPLAUSIBLE_UNTIL] = u;
+            }
             return 0;
         }
         if (c[C_REJECTS] < c[C_RESET_AFTER]) {

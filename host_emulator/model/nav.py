@@ -463,7 +463,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         )
         if same and (moving or self.frozen):
             self.frozen = True  # nav._C_FROZEN: until the fix changes
-            self.implausible_until = self.tick + self.ticks_second
+            self.implausible_until = max(self.implausible_until, self.tick + self.ticks_second)
             return True
         self.frozen = False
         return False
@@ -594,7 +594,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
                 self._last_fix()
                 if self.rejects >= self.cfg.reset_after_rejects or step:
                     if self.jumped and self._refused():  # nav._inject: no reset
-                        self.implausible_until = self.tick + self.ticks_second
+                        t = self.tick + self.ticks_second  # not shortening a reset's hold
+                        self.implausible_until = max(self.implausible_until, t)
                     else:
                         if self.rejects < self.cfg.reset_after_rejects:
                             self._drift_reset()

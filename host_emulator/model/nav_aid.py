@@ -121,6 +121,9 @@ class AidingModel:
         ins = self.ins
         u = self.used
         course, sp = u[4], u[3]
+        p = self.kf.P
+        var_h = p[IX_POS, IX_POS] + p[IX_POS + 1, IX_POS + 1] + F32(2) * (u[5] * u[5])
+        prev_d = self.reset_d.copy()
         drift = self.rejects < self.cfg.reset_after_rejects  # nav_aid: a sensor step's reset
         vz = ins.v_n[2] if drift else F32(0)
         if course >= 0.0:
@@ -136,6 +139,21 @@ class AidingModel:
         self.v_rejects = 0
         self.reset_until = fw_nav_aid.UNCONFIRMED
         self.resets += 1
+        self._hold(var_h, prev_d)
+
+    def _hold(self, var_h, prev_d):
+        """nav_aid.Aiding._hold: gnss_implausible held after a reset whose step is beyond
+        _HOLD_K2 var_h, until _STEP_HOLD_S after the last accepted fix; ended by a reset that
+        undoes the one before (prev_d) within _STEP_M."""
+        d = self.reset_d
+        if self.tick < self.implausible_until:
+            u = d + prev_d
+            if u[0] * u[0] + u[1] * u[1] < fw_nav_aid._STEP_M * fw_nav_aid._STEP_M:
+                self.implausible_until = self.tick
+                return
+        if d[0] * d[0] + d[1] * d[1] > fw_nav_aid._HOLD_K2 * var_h:
+            u = self.last_accept_tick + fw_nav_aid._STEP_HOLD_S * self.ticks_second
+            self.implausible_until = max(self.implausible_until, u)
 
     def _jumped(self):
         """nav_aid._jumped: the fix just used farther from the last one the filter took than

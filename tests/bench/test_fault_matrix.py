@@ -51,6 +51,23 @@ def test_a_fault_is_detected_trusted_and_recovered_from(nominal, case):
     assert s["health2_before_fault"] == 0, s
 
 
+def test_a_receiver_that_jumped_in_fixes_over_the_hdop_limit_is_not_trusted():
+    """Seed 1's receiver jumps 20 m at 250 s while its HDOP is 3.9 (241-256 s, over
+    gnss_hdop_max): when its fixes are usable again they are no jump from the last fix the
+    filter took 17 s before (nav_aid._jumped), and after five rejected fixes the navigator
+    follows the receiver; the reset's step, beyond 3 sigma of the filter's and the fix's
+    variance, holds gnss_implausible (health 2) until the receiver comes back
+    (nav_aid.Aiding._hold): 148 frames above 10 m said health 0 before it."""
+    r = bench._run(("gnss-jump@250+30:20", 1, 320.0))  # the sky of a 320 s run
+    after = r["t"] >= 250.0
+    over = after & (r["h"] > bench.TRUST_M)
+    assert over.sum() > 100  # followed: what the receiver says, one receiver cannot refute
+    assert (r["health"][over] == 2).all()
+    assert (r["causes"][over] & bench._mask(("gnss_implausible",)) != 0).mean() > 0.8
+    back = r["t"] >= 290.0  # back with the receiver since 285 s, the hold ended by its reset
+    assert (r["h"][back] < 5.0).all() and (r["health"][back] < 2).any()
+
+
 def test_a_faster_receiver_is_trusted_as_the_1_hz_one(nominal):
     """The drive with its receiver at 10 Hz (bench.RATES_HZ, 115200 baud): navigating, no frame
     above 10 m without health 2, and no less accurate than at 1 Hz over this short run

@@ -559,14 +559,18 @@ def test_model_follows_re_anchoring_across_the_180th_meridian():
 
 
 def test_model_of_a_receiver_back_after_a_reset_followed_it():
-    """Fixes that walk away from the track and stay there are reset to (no jump); when they
-    come back at once, the jump undoes that reset and is taken at once, not refused as a
-    receiver that jumped (nav_aid.refused); bit for bit."""
+    """Fixes that walk away from the track and stay there are reset to (no jump), and the
+    reset's step, beyond 3 sigma of the filter's and the fix's variance, holds
+    gnss_implausible (Aiding._hold); when they come back at once, the jump undoes that reset
+    and is taken at once, not refused as a receiver that jumped (nav_aid.refused), and the
+    hold ends with it; bit for bit."""
     cfg = car_config(earth_terms=False, coning=False, zupt=True, nhc=True)
     drive = simple_drive(40.0, (8.0, 16.0, 24.0, 32.0) + (40.0,) * 9)
     nav, _, seen = side_by_side(drive, cfg, len(drive.truth.t_s) - 1)
     assert nav.resets == 2
-    assert not any(k & CAUSE_GNSS_IMPLAUSIBLE for k in seen.causes)
+    held = sum(n for k, n in seen.causes.items() if k & CAUSE_GNSS_IMPLAUSIBLE)
+    assert held > 5 * round(1.0 / DT)  # the ~10 s between the resets, not a second's flag
+    assert not nav.causes & CAUSE_GNSS_IMPLAUSIBLE
 
 
 def test_model_of_a_receiver_without_height():
