@@ -120,6 +120,7 @@ def run_case(case):
         "nav_after_motion_s": None if nav is None or motion is None else nav - motion,
         "coverage": m["pos_3sigma_coverage"], "nees": m["pos_nees_h"],
         "waypoints": ref.get("waypoints"),
+        "health2_share": m["health2_share"], "gnss_resets": m["gnss_resets"],
     })  # fmt: skip
     return row
 
@@ -153,18 +154,24 @@ def _f(x, digits=2, unit=""):
 
 def _drive_row(r):
     if "error" in r:
-        return f"| {r['recording']} | {r['variant']} | never navigates: {r['error']} |||||||"
+        return f"| {r['recording']} | {r['variant']} | never navigates: {r['error']} |||||||||"
     ratio = (r["horiz_rms_m"] / r["fixes_horiz_rms_m"]
              if r["horiz_rms_m"] is not None and r["fixes_horiz_rms_m"] else None)  # fmt: skip
     return (f"| {r['recording']} | {r['variant']} | {_f(r['horiz_rms_m'])} | "
             f"{_f(r['fixes_horiz_rms_m'])} | {_f(ratio)} | {_f(r['vel_rms_m_s'], 3)} | "
             f"{_f(r['nav_after_motion_s'], 1)} | {_f(r['coverage'], 3)} | {_f(r['nees'])} | "
-            f"{_f(r['unscored_s'], 1)} |")  # fmt: skip
+            f"{_f(r['unscored_s'], 1)} | {_said(r)} |")  # fmt: skip
+
+
+def _said(r):
+    """The health columns: frames at health 2 (%) | resets to GNSS."""
+    share = r.get("health2_share")
+    return f"{_f(None if share is None else 100 * share, 1)} | {r.get('gnss_resets', 'n/a')}"
 
 
 def _walk_row(r):
     if "error" in r:
-        return f"| {r['recording']} | {r['variant']} | never navigates: {r['error']} ||||||"
+        return f"| {r['recording']} | {r['variant']} | never navigates: {r['error']} ||||||||"
     wp = r["waypoints"]
     fw, fx = wp["firmware"], wp["fixes"]
     spread = "{} / {} / {}"
@@ -173,7 +180,7 @@ def _walk_row(r):
             f"{fw['n']} of {wp['n']} | "
             f"{spread.format(_f(fx['median']), _f(fx['p75']), _f(fx['max']))} | "
             f"{_f(r['nav_after_motion_s'], 1)} | {_f(r['coverage'], 3)} | "
-            f"{_f(r['nees'])} |")  # fmt: skip
+            f"{_f(r['nees'])} | {_said(r)} |")  # fmt: skip
 
 
 def markdown(rows, cmd):
@@ -216,24 +223,26 @@ def markdown(rows, cmd):
         "",
         "Horizontal and velocity RMS while GNSS is there, m and m/s; navigating: seconds after "
         "the first motion; NEES: the mean of (error / sigma)^2, east and north (1 when the "
-        "sigma is right); not scored: seconds in gaps of the reference.",
+        "sigma is right); not scored: seconds in gaps of the reference; health 2: the "
+        "share of the navigating frames that said health 2 (do not trust), resets: how often "
+        "the navigator reset its position and velocity (with the heading, when the yaw "
+        "estimator's reset), or its height, to a fix (each rise of the `reset_to_gnss` "
+        "cause, docs/health.md).",
         "",
         "| recording | GNSS sent | firmware H RMS | fixes H RMS | ratio | velocity RMS | "
-        "navigating after motion, s | 3-sigma | NEES | not scored, s |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "navigating after motion, s | 3-sigma | NEES | not scored, s | health 2, % | resets |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
         *[_drive_row(r) for r in drives],
         "",
         "## Walks",
         "",
-        "Horizontal error at the surveyed waypoints, median / p75 / max, m.",
+        "Horizontal error at the surveyed waypoints, median / p75 / max, m; health 2 and "
+        "resets as for the drives.",
         "",
         "| walk | GNSS sent | firmware | waypoints scored | fixes | navigating after motion, "
-        "s | 3-sigma | NEES |",
-        "|---|---|---|---|---|---|---|---|",
+        "s | 3-sigma | NEES | health 2, % | resets |",
+        "|---|---|---|---|---|---|---|---|---|---|",
         *[_walk_row(r) for r in walks],
-        "",
-        "Not reported yet: the navigator's resets (the firmware has no heading or state reset "
-        "to count).",
         "",
         "![firmware against its fixes](realdata.png)",
         "",

@@ -22,8 +22,8 @@ import numpy as np
 from common.errors import EmulatorError, write_atomic
 from common.progress import Bar, stage
 from common.proto import config as board_config
+from common.proto import records, stream
 from common.proto import stimulus as stim_mod
-from common.proto import stream
 from host_emulator import args as cli_args
 from host_emulator import runtimes
 from host_emulator.display import pictures
@@ -85,6 +85,19 @@ def _clean(out_dir, keep_stimulus=False):
             p.unlink()
 
 
+def health_figures(tr):
+    """What the firmware said of itself while navigating: the share of its frames at health 2
+    and its resets to GNSS (each rise of the reset_to_gnss cause: position and velocity, with
+    the heading at the yaw estimator's, or the height alone)."""
+    nav = tr.state == evaluate.NAVIGATING
+    if not nav.any():
+        return {"health2_share": None, "gnss_resets": 0}
+    bit = next(b for b, name in records.CAUSES if name == "reset_to_gnss")
+    reset = (tr.causes[nav] & bit) != 0
+    rises = int(reset[0]) + int(np.count_nonzero(reset[1:] & ~reset[:-1]))
+    return {"health2_share": float(np.mean(tr.health[nav] == 2)), "gnss_resets": rises}
+
+
 def firmware_metrics(fw, decoded, tr, acc, duration_s):
     """The metrics.json figures every evaluated run has (a simulation's or a replay's): run
     time, accuracy (evaluate.accuracy's dict), GC blocks, output frames, firmware counters."""
@@ -105,6 +118,7 @@ def firmware_metrics(fw, decoded, tr, acc, duration_s):
         "gc_blocks_per_tick_max": None if blocks is None else int(np.max(blocks)),
         "tick_float_ops_max": None,  # not counted separately: GC blocks are the proxy
         "align_time_s": tr.align_time_s,
+        **health_figures(tr),
         "frames": len(decoded.frames),
         "frame_errors": fe["total"],
         # more detail

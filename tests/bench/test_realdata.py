@@ -64,6 +64,11 @@ def test_one_replay_gives_its_figures_and_verdicts(row):
     assert f"| urban_drive | 1 Hz | {row['horiz_rms_m']:.2f} | " in text
     assert "never navigates: never navigated: why" in text
     assert "| navigates at all | 1 | 1 | 0 |" in text
+    # what the firmware said of itself: its health 2 share and resets, in the row's last columns
+    assert 0.0 <= row["health2_share"] <= 1.0 and row["gnss_resets"] >= 0
+    said = f"| {100 * row['health2_share']:.1f} | {row['gnss_resets']} |"
+    lines = text.split("\n")
+    assert any(ln.startswith("| urban_drive | 1 Hz |") and ln.endswith(said) for ln in lines)
 
 
 def test_a_walk_is_judged_at_its_waypoints():

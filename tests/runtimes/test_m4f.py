@@ -351,8 +351,9 @@ def test_the_runs_metrics_carry_the_board_cost(quick):
     fw = r.firmware_run
     decoded = stream.decode(fw.out)
 
-    class Track:  # firmware_metrics wants only the alignment time of the track
+    class Track:  # firmware_metrics wants the track's alignment time, states, health, causes
         align_time_s = None
+        state = health = causes = np.zeros(0, int)
 
     acc = dict.fromkeys(
         ("horiz_rms_m", "vert_rms_m", "vel_rms_m_s", "roll_rms_deg", "pitch_rms_deg",
