@@ -397,10 +397,14 @@ def consistency(e, mem, n, mask):
     """After a GNSS update of n scalars (E_Z/E_R: each one's innovation y and variance S)
     whose gate mask is `mask`: when its three position rows were accepted, the running means
     of y^2/S east/north and up in mem's _M_CN, and from them and the fix's sigmas (mem's _M_US)
-    the unseen variances _CN_VH, _CN_VV: (1 - mean) sigma^2, or 0 when the fixes scatter as
-    much as S says or more. The means span _CN_N seconds of fixes at any rate: a fix counts
-    1 / rk (rate_r). With R times rk, a faster receiver's sigma^2 here is not what S holds:
-    the estimate is then conservative (the fixes' independent share of R counts as unseen)."""
+    the unseen variances _CN_VH, _CN_VV: (1 - mean) sigma^2 when the fixes scatter less than
+    S says, else (mean - 1) times P's (the position's posterior variance): fixes that miss the
+    state by more than S says show an error of the estimate that P does not hold (an INS
+    gone overconfident, or a receiver worse than its sigma, which the filter then follows
+    with too much gain: either way the estimate's error is about mean times P). The means
+    span _CN_N seconds of fixes at any rate: a fix counts 1 / rk (rate_r). With R times rk,
+    a faster receiver's sigma^2 here is not what S holds: the estimate is then conservative
+    (the fixes' independent share of R counts as unseen)."""
     if n < 3 or mask & 7:
         return
     z = f32.view(e, eskf.E_Z, 5)
@@ -425,16 +429,19 @@ def consistency(e, mem, n, mask):
     qh = (qe + qn) * 0.5
     cn[_CN_MH] = cn[_CN_MH] + a * (qh - cn[_CN_MH])
     s = mem[_M_US + 5]  # nav_aid's _US_SIG_H
-    cn[_CN_VH] = 0.0
+    p = f32.view(e, eskf.E_P, eskf.N * eskf.N)
     if cn[_CN_MH] < 1.0:
         cn[_CN_VH] = (1.0 - cn[_CN_MH]) * (s * s)
+    else:  # fixes that miss the state more than S says: an error P does not hold
+        cn[_CN_VH] = (cn[_CN_MH] - 1.0) * ((p[0] + p[eskf.N + 1]) * 0.5)
     s = mem[_M_US + 6]  # _US_SIG_V; < 0: the fix had no height, and the state's is unknown
     cn[_CN_VV] = NO_HEIGHT_VAR
     if s > 0.0:
         cn[_CN_MV] = cn[_CN_MV] + a * (qu - cn[_CN_MV])
-        cn[_CN_VV] = 0.0
         if cn[_CN_MV] < 1.0:
             cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
+        else:
+            cn[_CN_VV] = (cn[_CN_MV] - 1.0) * p[2 * (eskf.N + 1)]
 
 
 def lag_search(c, mem, age):

@@ -446,7 +446,7 @@ static int32_t aid_watch(const float *e, float *m, int32_t n) {
 }
 
 /* nav_kern.consistency: after a GNSS update whose position rows were all accepted, the running
- * means of y^2/S and from them the receiver's error variance the filter cannot see */
+ * means of y^2/S and from them the position's error variance the filter cannot see */
 static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     if (n < 3 || (mask & 7)) {
         return;
@@ -478,17 +478,20 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     float qh = (qe + qn) * 0.5f;
     cn[CN_MH] = cn[CN_MH] + a * (qh - cn[CN_MH]);
     float s = m[M_US + US_SIG_H];
-    cn[CN_VH] = 0.0f;
+    const float *p = e + E_P;
     if (cn[CN_MH] < 1.0f) {
         cn[CN_VH] = (1.0f - cn[CN_MH]) * (s * s);
+    } else { /* fixes that miss the state more than S says: an error P does not hold */
+        cn[CN_VH] = (cn[CN_MH] - 1.0f) * ((p[0] + p[N + 1]) * 0.5f);
     }
     s = m[M_US + US_SIG_V]; /* < 0: the fix had no height, and the state's is unknown */
     cn[CN_VV] = NO_HEIGHT_VAR;
     if (s > 0.0f) {
         cn[CN_MV] = cn[CN_MV] + a * (qu - cn[CN_MV]);
-        cn[CN_VV] = 0.0f;
         if (cn[CN_MV] < 1.0f) {
             cn[CN_VV] = (1.0f - cn[CN_MV]) * (s * s);
+        } else {
+            cn[CN_VV] = (cn[CN_MV] - 1.0f) * p[2 * (N + 1)];
         }
     }
 }

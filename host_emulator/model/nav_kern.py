@@ -117,7 +117,7 @@ class KernelsModel:
     def _consistency(self, innov, mask):
         """nav_kern.consistency: after a fix whose three position rows were accepted, the running
         means of y^2/S (east/north, up) over _CN_N seconds of fixes and the unseen variances
-        (1 - mean) sigma^2; then, from
+        (1 - mean) sigma^2, or (mean - 1) times P's above a mean of 1; then, from
         the velocity rows, the fixes' lag behind their stamps and the ticks applied."""
         if len(innov) < 3 or mask & 7:
             return
@@ -134,16 +134,19 @@ class KernelsModel:
         qh = (qe + qn) * HALF
         cn[fw_nav._CN_MH] = cn[fw_nav._CN_MH] + a * (qh - cn[fw_nav._CN_MH])
         sig = self.used[5]
-        cn[fw_nav._CN_VH] = ZERO
+        p = self.kf.P
         if cn[fw_nav._CN_MH] < ONE:
             cn[fw_nav._CN_VH] = (ONE - cn[fw_nav._CN_MH]) * (sig * sig)
+        else:  # more scatter than S says: (mean - 1) times P's
+            cn[fw_nav._CN_VH] = (cn[fw_nav._CN_MH] - ONE) * ((p[0, 0] + p[1, 1]) * HALF)
         sig = self.used[6]  # < 0: the fix had no height, and the state's is unknown
         cn[fw_nav._CN_VV] = fw_kern.NO_HEIGHT_VAR
         if sig > 0.0:
             cn[fw_nav._CN_MV] = cn[fw_nav._CN_MV] + a * (qu - cn[fw_nav._CN_MV])
-            cn[fw_nav._CN_VV] = ZERO
             if cn[fw_nav._CN_MV] < ONE:
                 cn[fw_nav._CN_VV] = (ONE - cn[fw_nav._CN_MV]) * (sig * sig)
+            else:
+                cn[fw_nav._CN_VV] = (cn[fw_nav._CN_MV] - ONE) * p[2, 2]
 
     def _lag_search(self, age):
         """nav_kern.lag_search: per candidate lag, the change of the velocity residual against the

@@ -151,12 +151,16 @@ def test_the_rate_factor_is_the_fixes_a_second_the_filter_takes():
 
 def test_consistency_estimates_the_innovations_deficit():
     """nav_kern.consistency on made-up innovations: y^2/S of 0.25 east and north (mean 0.25) and
-    1.5 up give (1 - 0.25) sigma_h^2 unseen horizontally and nothing vertically; a fix with a
-    gated position row, or fewer than three rows, changes nothing."""
+    1.5 up give (1 - 0.25) sigma_h^2 unseen horizontally and (1.5 - 1) times P's variance
+    vertically (fixes that miss the state more than S says: an error P does not hold); a
+    mean of 4 east and north then gives 3 times P's; a fix with a gated position row, or
+    fewer than three rows, changes nothing."""
     nav = Navigator(navcfg.NavConfig("car"))
     e, mem = nav.kf.e, nav.mem
     z = f32.view(e, eskf.E_Z, 3)
     r = f32.view(e, eskf.E_R, 3)
+    p = f32.view(e, eskf.E_P, eskf.N * eskf.N)
+    p[0], p[eskf.N + 1], p[2 * (eskf.N + 1)] = 1.0, 3.0, 9.0  # the posterior's E, N, U (m^2)
     mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0  # a fix a second (nav_kern.rate_r)
     mem[fw_nav._M_US + 5] = 2.0  # the used fix's sigma_h, sigma_v (m)
     mem[fw_nav._M_US + 6] = 4.0
@@ -165,8 +169,14 @@ def test_consistency_estimates_the_innovations_deficit():
         z[0], z[1], z[2] = 1.0 if k % 2 else -1.0, 1.0, 4.0 * F32(1.5) ** 0.5
         nav_kern.consistency(e, mem, 5, 0)
     assert float(nav.cv[0]) == pytest.approx(0.75 * 4.0, rel=1e-5)
-    assert float(nav.cv[1]) == 0.0
+    assert float(nav.cv[1]) == pytest.approx(0.5 * 9.0, rel=1e-4)
     assert float(mem[fw_nav._M_CN + fw_nav._CN_K]) == float(nav_kern._CN_N)
+    for _ in range(1000):  # y^2/S of 4 east and north
+        r[0], r[1], r[2] = 4.0, 4.0, 16.0
+        z[0], z[1], z[2] = 4.0, -4.0, 4.0
+        nav_kern.consistency(e, mem, 5, 0)
+    assert float(nav.cv[0]) == pytest.approx(3.0 * (1.0 + 3.0) / 2, rel=1e-4)
+    assert float(nav.cv[1]) == pytest.approx(0.0, abs=1e-3)  # a mean of 1 up: nothing unseen
     before = np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN])
     z[0] = 100.0
     nav_kern.consistency(e, mem, 5, 1)  # east gated
