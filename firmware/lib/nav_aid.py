@@ -271,7 +271,8 @@ class Aiding:
     def _reset_to_gnss(self):
         """Recovery when the filter keeps rejecting GNSS (e.g. after a long outage): position
         and horizontal velocity from the fix it last rejected (the navigator's own velocity,
-        with the track start's wider sigma, when the fix has no course), a fresh covariance;
+        with the track start's wider sigma, when the fix has no course, no faster than the
+        fix's speed when it has one), a fresh covariance;
         the attitude is kept. The bias estimates go back to the calibration (0 on top of
         gyro_bias0/accel_bias0): what the filter learned while it drifted away from GNSS is
         what let it drift (after a bias step, a learned 1 deg/s outlives the step and
@@ -307,6 +308,16 @@ class Aiding:
         else:
             v[0] = ins.v_n[0]
             v[1] = ins.v_n[1]
+            # no course but a speed (an RMC's below its course threshold): the navigator's
+            # direction at no more than the receiver's speed; kept as it was, a walk's INS
+            # that had run off at 20-60 m/s went on from each reset to fixes of 0.4-0.5 m/s
+            # (`run --scenario walk_real --duration 120 --seed 1`: 78 m horizontal RMS)
+            if sp >= 0.0:
+                v2 = v[0] * v[0] + v[1] * v[1]
+                if v2 > sp * sp:
+                    k = sp / f32.sqrt(v2)
+                    v[0] = v[0] * k
+                    v[1] = v[1] * k
         sv = used[_US_SIG_V]
         sigma_vel = self.cfg.init_vel_sigma
         if course < 0.0:  # the velocity is the navigator's own, and it has drifted

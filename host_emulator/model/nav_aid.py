@@ -130,6 +130,12 @@ class AidingModel:
             v = vec(sp * ref_fmath.sin(course), sp * ref_fmath.cos(course), 0)
         else:
             v = vec(ins.v_n[0], ins.v_n[1], 0)
+            if sp >= 0.0:  # nav_aid: the navigator's direction, no faster than the fix's speed
+                v2 = v[0] * v[0] + v[1] * v[1]
+                if v2 > sp * sp:
+                    k = sp / np.sqrt(v2)
+                    v[0] = v[0] * k
+                    v[1] = v[1] * k
         v[2] = vz
         sigma_vel = self.cfg.init_vel_sigma if course >= 0.0 else self.cfg.track_vel_sigma
         self._restart(u[0:3], v, self.tick - self.used_tick, u[5], u[6], sigma_vel, drift)

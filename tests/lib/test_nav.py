@@ -400,6 +400,23 @@ def test_a_reset_to_gnss_puts_the_bias_estimates_back_to_the_calibration():
     assert np.allclose(p_diag[12:15], F32(cfg.init_accel_bias_sigma) ** 2, rtol=1e-6)
 
 
+@pytest.mark.parametrize(("speed", "expect"), [(0.5, (0.3, 0.4)), (-1.0, (30.0, 40.0))])
+def test_a_reset_without_a_course_is_no_faster_than_the_fixs_speed(speed, expect):
+    """A reset to a fix without a course keeps the navigator's horizontal velocity (its
+    direction): no faster than the fix's speed when the fix has one (an RMC below its course
+    threshold), as it is without (-1: no speed). A walk's INS that had run off at 20-60 m/s
+    kept that through every reset to fixes of 0.4-0.5 m/s."""
+    nav, _, _, _ = navigating()
+    ins = nav.ins
+    used = nav._used
+    for i in range(3):
+        used[i] = ins.p_n[i]
+    used[3], used[4] = F32(speed), F32(-1.0)  # nav_aid._US_SPEED, _US_COURSE
+    ins.v_n[0], ins.v_n[1] = F32(30.0), F32(40.0)
+    nav._reset_to_gnss()
+    assert np.allclose(np.array(ins.v_n[0:2]), expect, rtol=1e-6)
+
+
 def _jumped_after(seconds, came_en_m, speed_m_s, fix_v_en=None):
     """nav_aid._jumped (the Python reference) for a fix `came_en_m` (east, north, or north
     alone) from the last one the filter took, `seconds` later, the INS moving north at
