@@ -67,6 +67,7 @@ CAUSES = (
     (0x40000, "display_unanswered"),
     (0x80000, "not_navigating"),
 )
+CAUSE_BITS = {name: bit for bit, name in CAUSES}  # a cause's bit by its name
 CAUSE_OVERRUN = 0x8000  # run time on a board (an injected stall on the emulator): a warning
 EXT_TIMING_FIELDS = ("worst_tick_us", "mean_tick_us", "overruns", "gc_runs")  # run time
 assert all(code == "H" for name, code, _ in EXT_FIELDS if name in EXT_TIMING_FIELDS)

@@ -116,14 +116,13 @@ MATRIX = (
 # against the 1 Hz run (frames above TRUST_M without health 2 count in the target)
 RATES_HZ = (5.0, 10.0)
 _RATE = "receiver at "  # a _run task's spec: the drive with a receiver at this many Hz
-_BITS = {name: bit for bit, name in records.CAUSES}
 # run in the MicroPython VM as well (unix port, seed 0): the same firmware on MicroPython
 VM_SUBSET = ("imu-zeros@+1", "accel-vibe@+2", "gnss-height@+5:100", "gnss-quality@+5:6")
 
 
 def _mask(names):
     """The CAUSES bits of `names`; a name the firmware does not have yet counts as no bit."""
-    return sum(_BITS.get(n, 0) for n in names)
+    return sum(records.CAUSE_BITS.get(n, 0) for n in names)
 
 
 def _spec(case, t0):
@@ -367,7 +366,7 @@ def _matrix_row(case, rs, t0):
         det_s += f", {len(rs) - len(counted)} harmless"
         if n_missed:
             det_s += f" ({n_missed} never detected)"
-    known = [c for c in case.causes if c in _BITS]
+    known = [c for c in case.causes if c in records.CAUSE_BITS]
     return (
         f"| `{_spec(case, t0)}` | {', '.join(known) or '(none yet)'} "
         f"| {det_s} ({case.deadline_s:g}) "

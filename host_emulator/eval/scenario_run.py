@@ -92,8 +92,7 @@ def health_figures(tr):
     nav = tr.state == evaluate.NAVIGATING
     if not nav.any():
         return {"health2_share": None, "gnss_resets": 0}
-    bit = next(b for b, name in records.CAUSES if name == "reset_to_gnss")
-    reset = (tr.causes[nav] & bit) != 0
+    reset = (tr.causes[nav] & records.CAUSE_BITS["reset_to_gnss"]) != 0
     rises = int(reset[0]) + int(np.count_nonzero(reset[1:] & ~reset[:-1]))
     return {"health2_share": float(np.mean(tr.health[nav] == 2)), "gnss_resets": rises}
 

@@ -392,7 +392,7 @@ class Screen:
         }
 
 
-CAUSE_DISPLAY = {name: bit for bit, name in records.CAUSES}["display_unanswered"]
+CAUSE_DISPLAY = records.CAUSE_BITS["display_unanswered"]
 _ROUND = page_model.SLOT * page_model.TURNS  # ticks of a round of the page
 # the app's `ticks` of the batch's end
 _END_PHASE = page_model.SLOT * page_model.FIELDS + page_model.PHASE
