@@ -472,9 +472,11 @@ class Nmea:
 
     def _rmc(self):
         s = self._s
-        self._epoch_time(s[_NS_UTC])
-        self.rmc_utc_ms = s[_NS_UTC]
-        self.rmc_status = s[_NS_A]
+        utc = s[_NS_UTC]
+        self._epoch_time(utc)
+        self.rmc_utc_ms = utc
+        a = s[_NS_A]
+        self.rmc_status = a
         self.rmc_pos_ok = s[_NS_POS]
         if s[_NS_POS]:
             self.rmc_lat_e7 = s[_NS_LAT]
@@ -485,9 +487,9 @@ class Nmea:
         self.rmc_date = s[_NS_D]
         self.rmc_mode = s[_NS_E]
         self.n_rmc = (self.n_rmc + 1) & _WRAP
-        if s[_NS_UTC] >= 0:
+        if utc >= 0:
             self._ep_rmc = 1
-        if s[_NS_A] == 65:  # 'A'
+        if a == 65:  # 'A'
             self._speed(s[_NS_B], s[_NS_C])
         else:
             self._speed(-1, -1)

@@ -218,21 +218,34 @@ class Alignment:
 
     def _gsf_align(self):
         """The yaw estimator's step at an aligning fix (yaw_gsf.py): once it knows the
-        heading, navigation starts from it and from its velocity, whatever the course (a
-        board in a hand points anywhere), and True; the heading's variance is the larger of
-        the bank's and init_yaw_sigma^2."""
+        heading, navigation starts from it (_gsf_start), and True. Every aligning fix calls
+        it, so its frame stays within the VM's on-stack limit (tests/runtimes/test_frames.py):
+        a frame on the heap is allocated and freed at each call, which the app's heap watch
+        counts as an allocation, and each fix then cost a look at the heap (a scan of
+        ~180,000 instructions, 5 ms with a raw record: docs/image.md)."""
         if not self._gsf_step() & _GSF_READY:
             return False
+        self._gsf_start()
+        return True
+
+    def _gsf_start(self):
+        """Navigation starts from the yaw estimator's heading and velocity, whatever the course
+        (a board in a hand points anywhere); the heading's variance is the larger of the bank's
+        and init_yaw_sigma^2."""
         self._room()  # the start computes in Python floats
+        m = self.mem
+        yaw = self._yaw_now() + m[_M_GSF + _G_YAW]
+        course = atan2(m[_M_GSF + _G_V], m[_M_GSF + _G_V + 1])
+        self._start_navigation(course, self._gsf_speed(), self.cfg.init_vel_sigma,
+                               m[_M_GSF + _G_VAR])  # fmt: skip
+        self._gsf_turn(yaw + course)  # the start set the yaw to -course
+
+    def _gsf_speed(self):
+        """The yaw estimator's horizontal speed, m/s."""
         m = self.mem
         ve = m[_M_GSF + _G_V]
         vn = m[_M_GSF + _G_V + 1]
-        yaw = self._yaw_now() + m[_M_GSF + _G_YAW]
-        course = atan2(ve, vn)
-        self._start_navigation(course, sqrt(ve * ve + vn * vn), self.cfg.init_vel_sigma,
-                               m[_M_GSF + _G_VAR])  # fmt: skip
-        self._gsf_turn(yaw + course)  # the start set the yaw to -course
-        return True
+        return sqrt(ve * ve + vn * vn)
 
     def _gsf_reset(self):
         """The heading, horizontal velocity and covariance from the yaw estimator, the

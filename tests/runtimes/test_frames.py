@@ -58,8 +58,12 @@ PER_TICK = (
     ("drivers/gnss.py", "Nmea._epoch_time"),
     ("drivers/gnss.py", "Nmea._speed"),
     ("drivers/gnss.py", "Nmea._complete"),
-    # the tick that starts navigation, from the receiver's course or from the track
+    # the tick that starts navigation, from the receiver's course, the track or the yaw
+    # estimator (whose step is every aligning fix's once levelled)
     ("lib/nav_align.py", "Alignment._align_fix"),
+    ("lib/nav_align.py", "Alignment._gsf_align"),
+    ("lib/nav_align.py", "Alignment._gsf_start"),
+    ("lib/nav_align.py", "Alignment._gsf_speed"),
     ("lib/nav_align.py", "Alignment._track"),
     ("lib/nav_align.py", "Alignment._track_window"),
     ("lib/nav_align.py", "Alignment._start_navigation"),
