@@ -192,6 +192,7 @@ def main(stim_path, offset, n_ticks, tick_us, config_path, out_dir, board_heap, 
     import machine
 
     machine.TX_CAPACITY = TX_CAPACITY
+    machine.reserve_tx(3)  # the GNSS, output and display UARTs': the emulator's
     bpb = bytes_per_block()
     f = HostFile(stim_path, 1)
     f.seek(offset)

@@ -564,8 +564,17 @@ class SPI:
 # ---- UART -------------------------------------------------------------------------------
 
 # Transmit buffer bytes of a UART made from now on; the emulator empties it between ticks. The
-# emulated Cortex-M4F, whose heap is the board's, sets it smaller before the firmware starts.
+# emulated Cortex-M4F, whose heap is the board's, sets it smaller before the firmware starts,
+# and makes the buffers then (reserve_tx): a board's UART has none, so they are not the
+# firmware's heap (made as the firmware opened its UARTs, they took 3 KB of it)
 TX_CAPACITY = 16384
+_tx_pool = []
+
+
+def reserve_tx(n):
+    """n transmit buffers of TX_CAPACITY bytes made now, for the next n UARTs made."""
+    for _ in range(n):
+        _tx_pool.append(bytearray(TX_CAPACITY))
 
 
 class UART:
@@ -599,7 +608,7 @@ class UART:
         self.overflow = 0  # received bytes dropped because the ring was full
         self.rx_waits = 0  # reads that would have waited timeout_char (readinto)
         self.tx_overflow = 0  # written bytes that did not fit the transmit buffer
-        self.tx = bytearray(TX_CAPACITY)
+        self.tx = _tx_pool.pop() if _tx_pool else bytearray(TX_CAPACITY)
         self.tx_n = 0
         self.init(9600)
 

@@ -27,11 +27,12 @@ BUILD_DIR = toolchain.BUILD_ROOT / "m4f"
 # The firmware's heap is the board's: 91,664 bytes on the WEACT_F411_BLACKPILL image (`make
 # image` reports it; tests/tools/test_image_build.py keeps the two equal). The build's heap adds
 # a reserve for the emulated board's objects (its modules, peripherals, C handles, the driver's
-# buffers and the stimulus record's module: 7,456 bytes measured), sized so that the ballast the
-# driver sets aside for the rest (emulated_board/mpy/emulate_m4f.py) stays under a few hundred
-# bytes: the collector scans a ballast like any object, which would inflate every gc.collect().
+# buffers, the UARTs' transmit buffers and the stimulus record's module: 10,656 bytes
+# measured), sized so that the ballast the driver sets aside for the rest
+# (emulated_board/mpy/emulate_m4f.py) stays under a few hundred bytes: the collector scans a
+# ballast like any object, which would inflate every gc.collect().
 BOARD_HEAP_BYTES = 91_664
-EMULATOR_RESERVE_BYTES = 7_760
+EMULATOR_RESERVE_BYTES = 11_040
 GC_HEAP_BYTES = BOARD_HEAP_BYTES + EMULATOR_RESERVE_BYTES  # MICROPY_HEAP_SIZE of the build
 
 
