@@ -49,11 +49,12 @@ LAYOUT = (
     ("nav", "a fix in ints (Navigator.fix_in), fix_check's bits, the pending fix "
      "Navigator._fx", "", ("FI_*", "NFI", "_FC_*", "_FX_*")),
     ("nav_aid", "the fix of the running GNSS update, Navigator._used; how long a jumped "
-     "receiver may be refused", "", ("_US_*", "_STEP_HOLD_S")),
+     "receiver may be refused, the tick a reset is held until", "",
+     ("_US_*", "_STEP_HOLD_S", "UNCONFIRMED")),
     ("nav", "the control state Navigator.ctl, its option bits, the filter jobs, nav_tick's "
      "events, the IMU status bits, health's causes and the states", "",
      ("ALIGNING", "NAVIGATING", "RING", "IMU_*", "CAUSE_*", "_JOB_*", "_C_*", "_NC",
-      "_OPT_*", "_EV_*", "_DRIFT_*")),
+      "_OPT_*", "_EV_*", "_NAV_RESET_*", "_DRIFT_*")),
     ("nav", "the navigator's float buffers in one, Navigator.mem, and the parts of it with "
      "indices of their own (the aiding watch, the receiver's unseen error, the lag search)",
      "", ("_M_*", "_NM", "_BW_N", "_AW_*", "_INFLATE_*", "_CN_*", "_NCN", "_LS_*", "_NLS")),
@@ -83,7 +84,9 @@ TUNING = (
      "the frozen receiver, the angle units", "",
      ("_FROZEN_*", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
       "CDEG_PER_RAD")),
-    ("nav_aid", "the screening of fixes", "", ("NO_HEIGHT_VAR", "_JUMP_*", "_STEP_*")),
+    ("nav_aid", "the screening of fixes", "",
+     ("NO_HEIGHT_VAR", "_JUMP_*", "_STEP_*", "_HOLD_K2")),
+    ("navcfg", "standard gravity", "", ("G0_M_S2",)),
     ("nav_align", "levelling", "", ("MIN_LEVEL_F",)),
     ("yaw_gsf", "the yaw estimator", "GSF_",
      ("V0_VAR", "V0_CHORD_VAR", "B0_VAR", "W_MIN", "EXP_CUT", "SIXTH", "TWENTYFOURTH",

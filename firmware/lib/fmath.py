@@ -258,7 +258,7 @@ def asin(x):
 
 def wrap(a):
     """a (within 3 pi of 0) into -pi..pi by one turn: the angle differences the heading code
-    forms (nav_align, yaw_gsf; gsf.c's wrap is its native twin)."""
+    forms (nav_align, yaw_gsf; fmath32.h's f32_wrap is its native twin)."""
     if a > PI:
         return a - TWO_PI
     if a < -PI:

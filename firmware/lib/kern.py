@@ -17,7 +17,7 @@ manifest.py): on a board without a usable lib/navk.mpy the modules that load the
 
 import sys as _sys
 
-ABI = 10  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
+ABI = 11  # firmware/native/navk.c NAVK_ABI: signatures and buffer layouts of this firmware
 
 navk = None
 _why = "navk not found"

@@ -76,6 +76,7 @@ _OPT_COURSE = const(32)
 _M_CN = const(1645)
 _M_GSF = const(1711)
 _CN_VV = const(4)
+_NAV_RESET_GSF = const(1)
 # ---- end of nav.py's consts ----
 # ---- eskf.py's consts used here: `python -m common.native.layout` writes them ----
 _IX_ATT = const(6)
@@ -252,7 +253,10 @@ class Alignment:
         position from the fix, when the bank and the navigator's own innovations agree that
         its heading is wrong (nav._gsf_watch); a reset as _reset_to_gnss's (CAUSE_RESET
         until a fix agrees with it). The biases are kept: a heading wrong from the start is
-        no bias's doing."""
+        no bias's doing. Natively the `nav_reset` kernel (nav_aid._reset_native)."""
+        if kern.NATIVE:
+            self._reset_native(_NAV_RESET_GSF)
+            return
         self._room()
         c = self.ctl
         m = self.mem

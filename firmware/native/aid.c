@@ -210,44 +210,40 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     start_update(ii);
 }
 
-/* nav_align._start_navigation and Navigator._restart: navigation starts at the fix in m
- * (M_GP, M_FX): heading from the course m[M_NS] (rad clockwise from north), horizontal
- * velocity m[M_NS + 1] along it with the 1-sigma m[M_NS + 2], position carried over the
- * fix's age, the covariance reset to the initial diagonal m[M_INIT..] with the fix's sigmas. */
-void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
+/* Navigator._restart: position and velocity v from the fix gp (antenna) taken `age` ticks
+ * ago, the covariance from the initial diagonal m[M_INIT..] with the fix's sigmas sh, sv and
+ * the horizontal velocity's sigma_vel; the step in position east, north into m[M_RESET_D].
+ * keep_height: the height, and the variances of the height, the vertical velocity and the
+ * vertical accelerometer bias, stay (their covariances with the rest restart at 0). */
+static void restart(int32_t *c, int32_t *ii, float *m, const float *gp, const float *v,
+                    int32_t age, float sh, float sv, float sigma_vel, int32_t keep_height) {
     float *x = m + M_X;
-    float *e = m + M_E;
-    float *ypr = m + M_YPR;
-    float *cb = x + X_C;
-    const float *aid = m + M_AID;
-    const float *lv = aid + AID_LEVER;
-    float course = m[M_NS];
-    float sp = m[M_NS + 1];
-    float sigma_vel = m[M_NS + 2];
-    rot_dcm_to_euler(ypr, cb);
-    ypr[0] = -course;
-    rot_euler_to_q(x + X_Q, ypr);
-    rot_q_to_dcm(cb, x + X_Q);
-    float v[3];
-    v[0] = sp * f32_sin(course);
-    v[1] = sp * f32_cos(course);
-    v[2] = 0.0f;
-    float sh = sigma_h(m + M_FX, aid);
-    float sv = sigma_v(m + M_FX, aid, sh);
-    /* _restart */
+    float *pk = m + M_E + E_P;
+    const float *cb = x + X_C;
+    const float *lv = m + M_AID + AID_LEVER;
     float p[3];
     p[0] = cb[0] * lv[0] + cb[1] * lv[1] + cb[2] * lv[2]; /* nav_aid._lever_n */
     p[1] = cb[3] * lv[0] + cb[4] * lv[1] + cb[5] * lv[2];
     p[2] = cb[6] * lv[0] + cb[7] * lv[1] + cb[8] * lv[2];
-    int32_t age = c[C_TICK] - c[C_FIX_TICK];
     if (age < 0) {
         age = 0;
     }
     float t = (float)age * x[X_DT];
-    const float *gp = m + M_GP;
     for (int i = 0; i < 3; i++) {
         p[i] = (gp[i] - p[i]) + v[i] * t;
     }
+    const int32_t kh = N + 1;
+    float k_h = 0.0f;
+    float k_v = 0.0f;
+    float k_b = 0.0f;
+    if (keep_height) {
+        p[2] = x[X_P + 2];
+        k_h = pk[2 * kh];
+        k_v = pk[(IX_VEL + 2) * kh];
+        k_b = pk[(IX_BA + 2) * kh];
+    }
+    m[M_RESET_D] = p[0] - x[X_P];
+    m[M_RESET_D + 1] = p[1] - x[X_P + 1];
     for (int i = 0; i < 3; i++) { /* ins.reset_kinematics */
         x[X_P + i] = p[i];
         x[X_V + i] = v[i];
@@ -262,20 +258,51 @@ void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
     float vv = sigma_vel * sigma_vel;
     ini[IX_VEL] = vv;
     ini[IX_VEL + 1] = vv;
+    float *dx = m + M_E + E_DX;
     for (int i = 0; i < N * N; i++) { /* eskf.reset_p */
-        e[E_P + i] = 0.0f;
+        pk[i] = 0.0f;
     }
     for (int i = 0; i < N; i++) {
-        e[E_P + i * (N + 1)] = ini[i];
-        e[E_DX + i] = 0.0f;
+        pk[i * kh] = ini[i];
+        dx[i] = 0.0f;
     }
     ii[I_JOB] = IDLE;
     ii[I_READY] = 0;
     ii[I_NSCAL] = 0;
+    if (keep_height) {
+        pk[2 * kh] = k_h;
+        pk[(IX_VEL + 2) * kh] = k_v;
+        pk[(IX_BA + 2) * kh] = k_b;
+    }
     for (int i = 0; i < 6; i++) {
         m[M_CORR + i] = 0.0f;
     }
     c[C_LAG_TICK] = 0; /* the velocity track jumps: no pair for the lag search */
+}
+
+/* nav_align._start_navigation and Navigator._restart: navigation starts at the fix in m
+ * (M_GP, M_FX): heading from the course m[M_NS] (rad clockwise from north), horizontal
+ * velocity m[M_NS + 1] along it with the 1-sigma m[M_NS + 2], position carried over the
+ * fix's age, the covariance reset to the initial diagonal m[M_INIT..] with the fix's sigmas. */
+void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
+    float *x = m + M_X;
+    float *ypr = m + M_YPR;
+    float *cb = x + X_C;
+    const float *aid = m + M_AID;
+    float course = m[M_NS];
+    float sp = m[M_NS + 1];
+    float sigma_vel = m[M_NS + 2];
+    rot_dcm_to_euler(ypr, cb);
+    ypr[0] = -course;
+    rot_euler_to_q(x + X_Q, ypr);
+    rot_q_to_dcm(cb, x + X_Q);
+    float v[3];
+    v[0] = sp * f32_sin(course);
+    v[1] = sp * f32_cos(course);
+    v[2] = 0.0f;
+    float sh = sigma_h(m + M_FX, aid);
+    float sv = sigma_v(m + M_FX, aid, sh);
+    restart(c, ii, m, m + M_GP, v, c[C_TICK] - c[C_FIX_TICK], sh, sv, sigma_vel, 0);
     for (int i = 0; i < 3; i++) { /* ins.take_dvn */
         x[X_DVS + i] = 0.0f;
     }
@@ -283,4 +310,127 @@ void navk_nav_start(int32_t *c, int32_t *ii, float *m) {
     c[C_SINCE_PROP] = 0;
     c[C_ACCEPT_TICK] = c[C_TICK];
     c[C_STATE] = NAVIGATING;
+}
+
+/* nav_aid._hold: CAUSE_GNSS_IMPLAUSIBLE held after a reset to GNSS whose step m[M_RESET_D]
+ * the horizontal variance var_h did not allow; (pe, pn) the step before this reset. */
+static void hold(int32_t *c, const float *m, float var_h, float pe, float pn) {
+    int32_t t = c[C_TICK];
+    float de = m[M_RESET_D];
+    float dn = m[M_RESET_D + 1];
+    if (t < c[C_IMPLAUSIBLE_UNTIL]) {
+        float ue = de + pe;
+        float un = dn + pn;
+        if (ue * ue + un * un < STEP_M * STEP_M) {
+            c[C_IMPLAUSIBLE_UNTIL] = t;
+            return;
+        }
+    }
+    if (de * de + dn * dn > HOLD_K2 * var_h) {
+        int32_t u = c[C_ACCEPT_TICK] + STEP_HOLD_S * c[C_T_SECOND];
+        if (u > c[C_IMPLAUSIBLE_UNTIL]) {
+            c[C_IMPLAUSIBLE_UNTIL] = u;
+        }
+    }
+}
+
+/* nav_aid._reset_to_gnss: position and horizontal velocity from the fix the filter last
+ * rejected (m[M_US..]), a fresh covariance, the biases back to the calibration; a sensor
+ * step's reset (fewer rejects than C_RESET_AFTER) keeps the vertical channel. */
+static void reset_to_gnss(int32_t *c, int32_t *ii, float *m) {
+    float *x = m + M_X;
+    const float *used = m + M_US;
+    const float *pk = m + M_E + E_P;
+    float sh = used[US_SIG_H];
+    float var_h = pk[0] + pk[N + 1] + 2.0f * (sh * sh);
+    float pe = m[M_RESET_D];
+    float pn = m[M_RESET_D + 1];
+    float course = used[US_COURSE];
+    float sp = used[US_SPEED];
+    int32_t drift = c[C_REJECTS] < c[C_RESET_AFTER];
+    float v[3];
+    v[2] = drift ? x[X_V + 2] : 0.0f;
+    if (course >= 0.0f) {
+        v[0] = sp * f32_sin(course);
+        v[1] = sp * f32_cos(course);
+    } else {
+        v[0] = x[X_V];
+        v[1] = x[X_V + 1];
+        if (sp >= 0.0f) {
+            float v2 = v[0] * v[0] + v[1] * v[1];
+            if (v2 > sp * sp) {
+                float k = sp / __builtin_sqrtf(v2);
+                v[0] = v[0] * k;
+                v[1] = v[1] * k;
+            }
+        }
+    }
+    float sigma_vel = m[M_NS]; /* init_vel_sigma */
+    if (course < 0.0f) {       /* the velocity is the navigator's own, and it has drifted */
+        sigma_vel = m[M_NS + 1]; /* track_vel_sigma */
+    }
+    restart(c, ii, m, used + US_P, v, c[C_TICK] - c[C_USED_TICK], sh, used[US_SIG_V],
+            sigma_vel, drift);
+    for (int i = 0; i < 3; i++) {
+        x[X_BG + i] = 0.0f;
+        if (i < 2 || !drift) {
+            x[X_BA + i] = 0.0f;
+        }
+    }
+    c[C_REJECTS] = 0;
+    c[C_V_REJECTS] = 0;
+    c[C_RESET_UNTIL] = UNCONFIRMED;
+    hold(c, m, var_h, pe, pn);
+}
+
+/* nav_align._gsf_reset with _gsf_turn: heading, horizontal velocity and covariance from the
+ * yaw estimator's bank (m[M_GSF..]), the position from the fix, the biases kept; the attitude
+ * turned by the bank (yaw, and roll and pitch by its weighted specific force error) as a
+ * correction is injected, the bank's offsets less the turn. */
+static void gsf_reset(int32_t *c, int32_t *ii, float *m) {
+    float *g = m + M_GSF;
+    float *e = m + M_E;
+    const float *aid = m + M_AID;
+    float y = m[M_NS + 2]; /* _yaw_var: init_yaw_sigma^2 or the bank's, the larger */
+    y = y * y;
+    if (g[G_VAR] > y) {
+        y = g[G_VAR];
+    }
+    m[M_INIT + IX_ATT + 2] = y;
+    float v[3];
+    v[0] = g[G_V];
+    v[1] = g[G_V + 1];
+    v[2] = 0.0f;
+    float sh = sigma_h(m + M_FX, aid);
+    float sv = sigma_v(m + M_FX, aid, sh);
+    restart(c, ii, m, m + M_GP, v, c[C_TICK] - c[C_FIX_TICK], sh, sv, m[M_NS], 0);
+    float be = g[G_B]; /* _gsf_turn */
+    float bn = g[G_B + 1];
+    float d = f32_wrap(g[G_YAW]);
+    e[E_DX + IX_ATT] = bn / G0_M_S2;
+    e[E_DX + IX_ATT + 1] = -be / G0_M_S2;
+    e[E_DX + IX_ATT + 2] = d;
+    navk_inject(m + M_X, e, m + M_CORR);
+    g[G_DYAW] = g[G_DYAW] + f32_wrap(d); /* _turned */
+    for (int k = 0; k < GSF_N; k++) {
+        float *h = g + G_HYP + k * NH;
+        h[5] = h[5] - be;
+        h[6] = h[6] - bn;
+    }
+    c[C_REJECTS] = 0;
+    c[C_V_REJECTS] = 0;
+    c[C_GSF_DIS] = 0;
+    c[C_RESET_UNTIL] = UNCONFIRMED;
+}
+
+/* The navigator's resets without Python floats (on the board those are heap objects, and a
+ * reset's ~2 KB of them brought collections while navigating): kind NAV_RESET_GNSS
+ * nav_aid._reset_to_gnss, NAV_RESET_GSF nav_align._gsf_reset; m[M_NS..] holds init_vel_sigma,
+ * track_vel_sigma and init_yaw_sigma (Navigator._reset_native). */
+void navk_nav_reset(int32_t *c, int32_t *ii, float *m, int32_t kind) {
+    if (kind == NAV_RESET_GSF) {
+        gsf_reset(c, ii, m);
+    } else {
+        reset_to_gnss(c, ii, m);
+    }
 }

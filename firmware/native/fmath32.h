@@ -201,4 +201,15 @@ static inline float f32_asin(float x) {
     return r;
 }
 
+/* fmath.wrap: a (within 3 pi of 0) into -pi..pi by one turn */
+static inline float f32_wrap(float a) {
+    if (a > FM_PI) {
+        return a - FM_TWO_PI;
+    }
+    if (a < -FM_PI) {
+        return a + FM_TWO_PI;
+    }
+    return a;
+}
+
 #endif /* FMATH32_H */

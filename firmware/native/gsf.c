@@ -20,16 +20,6 @@ static float exp_neg(float y) {
     return r;
 }
 
-static float wrap(float a) {
-    if (a > FM_PI) {
-        return a - FM_TWO_PI;
-    }
-    if (a < -FM_PI) {
-        return a + FM_TWO_PI;
-    }
-    return a;
-}
-
 void navk_gsf_accum(float *m) {
     float *g = m + M_GSF;
     const float *x = m + M_X;
@@ -125,7 +115,7 @@ static void init_chord(float *m, float sh) {
 }
 
 static void predict(float *g, float *h, float t, float dyaw) {
-    float y = wrap(h[4] - dyaw);
+    float y = f32_wrap(h[4] - dyaw);
     h[4] = y;
     float s = f32_sin(y);
     float c = f32_cos(y);
@@ -215,7 +205,7 @@ static float update(float *g, float *h, int32_t i, float a, float z, float r) {
 static void bank(const int32_t *c, float *m, float rp) {
     float *g = m + M_GSF;
     float t = g[G_T];
-    float dyaw = wrap(g[G_DYAW]);
+    float dyaw = f32_wrap(g[G_DYAW]);
     float age = (float)(c[C_TICK] - c[C_FIX_TICK]) * m[M_X + X_DT];
     if (age < 0.0f) {
         age = 0.0f;
@@ -236,7 +226,7 @@ static void bank(const int32_t *c, float *m, float rp) {
             d = d + update(g, h, 3, 0.0f, sp * f32_cos(co), rv);
             sp2 = sp2 * g[G_FP];
         }
-        h[4] = wrap(h[4]);
+        h[4] = f32_wrap(h[4]);
         g[G_D + k] = d;
         g[G_S + k] = sp2;
     }
@@ -285,7 +275,7 @@ static int32_t result(const int32_t *c, float *m) {
     float var = 0.0f;
     for (int k = 0; k < GSF_N; k++) {
         const float *h = g + G_HYP + k * NH;
-        float d = wrap(h[4] - y);
+        float d = f32_wrap(h[4] - y);
         var = var + h[H_W] * (d * d + h[H_P + 32]);
     }
     g[G_YAW] = y;

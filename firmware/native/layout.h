@@ -144,7 +144,8 @@
 #define FC_FAST 32
 
 /* nav_aid.py: the fix of the running GNSS update, Navigator._used; how long a jumped receiver
- * may be refused */
+ * may be refused, the tick a reset is held until */
+#define UNCONFIRMED 0x3FFFFFFF
 #define US_P 0
 #define US_SPEED 3
 #define US_COURSE 4
@@ -264,6 +265,8 @@
 #define EV_RESET 3
 #define EV_FAULT 4
 #define EV_VRESET 5
+#define NAV_RESET_GNSS 0
+#define NAV_RESET_GSF 1
 
 /* nav.py: the navigator's float buffers in one, Navigator.mem, and the parts of it with indices
  * of their own (the aiding watch, the receiver's unseen error, the lag search) */
@@ -512,6 +515,6 @@
 #define P_YAW 180
 
 /* kern.py: the native module's ABI, which kern.py checks */
-#define NAVK_ABI 10
+#define NAVK_ABI 11
 
 #endif /* NAVK_LAYOUT_H */

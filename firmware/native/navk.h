@@ -46,6 +46,7 @@ void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid);
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b, float rk);
 int32_t navk_nmea_scan(int32_t *s, uint8_t *lb, const uint8_t *buf, int32_t n);
 void navk_nav_start(int32_t *c, int32_t *ii, float *m);
+void navk_nav_reset(int32_t *c, int32_t *ii, float *m, int32_t kind);
 void navk_gsf_accum(float *m);
 int32_t navk_gsf_step(int32_t *c, float *m);
 int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro, const int16_t *accel);

@@ -78,6 +78,10 @@
 #define JUMP_VEL_S F32_BITS(0x40000000) /* 2. */
 #define STEP_M F32_BITS(0x41700000) /* 15. */
 #define STEP_HALF_A F32_BITS(0x3F000000) /* 0.5 */
+#define HOLD_K2 F32_BITS(0x41100000) /* 9. */
+
+/* navcfg.py: standard gravity */
+#define G0_M_S2 F32_BITS(0x411CE80A) /* 9.80665 */
 
 /* nav_align.py: levelling */
 #define MIN_LEVEL_F F32_BITS(0x409CCCCD) /* 4.9 */

@@ -417,6 +417,65 @@ def test_a_reset_without_a_course_is_no_faster_than_the_fixs_speed(speed, expect
     assert np.allclose(np.array(ins.v_n[0:2]), expect, rtol=1e-6)
 
 
+def _buffers(nav):
+    """The navigator's state as bits: its float block, its ints, the filter's ints, resets."""
+    return (np.array(nav.mem, np.float32).view(np.uint32).copy(), np.array(nav.ctl),
+            np.array(nav.kf.i), nav.resets)  # fmt: skip
+
+
+def _restore(nav, saved):
+    mem, ctl, ii, resets = saved
+    nav.mem[:] = mem.view(np.float32)
+    for buf, values in ((nav.ctl, ctl), (nav.kf.i, ii)):
+        for i, v in enumerate(values):
+            buf[i] = int(v)
+    nav.resets = resets
+
+
+@pytest.mark.parametrize(
+    ("kind", "course", "speed", "rejects"),
+    [("gnss", 1.2, 3.0, 5), ("gnss", -1.0, 0.5, 5), ("gnss", -1.0, -1.0, 2), ("gsf", 0, 0, 0)],
+)
+def test_the_native_resets_equal_their_python_references_bit_for_bit(
+    monkeypatch, kind, course, speed, rejects
+):
+    """nav_reset (aid.c), which resets without Python floats (heap objects on the board: a
+    reset's ~2 KB of them made collections while a walk navigated), leaves every buffer of the
+    navigator as nav_aid._reset_to_gnss (a fix with a course; without one, no faster than its
+    speed or, with none, at the INS's own; a sensor step's horizontal reset, fewer rejects than
+    reset_after) and nav_align._gsf_reset leave it, bit for bit, but for the settings the
+    kernel reads in Navigator._ns."""
+    import kern
+    import nav_aid
+
+    if not kern.NATIVE:
+        pytest.skip("the Python kernels: no native reset to compare")
+    nav, _, _, _ = navigating()
+    used = nav._used
+    for i in range(3):
+        used[i] = nav.ins.p_n[i] + F32(7.0 + i)
+    used[3], used[4] = F32(speed), F32(course)  # nav_aid._US_SPEED, _US_COURSE
+    nav.ctl[fw_nav._C_REJECTS] = rejects
+    nav.mem[fw_nav._M_RESET_D] = F32(3.0)  # the step of a reset before: _hold compares
+    nav.ctl[fw_nav._C_IMPLAUSIBLE_UNTIL] = nav.ctl[fw_nav._C_TICK] + 100
+    reset = nav._reset_to_gnss if kind == "gnss" else nav._gsf_reset
+    before = _buffers(nav)
+    reset()
+    native = _buffers(nav)
+    _restore(nav, before)
+    assert all(np.array_equal(a, b) for a, b in zip(_buffers(nav)[:3], before[:3], strict=True))
+    monkeypatch.setattr(nav_aid, "_nav_reset", None)
+    monkeypatch.setattr(kern, "NATIVE", False)
+    reset()
+    python = _buffers(nav)
+    assert native[3] == python[3] == before[3] + 1
+    assert np.array_equal(native[1], python[1]) and np.array_equal(native[2], python[2])
+    differ = np.flatnonzero(native[0] != python[0])
+    differ = differ[(differ < fw_nav._M_NS) | (differ >= fw_nav._M_NS + 3)]  # the kernel's inputs
+    assert differ.size == 0, f"mem differs at {differ[:10].tolist()}"
+    assert np.count_nonzero(native[0] != before[0]) > 20  # not vacuous: the reset changed it
+
+
 def _jumped_after(seconds, came_en_m, speed_m_s, fix_v_en=None):
     """nav_aid._jumped (the Python reference) for a fix `came_en_m` (east, north, or north
     alone) from the last one the filter took, `seconds` later, the INS moving north at

@@ -247,6 +247,22 @@ def test_a_navigating_tick_allocates_nothing_on_the_board(quick):
     assert t["collected"][navigating].sum() == 0
 
 
+def test_the_resets_of_a_walk_allocate_nothing_on_the_board(tmp_path):
+    """25 s of walk_real on the emulated Cortex-M4F: navigating from 12.3 s, the yaw estimator
+    resets the heading (nav_align._gsf_reset, the nav_reset kernel) while the walker turns; no
+    navigating tick allocates, resets included, and no collection runs. Their Python reference
+    allocated ~2 KB a reset, and 300 s of the walk collected the heap 5 times while navigating
+    (docs/native.md)."""
+    stim = board_input.simulate("walk_real", 25.0, seed=0).stimulus
+    fw = m4f.run(stim, tmp_path)
+    t = fw.per_tick
+    navigating = np.zeros(len(t), bool)
+    navigating[1:] = (t["state"][1:] == 2) & (t["state"][:-1] == 2)
+    assert navigating.sum() > 2000 and fw.stats["nav_resets"] >= 2
+    assert np.count_nonzero(t["alloc_bytes"][navigating]) == 0
+    assert t["collected"][t["state"] == 2].sum() == 0
+
+
 def test_the_status_page_equals_the_model_byte_for_byte():
     """16 s of quick_start (navigating from 12.3 s) with the display setting on: what the
     firmware sent to the screen's UART, the start page and 155 ticks' turns, equals the model's

@@ -255,6 +255,7 @@ def app_stats(a, n_ticks, t0, pins):
         "imu_error": a.imu_error,
         "config_status": a.config_status,
         "app_gc_runs": a.gc_runs,
+        "nav_resets": a.nav.resets,
         "tx_overflow": out_uart.tx_overflow,
     }
     disp = display_uart(a, pins)
