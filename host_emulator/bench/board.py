@@ -4,16 +4,17 @@
 Runs the unmodified app loop on the emulated Cortex-M4F (runtimes/m4f) over a whole simulated
 drive, once with the default configuration, once with coning on and 2 filter slices per tick,
 and once with a 10 Hz receiver (at 115200 baud: the filter then runs 4 slices per tick), and
+over a hand-held walk (walk_real, 300 s: a walk's resets, which a drive seldom has), and
 writes what a tick costs the board's CPU (eval/board_cost.py: instructions per tick
 by phase, the emulation set apart, garbage collection, time per tick at 100 MHz for the CPI
 range, overruns) together with the heap, the start-up and the firmware image's budget, to
 FILE (default docs/benchmarks/board.md; the numbers in a .json and a plot beside it).
 
 Beside it, the image itself on the emulated STM32F411 (runtimes/f411) over the same drive,
-raw-input records off and on, with the 10 Hz receiver, and with the screen's status page (the
-display setting on, the UsartGPU on USART6): the time each tick takes at the image's 96 MHz,
-the port's drivers, interrupts and DMA included (eval/board_time.py), and what a turn of the
-page costs, tick by tick against the run without it.
+raw-input records off and on, with the 10 Hz receiver, with the screen's status page (the
+display setting on, the UsartGPU on USART6), and over the walk: the time each tick takes at
+the image's 96 MHz, the port's drivers, interrupts and DMA included (eval/board_time.py), and
+what a turn of the page costs, tick by tick against the run without it.
 
 The emulated Cortex-M4F runs at about 3x real time, the emulated STM32F411 at 1.1-1.7x (two
 runs at a time), so the default (urban_drive, 600 s, seven runs on two processes) takes about
@@ -41,12 +42,15 @@ from host_emulator.eval import board_cost
 from host_emulator.runtimes.m4f import build as m4f_build
 
 # label, the board settings over the defaults, the simulated receiver (sim/gnss.py GnssModel
-# fields over its defaults: a 10 Hz receiver needs more than 9600 baud)
+# fields over its defaults: a 10 Hz receiver needs more than 9600 baud)[, a scenario of its own
+# instead of the bench's, over its default duration unless --duration says]
 _10_HZ = {"rate_hz": 10, "baud": 115200}
+WALK = "walk_real"
 VARIANTS = (
     ("default (coning off, 1 slice per tick)", {}, {}),
     ("coning on, 2 slices per tick", {"coning": 1, "slices_per_tick": 2}, {}),
     ("default, a 10 Hz receiver", {}, _10_HZ),
+    ("default, a hand-held walk (walk_real)", {}, {}, WALK),
 )
 # the image itself on the emulated STM32F411 (runtimes/f411): the default configuration with
 # the raw-input records off and on (the output's heaviest load), with a 10 Hz receiver, and
@@ -56,6 +60,7 @@ TWIN_VARIANTS = (
     ("image, raw_record on", {"raw_record": 1}, {}),
     ("image, a 10 Hz receiver", {}, _10_HZ),
     ("image, the screen's status page", {"display": 1}, {}),
+    ("image, a hand-held walk (walk_real)", {}, {}, WALK),
 )
 # each configuration's short name in board.json ("id"), by which docs quote its figures
 # (bench/figures.py: twin.<id>.*, m4f.<id>.*)
@@ -67,6 +72,8 @@ IDS = {
     "image, raw_record on": "raw",
     "image, a 10 Hz receiver": "10hz",
     "image, the screen's status page": "page",
+    "default, a hand-held walk (walk_real)": "walk",
+    "image, a hand-held walk (walk_real)": "walk",
 }
 # the f411 runtime's figures of the screen (runtimes/f411/world.py Screen.stats)
 SCREEN_KEYS = ("display_bytes", "display_batches", "display_oks", "display_missed",
@@ -131,6 +138,8 @@ def _one(task):
         "id": IDS[label],
         "overrides": overrides,
         "receiver": receiver,
+        "scenario": scenario,
+        "duration_s": duration,
         "ticks": fw.ticks,
         "wall_s": fw.wall_s,
         "cost": board_cost.summary(fw.per_tick, stim.tick_us),
@@ -158,6 +167,8 @@ def _one_twin(task):
         "id": IDS[label],
         "overrides": overrides,
         "receiver": receiver,
+        "scenario": scenario,
+        "duration_s": duration,
         "twin": True,
         "ticks": fw.ticks,
         "wall_s": fw.wall_s,
@@ -172,6 +183,26 @@ def _one_twin(task):
 
 def _run_task(task):
     return _one_twin(task[1:]) if task[0] == "f411" else _one(task[1:])
+
+
+def tasks(scenario, duration, default_duration):
+    """The runs: (runtime, label, overrides, receiver, scenario, duration) of every variant,
+    the image's first (the longest runs); default_duration(name): a scenario's own."""
+    out = []
+    for runtime, variants in (("f411", TWIN_VARIANTS), ("m4f", VARIANTS)):
+        for label, overrides, receiver, *own in variants:
+            name = own[0] if own else scenario
+            out.append((runtime, label, overrides, receiver, name,
+                        duration or default_duration(name)))  # fmt: skip
+    return out
+
+
+def _other_scenarios(runs, scenario):
+    """'; the walk's rows over walk_real (300 s, seed 0)' for the runs over another scenario."""
+    other = sorted({(r["scenario"], r["duration_s"]) for r in runs
+                    if r.get("scenario", scenario) != scenario})  # fmt: skip
+    return "".join(f"; the rows that name {name} over it ({dur:g} s, seed 0)"
+                   for name, dur in other)  # fmt: skip
 
 
 def image_budget():
@@ -501,7 +532,8 @@ def markdown(results, scenario, duration, budget, budget_why, cmd, nav_json=NAV_
         f"collection) on the emulated Cortex-M4F (`--runtime m4f`: MicroPython v1.28.0 built "
         f"for QEMU's mps2-an386 with the STM32F411's float32 hard-float settings, the firmware "
         f"frozen as in the image, instructions counted with `-icount shift=0`), over "
-        f"{scenario} ({duration:g} s, seed 0), with the board's heap.",
+        f"{scenario} ({duration:g} s, seed 0){_other_scenarios([*results, *twin], scenario)}, "
+        "with the board's heap.",
         "",
         "Firmware instructions per tick exclude the emulated peripherals (Python standing in "
         "for the board's C drivers and hardware; their own count is shown); the firmware's "
@@ -667,15 +699,17 @@ def main(argv=None):
 
         m4f_build.build()  # once, before the parallel runs
         f411.image_files(f411.DEFAULT_BOARD, print)  # likewise the image
-        dur = duration or trajectory.SCENARIOS[args.scenario].default_duration_s
+        def default_duration(name):
+            return trajectory.SCENARIOS[name].default_duration_s
+
+        dur = duration or default_duration(args.scenario)
+        runs = tasks(args.scenario, duration, default_duration)
         print(f"bench-board: {args.scenario} {dur:g} s on the emulated Cortex-M4F, "
               f"{len(VARIANTS)} configurations (about 3x real time each), and the image on the "
               f"emulated STM32F411, {len(TWIN_VARIANTS)} configurations (1.1-1.7x real time "
-              "each)")  # fmt: skip
-        tasks = [("f411", *v, args.scenario, dur) for v in TWIN_VARIANTS]
-        tasks += [("m4f", *v, args.scenario, dur) for v in VARIANTS]
-        with ProcessPoolExecutor(max_workers=min(args.jobs, len(tasks))) as ex:
-            done = list(ex.map(_run_task, tasks))
+              f"each); the walk's over {WALK}")  # fmt: skip
+        with ProcessPoolExecutor(max_workers=min(args.jobs, len(runs))) as ex:
+            done = list(ex.map(_run_task, runs))
         twin = [r for r in done if r.get("twin")]
         results = [r for r in done if not r.get("twin")]
         budget, why = image_budget()
