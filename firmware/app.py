@@ -73,8 +73,8 @@ _GC_LOW_WATER = const(12 * 1024)  # the Python kernels: collect when fewer bytes
 # on the emulated STM32F411), so a tick that looks comes close to the next tick's moment. With
 # the native kernels nothing per tick allocates; the navigator's rare Python steps do (the
 # origin: 816 bytes, a track window: 416, Python floats; measured on the emulated Cortex-M4F;
-# the resets onto a fix or the yaw estimator are a kernel, nav_reset) and ask for room first
-# (_heap_room). The heap is looked at only
+# the starts from a course or the yaw estimator and the resets are a kernel, nav_restart) and
+# ask for room first (_heap_room). The heap is looked at only
 # when what was allocated since the last look may have brought it within a step of the
 # reserve: MicroPython's own count of the bytes asked for (micropython.mem_total, which the
 # image's board definitions turn on: MICROPY_MEM_STATS) taken twice (a float's 8 bytes fill a

@@ -1,6 +1,7 @@
 """The bindings of the native kernels, generated from their one header (firmware/native/navk.h).
 
-    prototypes(text) -> [Prototype]    the exported functions (named navk_*) of a header
+    prototypes(text, natmod=False) -> [Prototype]  the exported functions (named navk_*) of a
+                                       header; natmod: those of a MicroPython native module
     micropython_module(protos) -> str  the C of the MicroPython native module `navk`
     cdef(protos) -> str                the declarations cffi compiles the CPython module from
 
@@ -8,7 +9,10 @@ What the header may hold: comments, preprocessor lines, and declarations ending 
 inline definitions are skipped). Every function whose name starts with `navk_` is exported,
 named without the prefix (`navk_add` -> `navk.add`); it takes only the types of BUFFERS and
 SCALARS below and returns void, int32_t or float. Anything else in an exported prototype is an
-error naming it (nothing is hand-written per function, so nothing may be guessed).
+error naming it (nothing is hand-written per function, so nothing may be guessed). Between
+`#ifndef NAVK_NATMOD` and its `#endif` (not nested) are the host's kernels: the CPython build
+binds them, a MicroPython native module (built with -DNAVK_NATMOD) has them not, since the board
+loads its module's code into its heap.
 
 The MicroPython wrappers are lean on purpose (a navigating tick of the board has 30,000
 instructions): a buffer argument is one call of the runtime's get_buffer plus a typecode and a
@@ -81,6 +85,9 @@ class Prototype:
         return f"{self.ret} {self.cname}({args or 'void'});"
 
 
+HOST_ONLY = re.compile(r"^[ \t]*#ifndef[ \t]+NAVK_NATMOD\b.*?^[ \t]*#endif[^\n]*", re.M | re.S)
+
+
 def _strip(text):
     """The header without comments and preprocessor lines (line continuations included)."""
     text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
@@ -132,9 +139,11 @@ def _param(text, where):
     return Param(m["name"], base, ptr, const)
 
 
-def prototypes(text):
-    """The exported prototypes of a header's text, in order; HeaderError if one cannot be
-    bound or a name repeats."""
+def prototypes(text, natmod=False):
+    """The exported prototypes of a header's text, in order (natmod: without the host's,
+    HOST_ONLY); HeaderError if one cannot be bound or a name repeats."""
+    if natmod:
+        text = HOST_ONLY.sub("", text)
     protos, seen = [], set()
     for stmt in _statements(_strip(text)):
         m = _PROTO.match(stmt)

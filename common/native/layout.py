@@ -54,7 +54,7 @@ LAYOUT = (
     ("nav", "the control state Navigator.ctl, its option bits, the filter jobs, nav_tick's "
      "events, the IMU status bits, health's causes and the states", "",
      ("ALIGNING", "NAVIGATING", "RING", "IMU_*", "CAUSE_*", "_JOB_*", "_C_*", "_NC",
-      "_OPT_*", "_EV_*", "_NAV_RESET_*", "_DRIFT_*")),
+      "_OPT_*", "_EV_*", "_RESTART_*", "_DRIFT_*")),
     ("nav", "the navigator's float buffers in one, Navigator.mem, and the parts of it with "
      "indices of their own (the aiding watch, the receiver's unseen error, the lag search)",
      "", ("_M_*", "_NM", "_BW_N", "_AW_*", "_INFLATE_*", "_CN_*", "_NCN", "_LS_*", "_NLS")),

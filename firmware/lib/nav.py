@@ -345,9 +345,11 @@ _EV_FIX = const(2)  # a fix is pending while navigating: _nav_fix
 _EV_RESET = const(3)  # the filter kept rejecting GNSS: _reset_to_gnss
 _EV_FAULT = const(4)  # non-finite state or covariance: _fault_reset
 _EV_VRESET = const(5)  # the filter kept rejecting the height: _reset_vertical
-# the nav_reset kernel's kinds (nav_aid._reset_native)
-_NAV_RESET_GNSS = const(0)  # nav_aid._reset_to_gnss
-_NAV_RESET_GSF = const(1)  # nav_align._gsf_reset
+# the nav_restart kernel's kinds (nav_aid._restart_native)
+_RESTART_GNSS = const(0)  # nav_aid._reset_to_gnss
+_RESTART_GSF = const(1)  # nav_align._gsf_reset
+_RESTART_GSF_START = const(2)  # nav_align._gsf_start
+_RESTART_COURSE_START = const(3)  # nav_align._course_start
 
 
 def _ticks(seconds, dt):

@@ -53,13 +53,14 @@ _M_US = const(1595)
 _M_LAST = const(1654)
 _M_JUMP = const(2139)
 _M_RESET_D = const(2141)
-_NAV_RESET_GNSS = const(0)
+_RESTART_GNSS = const(0)
 # ---- end of nav.py's consts ----
 # ---- ins.py's consts used here: `python -m common.native.layout` writes them ----
 _X_V = const(3)
 # ---- end of ins.py's consts ----
 UNCONFIRMED = const(0x3FFFFFFF)  # as a tick: "until further notice" (nav._inject ends it)
-_nav_reset = kern.pick("nav_reset", None)  # the references: _reset_to_gnss, _gsf_reset
+# the references: _reset_to_gnss, nav_align._gsf_reset, _gsf_start and _course_start
+_nav_restart = kern.pick("nav_restart", None)
 
 # self._used: the fix of the running GNSS update (a reset to GNSS needs it after newer fixes);
 # used only here
@@ -285,9 +286,10 @@ class Aiding:
         counting and the next rejected fix asks again. A sensor step's reset (nav._drift_reset,
         asked for before RESET_AFTER rejects) is horizontal: the height, the vertical velocity
         and the vertical accelerometer bias stay, with their variances. Natively the
-        `nav_reset` kernel, which allocates nothing (_reset_native)."""
-        if _nav_reset is not None:
-            self._reset_native(_NAV_RESET_GNSS)
+        `nav_restart` kernel, which allocates nothing (_restart_native)."""
+        if _nav_restart is not None:
+            self._restart_native(_RESTART_GNSS)
+            self.resets += 1
             return
         c = self.ctl
         self._room()
@@ -340,18 +342,17 @@ class Aiding:
         self.resets += 1
         self._hold(var_h, pe, pn)
 
-    def _reset_native(self, kind):
-        """A reset by the `nav_reset` kernel: _reset_to_gnss (kind _NAV_RESET_GNSS) or
-        nav_align._gsf_reset (_NAV_RESET_GSF), their Python floats (heap objects on the board,
-        ~2 KB a reset: collections while a walk navigated) in C; the settings it reads go
-        into self._ns, which nav_start uses too."""
+    def _restart_native(self, kind):
+        """A start or a reset by the `nav_restart` kernel (kind _RESTART_*: _reset_to_gnss,
+        nav_align's _gsf_reset, _gsf_start, _course_start), their Python floats (heap objects
+        on the board, ~2 KB a reset: collections while a walk navigated) in C; the settings
+        it reads go into self._ns, which nav_start uses too."""
         s = self._ns
         cfg = self.cfg
         s[0] = cfg.init_vel_sigma
         s[1] = cfg.track_vel_sigma
         s[2] = cfg.init_yaw_sigma
-        _nav_reset(self.ctl, self.kf.i, self.mem, kind)
-        self.resets += 1
+        _nav_restart(self.ctl, self.kf.i, self.mem, kind)
 
     def _hold(self, var_h, pe, pn):
         """CAUSE_GNSS_IMPLAUSIBLE held after a reset to GNSS whose step (_M_RESET_D) the

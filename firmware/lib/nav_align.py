@@ -76,7 +76,9 @@ _OPT_COURSE = const(32)
 _M_CN = const(1645)
 _M_GSF = const(1711)
 _CN_VV = const(4)
-_NAV_RESET_GSF = const(1)
+_RESTART_GSF = const(1)
+_RESTART_GSF_START = const(2)
+_RESTART_COURSE_START = const(3)
 # ---- end of nav.py's consts ----
 # ---- eskf.py's consts used here: `python -m common.native.layout` writes them ----
 _IX_ATT = const(6)
@@ -213,7 +215,7 @@ class Alignment:
             # would be the fixes' noise (an RMC's course is empty at a standstill)
             c[_C_TRK_SET] = 0
             if u & _FC_COURSE and u & _FC_FAST:
-                self._course_start(fx[_FX_COURSE])
+                self._course_start()
         else:
             self._track()
 
@@ -232,7 +234,10 @@ class Alignment:
     def _gsf_start(self):
         """Navigation starts from the yaw estimator's heading and velocity, whatever the course
         (a board in a hand points anywhere); the heading's variance is the larger of the bank's
-        and init_yaw_sigma^2."""
+        and init_yaw_sigma^2. Natively the `nav_restart` kernel (nav_aid._restart_native)."""
+        if kern.NATIVE:
+            self._restart_native(_RESTART_GSF_START)
+            return
         self._room()  # the start computes in Python floats
         m = self.mem
         yaw = self._yaw_now() + m[_M_GSF + _G_YAW]
@@ -253,9 +258,10 @@ class Alignment:
         position from the fix, when the bank and the navigator's own innovations agree that
         its heading is wrong (nav._gsf_watch); a reset as _reset_to_gnss's (CAUSE_RESET
         until a fix agrees with it). The biases are kept: a heading wrong from the start is
-        no bias's doing. Natively the `nav_reset` kernel (nav_aid._reset_native)."""
+        no bias's doing. Natively the `nav_restart` kernel (nav_aid._restart_native)."""
         if kern.NATIVE:
-            self._reset_native(_NAV_RESET_GSF)
+            self._restart_native(_RESTART_GSF)
+            self.resets += 1
             return
         self._room()
         c = self.ctl
@@ -308,13 +314,18 @@ class Alignment:
         m = self.mem
         m[_M_GSF + _G_DYAW] = m[_M_GSF + _G_DYAW] + _wrap(d)
 
-    def _course_start(self, course):
-        """Navigation starts from the receiver's course and speed; the course's 1-sigma is
-        gnss_vel_sigma / speed."""
+    def _course_start(self):
+        """Navigation starts from the receiver's course and speed (the fix's); the course's
+        1-sigma is gnss_vel_sigma / speed. Natively the `nav_restart` kernel
+        (nav_aid._restart_native)."""
+        if kern.NATIVE:
+            self._restart_native(_RESTART_COURSE_START)
+            return
         self._room()  # the course's sigma and the start compute in Python floats
-        sp = self._fx[_FX_SPEED]
+        fx = self._fx
+        sp = fx[_FX_SPEED]
         s = self.cfg.gnss_vel_sigma / sp
-        self._start_navigation(course, sp, self.cfg.init_vel_sigma, s * s)
+        self._start_navigation(fx[_FX_COURSE], sp, self.cfg.init_vel_sigma, s * s)
 
     def _set_origin(self):
         """The first stable fix becomes the origin of the navigation frame; False if it cannot

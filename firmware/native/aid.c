@@ -383,30 +383,15 @@ static void reset_to_gnss(int32_t *c, int32_t *ii, float *m) {
     hold(c, m, var_h, pe, pn);
 }
 
-/* nav_align._gsf_reset with _gsf_turn: heading, horizontal velocity and covariance from the
- * yaw estimator's bank (m[M_GSF..]), the position from the fix, the biases kept; the attitude
- * turned by the bank (yaw, and roll and pitch by its weighted specific force error) as a
- * correction is injected, the bank's offsets less the turn. */
-static void gsf_reset(int32_t *c, int32_t *ii, float *m) {
+/* nav_align._gsf_turn: after a start or a reset (no filter job, dx 0) the attitude turned by
+ * the bank, about the vertical by d and in roll and pitch by its weighted specific force error
+ * (injected as a correction is), the bank's offsets less d and its force errors less it. */
+static void gsf_turn(float *m, float d) {
     float *g = m + M_GSF;
     float *e = m + M_E;
-    const float *aid = m + M_AID;
-    float y = m[M_NS + 2]; /* _yaw_var: init_yaw_sigma^2 or the bank's, the larger */
-    y = y * y;
-    if (g[G_VAR] > y) {
-        y = g[G_VAR];
-    }
-    m[M_INIT + IX_ATT + 2] = y;
-    float v[3];
-    v[0] = g[G_V];
-    v[1] = g[G_V + 1];
-    v[2] = 0.0f;
-    float sh = sigma_h(m + M_FX, aid);
-    float sv = sigma_v(m + M_FX, aid, sh);
-    restart(c, ii, m, m + M_GP, v, c[C_TICK] - c[C_FIX_TICK], sh, sv, m[M_NS], 0);
-    float be = g[G_B]; /* _gsf_turn */
+    float be = g[G_B];
     float bn = g[G_B + 1];
-    float d = f32_wrap(g[G_YAW]);
+    d = f32_wrap(d);
     e[E_DX + IX_ATT] = bn / G0_M_S2;
     e[E_DX + IX_ATT + 1] = -be / G0_M_S2;
     e[E_DX + IX_ATT + 2] = d;
@@ -417,20 +402,91 @@ static void gsf_reset(int32_t *c, int32_t *ii, float *m) {
         h[5] = h[5] - be;
         h[6] = h[6] - bn;
     }
+}
+
+/* nav_align._yaw_var: the heading's initial variance into m[M_INIT + yaw], the larger of
+ * init_yaw_sigma^2 (m[M_NS + 2]) and var. */
+static void yaw_var(float *m, float var) {
+    float y = m[M_NS + 2];
+    y = y * y;
+    if (var > y) {
+        y = var;
+    }
+    m[M_INIT + IX_ATT + 2] = y;
+}
+
+/* nav_align._start_navigation: navigation starts with the heading from course (rad clockwise
+ * from north), horizontal velocity sp along it (1-sigma sigma_vel), the heading's variance the
+ * larger of var_course and init_yaw_sigma^2. */
+static void start(int32_t *c, int32_t *ii, float *m, float course, float sp, float sigma_vel,
+                  float var_course) {
+    yaw_var(m, var_course);
+    float ypr[3];
+    rot_dcm_to_euler(ypr, m + M_X + X_C); /* _yaw_now */
+    m[M_GSF + G_DYAW] = m[M_GSF + G_DYAW] + f32_wrap(-course - ypr[0]); /* _turned */
+    if (m[M_FX + FX_SIG_V] < 0.0f) { /* a receiver without height: the height is unknown */
+        m[M_CN + CN_VV] = NO_HEIGHT_VAR;
+    }
+    m[M_NS] = course;
+    m[M_NS + 1] = sp;
+    m[M_NS + 2] = sigma_vel;
+    navk_nav_start(c, ii, m);
+}
+
+/* nav_align._gsf_reset: heading, horizontal velocity and covariance from the yaw estimator's
+ * bank (m[M_GSF..]), the position from the fix, the biases kept. */
+static void gsf_reset(int32_t *c, int32_t *ii, float *m) {
+    float *g = m + M_GSF;
+    const float *aid = m + M_AID;
+    yaw_var(m, g[G_VAR]);
+    float v[3];
+    v[0] = g[G_V];
+    v[1] = g[G_V + 1];
+    v[2] = 0.0f;
+    float sh = sigma_h(m + M_FX, aid);
+    float sv = sigma_v(m + M_FX, aid, sh);
+    restart(c, ii, m, m + M_GP, v, c[C_TICK] - c[C_FIX_TICK], sh, sv, m[M_NS], 0);
+    gsf_turn(m, g[G_YAW]);
     c[C_REJECTS] = 0;
     c[C_V_REJECTS] = 0;
     c[C_GSF_DIS] = 0;
     c[C_RESET_UNTIL] = UNCONFIRMED;
 }
 
-/* The navigator's resets without Python floats (on the board those are heap objects, and a
- * reset's ~2 KB of them brought collections while navigating): kind NAV_RESET_GNSS
- * nav_aid._reset_to_gnss, NAV_RESET_GSF nav_align._gsf_reset; m[M_NS..] holds init_vel_sigma,
- * track_vel_sigma and init_yaw_sigma (Navigator._reset_native). */
-void navk_nav_reset(int32_t *c, int32_t *ii, float *m, int32_t kind) {
-    if (kind == NAV_RESET_GSF) {
-        gsf_reset(c, ii, m);
-    } else {
+/* nav_align._gsf_start: navigation starts from the yaw estimator's heading and velocity. */
+static void gsf_start(int32_t *c, int32_t *ii, float *m) {
+    const float *g = m + M_GSF;
+    float ypr[3];
+    rot_dcm_to_euler(ypr, m + M_X + X_C); /* _yaw_now */
+    float yaw = ypr[0] + g[G_YAW];
+    float course = f32_atan2(g[G_V], g[G_V + 1]);
+    float sp = __builtin_sqrtf(g[G_V] * g[G_V] + g[G_V + 1] * g[G_V + 1]); /* _gsf_speed */
+    start(c, ii, m, course, sp, m[M_NS], g[G_VAR]);
+    gsf_turn(m, yaw + course); /* the start set the yaw to -course */
+}
+
+/* nav_align._course_start: navigation starts from the fix's course and speed, the course's
+ * 1-sigma gnss_vel_sigma / speed. */
+static void course_start(int32_t *c, int32_t *ii, float *m) {
+    const float *fx = m + M_FX;
+    float sp = fx[FX_SPEED];
+    float s = m[M_AID + AID_VEL_SIGMA] / sp;
+    start(c, ii, m, fx[FX_COURSE], sp, m[M_NS], s * s);
+}
+
+/* The navigator's starts and resets from the fix's course, the yaw estimator or the fix the
+ * filter kept rejecting, without Python floats (on the board those are heap objects: a reset's
+ * ~2 KB of them brought collections while a walk navigated, the start's Python made the
+ * heaviest tick of a drive). kind RESTART_*; m[M_NS..] holds init_vel_sigma, track_vel_sigma
+ * and init_yaw_sigma (Navigator._restart_native); a start's own inputs replace them. */
+void navk_nav_restart(int32_t *c, int32_t *ii, float *m, int32_t kind) {
+    if (kind == RESTART_GNSS) {
         reset_to_gnss(c, ii, m);
+    } else if (kind == RESTART_GSF) {
+        gsf_reset(c, ii, m);
+    } else if (kind == RESTART_GSF_START) {
+        gsf_start(c, ii, m);
+    } else {
+        course_start(c, ii, m);
     }
 }

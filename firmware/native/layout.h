@@ -265,8 +265,10 @@
 #define EV_RESET 3
 #define EV_FAULT 4
 #define EV_VRESET 5
-#define NAV_RESET_GNSS 0
-#define NAV_RESET_GSF 1
+#define RESTART_GNSS 0
+#define RESTART_GSF 1
+#define RESTART_GSF_START 2
+#define RESTART_COURSE_START 3
 
 /* nav.py: the navigator's float buffers in one, Navigator.mem, and the parts of it with indices
  * of their own (the aiding watch, the receiver's unseen error, the lag search) */

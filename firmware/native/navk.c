@@ -24,7 +24,9 @@ void navk_add(float *out, const float *a, const float *b, int32_t n) {
 }
 
 /* ---- fmath32 (vectorised, for the exhaustive tests) ---- */
-/* firmware/lib/fmath.py's functions over buffers, bit for bit (tests/native/test_fmath32.py) */
+/* firmware/lib/fmath.py's functions over buffers, bit for bit (tests/native/test_fmath32.py);
+ * the host's only (navk.h) */
+#ifndef NAVK_NATMOD
 #include "fmath32.h"
 
 void navk_sin_n(float *out, const float *x, int32_t n) {
@@ -50,3 +52,4 @@ void navk_atan2_n(float *out, const float *y, const float *x, int32_t n) {
         out[i] = f32_atan2(y[i], x[i]);
     }
 }
+#endif

@@ -46,13 +46,16 @@ void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid);
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b, float rk);
 int32_t navk_nmea_scan(int32_t *s, uint8_t *lb, const uint8_t *buf, int32_t n);
 void navk_nav_start(int32_t *c, int32_t *ii, float *m);
-void navk_nav_reset(int32_t *c, int32_t *ii, float *m, int32_t kind);
+void navk_nav_restart(int32_t *c, int32_t *ii, float *m, int32_t kind);
 void navk_gsf_accum(float *m);
 int32_t navk_gsf_step(int32_t *c, float *m);
 int32_t navk_nav_tick(int32_t *c, int32_t *ki, float *m, const int16_t *gyro, const int16_t *accel);
 
-/* ---- fmath32 (vectorised, for the exhaustive tests) ---- */
+/* ---- fmath32 (vectorised, for the exhaustive tests): the host's only, not the board's (its
+ * module's code sits in its heap) ---- */
+#ifndef NAVK_NATMOD
 void navk_sin_n(float *out, const float *x, int32_t n);
 void navk_cos_n(float *out, const float *x, int32_t n);
 void navk_asin_n(float *out, const float *x, int32_t n);
 void navk_atan2_n(float *out, const float *y, const float *x, int32_t n);
+#endif

@@ -433,18 +433,26 @@ def _restore(nav, saved):
 
 
 @pytest.mark.parametrize(
-    ("kind", "course", "speed", "rejects"),
-    [("gnss", 1.2, 3.0, 5), ("gnss", -1.0, 0.5, 5), ("gnss", -1.0, -1.0, 2), ("gsf", 0, 0, 0)],
+    ("step", "course", "speed", "rejects"),
+    [
+        ("_reset_to_gnss", 1.2, 3.0, 5),
+        ("_reset_to_gnss", -1.0, 0.5, 5),
+        ("_reset_to_gnss", -1.0, -1.0, 2),
+        ("_gsf_reset", 0, 0, 0),
+        ("_gsf_start", 0, 0, 0),
+        ("_course_start", 2.5, 4.0, 0),
+    ],
 )
-def test_the_native_resets_equal_their_python_references_bit_for_bit(
-    monkeypatch, kind, course, speed, rejects
+def test_the_native_starts_and_resets_equal_their_python_references_bit_for_bit(
+    monkeypatch, step, course, speed, rejects
 ):
-    """nav_reset (aid.c), which resets without Python floats (heap objects on the board: a
-    reset's ~2 KB of them made collections while a walk navigated), leaves every buffer of the
-    navigator as nav_aid._reset_to_gnss (a fix with a course; without one, no faster than its
-    speed or, with none, at the INS's own; a sensor step's horizontal reset, fewer rejects than
-    reset_after) and nav_align._gsf_reset leave it, bit for bit, but for the settings the
-    kernel reads in Navigator._ns."""
+    """nav_restart (aid.c), which starts and resets without Python floats (heap objects on the
+    board: a reset's ~2 KB of them made collections while a walk navigated), leaves every
+    buffer of the navigator as its Python references leave it, bit for bit, but for the
+    settings the kernel reads in Navigator._ns: nav_aid._reset_to_gnss (a fix with a course;
+    without one, no faster than its speed or, with none, at the INS's own; a sensor step's
+    horizontal reset, fewer rejects than reset_after), nav_align._gsf_reset, _gsf_start and
+    _course_start (the fix's course and speed)."""
     import kern
     import nav_aid
 
@@ -455,25 +463,26 @@ def test_the_native_resets_equal_their_python_references_bit_for_bit(
     for i in range(3):
         used[i] = nav.ins.p_n[i] + F32(7.0 + i)
     used[3], used[4] = F32(speed), F32(course)  # nav_aid._US_SPEED, _US_COURSE
+    nav._fx[2], nav._fx[3] = F32(speed), F32(course)  # nav._FX_SPEED, _FX_COURSE
     nav.ctl[fw_nav._C_REJECTS] = rejects
     nav.mem[fw_nav._M_RESET_D] = F32(3.0)  # the step of a reset before: _hold compares
     nav.ctl[fw_nav._C_IMPLAUSIBLE_UNTIL] = nav.ctl[fw_nav._C_TICK] + 100
-    reset = nav._reset_to_gnss if kind == "gnss" else nav._gsf_reset
+    run = getattr(nav, step)
     before = _buffers(nav)
-    reset()
+    run()
     native = _buffers(nav)
     _restore(nav, before)
     assert all(np.array_equal(a, b) for a, b in zip(_buffers(nav)[:3], before[:3], strict=True))
-    monkeypatch.setattr(nav_aid, "_nav_reset", None)
+    monkeypatch.setattr(nav_aid, "_nav_restart", None)
     monkeypatch.setattr(kern, "NATIVE", False)
-    reset()
+    run()
     python = _buffers(nav)
-    assert native[3] == python[3] == before[3] + 1
+    assert native[3] == python[3] == before[3] + ("reset" in step)
     assert np.array_equal(native[1], python[1]) and np.array_equal(native[2], python[2])
     differ = np.flatnonzero(native[0] != python[0])
     differ = differ[(differ < fw_nav._M_NS) | (differ >= fw_nav._M_NS + 3)]  # the kernel's inputs
     assert differ.size == 0, f"mem differs at {differ[:10].tolist()}"
-    assert np.count_nonzero(native[0] != before[0]) > 20  # not vacuous: the reset changed it
+    assert np.count_nonzero(native[0] != before[0]) > 20  # not vacuous: the step changed it
 
 
 def _jumped_after(seconds, came_en_m, speed_m_s, fix_v_en=None):

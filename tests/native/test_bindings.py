@@ -117,3 +117,16 @@ def test_the_cdef_is_the_prototypes():
     import cffi
 
     cffi.FFI().cdef(cdef)  # parses
+
+
+def test_a_native_module_leaves_the_hosts_kernels_out():
+    """Between `#ifndef NAVK_NATMOD` and `#endif`: bound on CPython, not in a MicroPython
+    module (the board's holds its code in its heap)."""
+    text = (
+        "void navk_a(float *o);\n#ifndef NAVK_NATMOD\nvoid navk_b(float *o);\n#endif\n"
+        "void navk_c(float *o);\n"
+    )
+    assert [p.name for p in bindings.prototypes(text)] == ["a", "b", "c"]
+    assert [p.name for p in bindings.prototypes(text, natmod=True)] == ["a", "c"]
+    host = {p.name for p in native.prototypes()} - {p.name for p in native.prototypes(natmod=True)}
+    assert host == {"sin_n", "cos_n", "asin_n", "atan2_n"}
