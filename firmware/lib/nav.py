@@ -1014,7 +1014,7 @@ class Navigator(Alignment, Aiding):
             mask = kf.i[eskf.I_GATE_MASK]
             ki = kf.i
             n = ki[eskf.I_ACCEPTED] + ki[eskf.I_REJECTED]
-            w = nav_kern.drift_watch(kf.e, self.mem, n)
+            w = nav_kern.drift_watch(kf.e, self.mem, n, c[_C_TICK] < c[_C_DRIFT_UNTIL])
             if w & 3:
                 # a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it
                 t = c[_C_TICK] + (5 * c[_C_T_SECOND] if w & 3 == 2 else 3 * c[_C_T_SECOND] // 2)

@@ -360,9 +360,10 @@ static void schedule(int32_t *c, int32_t *ki, float *m) {
 }
 
 /* nav_kern.drift_watch: 2 when a running mean of normalised innovations passes the limit, else 1
-   when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT, else 0;
-   plus DRIFT_H when a mean beyond its limit is a horizontal one */
-static int32_t drift_watch(const float *e, float *m, int32_t n) {
+   when one of the suspicion's (M_BS, each ratio clipped at BS_CLIP) passes BS_LIMIT (the
+   height's while a drift is held: BS_LEAVE), else 0; plus DRIFT_H when a mean beyond its limit
+   is a horizontal one */
+static int32_t drift_watch(const float *e, float *m, int32_t n, int32_t held) {
     const float *z = e + E_Z;
     const float *r = e + E_R;
     float *bw = m + M_BW;
@@ -394,6 +395,8 @@ static int32_t drift_watch(const float *e, float *m, int32_t n) {
                 if (hit == 0) {
                     hit = 1;
                 }
+            } else if (held && k == 2 && hit == 0 && (bs[k] > BS_LEAVE || bs[k] < -BS_LEAVE)) {
+                hit = 1;
             }
             if (beyond && k != 2) { /* not the height's */
                 hz = DRIFT_H;
@@ -594,7 +597,7 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
     }
     int32_t mask = ki[I_GATE_MASK];
     int32_t n = ki[I_ACCEPTED] + ki[I_REJECTED];
-    int32_t w = drift_watch(e, m, n);
+    int32_t w = drift_watch(e, m, n, c[C_TICK] < c[C_DRIFT_UNTIL]);
     if (w & 3) { /* a drift: for 5 s; a suspected one: for 1.5 s after the fix that shows it */
         int32_t t = c[C_TICK] + ((w & 3) == 2 ? 5 * c[C_T_SECOND] : 3 * c[C_T_SECOND] / 2);
         if (t > c[C_DRIFT_UNTIL]) {

@@ -64,6 +64,7 @@
 #define BW_LIMIT F32_BITS(0x40400000) /* 3. */
 #define BS_CLIP F32_BITS(0x40400000) /* 3. */
 #define BS_LIMIT F32_BITS(0x3FC00000) /* 1.5 */
+#define BS_LEAVE F32_BITS(0x3F800000) /* 1. */
 #define BW_CLIP F32_BITS(0x40A00000) /* 5. */
 #define AW_LIMIT_LAT F32_BITS(0x40000000) /* 2. */
 #define AW_LIMIT_UP F32_BITS(0x40400000) /* 3. */

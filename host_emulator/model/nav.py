@@ -577,7 +577,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
                 if hit & fw_nav._AW_HIT_UP:
                     self.inflate |= fw_nav._INFLATE_VERTICAL
         if self.job == JOB_GNSS:
-            w = self._drift_watch(kf.innov)
+            w = self._drift_watch(kf.innov, self.tick < self.drift_until)
             if w & 3:  # nav._inject: a drift for 5 s, a suspected one for 1.5 s
                 hold = 5 * self.ticks_second if w & 3 == 2 else 3 * self.ticks_second // 2
                 self.drift_until = max(self.drift_until, self.tick + hold)

@@ -55,11 +55,12 @@ class KernelsModel:
         vert = P[2, 2] > lim2_v and self.fix[5] >= 0.0
         return 1 if max(P[0, 0], P[1, 1]) > lim2 or vert else 0
 
-    def _drift_watch(self, innov):
+    def _drift_watch(self, innov, held):
         """nav_kern.drift_watch: running means of y / sqrt(S) of the position east, north, up
         and the velocity east and north; 2 (and both sets restarted) when one passes the
         limit, else 1 when one of the suspicion's (each ratio clipped at _BS_CLIP) passes
-        _BS_LIMIT, else 0; plus _DRIFT_H when a mean beyond its limit is a horizontal one."""
+        _BS_LIMIT (the height's, while a drift is `held`: _BS_LEAVE), else 0; plus _DRIFT_H
+        when a mean beyond its limit is a horizontal one."""
         bw, bs = self.drift_watch, self.suspect_watch
         a = fw_kern._BW_ALPHA / self.consistency[fw_nav._CN_RK]  # a fix: 1 / rk of a second's
         hit = 0
@@ -76,6 +77,8 @@ class KernelsModel:
                 if abs(bs[j]) > fw_kern._BS_LIMIT:
                     beyond = True
                     hit = max(hit, 1)
+                elif held and j == 2 and hit == 0 and abs(bs[j]) > fw_kern._BS_LEAVE:
+                    hit = 1
                 if beyond and j != 2:  # not the height's
                     hz = fw_nav._DRIFT_H
         if hit == 2:

@@ -298,9 +298,9 @@ def test_fixes_above_the_hdop_limit_are_used_while_a_drift_is_held():
     assert nav.updates == before + 1
 
 
-def _drift_watch_after(rows, n=5):
+def _drift_watch_after(rows, n=5, held=False):
     """nav_kern.drift_watch's results for GNSS updates whose innovations are `rows` (n
-    scalars each: y, with S = 1), on a fresh navigator's means."""
+    scalars each: y, with S = 1), on a fresh navigator's means; held: a drift is held."""
     nav = Navigator(navcfg.NavConfig("car"))
     nav.mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0
     e = nav.kf.e
@@ -309,7 +309,7 @@ def _drift_watch_after(rows, n=5):
         for j in range(n):
             e[eskf.E_Z + j] = y[j]
             e[eskf.E_R + j] = 1.0
-        out.append(nav_kern.drift_watch(e, nav.mem, n))
+        out.append(nav_kern.drift_watch(e, nav.mem, n, held))
     return out
 
 
@@ -325,6 +325,20 @@ def test_the_drift_watch_says_when_a_drift_is_horizontal():
     assert up == [0, 0, 1, 2]
     assert east == [0, 0, 1 | fw_nav._DRIFT_H, 2 | fw_nav._DRIFT_H]
     assert v_north == east
+
+
+def test_a_suspected_drift_holds_until_its_innovations_are_back_within_a_sigma():
+    """A suspicion passes its limit (1.5) at the fifth fix 2 sigma high; fixes 1.2 sigma high
+    then bring its mean under the limit, which ends it. While a drift is held (here all
+    along), a mean beyond 1 suspects: it goes on until the fixes are back on the state.
+    The height's only: the same fixes east end it at the limit, held or not."""
+    rows = [(0, 0, 2, 0, 0)] * 5 + [(0, 0, 1.2, 0, 0)] * 3 + [(0, 0, 0, 0, 0)] * 2
+    # the means: 0.5, 0.88, 1.16, 1.37, 1.53, then 1.44, 1.38, 1.34, then 1.003, 0.75
+    assert _drift_watch_after(rows) == [0, 0, 0, 0, 1, 0, 0, 0, 0, 0]
+    assert _drift_watch_after(rows, held=True) == [0, 0, 1, 1, 1, 1, 1, 1, 1, 0]
+    east = [(y[2], 0, 0, 0, 0) for y in rows]
+    suspected_h = 1 | fw_nav._DRIFT_H
+    assert _drift_watch_after(east, held=True) == [0, 0, 0, 0, suspected_h, 0, 0, 0, 0, 0]
 
 
 def test_a_gyro_step_is_reset_to_gnss_at_once_and_its_drift_held():
