@@ -481,12 +481,14 @@ def accuracy(nav_json, profile, scenario="urban_drive", gnss="white"):
 def accuracy_cost_lines(results, nav_json):
     """The section setting each variant's accuracy (bench-nav) beside its navigating cost."""
     lines = ["", "## What the options buy: accuracy against cost", ""]
-    rows = []
+    rows, seeds = [], None
     for r in results:
+        # the walk has no configuration in bench-nav: no accuracy (its cost is above)
         acc = accuracy(nav_json, NAV_PROFILES.get(r["label"], ""))
         nav = r["cost"]["phases"].get("navigating")
         if acc is None or nav is None:
             continue
+        seeds = acc["seeds"]
         fi = nav["firmware_instr"]
         outs = " / ".join(f"{v:.2f}" for v in acc["outage_end_m"])
         rows.append(f"| {r['label']} | {acc['horiz_rms_m']:.2f} | {acc['vel_rms_m_s']:.3f} | "
@@ -497,7 +499,7 @@ def accuracy_cost_lines(results, nav_json):
                         "(`make bench-nav` writes them)."]  # fmt: skip
     return lines + [
         "Accuracy: `make bench-nav` (docs/benchmarks/navigation.md: urban_drive, white GNSS, "
-        f"mean of {acc['seeds']} seeds, the firmware's float32 navigator on CPython, the board's "
+        f"mean of {seeds} seeds, the firmware's float32 navigator on CPython, the board's "
         "bits); cost: navigating instructions per tick of this run.",
         "",
         "| configuration | horiz RMS m | vel RMS m/s | yaw RMS deg | end of outages m | "
@@ -699,6 +701,7 @@ def main(argv=None):
 
         m4f_build.build()  # once, before the parallel runs
         f411.image_files(f411.DEFAULT_BOARD, print)  # likewise the image
+
         def default_duration(name):
             return trajectory.SCENARIOS[name].default_duration_s
 

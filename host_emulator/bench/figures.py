@@ -86,7 +86,7 @@ def _m4f(data, config, rest):
         raise FigureError(f"m4f.{config}.{'.'.join(rest)}: no such figure")
     phase, fig = rest
     ph = r["cost"]["phases"].get(phase)
-    stat = fig[len("instr_"):]
+    stat = fig[len("instr_") :]
     if ph is None or stat not in ("mean", "p50", "p99", "max"):
         raise FigureError(f"m4f.{config}.{phase}.{fig}: no such figure")
     return _int(ph["firmware_instr"][stat])
@@ -178,8 +178,11 @@ def main(argv=None):
 
     p = cli_args.Parser(prog="python -m host_emulator figures",
                         description=__doc__.split("\n\n")[0])  # fmt: skip
-    p.add_argument("--check", action="store_true",
-                   help="say which markers differ from their figures (exit 1); write nothing")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="say which markers differ from their figures (exit 1); write nothing",
+    )
     try:
         args = p.parse_args(argv)
     except cli_args.UsageError as e:

@@ -63,6 +63,7 @@ except ImportError:
 try:
     from m4f import emu_alloc as _emu_alloc
 except ImportError:  # not the m4f runtime: the emulated peripherals count as the firmware
+
     def _emu_alloc():
         return 0
 
