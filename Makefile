@@ -50,9 +50,10 @@ accuracy: $(STAMP)
 bench-nav: $(STAMP)
 	$(BIN)/python -m host_emulator bench-nav
 
-# What a tick costs the board: the app loop on the emulated Cortex-M4F over urban_drive, two
-# configurations, and the image itself on the emulated STM32F411, raw records off and on
-# (~35 min; writes docs/benchmarks/board.md).
+# What a tick costs the board: the app loop on the emulated Cortex-M4F over urban_drive (three
+# configurations) and a hand-held walk, and the image itself on the emulated STM32F411 (raw
+# records off and on, a 10 Hz receiver, the status page, the walk): ~18 min on two cores;
+# writes docs/benchmarks/board.md.
 bench-board: $(STAMP) toolchain native
 	$(BIN)/python -m host_emulator bench-board
 

@@ -17,8 +17,8 @@ the image's 96 MHz, the port's drivers, interrupts and DMA included (eval/board_
 what a turn of the page costs, tick by tick against the run without it.
 
 The emulated Cortex-M4F runs at about 3x real time, the emulated STM32F411 at 1.1-1.7x (two
-runs at a time), so the default (urban_drive, 600 s, seven runs on two processes) takes about
-twenty minutes (21 min at 5eec272). It is a
+runs at a time), so the default (urban_drive, 600 s, and the walk: nine runs on two processes)
+takes about twenty minutes (18 min at 5be7785). It is a
 benchmark: the design budget (docs/requirements.md, time budget: p99 <= 50,000 and max <=
 100,000 instructions per tick, no gc.collect while navigating) and the image's targets (a
 navigating tick at most 2.0 ms at p99 and 3.5 ms at most, no tick late or missed) are reported
