@@ -45,3 +45,28 @@ def test_a_bad_trial_is_a_usage_error(argv, says, capsys):
     with pytest.raises(SystemExit) as e:
         navigation.main(argv)
     assert e.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_the_velocity_noise_rows_reach_the_receiver_and_the_report():
+    """Each velocity noise is a walk_real run per seed; its row sets the runs' means beside
+    the 0.05 m/s of the walk's own runs."""
+    tasks = [t for t in navigation._tasks(2) if t[3].startswith("velocity noise")]
+    assert tasks == [("walk_real", s, True, f"velocity noise: {v:g} m/s")
+                     for v in navigation.VEL_NOISE_M_S for s in (0, 1)]  # fmt: skip
+
+    def run(h, nees):
+        return {"horiz_rms_m": h, "gnss_horiz_rms_m": 3.0, "vel_rms_m_s": 1.0,
+                "yaw_rms_deg": 20.0, "resets": 2.0, "pos_3sigma_cover": 0.9,
+                "pos_nees_h": nees}  # fmt: skip
+
+    results = {
+        ("walk_real", 0, True, "handheld"): run(2.0, 1.0),
+        ("walk_real", 1, True, "handheld"): run(3.0, 2.0),
+        ("walk_real", 0, True, "velocity noise: 0.3 m/s"): run(6.0, 7.0),
+        ("walk_real", 1, True, "velocity noise: 0.3 m/s"): run(8.0, 9.0),
+    }
+    text = "\n".join(navigation._vel_noise_lines(results))
+    row = "| walk_real (handheld) | {} | 3.00 | 1.000 | 20.0 | 2.0 | 90 % | {} |"
+    assert row.format("0.05 | 2.50", "1.50") in text
+    assert row.format("0.3 | 7.00", "8.00") in text
+    assert "| 0.5 |" not in text  # no runs, no row
