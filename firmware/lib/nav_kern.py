@@ -262,7 +262,8 @@ _BS_LIMIT = f32.ratio(3, 2)
 # about the limit, which let the health fall to 0 for a second at a time while the height
 # stayed 11 m off (`make bench-faults`, gyro-bias@250+30:1 seed 2: 25 such frames). Not the
 # horizontal means: on the real walks' speed and bearing they hover about 1 on good solutions
-# (`make bench-real`: T01_R01's health-2 share 35 -> 55 % when they held it too)
+# (`make bench-real` with `m == 2` taken out of the hold's condition: T01_R01's health-2
+# share 35 -> 55 %)
 _BS_LEAVE = f32.f32(1)
 _BW_CLIP = f32.f32(5)  # one innovation counts at most this much (both watches): an outlier
 # alone is no jump

@@ -545,15 +545,23 @@ def _rate_receiver_lines(results):
 
 def _vel_noise_lines(results):
     """The receivers by their velocity noise (VEL_NOISE_M_S), the firmware's setting as it is."""
+    from common import firmware_env
+    from host_emulator.sim import gnss as sim_gnss
+
+    firmware_env.install()
+    import navcfg
+
+    base = sim_gnss.GnssModel().sigma_vel_m_s  # the tables above: their runs, not run again
+    told = navcfg.NavConfig("handheld").gnss_vel_sigma
     lines = [
         "",
         "## Receivers by their velocity noise",
         "",
-        "White GNSS but for the speed and course: their velocity's noise per axis, 0.05 m/s in "
-        "the tables above, a phone's several times that. The firmware is not told (NMEA carries "
-        "no velocity sigma) and takes every receiver's as `gnss_vel_sigma` (0.08 m/s in hand): "
-        "the real walks' failure (docs/benchmarks/realdata.md: NEES 5-43 with the phones' speed "
-        "and bearing), here on the simulated walk.",
+        f"White GNSS but for the speed and course: their velocity's noise per axis, {base:g} m/s "
+        "in the tables above, a phone's several times that. The firmware is not told (NMEA "
+        "carries no velocity sigma) and takes every receiver's as `gnss_vel_sigma` "
+        f"({told:.2g} m/s in hand): the real walks' failure with the phones' speed and bearing "
+        "(docs/benchmarks/realdata.md, its NEES), here on the simulated walk.",
         "",
         "| scenario (profile) | velocity noise m/s | horiz RMS m | the fixes' horiz RMS m | "
         "vel RMS m/s | yaw deg | resets | inside 3 sigma | NEES |",
@@ -561,8 +569,8 @@ def _vel_noise_lines(results):
     ]
     for name in VEL_NOISE_SCENARIOS:
         prof = SCENARIO_PROFILES[name]
-        for sigma in (0.05, *VEL_NOISE_M_S):
-            rows = _rows(results, name, True, prof if sigma == 0.05 else _vel_noise_task(sigma))
+        for sigma in (base, *VEL_NOISE_M_S):
+            rows = _rows(results, name, True, prof if sigma == base else _vel_noise_task(sigma))
             if rows:
                 cells = _cells(rows, ("horiz_rms_m", 2), ("gnss_horiz_rms_m", 2),
                                ("vel_rms_m_s", 3), ("yaw_rms_deg", 1), ("resets", 1),
