@@ -80,9 +80,9 @@ LAYOUT = (
 TUNING = (
     ("fmath", "the float32 sin, cos, atan2 and asin (fmath32.h)", "FM_", ("*",)),
     ("ins", "gravity and the coning terms", "", ("FREE_AIR", "TWELFTH")),
-    ("nav_kern", "the watches (drift, suspicion, aiding), the receiver's unseen error and lag, "
-     "the frozen receiver, the angle units", "",
-     ("_FROZEN_*", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_LAG_*", "RAD_PER_CDEG",
+    ("nav_kern", "the watches (drift, suspicion, aiding), the receiver's unseen error, lag and "
+     "velocity noise, the frozen receiver, the angle units", "",
+     ("_FROZEN_*", "_BW_*", "_BS_*", "_AW_*", "_CN_*", "_VR_*", "_LAG_*", "RAD_PER_CDEG",
       "CDEG_PER_RAD")),
     ("nav_aid", "the screening of fixes", "",
      ("NO_HEIGHT_VAR", "_JUMP_*", "_STEP_*", "_HOLD_K2")),

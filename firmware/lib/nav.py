@@ -295,15 +295,15 @@ _M_INIT = const(1616)  # the initial P diagonal (eskf.N): self._init
 _M_NS = const(1631)  # nav_start's course, speed and velocity sigma (3): self._ns
 _M_LVL = const(1634)  # sums of f and w while levelling (6): self._lvl
 _M_BW = const(1640)  # the drift watch: running means of normalised innovations (5)
-_M_CN = const(1645)  # the receiver's unseen error and lag (_CN_*, _NCN): nav_kern.consistency
-_M_LAST = const(1654)  # the last fix the filter took: its antenna east, north in the frame (2)
-_M_LS = const(1656)  # the lag search (nav_kern.lag_search): residuals east, north and their means
-_M_BS = const(1704)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
-_M_AW = const(1709)  # the aiding watch: running means of normalised innovations (_AW_*, 2)
-_M_GSF = const(1711)  # the yaw estimator's bank (yaw_gsf.py, _G_*: NG)
-_M_JUMP = const(2139)  # the innovation east, north at the first fix of a jumped run (2)
-_M_RESET_D = const(2141)  # the last reset's step in position east, north (_restart, 2)
-_NM = const(2143)
+_M_CN = const(1645)  # the receiver's unseen error, lag and velocity noise (_CN_*, _NCN)
+_M_LAST = const(1660)  # the last fix the filter took: its antenna east, north in the frame (2)
+_M_LS = const(1662)  # the lag search (nav_kern.lag_search): residuals east, north and their means
+_M_BS = const(1710)  # ... and the suspicion's, each ratio clipped at _BS_CLIP (5)
+_M_AW = const(1715)  # the aiding watch: running means of normalised innovations (_AW_*, 2)
+_M_GSF = const(1717)  # the yaw estimator's bank (yaw_gsf.py, _G_*: NG)
+_M_JUMP = const(2145)  # the innovation east, north at the first fix of a jumped run (2)
+_M_RESET_D = const(2147)  # the last reset's step in position east, north (_restart, 2)
+_NM = const(2149)
 # mem's _M_BW and _M_BS: the scalars the drift watch follows, position E, N, U, velocity E, N
 _BW_N = const(5)
 # mem's _M_AW: the aiding watch (nav_kern.aid_watch), and its result's bits
@@ -319,7 +319,7 @@ _INFLATE_VERTICAL = const(2)  # vertical velocity and accelerometer bias (nav_ke
 # the reset it caused (s): the biases are then the calibration's again, not yet learned
 _DRIFT_H = const(4)
 _DRIFT_HOLD_S = const(10)
-# mem's _M_CN: the receiver's unseen error (nav_kern.consistency)
+# mem's _M_CN: the receiver's unseen error, lag, velocity noise (nav_kern.consistency, vel_noise)
 _CN_K = const(0)  # seconds of fixes in the running means so far (float, up to _CN_N)
 _CN_MH = const(1)  # running mean of y^2/S, east and north
 _CN_MV = const(2)  # ... up
@@ -329,7 +329,13 @@ _CN_KL = const(5)  # pairs of fixes in the lag search's running means (float, up
 _CN_LAG = const(6)  # the lag of the fixes behind their stamps that fits best, s (lag_search)
 _CN_LAGT = const(7)  # the lag applied, ticks (float; shrunk towards 0 while uncertain)
 _CN_RK = const(8)  # the factor on the position variances of the running update (rate_r)
-_NCN = const(9)
+_CN_KR = const(9)  # seconds of velocity fixes in the velocity noise's means (nav_kern.vel_noise)
+_CN_VE = const(10)  # the last fix's velocity innovation east, m/s (_CN_VOK: valid)
+_CN_VN = const(11)  # ... north
+_CN_VOK = const(12)  # 1.0: the last GNSS update's velocity rows were taken (0.0: none)
+_CN_V2 = const(13)  # running mean of the change of y squared less H P H', m^2/s^2
+_CN_RVEL = const(14)  # the receiver's velocity variance per horizontal axis, m^2/s^2 (learned)
+_NCN = const(15)
 # mem's _M_LS: per candidate lag j (j _LS_STEP ticks): the last fix's velocity residual east
 # (_LS_E + j), north (_LS_N + j), and the running mean of its change between fixes squared
 # (_LS_M + j)
@@ -517,6 +523,8 @@ class Navigator(Alignment, Aiding):
         aid[_AID_FAULT_SIGMA] = cfg.fault_sigma_m
         aid[_AID_FAULT_SIGMA_V] = cfg.fault_sigma_v_m
         aid[_AID_HEADING_V] = cfg.heading_speed_m_s
+        # the receiver's velocity noise starts at the setting (nav_kern.vel_noise)
+        self.mem[_M_CN + _CN_RVEL] = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
 
     def _reset_counters(self):
         c = self.ctl
@@ -1024,6 +1032,7 @@ class Navigator(Alignment, Aiding):
             # with the heading: a rejected fix, or a horizontal drift, resets now (_drift_reset)
             step = c[_C_TICK] < c[_C_STEP_UNTIL] and not c[_C_GSF_DIS]
             nav_kern.consistency(kf.e, self.mem, n, mask)
+            nav_kern.vel_noise(kf.e, self.mem, n, mask)
             if mask & 4:
                 c[_C_V_REJECTS] += 1
             else:

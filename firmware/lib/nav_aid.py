@@ -50,9 +50,11 @@ _C_LAST_TICK = const(72)
 _M_X = const(0)
 _M_E = const(52)
 _M_US = const(1595)
-_M_LAST = const(1654)
-_M_JUMP = const(2139)
-_M_RESET_D = const(2141)
+_M_CN = const(1645)
+_M_LAST = const(1660)
+_M_JUMP = const(2145)
+_M_RESET_D = const(2147)
+_CN_RVEL = const(14)
 _RESTART_GNSS = const(0)
 # ---- end of nav.py's consts ----
 # ---- ins.py's consts used here: `python -m common.native.layout` writes them ----
@@ -227,7 +229,7 @@ class Aiding:
             # antenna velocity = v + C (w x l); its attitude and gyro-bias sensitivities are
             # neglected (tests/lib/test_error_dynamics.py sizes them: mm/s against 0.1 m/s)
             lever_vel(ln, ins.x, self._w, cfg.lever_b_m)
-            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
+            rvel = self.mem[_M_CN + _CN_RVEL]  # learned (nav_kern.vel_noise)
             z = (rv[b] + corr[3] + ln[0]) - ve
             kf.add_scalar(z, rvel, 1, eskf.IX_VEL, 1.0)
             z = (rv[b + 1] + corr[4] + ln[1]) - vn

@@ -3,8 +3,9 @@
 Each function here is the reference of a native kernel of the same name and signature
 (firmware/native/: `still` of still(), `inject` of inject()...) or of the part of `nav_tick`
 it mirrors (navtick.c: the sample check `imu_check`, the watches `drift_watch` and `aid_watch`,
-the receiver's unseen error `consistency`, the lag search `lag_search`, `rate_r`,
-`uncertain`), with the same operation order, so that both give the same bits (tests/native).
+the receiver's unseen error `consistency` and velocity noise `vel_noise`, the lag search
+`lag_search`, `rate_r`, `uncertain`), with the same operation order, so that both give the
+same bits (tests/native).
 nav.py picks the native kernel where navk is loaded (kern.py) and calls these otherwise; its
 own Python flow (Navigator._tick and what it calls) calls the others, which on a board with
 navk run inside nav_tick, so a board with navk never loads this module (nav.py says when).
@@ -55,6 +56,7 @@ _STP_MAX_SPEED = const(4)
 _STILL_FIRST = const(1)
 _STILL_GNSS_SPEED = const(2)
 _STILL_NAVIGATING = const(4)
+_AID_VEL_SIGMA = const(3)
 _AID_LEVER = const(6)
 _AID_HDOP_MAX = const(9)
 _AID_REANCHOR = const(10)
@@ -96,9 +98,9 @@ _M_US = const(1595)
 _M_AID = const(1602)
 _M_BW = const(1640)
 _M_CN = const(1645)
-_M_LS = const(1656)
-_M_BS = const(1704)
-_M_AW = const(1709)
+_M_LS = const(1662)
+_M_BS = const(1710)
+_M_AW = const(1715)
 _BW_N = const(5)
 _AW_LAT = const(0)
 _AW_UP = const(1)
@@ -112,7 +114,13 @@ _CN_KL = const(5)
 _CN_LAG = const(6)
 _CN_LAGT = const(7)
 _CN_RK = const(8)
-_NCN = const(9)
+_CN_KR = const(9)
+_CN_VE = const(10)
+_CN_VN = const(11)
+_CN_VOK = const(12)
+_CN_V2 = const(13)
+_CN_RVEL = const(14)
+_NCN = const(15)
 _LS_C = const(16)
 _LS_STEP = const(4)
 _LS_E = const(0)
@@ -454,6 +462,77 @@ def consistency(e, mem, n, mask):
             cn[_CN_VV] = (1.0 - cn[_CN_MV]) * (s * s)
         else:
             cn[_CN_VV] = (cn[_CN_MV] - 1.0) * p[2 * (eskf.N + 1)]
+
+
+# The receiver's velocity noise (docs/navigation.md, "The receiver's velocity noise"): the
+# setting gnss_vel_sigma says what a good receiver's speed and course are worth (0.05-0.1 m/s);
+# a phone's are worth 0.3-0.5 m/s, and taken at 0.08 they pull the state onto their noise. A
+# receiver's noise is new at every fix; the state's own error (a heading 40 deg off, a bias)
+# changes slowly. So the change of the velocity innovation from one fix to the next, squared
+# and halved, less the state's variance H P H' (S less the R it was given), estimates the R
+# the receiver has, and its running mean is the variance the rows take, never below the
+# setting's (a floor, as gnss_sigma_floor_m is the position's) nor above _VR_MAX. Tried first,
+# the mean of y^2 less H P H' (about y's own mean) learned the turns of the Tokyo drive at 1 Hz
+# as noise (horizontal RMS 1.14 -> 1.64 m on a segment) and, on the board across the car
+# (tests/lib/test_yaw_gsf.py), the state's wrong heading. Only consecutive fixes whose velocity
+# rows the gate accepted count, while H P H' is below _VR_MAX (after a reset it is tens of
+# m^2/s^2, and the estimate then says nothing about a tenth of a m/s).
+_VR_N = f32.f32(32)  # the mean's length, seconds of fixes (a fix counts 1 / rate_r)
+_VR_K0 = f32.f32(4)  # the setting's variance until this many seconds of fixes are in
+_VR_MAX = f32.ratio(1, 4)  # m^2/s^2: the largest velocity variance learned (0.5 m/s)
+
+
+def vel_noise(e, mem, n, mask):
+    """After a GNSS update of n scalars whose last two (n = 5) are the velocity east and north
+    (E_Z/E_R: each one's innovation y and variance S), both accepted (gate mask `mask`) and
+    their S - R below _VR_MAX (else the next fix has no previous one): y kept (mem's _M_CN +
+    _CN_VE, _CN_VN; _CN_VOK set) and, when the last update's was kept too, the running mean
+    (weight 1 / k, k the seconds of fixes so far up to _VR_N) of the change of y squared
+    over 2 less S - R, R the variance the rows had (_CN_RVEL), both axes' mean: the variance
+    the rows take next, between gnss_vel_sigma^2 and _VR_MAX, the setting's until k reaches
+    _VR_K0."""
+    cn = f32.view(mem, _M_CN, _NCN)
+    z = f32.view(e, eskf.E_Z, eskf.MAX_SCALARS)
+    r = f32.view(e, eskf.E_R, eskf.MAX_SCALARS)
+    rv = cn[_CN_RVEL]
+    if (
+        n < 5
+        or mask & 0x18
+        or not (r[3] > 0.0 and r[4] > 0.0)
+        or r[3] - rv > _VR_MAX
+        or r[4] - rv > _VR_MAX
+    ):
+        cn[_CN_VOK] = 0.0  # no pair with the next fix
+        return
+    ye = z[3]
+    yn = z[4]
+    de = ye - cn[_CN_VE]
+    dn = yn - cn[_CN_VN]
+    ok = cn[_CN_VOK]
+    cn[_CN_VE] = ye
+    cn[_CN_VN] = yn
+    cn[_CN_VOK] = 1.0
+    if not ok > 0.0:
+        return
+    k = cn[_CN_KR] + 1.0 / cn[_CN_RK]
+    if k > _VR_N:
+        k = _VR_N
+    cn[_CN_KR] = k
+    if k < 1.0:  # a fast receiver's first pair (rate_r > 1)
+        k = 1.0
+    a = 1.0 / k
+    q = ((de * de + dn * dn) * 0.5 - ((r[3] - rv) + (r[4] - rv))) * 0.5
+    cn[_CN_V2] = cn[_CN_V2] + a * (q - cn[_CN_V2])
+    lo = mem[_M_AID + _AID_VEL_SIGMA]
+    lo = lo * lo
+    rv = lo
+    if k >= _VR_K0:
+        rv = cn[_CN_V2]
+        if rv < lo:
+            rv = lo
+        elif rv > _VR_MAX:
+            rv = _VR_MAX
+    cn[_CN_RVEL] = rv
 
 
 def lag_search(c, mem, age):

@@ -62,8 +62,9 @@ class NavConfig:
         self.gnss_uere_m = f32.f32(2)
         self.gnss_vert_factor = f32.f32(2)
         self.gnss_sigma_floor_m = f32.ratio(1, 20)
-        # m/s, speed/course velocity. In hand, the receiver's ~0.05 plus the antenna's lever
-        # velocity C (w x l), taken at the tick the fix is processed rather than at its epoch
+        # m/s, speed/course velocity: the floor, and the start, of the receiver's velocity noise
+        # the navigator learns (nav_kern.vel_noise). In hand, the receiver's ~0.05 plus the lever
+        # velocity C (w x l) of the antenna, taken at the tick the fix is processed, not its epoch
         # (up to 0.035 m/s with a 5 cm lever at the hand's 40 deg/s): 0.08. A car's 0.1 is
         # the same receiver with margin (`bench-nav --trial walk --nav gnss_vel_sigma=S`: NEES
         # 0.48 / 0.55 / 0.62 / 1.12 with 0.1 / 0.08 / 0.07 / 0.05, horizontal RMS 0.67 / 0.69 /

@@ -58,7 +58,7 @@ _M_GP = const(1586)
 _M_FX = const(1589)
 _M_AID = const(1602)
 _M_CN = const(1645)
-_M_GSF = const(1711)
+_M_GSF = const(1717)
 _CN_MH = const(1)
 # ---- end of nav.py's consts ----
 # ---- ins.py's consts used here: `python -m common.native.layout` writes them ----

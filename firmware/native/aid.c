@@ -163,7 +163,7 @@ static float sigma_v(const float *fx, const float *aid, float sh) {
 
 void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
     const float *ring_v, const float *corr, float *gp, const float *fx, float *used,
-    const float *w, const float *aid, int32_t b, float rk) {
+    const float *w, const float *aid, int32_t b, float rk, float rvel) {
     const float *c = x + X_C;
     const float *lv = aid + AID_LEVER;
     float lx = c[0] * lv[0] + c[1] * lv[1] + c[2] * lv[2]; /* nav_aid._lever_n */
@@ -201,7 +201,6 @@ void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p,
         float vn = sp * f32_cos(course);
         float lev[2];
         lever_vel_en(lev, x, w, lv);
-        float rvel = aid[AID_VEL_SIGMA] * aid[AID_VEL_SIGMA];
         z = (ring_v[b] + corr[3] + lev[0]) - ve;
         add_scalar(e, ii, z, rvel, 1, IX_VEL, 1.0f, 0, 0.0f, 0, 0.0f);
         z = (ring_v[b + 1] + corr[4] + lev[1]) - vn;

@@ -43,7 +43,7 @@ int32_t navk_bmi055_decode(int16_t *gyro, int16_t *accel, const uint8_t *raw_gyr
 void navk_prop_start(float *x, float *e, int32_t *ii, int32_t ticks);
 void navk_zupt_rows(float *e, int32_t *ii, const float *x, const float *aid);
 void navk_nhc_rows(float *e, int32_t *ii, const float *x, const float *aid);
-void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b, float rk);
+void navk_gnss_rows(float *e, int32_t *ii, const float *x, const float *ring_p, const float *ring_v, const float *corr, float *gp, const float *fx, float *used, const float *w, const float *aid, int32_t b, float rk, float rvel);
 int32_t navk_nmea_scan(int32_t *s, uint8_t *lb, const uint8_t *buf, int32_t n);
 void navk_nav_start(int32_t *c, int32_t *ii, float *m);
 void navk_nav_restart(int32_t *c, int32_t *ii, float *m, int32_t kind);

@@ -311,7 +311,8 @@ static void start_queued_fix(int32_t *c, int32_t *ki, float *m) {
     m[M_CN + CN_RK] = rk;
     c[C_USED_TICK] = c[C_FIX_TICK];
     navk_gnss_rows(m + M_E, ki, m + M_X, m + M_RING_P, m + M_RING_V, m + M_CORR, m + M_GP,
-        m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3, rk);
+        m + M_FX, m + M_US, m + M_W, m + M_AID, ((c[C_TICK] - age) % RING) * 3, rk,
+        m[M_CN + CN_RVEL]);
 }
 
 /* Eskf.widen: P's variances i0 + j at least var[j] */
@@ -499,6 +500,55 @@ static void consistency(const float *e, float *m, int32_t n, int32_t mask) {
     }
 }
 
+/* nav_kern.vel_noise: after a GNSS update whose velocity rows (n = 5: rows 3, 4 east, north)
+ * were accepted, the running mean of the change of y since the last fix squared over 2 less
+ * S - R: the receiver's velocity variance per axis the rows take next */
+static void vel_noise(const float *e, float *m, int32_t n, int32_t mask) {
+    float *cn = m + M_CN;
+    const float *z = e + E_Z;
+    const float *r = e + E_R;
+    float rv = cn[CN_RVEL];
+    if (n < 5 || (mask & 0x18) || !(r[3] > 0.0f && r[4] > 0.0f) || r[3] - rv > VR_MAX ||
+        r[4] - rv > VR_MAX) {
+        cn[CN_VOK] = 0.0f;
+        return;
+    }
+    float ye = z[3];
+    float yn = z[4];
+    float de = ye - cn[CN_VE];
+    float dn = yn - cn[CN_VN];
+    float ok = cn[CN_VOK];
+    cn[CN_VE] = ye;
+    cn[CN_VN] = yn;
+    cn[CN_VOK] = 1.0f;
+    if (!(ok > 0.0f)) { /* no previous fix to compare with */
+        return;
+    }
+    float k = cn[CN_KR] + 1.0f / cn[CN_RK];
+    if (k > VR_N) {
+        k = VR_N;
+    }
+    cn[CN_KR] = k;
+    if (k < 1.0f) { /* a fast receiver's first pair */
+        k = 1.0f;
+    }
+    float a = 1.0f / k;
+    float q = ((de * de + dn * dn) * 0.5f - ((r[3] - rv) + (r[4] - rv))) * 0.5f;
+    cn[CN_V2] = cn[CN_V2] + a * (q - cn[CN_V2]);
+    float lo = m[M_AID + AID_VEL_SIGMA];
+    lo = lo * lo;
+    rv = lo;
+    if (k >= VR_K0) {
+        rv = cn[CN_V2];
+        if (rv < lo) {
+            rv = lo;
+        } else if (rv > VR_MAX) {
+            rv = VR_MAX;
+        }
+    }
+    cn[CN_RVEL] = rv;
+}
+
 /* nav_aid._jumped: the fix just used farther from the last fix the filter took than the
    board can have moved between them at the INS's speed, plus JUMP_M and STEP_HALF_A t^2; or,
    with a course and t up to JUMP_VEL_S, farther than that margin from it moved by the fix's
@@ -608,6 +658,7 @@ static int32_t inject(int32_t *c, int32_t *ki, float *m) {
        rejected fix, or a horizontal drift, resets now (nav._drift_reset) */
     int32_t step = c[C_TICK] < c[C_STEP_UNTIL] && !c[C_GSF_DIS];
     consistency(e, m, n, mask);
+    vel_noise(e, m, n, mask);
     if (mask & 4) {
         c[C_V_REJECTS] += 1;
     } else {

@@ -54,8 +54,8 @@
 #define FREE_AIR F32_BITS(0x364F1914) /* 3.086e-06 */
 #define TWELFTH F32_BITS(0x3DAAAAAB) /* 0.083333336 */
 
-/* nav_kern.py: the watches (drift, suspicion, aiding), the receiver's unseen error and lag, the
- * frozen receiver, the angle units */
+/* nav_kern.py: the watches (drift, suspicion, aiding), the receiver's unseen error, lag and
+ * velocity noise, the frozen receiver, the angle units */
 #define RAD_PER_CDEG F32_BITS(0x393702D3) /* 0.00017453292 */
 #define CDEG_PER_RAD F32_BITS(0x45B30CA0) /* 5729.578 */
 #define FROZEN_V2 F32_BITS(0x3F800000) /* 1. */
@@ -72,6 +72,9 @@
 #define CN_CLIP F32_BITS(0x41C80000) /* 25. */
 #define LAG_V2 F32_BITS(0x40800000) /* 4. */
 #define LAG_K0 F32_BITS(0x40800000) /* 4. */
+#define VR_N F32_BITS(0x42000000) /* 32. */
+#define VR_K0 F32_BITS(0x40800000) /* 4. */
+#define VR_MAX F32_BITS(0x3E800000) /* 0.25 */
 
 /* nav_aid.py: the screening of fixes */
 #define NO_HEIGHT_VAR F32_BITS(0x4CBEBC20) /* 1.e+08 */

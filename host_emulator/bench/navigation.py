@@ -113,7 +113,7 @@ RATE_SCENARIOS = ("urban_drive", "highway_outage")
 # receivers by their velocity noise (white GNSS otherwise, the walk as held): m/s per axis
 # besides the 0.05 of the accuracy tables (a u-blox's). A phone's speed and bearing are noisier
 # (docs/benchmarks/realdata.md's walks), and the firmware, told nothing (NMEA has no velocity
-# sigma), takes every receiver's as gnss_vel_sigma
+# sigma), starts from gnss_vel_sigma and learns the receiver's (nav_kern.vel_noise)
 VEL_NOISE_M_S = (0.3, 0.5)
 VEL_NOISE_SCENARIOS = ("walk_real",)
 _VEL_NOISE = "velocity noise: "
@@ -559,9 +559,11 @@ def _vel_noise_lines(results):
         "",
         f"White GNSS but for the speed and course: their velocity's noise per axis, {base:g} m/s "
         "in the tables above, a phone's several times that. The firmware is not told (NMEA "
-        "carries no velocity sigma) and takes every receiver's as `gnss_vel_sigma` "
-        f"({told:.2g} m/s in hand): the real walks' failure with the phones' speed and bearing "
-        "(docs/benchmarks/realdata.md, its NEES), here on the simulated walk.",
+        f"carries no velocity sigma): it starts from `gnss_vel_sigma` ({told:.2g} m/s in hand) "
+        "and learns the receiver's from how its velocity innovations change from fix to fix "
+        '(docs/navigation.md, "The receiver\'s velocity noise"). Taken at the setting, such a '
+        "receiver was the real walks' failure with the phones' speed and bearing "
+        "(docs/benchmarks/realdata.md, its NEES).",
         "",
         "| scenario (profile) | velocity noise m/s | horiz RMS m | the fixes' horiz RMS m | "
         "vel RMS m/s | yaw deg | resets | inside 3 sigma | NEES |",

@@ -220,6 +220,8 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
         self.aid_watch = np.zeros(2, F32)  # nav._M_AW: the aiding watch's running means
         # the receiver's unseen error and the fixes' lag (nav_kern.consistency, layout nav._CN_*)
         self.consistency = np.zeros(fw_nav._NCN, F32)
+        # ... and its velocity noise, from the setting (nav_kern.vel_noise)
+        self.consistency[fw_nav._CN_RVEL] = self.cfg.gnss_vel_sigma * self.cfg.gnss_vel_sigma
         self.lag_search = np.zeros(fw_nav._NLS, F32)  # nav_kern.lag_search's residuals and means
         self.lag_tick = 0  # measurement tick of the last fix the lag search took (0: none)
         self.since_prop = 0
@@ -584,6 +586,7 @@ class NavModel(AlignmentModel, AidingModel, KernelsModel, GsfModel):
             # nav._inject: a sensor step, the bank agreeing with the heading: resets at once
             step = self.tick < self.step_until and not self.gsf_dis
             self._consistency(kf.innov, kf.gate_mask)
+            self._vel_noise(kf.innov, kf.gate_mask)
             self.v_rejects = self.v_rejects + 1 if kf.gate_mask & 4 else 0
             if kf.gate_mask & 0x1B:  # east or north, position or velocity
                 self.rejects += 1

@@ -14,6 +14,7 @@ from host_emulator.model.eskf import IX_ATT, IX_POS, IX_VEL
 from host_emulator.model.f32ops import F32, ONE, ZERO, cross, mat_vec, vec
 
 firmware_env.install()
+import nav as fw_nav  # noqa: E402  (the buffers' indices)
 import nav_aid as fw_nav_aid  # noqa: E402  (UNCONFIRMED)
 
 
@@ -50,7 +51,6 @@ class AidingModel:
         `slot`, plus the corrections injected since): z = dp + [(C l) x] phi; and, with a
         course, the horizontal velocity v + C_bn (w x l) against speed (sin, cos course). The
         position variances times rk (nav_kern.rate_r)."""
-        cfg = self.cfg
         kf = self.kf
         p_then = self.ring_p[slot]
         v_then = self.ring_v[slot]
@@ -83,7 +83,7 @@ class AidingModel:
             ve = sp * ref_fmath.sin(course)
             vn = sp * ref_fmath.cos(course)
             lever_vel_n = self._lever_vel_n()
-            rvel = cfg.gnss_vel_sigma * cfg.gnss_vel_sigma
+            rvel = self.consistency[fw_nav._CN_RVEL]  # learned (nav_kern.vel_noise)
             z = (v_then[0] + corr[3] + lever_vel_n[0]) - ve
             kf.add_scalar(z, rvel, [(IX_VEL, ONE)])
             z = (v_then[1] + corr[4] + lever_vel_n[1]) - vn

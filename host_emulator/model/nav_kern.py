@@ -5,7 +5,8 @@ kernels nav.py calls from its per-tick flow, bit for bit with the firmware's
 (`tests/model/test_nav_model.py`): the sample check (nav_kern.imu_check), the covariance's
 uncertainty (nav_kern.uncertain), the drift and aiding watches (nav_kern.drift_watch,
 nav_kern.aid_watch), the fixes' rate factor (nav_kern.rate_r), the receiver's unseen error
-(nav_kern.consistency) and the lag search (nav_kern.lag_search). They work on NavModel's
+(nav_kern.consistency), its velocity noise (nav_kern.vel_noise) and the lag search
+(nav_kern.lag_search). They work on NavModel's
 named attributes where the firmware's work on the Navigator's buffers; the tuning constants
 are nav_kern's own objects, the buffers' indices nav.py's.
 """
@@ -150,6 +151,38 @@ class KernelsModel:
                 cn[fw_nav._CN_VV] = (ONE - cn[fw_nav._CN_MV]) * (sig * sig)
             else:
                 cn[fw_nav._CN_VV] = (cn[fw_nav._CN_MV] - ONE) * p[2, 2]
+
+    def _vel_noise(self, innov, mask):
+        """nav_kern.vel_noise: after a fix whose velocity rows (the 4th and 5th scalars) were
+        accepted with S - R below _VR_MAX, the innovation kept and, when the last fix's was
+        kept too, the running mean of its change squared over 2 less S - R: the receiver's
+        velocity variance the rows take next, between gnss_vel_sigma^2 and _VR_MAX."""
+        cn = self.consistency
+        rv = cn[fw_nav._CN_RVEL]
+        if len(innov) < 5 or mask & 0x18:
+            cn[fw_nav._CN_VOK] = ZERO
+            return
+        (ye, se), (yn, sn) = innov[3:5]
+        if not (se > 0.0 and sn > 0.0) or se - rv > fw_kern._VR_MAX or sn - rv > fw_kern._VR_MAX:
+            cn[fw_nav._CN_VOK] = ZERO
+            return
+        de = ye - cn[fw_nav._CN_VE]
+        dn = yn - cn[fw_nav._CN_VN]
+        ok = cn[fw_nav._CN_VOK]
+        cn[fw_nav._CN_VE], cn[fw_nav._CN_VN], cn[fw_nav._CN_VOK] = ye, yn, ONE
+        if not ok > 0.0:
+            return
+        k = min(cn[fw_nav._CN_KR] + ONE / cn[fw_nav._CN_RK], fw_kern._VR_N)
+        cn[fw_nav._CN_KR] = k
+        k = max(k, ONE)
+        a = ONE / k
+        q = ((de * de + dn * dn) * HALF - ((se - rv) + (sn - rv))) * HALF
+        cn[fw_nav._CN_V2] = cn[fw_nav._CN_V2] + a * (q - cn[fw_nav._CN_V2])
+        lo = self.cfg.gnss_vel_sigma * self.cfg.gnss_vel_sigma
+        rv = lo
+        if k >= fw_kern._VR_K0:
+            rv = min(max(cn[fw_nav._CN_V2], lo), fw_kern._VR_MAX)
+        cn[fw_nav._CN_RVEL] = rv
 
     def _lag_search(self, age):
         """nav_kern.lag_search: per candidate lag, the change of the velocity residual against the

@@ -184,6 +184,50 @@ def test_consistency_estimates_the_innovations_deficit():
     assert np.array_equal(before, np.array(mem[fw_nav._M_CN : fw_nav._M_CN + fw_nav._NCN]))
 
 
+def _vel_fix(nav, ye, yn, hph=0.01, n=5, mask=0):
+    """nav_kern.vel_noise after a made-up update: velocity innovations ye, yn (m/s) whose S is
+    the rows' variance plus hph; returns the variance the rows take next."""
+    e, mem = nav.kf.e, nav.mem
+    z = f32.view(e, eskf.E_Z, 5)
+    r = f32.view(e, eskf.E_R, 5)
+    rv = mem[fw_nav._M_CN + fw_nav._CN_RVEL]
+    z[3], z[4] = ye, yn
+    r[3], r[4] = rv + hph, rv + hph
+    nav_kern.vel_noise(e, mem, n, mask)
+    return float(mem[fw_nav._M_CN + fw_nav._CN_RVEL])
+
+
+def test_the_velocity_noise_is_learned_from_how_the_innovations_change():
+    """nav_kern.vel_noise: velocity innovations of +-0.2 m/s alternating from fix to fix (a
+    receiver's noise) teach the rows 0.2^2 x 2 less H P H' = 0.07 m^2/s^2; 0.5 m/s that keeps its
+    value (the state's error) teaches nothing (the setting's 0.1^2 stays); 1 m/s of noise
+    stops at _VR_MAX; the setting's variance holds until _VR_K0 seconds of pairs are in; a
+    gated velocity row, no velocity rows or H P H' above _VR_MAX break the pair."""
+    floor = float(navcfg.NavConfig("car").gnss_vel_sigma) ** 2
+    nav = Navigator(navcfg.NavConfig("car"))
+    nav.mem[fw_nav._M_CN + fw_nav._CN_RK] = 1.0  # a fix a second (nav_kern.rate_r)
+    first = [_vel_fix(nav, 0.2 * (-1) ** k, -0.2 * (-1) ** k) for k in range(5)]
+    assert first[:4] == [pytest.approx(floor)] * 4  # the first fix, then three pairs
+    assert first[4] == pytest.approx(0.07, rel=1e-5)  # four pairs (_VR_K0): their mean
+    for k in range(200):
+        rv = _vel_fix(nav, 0.2 * (-1) ** k, 0.2 * (-1) ** k)
+    assert rv == pytest.approx(0.07, rel=1e-4)
+    for _ in range(200):
+        rv = _vel_fix(nav, 0.5, -0.5)
+    assert rv == pytest.approx(floor)
+    for k in range(200):
+        rv = _vel_fix(nav, (-1) ** k, (-1) ** k)
+    assert rv == pytest.approx(float(nav_kern._VR_MAX))
+    cn = fw_nav._M_CN
+    for breaks in ({"mask": 0x8}, {"mask": 0x10}, {"n": 3}, {"hph": 2.0}):
+        _vel_fix(nav, 0.0, 0.0, **breaks)
+        before = np.array(nav.mem[cn : cn + fw_nav._NCN])
+        _vel_fix(nav, 1.0, 1.0)  # the first of a new pair: kept, nothing learned
+        after = np.array(nav.mem[cn : cn + fw_nav._NCN])
+        assert after[fw_nav._CN_RVEL] == before[fw_nav._CN_RVEL], breaks
+        assert after[fw_nav._CN_V2] == before[fw_nav._CN_V2], breaks
+
+
 def _lag_run(stamp_lag_s, learn, set_s=0.0):
     truth, imu, gnss = scenario(
         "urban_drive",

@@ -196,12 +196,14 @@ def _across(gsf):
 
 def test_the_bank_finds_the_heading_of_a_board_across_the_way_it_moves():
     """The course says where the car goes, not where the board points: started from it the
-    heading is 90 deg off and the filter never undoes it; the bank finds it from the motion
-    alone (the receiver's velocity and the IMU's specific force)."""
+    heading is 90 deg off, and the filter alone is still more than 40 deg off 50 s later (with
+    the learned velocity noise, nav_kern.vel_noise, it undoes the rest after a minute and
+    more); the bank finds it from the motion alone
+    (the receiver's velocity and the IMU's specific force), within 10 deg throughout."""
     with_bank, _ = _across(True)
     course_only, resets = _across(False)
     assert len(with_bank) > 60 and max(abs(e) for e in with_bank) < 10.0, with_bank
-    assert min(abs(e) for e in course_only) > 40.0, course_only
+    assert min(abs(e) for e in course_only[:45]) > 40.0, course_only
     assert resets > 0  # the course start's filter keeps rejecting its fixes
 
 
