@@ -473,7 +473,7 @@ def consistency(e, mem, n, mask):
 # the receiver has, and its running mean is the variance the rows take, never below the
 # setting's (a floor, as gnss_sigma_floor_m is the position's) nor above _VR_MAX. Tried first,
 # the mean of y^2 less H P H' (about y's own mean) learned the turns of the Tokyo drive at 1 Hz
-# as noise (horizontal RMS 1.14 -> 1.64 m on a segment) and, on the board across the car
+# as noise (commit 21f23ad's message has the figures) and, on the board across the car
 # (tests/lib/test_yaw_gsf.py), the state's wrong heading. Only consecutive fixes whose velocity
 # rows the gate accepted count, while H P H' is below _VR_MAX (after a reset it is tens of
 # m^2/s^2, and the estimate then says nothing about a tenth of a m/s).

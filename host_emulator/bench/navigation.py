@@ -544,7 +544,7 @@ def _rate_receiver_lines(results):
 
 
 def _vel_noise_lines(results):
-    """The receivers by their velocity noise (VEL_NOISE_M_S), the firmware's setting as it is."""
+    """The receivers by their velocity noise (VEL_NOISE_M_S), the firmware told nothing of it."""
     from common import firmware_env
     from host_emulator.sim import gnss as sim_gnss
 
